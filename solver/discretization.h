@@ -1,0 +1,100 @@
+#pragma once
+// Patches (shooters) and elements (receivers) of every object, with OpenMesh connectivity.
+//
+// Index: Patch · Element · ObjectSurface · Discretization
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+
+#include "solver/scene.h"
+
+namespace penumbra {
+
+/// Object-space element mesh: one face per element, shared vertices within a smooth surface.
+using ElementMesh = OpenMesh::PolyMesh_ArrayKernelT<>;
+
+/// A shooter: a coarse piece of one object's surface made of whole elements.
+struct Patch {
+    int object = -1;
+    int material = -1;  ///< index into Discretization::materials()
+    double area = 0;    ///< m², world space
+    Vec3 centroid{0};
+    Vec3 normal{0};     ///< area-weighted mean unit normal
+    double radius = 0;  ///< bounding-sphere radius about centroid
+    std::vector<int> elements;
+    std::string toString() const;
+};
+
+/// A receiver. Vertices index ObjectSurface::worldPositions of its object, counter-clockwise
+/// seen from the front (the side `normal` points to).
+struct Element {
+    int patch = -1;
+    int object = -1;
+    int face = -1;  ///< face index in the object's ElementMesh
+    double area = 0;
+    Vec3 centroid{0};
+    Vec3 normal{0};
+    std::vector<int> vertices;
+    std::string toString() const;
+};
+
+/// One object's element mesh and its placement.
+struct ObjectSurface {
+    std::string id;
+    ElementMesh mesh;                ///< object space; face i is element faceElement[i]
+    std::vector<int> faceElement;    ///< face index -> element index
+    std::vector<Vec3> worldPositions;///< per mesh vertex, world space
+    Mat4 worldFromObject{1.0};
+    bool twoSided = false;
+};
+
+/// Splits a scene into patches and elements (Cohen et al. 1988 §3.4). Primitives are gridded
+/// parametrically; meshes keep their triangles as elements (split when larger than
+/// element_size) and group them into patches by region growing over OpenMesh adjacency.
+class Discretization {
+public:
+    /// Throws std::invalid_argument naming the object when an object has no valid faces.
+    explicit Discretization(const Scene& scene);
+
+    const std::vector<Patch>& patches() const { return mPatches; }
+    const std::vector<Element>& elements() const { return mElements; }
+    const std::vector<ObjectSurface>& objects() const { return mObjects; }
+    const std::vector<Material>& materials() const { return mMaterials; }
+    const Material& patchMaterial(int patch) const { return mMaterials[mPatches[patch].material]; }
+    const Material& elementMaterial(int e) const { return patchMaterial(mElements[e].patch); }
+
+    /// World-space polygon of an element.
+    std::vector<Vec3> elementPolygon(int element) const;
+
+    /// Elements sharing a vertex with `element` (OpenMesh vertex-face circulation).
+    std::vector<int> elementNeighbours(int element) const;
+
+    /// Per-vertex value of an object: the area-weighted mean of `elementValue` over the
+    /// elements around each vertex (for Gouraud display and export).
+    std::vector<Rgb> vertexValues(int object, const std::vector<Rgb>& elementValue) const;
+
+    /// Splits an element into four (quads into quads, triangles into triangles), keeping the
+    /// mesh conforming by inserting edge midpoints into neighbours. Returns the new element
+    /// indices; the first reuses the parent's index.
+    std::vector<int> subdivideElement(int element);
+
+    double totalArea() const { return mTotalArea; }
+    std::string toString() const;
+
+private:
+    void addObject(const Scene& scene, int objectIndex);
+    int addMaterial(const Material& m);
+    void finishElement(int element);
+    void finishPatch(int patch);
+
+    std::vector<Patch> mPatches;
+    std::vector<Element> mElements;
+    std::vector<ObjectSurface> mObjects;
+    std::vector<Material> mMaterials;
+    double mTotalArea = 0;
+};
+
+}  // namespace penumbra

@@ -1,0 +1,44 @@
+#pragma once
+// Form factors: the analytic point-to-polygon form factor (Lambert's contour integral) and
+// the ray-traced point-to-patch estimate in the manner of Wallace et al. 1989.
+
+#include <cstdint>
+#include <vector>
+
+#include "solver/scene.h"
+
+namespace penumbra {
+
+class Discretization;
+class RayTracer;
+
+/// Form factor from a differential area at `x` with unit normal `n` to a planar polygon
+/// (vertices counter-clockwise seen from its front). The polygon is clipped to the
+/// hemisphere above `x`; a point behind the polygon's plane sees nothing (one-sided).
+/// Lambert's formula: F = 1/(2π) Σ_k β_k (n · γ̂_k), β_k the angle each edge subtends.
+double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon);
+
+/// Deterministic 64-bit hash for pair-seeded sample patterns.
+std::uint64_t hashPair(std::uint64_t a, std::uint64_t b);
+
+/// Number of visibility rays used for a pair with unoccluded form factor `fUnoccluded`.
+/// Depends on geometry only, never on energy, so a later recomputation of the same pair
+/// traces the same rays.
+int visibilityRayCount(double fUnoccluded, int maxRays);
+
+/// Ray-traced form factor from point (x, n) to patch `patch`: the exact unoccluded form
+/// factor of each of the patch's element polygons, times the visible fraction estimated by
+/// `rays` shadow rays to points stratified over the patch by that form factor. The sample
+/// pattern depends only on (seed, receiverKey, patch), so it is reproducible bit for bit.
+/// `ignoreObject` is passed to the ray tracer. Returns 0 for points behind the patch.
+struct PointToPatch {
+    double unoccluded = 0;  ///< analytic, no visibility
+    double visible = 0;     ///< the estimate with visibility
+    int rays = 0;           ///< rays traced
+};
+PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer,
+                               const Vec3& x, const Vec3& n, int patch,
+                               std::uint64_t receiverKey, std::uint64_t seed, int maxRays,
+                               int ignoreObject = -1);
+
+}  // namespace penumbra

@@ -1,0 +1,83 @@
+#pragma once
+// Progressive refinement radiosity (Cohen, Chen, Wallace, Greenberg 1988): shoot from the
+// patch with the largest unshot energy ΔB·A, to every element, in interruptible steps.
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "solver/discretization.h"
+#include "solver/ray_tracer.h"
+
+namespace penumbra {
+
+struct SolverOptions {
+    std::uint64_t seed = 1;
+    int maxRaysPerPair = 16;      ///< visibility rays for the closest pairs
+    double gradientThreshold = 0; ///< >0: adaptive element subdivision (Cohen §3.4)
+    int maxSubdivisionLevel = 2;
+};
+
+struct SolverStats {
+    std::uint64_t shots = 0;
+    std::uint64_t rays = 0;
+    double seconds = 0;
+    std::uint64_t subdivisions = 0;
+};
+
+class ProgressiveSolver {
+public:
+    /// `disc` and `tracer` must outlive the solver.
+    ProgressiveSolver(Discretization& disc, RayTracer& tracer, SolverOptions options = {});
+    ~ProgressiveSolver();
+
+    /// Performs up to `maxShots` shots and returns the number done (fewer when no unshot
+    /// energy is left). Control returns to the caller after each call.
+    int step(int maxShots);
+
+    /// Shoots until unshotFraction() < eps or `maxShots` shots; `progress(fraction)` is
+    /// called after each shot when given. Returns the shots done.
+    std::uint64_t converge(double eps, std::uint64_t maxShots,
+                           const std::function<void(double)>& progress = {});
+
+    /// Σ |ΔB|·A over patches, summed over RGB (W).
+    double unshotEnergy() const;
+    /// Σ E·A over patches, summed over RGB (W).
+    double emittedEnergy() const { return mEmittedEnergy; }
+    /// unshotEnergy / emittedEnergy (0 for a scene without emitters).
+    double unshotFraction() const;
+
+    /// Element radiosity B (W/m²), including emission.
+    const std::vector<Rgb>& radiosity() const { return mElementB; }
+    /// Element radiosity for display: B + ρ·Ambient (Cohen eq. 13).
+    std::vector<Rgb> displayRadiosity() const;
+    /// Cohen eq. 12: R Σ ΔB_j A_j / Σ A_j.
+    Rgb ambient() const;
+    /// Area-weighted mean of the patch's element radiosities.
+    Rgb patchRadiosity(int patch) const;
+    const Rgb& unshotRadiosity(int patch) const { return mPatchUnshot[patch]; }
+
+    /// Irradiance H (W/m²) arriving at point x with unit normal n, gathered from every
+    /// patch's current radiosity with `rays` visibility rays per patch.
+    Rgb irradianceAt(const Vec3& x, const Vec3& n, int rays = 16) const;
+
+    const SolverStats& stats() const { return mStats; }
+    const Discretization& discretization() const { return mDisc; }
+
+private:
+    struct Impl;
+    void shootPatch(int patch);
+    void initialize();
+
+    Discretization& mDisc;
+    RayTracer& mTracer;
+    SolverOptions mOptions;
+    std::vector<Rgb> mElementB;
+    std::vector<Rgb> mPatchUnshot;
+    double mEmittedEnergy = 0;
+    SolverStats mStats;
+    std::unique_ptr<Impl> mImpl;
+};
+
+}  // namespace penumbra

@@ -1,0 +1,61 @@
+#pragma once
+// The one owner of Embree: device, one geometry scene per object, a top-level scene of
+// instances. A move is an instance transform update and a top-level commit.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "solver/scene.h"
+
+struct RTCDeviceTy;
+struct RTCSceneTy;
+
+namespace penumbra {
+
+class Discretization;
+
+struct RayHit {
+    int object = -1;   ///< -1: no hit
+    int element = -1;  ///< element index in the Discretization
+    double t = 0;
+    Vec3 position{0};
+    Vec3 geometricNormal{0};  ///< world space, unit, front side of the element
+    bool backFace = false;    ///< the ray arrived at the back of the surface
+    /// Barycentric weights of the hit over the element's vertices (same order as
+    /// Element::vertices).
+    std::vector<double> weights;
+};
+
+class RayTracer {
+public:
+    /// Builds one instanced geometry per object of `discretization` (which must outlive this).
+    explicit RayTracer(const Discretization& discretization);
+    ~RayTracer();
+    RayTracer(const RayTracer&) = delete;
+    RayTracer& operator=(const RayTracer&) = delete;
+
+    /// Rebuilds everything after the discretization changed (subdivision, added objects).
+    void rebuild();
+
+    /// True when the open segment from `from` to `to` is blocked. `ignoreObject` >= 0 makes
+    /// that object transparent (redistribution needs visibility with and without it).
+    bool occluded(const Vec3& from, const Vec3& to, int ignoreObject = -1) const;
+
+    /// Nearest hit along origin + t·dir, t in (tNear, tFar).
+    RayHit intersect(const Vec3& origin, const Vec3& dir, double tNear = 0.0,
+                     double tFar = 1e30, int ignoreObject = -1) const;
+
+    /// Rays traced since construction (occlusion and intersection), for reports.
+    unsigned long long rayCount() const;
+    /// Scene-size-relative offset used to leave surfaces without self-hits.
+    double epsilon() const { return mEpsilon; }
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> mImpl;
+    const Discretization& mDisc;
+    double mEpsilon = 1e-5;
+};
+
+}  // namespace penumbra
