@@ -69,6 +69,9 @@ private:
     struct Impl;
     void shootPatch(int patch);
     void initialize();
+    /// Radiosity element `e` receives when `shooter` shoots unshot radiosity dB.
+    Rgb receivedFrom(int shooter, int e, const Rgb& dB) const;
+    void subdivideSteepElements(int shooter, const Rgb& dB);
 
     Discretization& mDisc;
     RayTracer& mTracer;

@@ -1,0 +1,188 @@
+// penumbra: the command line (DESIGN.md "Command line"). Parses arguments and calls the
+// libraries; exit status 0 success, 1 a --check mismatch, 2 bad input.
+#include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <optional>
+
+#include "edit/export.h"
+#include "edit/input_error.h"
+#include "edit/lit_scene.h"
+#include "render/gouraud_renderer.h"
+#include "render/image.h"
+
+using namespace penumbra;
+
+namespace {
+
+struct SolveArgs {
+    std::string scene;
+    double converge = 1e-3;
+    std::uint64_t maxShots = 1000000;
+    int threads = 0;
+    std::uint64_t seed = 1;
+    double subdivide = 0;
+    std::string save, exportPath, report;
+};
+
+void addSolveOptions(CLI::App* cmd, SolveArgs& a) {
+    cmd->add_option("SCENE", a.scene, "scene file (*.json)")->required();
+    cmd->add_option("--converge", a.converge,
+                    "stop when unshot energy < EPS x emitted energy (default 1e-3)")
+        ->check(CLI::Range(0.0, 1.0));
+    cmd->add_option("--max-shots", a.maxShots, "at most N shots");
+    cmd->add_option("--threads", a.threads, "worker threads (default: all cores)")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--seed", a.seed, "seed of the pair-seeded sample patterns");
+    cmd->add_option("--subdivide", a.subdivide,
+                    "adaptive element subdivision where neighbour radiosity differs by more "
+                    "than this fraction (0: off)")
+        ->check(CLI::Range(0.0, 10.0));
+}
+
+/// Progress on stderr when it is a terminal.
+std::function<void(double)> progressPrinter(double eps) {
+    if (!isatty(STDERR_FILENO)) return {};
+    return [eps](double unshot) {
+        static int calls = 0;
+        if (++calls % 16) return;
+        double done = unshot > 0 ? std::log(unshot) / std::log(eps) : 1.0;
+        std::fprintf(stderr, "\rsolving: unshot %.4f%%  (%3.0f%%)", unshot * 100,
+                     std::clamp(done, 0.0, 1.0) * 100);
+    };
+}
+
+std::unique_ptr<LitScene> openAndSolve(const SolveArgs& a) {
+    SolverOptions options;
+    options.seed = a.seed;
+    options.gradientThreshold = a.subdivide;
+    auto lit = LitScene::open(a.scene, options);
+    lit->solver().converge(a.converge, a.maxShots, progressPrinter(a.converge));
+    if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\n");
+    return lit;
+}
+
+void writeReport(const std::string& path, const nlohmann::json& report) {
+    if (!path.empty()) writeFileAtomically(path, report.dump(2) + "\n");
+}
+
+int runSolve(const SolveArgs& a) {
+    auto lit = openAndSolve(a);
+    if (!a.save.empty()) saveSolution(*lit, a.save);
+    if (!a.exportPath.empty())
+        exportLitScene(lit->discretization(), lit->solver().radiosity(), a.exportPath);
+    nlohmann::json report = lit->reportJson();
+    writeReport(a.report, report);
+    std::fprintf(stderr, "penumbra: %llu shots, %llu rays, %.3f s, unshot %.3g, %zu patches, %zu elements\n",
+                 static_cast<unsigned long long>(lit->solver().stats().shots),
+                 static_cast<unsigned long long>(lit->solver().stats().rays),
+                 lit->solver().stats().seconds, lit->solver().unshotFraction(),
+                 lit->discretization().patches().size(), lit->discretization().elements().size());
+    return 0;
+}
+
+int runProbe(const SolveArgs& a, const std::string& pointsPath) {
+    auto points = readProbePoints(pointsPath);
+    auto lit = openAndSolve(a);
+    for (const ProbePoint& p : points) {
+        Rgb h = lit->solver().irradianceAt(p.position, p.normal, 64);
+        std::printf("%.9g %.9g %.9g\n", h.x, h.y, h.z);
+    }
+    return 0;
+}
+
+struct RenderArgs {
+    std::string camera, mode = "gouraud", out;
+    int width = 512, height = 512, samples = 2;
+};
+
+int runRender(const SolveArgs& a, const RenderArgs& r) {
+    if (r.mode != "gouraud")
+        throw InputError("--mode", "", "unknown or not yet available mode '" + r.mode +
+                                           "' (available: gouraud)");
+    auto lit = openAndSolve(a);
+    const Scene& scene = lit->scene();
+    Camera camera;
+    if (!r.camera.empty()) {
+        const Camera* c = scene.findCamera(r.camera);
+        if (!c) throw InputError(a.scene, "cameras", "no camera named '" + r.camera + "'");
+        camera = *c;
+    } else if (const Camera* c = scene.findCamera("default")) {
+        camera = *c;
+    } else if (!scene.cameras.empty()) {
+        camera = scene.cameras.front();
+    }
+    Image image = renderGouraud(lit->discretization(), lit->tracer(),
+                                lit->solver().displayRadiosity(), camera, r.width, r.height,
+                                r.samples);
+    writeImage(image, r.out);
+    nlohmann::json report = lit->reportJson();
+    report["image"] = r.out;
+    writeReport(a.report, report);
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{"Penumbra: interactive radiosity lighting editor, command line"};
+    app.require_subcommand(1);
+    SolveArgs solve;
+    std::string pointsPath;
+    RenderArgs render;
+
+    CLI::App* solveCmd = app.add_subcommand("solve", "solve a scene to convergence");
+    addSolveOptions(solveCmd, solve);
+    solveCmd->add_option("--save", solve.save, "write the solution (JSON)");
+    solveCmd->add_option("--export", solve.exportPath, "export the lit scene (.ply .gltf .glb .obj)");
+    solveCmd->add_option("--report", solve.report, "write a JSON report");
+
+    CLI::App* probeCmd = app.add_subcommand("probe", "print irradiance at points");
+    addSolveOptions(probeCmd, solve);
+    probeCmd->add_option("--points", pointsPath, "file of \"x y z nx ny nz\" lines")->required();
+
+    CLI::App* exportCmd = app.add_subcommand("export", "solve and export the lit scene");
+    addSolveOptions(exportCmd, solve);
+    exportCmd->add_option("OUT", solve.exportPath, "output (.ply .gltf .glb .obj)")->required();
+    exportCmd->add_option("--report", solve.report, "write a JSON report");
+
+    CLI::App* renderCmd = app.add_subcommand("render", "solve and render an image");
+    addSolveOptions(renderCmd, solve);
+    renderCmd->add_option("--camera", render.camera, "camera name (default: 'default' or the first)");
+    renderCmd->add_option("--width", render.width)->check(CLI::Range(1, 16384));
+    renderCmd->add_option("--height", render.height)->check(CLI::Range(1, 16384));
+    renderCmd->add_option("--samples", render.samples, "samples per pixel per axis")
+        ->check(CLI::Range(1, 16));
+    renderCmd->add_option("--mode", render.mode, "gouraud");
+    renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();
+    renderCmd->add_option("--report", solve.report, "write a JSON report");
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        std::fprintf(stderr, "penumbra: %s\n", e.what());
+        return 2;
+    }
+
+    std::optional<tbb::global_control> threads;
+    if (solve.threads > 0)
+        threads.emplace(tbb::global_control::max_allowed_parallelism, solve.threads);
+
+    try {
+        if (*solveCmd) return runSolve(solve);
+        if (*probeCmd) return runProbe(solve, pointsPath);
+        if (*exportCmd) return runSolve(solve);
+        if (*renderCmd) return runRender(solve, render);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "penumbra: %s\n", e.what());
+        return 2;
+    }
+    return 2;
+}

@@ -1,0 +1,590 @@
+// Index: geometry helpers · parametric grids (quad, box, sphere, cylinder) · meshes
+//        (split, region growing) · Discretization queries · subdivision
+#include "solver/discretization.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+namespace penumbra {
+
+namespace {
+
+using VHandle = ElementMesh::VertexHandle;
+using FHandle = ElementMesh::FaceHandle;
+
+ElementMesh::Point toPoint(const Vec3& v) {
+    return ElementMesh::Point(static_cast<float>(v.x), static_cast<float>(v.y),
+                              static_cast<float>(v.z));
+}
+
+Vec3 transformPoint(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
+
+/// Newell's method: area-weighted normal (length = 2 × area) of a polygon.
+Vec3 newellNormal(const std::vector<Vec3>& poly) {
+    Vec3 n(0.0);
+    for (std::size_t i = 0; i < poly.size(); ++i) {
+        const Vec3& a = poly[i];
+        const Vec3& b = poly[(i + 1) % poly.size()];
+        n += glm::cross(a, b);
+    }
+    return n;
+}
+
+int cellsFor(double length, double target) {
+    if (!(length > 0) || !(target > 0)) return 1;
+    return std::max(1, static_cast<int>(std::ceil(length / target - 1e-9)));
+}
+
+constexpr double kMeshPatchNormalCos = 0.7071;  // cos 45°: mesh patches stay roughly flat
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// toString
+
+std::string Patch::toString() const {
+    std::ostringstream s;
+    s << "Patch{object " << object << ", area " << area << ", elements " << elements.size()
+      << ", centroid (" << centroid.x << ' ' << centroid.y << ' ' << centroid.z << ")}";
+    return s.str();
+}
+
+std::string Element::toString() const {
+    std::ostringstream s;
+    s << "Element{patch " << patch << ", object " << object << ", area " << area
+      << ", centroid (" << centroid.x << ' ' << centroid.y << ' ' << centroid.z << "), normal ("
+      << normal.x << ' ' << normal.y << ' ' << normal.z << ")}";
+    return s.str();
+}
+
+std::string Discretization::toString() const {
+    std::ostringstream s;
+    s << "Discretization{" << mObjects.size() << " objects, " << mPatches.size() << " patches, "
+      << mElements.size() << " elements, area " << mTotalArea << " m²}";
+    return s.str();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Construction
+
+Discretization::Discretization(const Scene& scene) {
+    for (int i = 0; i < static_cast<int>(scene.objects.size()); ++i) addObject(scene, i);
+}
+
+int Discretization::addMaterial(const Material& m) {
+    mMaterials.push_back(m);
+    return static_cast<int>(mMaterials.size()) - 1;
+}
+
+void Discretization::finishElement(int e) {
+    Element& el = mElements[e];
+    std::vector<Vec3> poly = elementPolygon(e);
+    Vec3 n = newellNormal(poly);
+    double len = glm::length(n);
+    el.area = 0.5 * len;
+    el.normal = len > 0 ? n / len : Vec3(0, 1, 0);
+    // Area centroid by fan triangulation.
+    Vec3 c(0.0);
+    double total = 0;
+    for (std::size_t i = 1; i + 1 < poly.size(); ++i) {
+        double a = 0.5 * glm::length(glm::cross(poly[i] - poly[0], poly[i + 1] - poly[0]));
+        c += a * (poly[0] + poly[i] + poly[i + 1]) / 3.0;
+        total += a;
+    }
+    el.centroid = total > 0 ? c / total : poly[0];
+}
+
+void Discretization::finishPatch(int p) {
+    Patch& patch = mPatches[p];
+    patch.area = 0;
+    Vec3 c(0.0), n(0.0);
+    for (int e : patch.elements) {
+        const Element& el = mElements[e];
+        patch.area += el.area;
+        c += el.area * el.centroid;
+        n += el.area * el.normal;
+    }
+    patch.centroid = patch.area > 0 ? c / patch.area : c;
+    double len = glm::length(n);
+    patch.normal = len > 0 ? n / len : Vec3(0, 1, 0);
+    patch.radius = 0;
+    for (int e : patch.elements)
+        for (const Vec3& v : elementPolygon(e))
+            patch.radius = std::max(patch.radius, glm::length(v - patch.centroid));
+}
+
+namespace {
+
+/// Collects faces for one object before they become elements and patches.
+struct SurfaceBuilder {
+    ObjectSurface& surface;
+    std::vector<std::vector<int>> faceVertices;  ///< per face, object mesh vertex indices
+    std::vector<int> faceGroup;                  ///< per face, patch group (or -1: grow later)
+    std::vector<int> faceMaterial;
+
+    VHandle addVertex(const Vec3& objectPos) { return surface.mesh.add_vertex(toPoint(objectPos)); }
+
+    /// Adds a polygon; when OpenMesh refuses it (non-manifold), its vertices are duplicated
+    /// so it stands alone. Returns false for degenerate polygons.
+    bool addFace(std::vector<VHandle> vs, int group, int material) {
+        // Drop repeated consecutive vertices (grid poles, cap centres).
+        std::vector<VHandle> clean;
+        for (VHandle v : vs)
+            if (clean.empty() || clean.back() != v) clean.push_back(v);
+        while (clean.size() > 1 && clean.front() == clean.back()) clean.pop_back();
+        if (clean.size() < 3) return false;
+        FHandle f = surface.mesh.add_face(clean);
+        if (!f.is_valid()) {
+            std::vector<VHandle> copy;
+            for (VHandle v : clean) copy.push_back(surface.mesh.add_vertex(surface.mesh.point(v)));
+            f = surface.mesh.add_face(copy);
+            if (!f.is_valid()) return false;
+            clean = copy;
+        }
+        std::vector<int> idx;
+        for (VHandle v : clean) idx.push_back(v.idx());
+        faceVertices.push_back(std::move(idx));
+        faceGroup.push_back(group);
+        faceMaterial.push_back(material);
+        return true;
+    }
+};
+
+/// A parametric surface P(u, v), u and v in [0, 1], gridded into patches of elements.
+struct ParamGrid {
+    std::function<Vec3(double, double)> point;  ///< object space
+    Vec3 outwardAt;                             ///< reference direction at (0.5, 0.5)
+    bool wrapU = false;                         ///< u = 0 and u = 1 coincide
+    bool collapseV0 = false, collapseV1 = false;///< the rows v = 0 / v = 1 are a single point
+    int minCellsU = 1, minCellsV = 1;
+};
+
+}  // namespace
+
+void Discretization::addObject(const Scene& scene, int objectIndex) {
+    const SceneObject& obj = scene.objects[objectIndex];
+    mObjects.push_back({});
+    ObjectSurface& surface = mObjects.back();
+    surface.id = obj.id;
+    surface.worldFromObject = obj.transform.worldFromObject();
+    const Mat4& M = surface.worldFromObject;
+    const glm::dmat3 linear(M);
+    const double patchSize = scene.settings.patchSize;
+    const double elementSize = scene.settings.elementSize;
+
+    // Materials: the object's, or the mesh's own per triangle.
+    int objectMaterial = -1;
+    std::vector<int> meshMaterials;
+    if (!obj.material.empty()) {
+        const Material* m = scene.findMaterial(obj.material);
+        if (!m)
+            throw std::invalid_argument("object '" + obj.id + "': unknown material '" +
+                                        obj.material + "'");
+        objectMaterial = addMaterial(*m);
+        surface.twoSided = m->twoSided;
+    } else {
+        for (const Material& m : obj.shape.mesh.materials) meshMaterials.push_back(addMaterial(m));
+        if (meshMaterials.empty()) objectMaterial = addMaterial(Material{});
+    }
+
+    SurfaceBuilder builder{surface, {}, {}, {}};
+    int nextGroup = 0;
+
+    // Grid a parametric surface: patches of about patchSize, elements of about elementSize,
+    // measured in world space.
+    auto addGrid = [&](ParamGrid grid) {
+        auto worldLen = [&](Vec3 a, Vec3 b) { return glm::length(linear * (b - a)); };
+        // Longest world-space length of a u-line and of a v-line.
+        double lenU = 0, lenV = 0;
+        for (double t : {0.0, 0.5, 1.0}) {
+            double lu = 0, lv = 0;
+            for (int k = 0; k < 16; ++k) {
+                lu += worldLen(grid.point(k / 16.0, t), grid.point((k + 1) / 16.0, t));
+                lv += worldLen(grid.point(t, k / 16.0), grid.point(t, (k + 1) / 16.0));
+            }
+            lenU = std::max(lenU, lu);
+            lenV = std::max(lenV, lv);
+        }
+        int pu = cellsFor(lenU, patchSize), pv = cellsFor(lenV, patchSize);
+        int eu = cellsFor(lenU / pu, elementSize), ev = cellsFor(lenV / pv, elementSize);
+        while (pu * eu < grid.minCellsU) ++eu;
+        while (pv * ev < grid.minCellsV) ++ev;
+        int nu = pu * eu, nv = pv * ev;
+        // Orientation: cross(dP/du, dP/dv) must point outward.
+        Vec3 du = grid.point(0.51, 0.5) - grid.point(0.49, 0.5);
+        Vec3 dv = grid.point(0.5, 0.51) - grid.point(0.5, 0.49);
+        bool flip = glm::dot(glm::cross(du, dv), grid.outwardAt) < 0;
+        auto P = [&](int i, int j) {
+            double u = static_cast<double>(i) / nu;
+            return grid.point(flip ? 1.0 - u : u, static_cast<double>(j) / nv);
+        };
+        std::vector<VHandle> verts((nu + 1) * (nv + 1));
+        VHandle pole0, pole1;
+        for (int j = 0; j <= nv; ++j)
+            for (int i = 0; i <= nu; ++i) {
+                VHandle& h = verts[j * (nu + 1) + i];
+                if (grid.wrapU && i == nu) h = verts[j * (nu + 1)];
+                else if (grid.collapseV0 && j == 0) h = pole0.is_valid() ? pole0 : (pole0 = builder.addVertex(P(i, j)));
+                else if (grid.collapseV1 && j == nv) h = pole1.is_valid() ? pole1 : (pole1 = builder.addVertex(P(i, j)));
+                else h = builder.addVertex(P(i, j));
+            }
+        for (int b = 0; b < pv; ++b)
+            for (int a = 0; a < pu; ++a) {
+                int group = nextGroup++;
+                for (int j = b * ev; j < (b + 1) * ev; ++j)
+                    for (int i = a * eu; i < (a + 1) * eu; ++i)
+                        builder.addFace({verts[j * (nu + 1) + i], verts[j * (nu + 1) + i + 1],
+                                         verts[(j + 1) * (nu + 1) + i + 1],
+                                         verts[(j + 1) * (nu + 1) + i]},
+                                        group, objectMaterial);
+            }
+    };
+
+    const Shape& shape = obj.shape;
+    switch (shape.type) {
+        case ShapeType::Quad: {
+            double sx = shape.size.x, sz = shape.size.z;
+            if (shape.size.z == 0 && shape.size.y != 0) sz = shape.size.y;
+            addGrid({[=](double u, double v) { return Vec3(-sx / 2 + u * sx, 0, sz / 2 - v * sz); },
+                     Vec3(0, 1, 0)});
+            break;
+        }
+        case ShapeType::Box: {
+            Vec3 h = shape.size / 2.0;
+            const Vec3 axes[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+            for (int k = 0; k < 3; ++k)
+                for (double sign : {1.0, -1.0}) {
+                    Vec3 n = sign * axes[k];
+                    Vec3 a = axes[(k + 1) % 3], b = axes[(k + 2) % 3];
+                    double la = glm::dot(shape.size, a), lb = glm::dot(shape.size, b);
+                    Vec3 centre = n * glm::dot(h, axes[k]);
+                    addGrid({[=](double u, double v) {
+                                 return centre + a * ((u - 0.5) * la) + b * ((v - 0.5) * lb);
+                             },
+                             n});
+                }
+            break;
+        }
+        case ShapeType::Sphere: {
+            double r = shape.radius;
+            ParamGrid g{[=](double u, double v) {
+                            double phi = 2 * M_PI * u, theta = M_PI * v;
+                            return Vec3(r * std::sin(theta) * std::cos(phi), r * std::cos(theta),
+                                        r * std::sin(theta) * std::sin(phi));
+                        },
+                        Vec3(0, 0, 1)};
+            // (0.5, 0.5) is at phi = π, on the equator: outward is -X.
+            g.outwardAt = Vec3(-1, 0, 0);
+            g.wrapU = true;
+            g.collapseV0 = g.collapseV1 = true;
+            g.minCellsU = shape.segments;
+            g.minCellsV = std::max(2, shape.segments / 2);
+            addGrid(g);
+            break;
+        }
+        case ShapeType::Cylinder: {
+            double r = shape.radius, hh = shape.height / 2;
+            ParamGrid side{[=](double u, double v) {
+                               double phi = 2 * M_PI * u;
+                               return Vec3(r * std::cos(phi), -hh + v * 2 * hh, r * std::sin(phi));
+                           },
+                           Vec3(-1, 0, 0)};
+            side.wrapU = true;
+            side.minCellsU = shape.segments;
+            addGrid(side);
+            for (double sign : {1.0, -1.0}) {
+                ParamGrid cap{[=](double u, double v) {
+                                  double phi = 2 * M_PI * u;
+                                  return Vec3(v * r * std::cos(phi), sign * hh, v * r * std::sin(phi));
+                              },
+                              Vec3(0, sign, 0)};
+                cap.wrapU = true;
+                cap.collapseV0 = true;
+                cap.minCellsU = shape.segments;
+                addGrid(cap);
+            }
+            break;
+        }
+        case ShapeType::Mesh: {
+            const TriMesh& tm = shape.mesh;
+            std::vector<VHandle> base;
+            base.reserve(tm.positions.size());
+            for (const Vec3& p : tm.positions) base.push_back(builder.addVertex(p));
+            // Points on a split edge are shared by both triangles: key (lo, hi, step from lo).
+            std::map<std::tuple<int, int, int>, VHandle> edgePoints;
+            for (std::size_t t = 0; t < tm.triangles.size(); ++t) {
+                const auto& tri = tm.triangles[t];
+                int material = objectMaterial;
+                if (material < 0) {
+                    int tmi = t < tm.triangleMaterial.size() ? tm.triangleMaterial[t] : 0;
+                    material = meshMaterials.at(std::clamp(tmi, 0, int(meshMaterials.size()) - 1));
+                }
+                Vec3 p[3];
+                for (int k = 0; k < 3; ++k) p[k] = tm.positions[tri[k]];
+                double longest = 0;
+                for (int k = 0; k < 3; ++k)
+                    longest = std::max(longest, glm::length(linear * (p[(k + 1) % 3] - p[k])));
+                int n = cellsFor(longest, elementSize);
+                if (n == 1) {
+                    builder.addFace({base[tri[0]], base[tri[1]], base[tri[2]]}, -1, material);
+                    continue;
+                }
+                // Regular split into n² triangles; lattice point (i, j): i steps from vertex 0
+                // toward 1, j toward 2.
+                auto latticeVertex = [&](int i, int j) -> VHandle {
+                    int k0 = n - i - j;
+                    if (i == n) return base[tri[1]];
+                    if (j == n) return base[tri[2]];
+                    if (k0 == n) return base[tri[0]];
+                    Vec3 pos = (double(k0) * p[0] + double(i) * p[1] + double(j) * p[2]) / double(n);
+                    auto edgeKey = [&](int a, int b, int stepsFromA) {
+                        int va = tri[a], vb = tri[b];
+                        return va < vb ? std::make_tuple(va, vb, stepsFromA)
+                                       : std::make_tuple(vb, va, n - stepsFromA);
+                    };
+                    std::tuple<int, int, int> key;
+                    if (j == 0) key = edgeKey(0, 1, i);
+                    else if (i == 0) key = edgeKey(0, 2, j);
+                    else if (k0 == 0) key = edgeKey(1, 2, j);
+                    else return builder.addVertex(pos);  // interior point
+                    auto it = edgePoints.find(key);
+                    if (it != edgePoints.end()) return it->second;
+                    return edgePoints[key] = builder.addVertex(pos);
+                };
+                std::vector<VHandle> lattice;
+                auto at = [&](int i, int j) { return lattice[j * (n + 1) + i]; };
+                lattice.resize((n + 1) * (n + 1));
+                for (int j = 0; j <= n; ++j)
+                    for (int i = 0; i + j <= n; ++i) lattice[j * (n + 1) + i] = latticeVertex(i, j);
+                for (int j = 0; j < n; ++j)
+                    for (int i = 0; i + j < n; ++i) {
+                        builder.addFace({at(i, j), at(i + 1, j), at(i, j + 1)}, -1, material);
+                        if (i + j + 1 < n)
+                            builder.addFace({at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}, -1,
+                                            material);
+                    }
+            }
+            break;
+        }
+    }
+
+    if (builder.faceVertices.empty())
+        throw std::invalid_argument("object '" + obj.id + "': no valid faces");
+
+    // World positions.
+    surface.worldPositions.resize(surface.mesh.n_vertices());
+    for (auto v : surface.mesh.vertices()) {
+        const auto& q = surface.mesh.point(v);
+        surface.worldPositions[v.idx()] = transformPoint(M, Vec3(q[0], q[1], q[2]));
+    }
+
+    // Elements, one per face.
+    const int objIdx = static_cast<int>(mObjects.size()) - 1;
+    const int firstElement = static_cast<int>(mElements.size());
+    const int faceCount = static_cast<int>(builder.faceVertices.size());
+    surface.faceElement.resize(surface.mesh.n_faces(), -1);
+    for (int f = 0; f < faceCount; ++f) {
+        Element el;
+        el.object = objIdx;
+        el.face = f;
+        el.vertices = builder.faceVertices[f];
+        mElements.push_back(std::move(el));
+        surface.faceElement[f] = firstElement + f;
+        finishElement(firstElement + f);
+    }
+
+    // Patches: gridded groups as given; mesh faces grown into regions over OpenMesh adjacency.
+    std::map<int, int> groupPatch;
+    std::vector<int> facePatch(faceCount, -1);
+    auto newPatch = [&](int material) {
+        Patch p;
+        p.object = objIdx;
+        p.material = material;
+        mPatches.push_back(std::move(p));
+        return static_cast<int>(mPatches.size()) - 1;
+    };
+    for (int f = 0; f < faceCount; ++f) {
+        int g = builder.faceGroup[f];
+        if (g < 0) continue;
+        auto it = groupPatch.find(g);
+        int p = it != groupPatch.end() ? it->second : (groupPatch[g] = newPatch(builder.faceMaterial[f]));
+        facePatch[f] = p;
+    }
+    const double targetArea = patchSize * patchSize;
+    for (int seed = 0; seed < faceCount; ++seed) {
+        if (facePatch[seed] >= 0) continue;
+        int p = newPatch(builder.faceMaterial[seed]);
+        const Vec3 seedNormal = mElements[firstElement + seed].normal;
+        double area = 0;
+        std::vector<int> frontier{seed};
+        facePatch[seed] = p;
+        for (std::size_t k = 0; k < frontier.size() && area < targetArea; ++k) {
+            int f = frontier[k];
+            area += mElements[firstElement + f].area;
+            for (auto ff : surface.mesh.ff_range(FHandle(f))) {
+                int g = ff.idx();
+                if (g >= faceCount || facePatch[g] >= 0) continue;
+                if (builder.faceMaterial[g] != builder.faceMaterial[seed]) continue;
+                if (glm::dot(mElements[firstElement + g].normal, seedNormal) < kMeshPatchNormalCos)
+                    continue;
+                if (area >= targetArea) break;
+                facePatch[g] = p;
+                frontier.push_back(g);
+            }
+        }
+        // Faces claimed but never expanded still belong to p (they were counted by claim).
+    }
+    for (int f = 0; f < faceCount; ++f) {
+        int e = firstElement + f;
+        mElements[e].patch = facePatch[f];
+        mPatches[facePatch[f]].elements.push_back(e);
+    }
+    for (int p = 0; p < static_cast<int>(mPatches.size()); ++p)
+        if (mPatches[p].object == objIdx) {
+            finishPatch(p);
+            mTotalArea += mPatches[p].area;
+        }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Queries
+
+std::vector<Vec3> Discretization::elementPolygon(int element) const {
+    const Element& el = mElements[element];
+    const ObjectSurface& s = mObjects[el.object];
+    std::vector<Vec3> poly;
+    poly.reserve(el.vertices.size());
+    for (int v : el.vertices) poly.push_back(s.worldPositions[v]);
+    return poly;
+}
+
+std::vector<int> Discretization::elementNeighbours(int element) const {
+    const Element& el = mElements[element];
+    const ObjectSurface& s = mObjects[el.object];
+    std::vector<int> out;
+    for (int v : el.vertices)
+        for (auto f : s.mesh.vf_range(VHandle(v))) {
+            int e = s.faceElement[f.idx()];
+            if (e >= 0 && e != element && std::find(out.begin(), out.end(), e) == out.end())
+                out.push_back(e);
+        }
+    return out;
+}
+
+std::vector<Rgb> Discretization::vertexValues(int object,
+                                              const std::vector<Rgb>& elementValue) const {
+    const ObjectSurface& s = mObjects[object];
+    std::vector<Rgb> out(s.mesh.n_vertices(), Rgb(0.0));
+    for (auto v : s.mesh.vertices()) {
+        Rgb sum(0.0);
+        double w = 0;
+        for (auto f : s.mesh.vf_range(v)) {
+            int e = s.faceElement[f.idx()];
+            if (e < 0) continue;
+            sum += mElements[e].area * elementValue[e];
+            w += mElements[e].area;
+        }
+        out[v.idx()] = w > 0 ? sum / w : sum;
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Subdivision (Cohen et al. 1988 §3.4)
+
+std::vector<int> Discretization::subdivideElement(int element) {
+    Element parent = mElements[element];
+    ObjectSurface& s = mObjects[parent.object];
+    ElementMesh& mesh = s.mesh;
+    const glm::dmat4 objectFromWorld = glm::inverse(s.worldFromObject);
+    const std::size_t n = parent.vertices.size();
+    if (n != 3 && n != 4) return {element};
+
+    // Midpoint of each edge: reuse a vertex already inserted by a subdivided neighbour (it
+    // lies on the edge, between the two corners, in the neighbour's polygon), else make one.
+    auto midpoint = [&](int a, int b) -> int {
+        Vec3 m = 0.5 * (s.worldPositions[a] + s.worldPositions[b]);
+        double tol = 1e-9 * (1.0 + glm::length(m));
+        for (auto f : mesh.vf_range(VHandle(a)))
+            for (auto v : mesh.fv_range(f))
+                if (glm::length(s.worldPositions[v.idx()] - m) < tol) return v.idx();
+        VHandle h = mesh.add_vertex(toPoint(Vec3(objectFromWorld * glm::dvec4(m, 1.0))));
+        s.worldPositions.push_back(m);
+        return h.idx();
+    };
+    std::vector<int> corner = parent.vertices, mid(n);
+    for (std::size_t k = 0; k < n; ++k) mid[k] = midpoint(corner[k], corner[(k + 1) % n]);
+
+    // New polygons.
+    std::vector<std::vector<int>> polys;
+    if (n == 3) {
+        polys = {{corner[0], mid[0], mid[2]}, {mid[0], corner[1], mid[1]},
+                 {mid[2], mid[1], corner[2]}, {mid[0], mid[1], mid[2]}};
+    } else {
+        Vec3 c(0.0);
+        for (int v : corner) c += s.worldPositions[v];
+        c /= 4.0;
+        VHandle h = mesh.add_vertex(toPoint(Vec3(objectFromWorld * glm::dvec4(c, 1.0))));
+        s.worldPositions.push_back(c);
+        int centre = h.idx();
+        for (int k = 0; k < 4; ++k)
+            polys.push_back({corner[k], mid[k], centre, mid[(k + 3) % 4]});
+    }
+
+    // Neighbours across each edge get the midpoint inserted (keeps the mesh conforming).
+    auto insertIntoNeighbours = [&](int a, int b, int m) {
+        for (int e = 0; e < static_cast<int>(mElements.size()); ++e) {
+            if (e == element || mElements[e].object != parent.object) continue;
+            std::vector<int>& vs = mElements[e].vertices;
+            for (std::size_t k = 0; k < vs.size(); ++k) {
+                int u = vs[k], w = vs[(k + 1) % vs.size()];
+                if ((u == b && w == a) || (u == a && w == b)) {
+                    vs.insert(vs.begin() + k + 1, m);
+                    break;
+                }
+            }
+        }
+    };
+    for (std::size_t k = 0; k < n; ++k) insertIntoNeighbours(corner[k], corner[(k + 1) % n], mid[k]);
+
+    // Rebuild the object's OpenMesh faces from the element polygons (topology changed).
+    ElementMesh rebuilt;
+    for (auto v : mesh.vertices()) rebuilt.add_vertex(mesh.point(v));
+    std::vector<int> result{element};
+    mElements[element].vertices = polys[0];
+    for (std::size_t k = 1; k < polys.size(); ++k) {
+        Element child = parent;
+        child.vertices = polys[k];
+        mElements.push_back(child);
+        int idx = static_cast<int>(mElements.size()) - 1;
+        result.push_back(idx);
+        mPatches[parent.patch].elements.push_back(idx);
+    }
+    s.faceElement.clear();
+    for (int e = 0; e < static_cast<int>(mElements.size()); ++e) {
+        if (mElements[e].object != parent.object) continue;
+        std::vector<VHandle> hs;
+        for (int v : mElements[e].vertices) hs.push_back(VHandle(v));
+        FHandle f = rebuilt.add_face(hs);
+        if (!f.is_valid()) {
+            std::vector<VHandle> copy;
+            for (VHandle v : hs) copy.push_back(rebuilt.add_vertex(rebuilt.point(v)));
+            f = rebuilt.add_face(copy);
+            // The copies keep their world positions.
+            for (VHandle v : hs) s.worldPositions.push_back(s.worldPositions[v.idx()]);
+            for (std::size_t k = 0; k < copy.size(); ++k) mElements[e].vertices[k] = copy[k].idx();
+        }
+        mElements[e].face = f.idx();
+        if (static_cast<int>(s.faceElement.size()) <= f.idx()) s.faceElement.resize(f.idx() + 1, -1);
+        s.faceElement[f.idx()] = e;
+    }
+    mesh = std::move(rebuilt);
+    for (int e : result) finishElement(e);
+    return result;
+}
+
+}  // namespace penumbra

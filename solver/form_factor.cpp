@@ -1,0 +1,146 @@
+#include "solver/form_factor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "solver/discretization.h"
+#include "solver/ray_tracer.h"
+
+namespace penumbra {
+
+namespace {
+
+std::uint64_t splitmix(std::uint64_t x) {
+    x += 0x9e3779b97f4a7c15ull;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+    return x ^ (x >> 31);
+}
+
+/// Small deterministic generator for pair-seeded patterns.
+struct PairRandom {
+    std::uint64_t state;
+    double next() { return static_cast<double>((state = splitmix(state)) >> 11) * 0x1.0p-53; }
+};
+
+Vec3 polygonNormal(const std::vector<Vec3>& poly) {
+    Vec3 n(0.0);
+    for (std::size_t i = 0; i < poly.size(); ++i) n += glm::cross(poly[i], poly[(i + 1) % poly.size()]);
+    return n;
+}
+
+/// Uniform point in a convex polygon by fan triangle chosen by area.
+Vec3 samplePolygon(const std::vector<Vec3>& poly, double r0, double r1, double r2) {
+    double total = 0;
+    double areas[16];
+    std::size_t fans = std::min<std::size_t>(poly.size() - 2, 16);
+    for (std::size_t i = 0; i < fans; ++i)
+        total += areas[i] = glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0]));
+    double pick = r0 * total;
+    std::size_t i = 0;
+    while (i + 1 < fans && pick > areas[i]) pick -= areas[i++];
+    double s = std::sqrt(r1);
+    return (1 - s) * poly[0] + s * (1 - r2) * poly[i + 1] + s * r2 * poly[i + 2];
+}
+
+}  // namespace
+
+std::uint64_t hashPair(std::uint64_t a, std::uint64_t b) {
+    return splitmix(splitmix(a) ^ (b + 0x632be59bd9b4e019ull + (a << 6) + (a >> 2)));
+}
+
+double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon) {
+    if (polygon.size() < 3) return 0;
+    // One-sided: the point must be in front of the polygon.
+    Vec3 pn = polygonNormal(polygon);
+    if (glm::dot(x - polygon[0], pn) <= 0) return 0;
+
+    // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman).
+    Vec3 clipped[32];
+    std::size_t count = 0;
+    const std::size_t m = std::min<std::size_t>(polygon.size(), 15);
+    for (std::size_t i = 0; i < m; ++i) {
+        const Vec3& a = polygon[i];
+        const Vec3& b = polygon[(i + 1) % m];
+        double da = glm::dot(a - x, n), db = glm::dot(b - x, n);
+        if (da >= 0) clipped[count++] = a;
+        if ((da >= 0) != (db >= 0)) clipped[count++] = a + (b - a) * (da / (da - db));
+    }
+    if (count < 3) return 0;
+
+    // Lambert's contour integral: F = 1/(2π) Σ β_k n·Γ̂_k.
+    double sum = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+        Vec3 r0 = clipped[i] - x, r1 = clipped[(i + 1) % count] - x;
+        Vec3 c = glm::cross(r0, r1);
+        double cl = glm::length(c);
+        if (cl <= 0) continue;
+        double beta = std::atan2(cl, glm::dot(r0, r1));
+        sum += beta * glm::dot(n, c) / cl;
+    }
+    return std::abs(sum) / (2 * M_PI);
+}
+
+int visibilityRayCount(double fUnoccluded, int maxRays) {
+    if (maxRays <= 1) return 1;
+    // About one ray per 1e-4 of form factor, growing as its square root: near pairs (large F,
+    // sharp shadows matter most) get up to maxRays, distant ones a single ray.
+    int n = static_cast<int>(std::ceil(std::sqrt(std::max(fUnoccluded, 0.0) / 1e-4)));
+    return std::clamp(n, 1, maxRays);
+}
+
+PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
+                               const Vec3& n, int patch, std::uint64_t receiverKey,
+                               std::uint64_t seed, int maxRays, int ignoreObject) {
+    PointToPatch out;
+    const Patch& P = disc.patches()[patch];
+
+    // Exact unoccluded form factor of each element polygon of the patch.
+    thread_local std::vector<std::vector<Vec3>> polys;
+    thread_local std::vector<double> f;
+    polys.resize(P.elements.size());
+    f.resize(P.elements.size());
+    double total = 0;
+    for (std::size_t k = 0; k < P.elements.size(); ++k) {
+        const Element& el = disc.elements()[P.elements[k]];
+        const auto& pos = disc.objects()[el.object].worldPositions;
+        polys[k].clear();
+        for (int v : el.vertices) polys[k].push_back(pos[v]);
+        total += f[k] = polygonFormFactor(x, n, polys[k]);
+    }
+    out.unoccluded = total;
+    if (!(total > 0)) return out;
+
+    // Visibility: rays to points stratified over the patch in proportion to form factor; each
+    // sample weighted by the point-to-point kernel, normalized (a ratio estimator that is exact
+    // when nothing blocks and when everything does).
+    const int rays = visibilityRayCount(total, maxRays);
+    PairRandom rng{hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch))};
+    const double eps = tracer.epsilon();
+    const Vec3 origin = x + n * eps;
+    double wVisible = 0, wAll = 0;
+    for (int s = 0; s < rays; ++s) {
+        double u = (s + rng.next()) / rays * total;
+        std::size_t k = 0;
+        while (k + 1 < f.size() && u > f[k]) u -= f[k++];
+        double r1 = rng.next(), r2 = rng.next();
+        Vec3 y = samplePolygon(polys[k], std::min(u / std::max(f[k], 1e-300), 1.0), r1, r2);
+        Vec3 d = y - origin;
+        double dist = glm::length(d);
+        if (!(dist > 0)) continue;
+        Vec3 ny = glm::normalize(polygonNormal(polys[k]));
+        double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) /
+                   (dist * dist * dist * dist);
+        // Weight relative to the sampling density (∝ F_k / A_k), so the estimate is unbiased.
+        double area = 0.5 * glm::length(polygonNormal(polys[k]));
+        w *= area / f[k];
+        wAll += w;
+        if (!tracer.occluded(origin, y - d * (eps / dist), ignoreObject)) wVisible += w;
+        ++out.rays;
+    }
+    out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;
+    return out;
+}
+
+}  // namespace penumbra
