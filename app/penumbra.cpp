@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 
+#include "bench/bench.h"
 #include "edit/export.h"
 #include "edit/input_error.h"
 #include "edit/lit_scene.h"
@@ -27,6 +28,7 @@ struct SolveArgs {
     int threads = 0;
     std::uint64_t seed = 1;
     double subdivide = 0;
+    double stochasticBelow = interactiveSolverOptions().stochasticBelow;
     std::string save, exportPath, report;
 };
 
@@ -43,6 +45,10 @@ void addSolveOptions(CLI::App* cmd, SolveArgs& a) {
                     "adaptive element subdivision where neighbour radiosity differs by more "
                     "than this fraction (0: off)")
         ->check(CLI::Range(0.0, 10.0));
+    cmd->add_option("--stochastic-below", a.stochasticBelow,
+                    "shoot stochastically when a shot carries less than this fraction of the "
+                    "emitted power (0: every shot deterministic)")
+        ->check(CLI::Range(0.0, 1.0));
 }
 
 /// Progress on stderr when it is a terminal.
@@ -58,8 +64,9 @@ std::function<void(double)> progressPrinter(double eps) {
 }
 
 std::unique_ptr<LitScene> openAndSolve(const SolveArgs& a) {
-    SolverOptions options;
+    SolverOptions options = interactiveSolverOptions();
     options.seed = a.seed;
+    options.stochasticBelow = a.stochasticBelow;
     options.gradientThreshold = a.subdivide;
     auto lit = LitScene::open(a.scene, options);
     lit->solver().converge(a.converge, a.maxShots, progressPrinter(a.converge));
@@ -162,6 +169,16 @@ int main(int argc, char** argv) {
     renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();
     renderCmd->add_option("--report", solve.report, "write a JSON report");
 
+    CLI::App* benchCmd = app.add_subcommand("bench", "benchmarks (Google Benchmark + tables)");
+    benchCmd->require_subcommand(1);
+    BenchOptions bench;
+    CLI::App* benchSolver = benchCmd->add_subcommand("solver", "solver throughput and convergence");
+    benchSolver->add_option("--scenes", bench.scenes, "scene files")
+        ->default_val(std::vector<std::string>{"scenes/cube-room.json", "scenes/cubicles.json",
+                                               "scenes/robot-room.json", "scenes/large.json"});
+    benchSolver->add_option("--max-seconds", bench.maxSecondsPerScene, "solver time cap per scene");
+    benchSolver->add_option("--json", bench.jsonOut, "write every figure as JSON");
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -180,6 +197,7 @@ int main(int argc, char** argv) {
         if (*probeCmd) return runProbe(solve, pointsPath);
         if (*exportCmd) return runSolve(solve);
         if (*renderCmd) return runRender(solve, render);
+        if (*benchSolver) return runSolverBench(bench);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "penumbra: %s\n", e.what());
         return 2;

@@ -35,6 +35,7 @@ nlohmann::json LitScene::reportJson() const {
             {"elements", mDisc->elements().size()},
             {"patches", mDisc->patches().size()},
             {"subdivisions", s.subdivisions},
+            {"stochastic_batches", s.stochasticBatches},
             {"emitted_energy_w", mSolver->emittedEnergy()}};
 }
 

@@ -193,6 +193,7 @@ void Discretization::addObject(const Scene& scene, int objectIndex) {
 
     SurfaceBuilder builder{surface, {}, {}, {}};
     int nextGroup = 0;
+    std::map<int, std::vector<Vec3>> groupOutline;  // object space
 
     // Grid a parametric surface: patches of about patchSize, elements of about elementSize,
     // measured in world space.
@@ -235,6 +236,13 @@ void Discretization::addObject(const Scene& scene, int objectIndex) {
         for (int b = 0; b < pv; ++b)
             for (int a = 0; a < pu; ++a) {
                 int group = nextGroup++;
+                auto corner = [&](int i, int j) {
+                    const auto& q = surface.mesh.point(verts[j * (nu + 1) + i]);
+                    return Vec3(q[0], q[1], q[2]);
+                };
+                groupOutline[group] = {corner(a * eu, b * ev), corner((a + 1) * eu, b * ev),
+                                       corner((a + 1) * eu, (b + 1) * ev),
+                                       corner(a * eu, (b + 1) * ev)};
                 for (int j = b * ev; j < (b + 1) * ev; ++j)
                     for (int i = a * eu; i < (a + 1) * eu; ++i)
                         builder.addFace({verts[j * (nu + 1) + i], verts[j * (nu + 1) + i + 1],
@@ -442,6 +450,21 @@ void Discretization::addObject(const Scene& scene, int objectIndex) {
         int e = firstElement + f;
         mElements[e].patch = facePatch[f];
         mPatches[facePatch[f]].elements.push_back(e);
+    }
+    for (auto [group, patch] : groupPatch) {
+        // A planar gridded patch integrates as one polygon (collapsed pole corners removed).
+        Patch& P = mPatches[patch];
+        bool planar = true;
+        for (int e : P.elements)
+            planar = planar && glm::dot(mElements[e].normal, mElements[P.elements[0]].normal) > 1 - 1e-9;
+        if (!planar) continue;
+        for (const Vec3& c : groupOutline[group]) {
+            Vec3 w = transformPoint(M, c);
+            if (P.outline.empty() || glm::length(P.outline.back() - w) > 1e-12) P.outline.push_back(w);
+        }
+        if (P.outline.size() > 1 && glm::length(P.outline.back() - P.outline.front()) <= 1e-12)
+            P.outline.pop_back();
+        if (P.outline.size() < 3) P.outline.clear();
     }
     for (int p = 0; p < static_cast<int>(mPatches.size()); ++p)
         if (mPatches[p].object == objIdx) {

@@ -25,6 +25,9 @@ struct Patch {
     Vec3 normal{0};     ///< area-weighted mean unit normal
     double radius = 0;  ///< bounding-sphere radius about centroid
     std::vector<int> elements;
+    /// For a planar patch, its boundary polygon (world space, counter-clockwise seen from the
+    /// front): form factors integrate one polygon instead of every element. Empty otherwise.
+    std::vector<Vec3> outline;
     std::string toString() const;
 };
 

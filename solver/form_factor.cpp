@@ -99,15 +99,22 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
     // Exact unoccluded form factor of each element polygon of the patch.
     thread_local std::vector<std::vector<Vec3>> polys;
     thread_local std::vector<double> f;
-    polys.resize(P.elements.size());
-    f.resize(P.elements.size());
     double total = 0;
-    for (std::size_t k = 0; k < P.elements.size(); ++k) {
-        const Element& el = disc.elements()[P.elements[k]];
-        const auto& pos = disc.objects()[el.object].worldPositions;
-        polys[k].clear();
-        for (int v : el.vertices) polys[k].push_back(pos[v]);
-        total += f[k] = polygonFormFactor(x, n, polys[k]);
+    if (!P.outline.empty()) {
+        polys.resize(1);
+        f.resize(1);
+        polys[0] = P.outline;
+        total = f[0] = polygonFormFactor(x, n, polys[0]);
+    } else {
+        polys.resize(P.elements.size());
+        f.resize(P.elements.size());
+        for (std::size_t k = 0; k < P.elements.size(); ++k) {
+            const Element& el = disc.elements()[P.elements[k]];
+            const auto& pos = disc.objects()[el.object].worldPositions;
+            polys[k].clear();
+            for (int v : el.vertices) polys[k].push_back(pos[v]);
+            total += f[k] = polygonFormFactor(x, n, polys[k]);
+        }
     }
     out.unoccluded = total;
     if (!(total > 0)) return out;

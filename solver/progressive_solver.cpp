@@ -25,10 +25,22 @@ bool isZero(const Rgb& c) { return c.x == 0 && c.y == 0 && c.z == 0; }
 
 }  // namespace
 
+SolverOptions interactiveSolverOptions() {
+    SolverOptions o;
+    o.stochasticBelow = 1e-3;
+    o.raysPerEmittedPower = 1e7;
+    return o;
+}
+
 struct ProgressiveSolver::Impl {
     IndexedMaxHeap queue;
     std::vector<Rgb> delta;     ///< per element, radiosity received in the current shot
     std::vector<int> level;     ///< per element, subdivision depth
+    // Scratch for stochastic batches.
+    std::vector<double> patchCdf;              ///< power CDF over the shooters
+    std::vector<int> shooters;                 ///< patches shot in the batch
+    std::vector<Rgb> shooterUnshot;            ///< their ΔB at the start of the batch
+    std::vector<std::pair<int, Rgb>> rayHits;  ///< per ray: receiver element and ΔRad
 };
 
 ProgressiveSolver::ProgressiveSolver(Discretization& disc, RayTracer& tracer, SolverOptions options)
@@ -73,7 +85,11 @@ int ProgressiveSolver::step(int maxShots) {
     for (; done < maxShots; ++done) {
         int p = mImpl->queue.top();
         if (p < 0 || mImpl->queue.key(p) <= 0) break;
-        shootPatch(p);
+        if (mOptions.stochasticBelow > 0 &&
+            mImpl->queue.key(p) < mOptions.stochasticBelow * mEmittedEnergy)
+            shootStochasticBatch();
+        else
+            shootPatch(p);
     }
     mStats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return done;
@@ -140,6 +156,111 @@ Rgb ProgressiveSolver::receivedFrom(int shooter, int e, const Rgb& dB) const {
                                         static_cast<std::uint64_t>(e), mOptions.seed,
                                         mOptions.maxRaysPerPair);
     return rho * dB * ff.visible;
+}
+
+void ProgressiveSolver::shootStochasticBatch() {
+    // Stochastic shooting of the weak tail (every remaining shooter is below
+    // stochasticBelow × emitted power): all unshot power leaves at once on N rays, chosen
+    // in proportion to ΔB·A (systematic sampling over the patches), from uniform points of
+    // the patch in cosine-distributed directions. A ray carrying power Φ that reaches the
+    // front of element e adds ρ_e Φ / A_e to its radiosity: in expectation exactly Cohen's
+    // ρ_e ΔB_i F_ie A_i / A_e, at a cost that follows the shot energy, not the element count.
+    const auto& patches = mDisc.patches();
+    const unsigned long long raysBefore = mTracer.rayCount();
+    auto& cdf = mImpl->patchCdf;
+    auto& shooters = mImpl->shooters;
+    auto& unshot = mImpl->shooterUnshot;
+    shooters.clear();
+    unshot.clear();
+    cdf.clear();
+    double total = 0;
+    for (std::size_t p = 0; p < patches.size(); ++p) {
+        double power = energyKey(mPatchUnshot[p], patches[p].area);
+        if (!(power > 0)) continue;
+        shooters.push_back(static_cast<int>(p));
+        unshot.push_back(mPatchUnshot[p]);
+        cdf.push_back(total += power);
+        mPatchUnshot[p] = Rgb(0.0);
+        mImpl->queue.update(static_cast<int>(p), 0.0);
+    }
+    if (shooters.empty()) return;
+    const double share = mEmittedEnergy > 0 ? total / mEmittedEnergy : 1.0;
+    const std::size_t rays = static_cast<std::size_t>(std::clamp(
+        std::ceil(share * mOptions.raysPerEmittedPower),
+        static_cast<double>(mOptions.minStochasticRays), 6.4e7));
+    const std::uint64_t batchSeed = hashPair(hashPair(mOptions.seed, 0x5707c4a57ull),
+                                             mStats.stochasticBatches);
+    auto& hits = mImpl->rayHits;
+    hits.assign(rays, {-1, Rgb(0.0)});
+    const double eps = mTracer.epsilon();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
+        std::vector<Vec3> poly;
+        for (std::size_t r = range.begin(); r != range.end(); ++r) {
+            std::uint64_t state = hashPair(batchSeed, r);
+            auto next = [&state] {
+                state = hashPair(state, 0x9e3779b97f4a7c15ull);
+                return static_cast<double>(state >> 11) * 0x1.0p-53;
+            };
+            // The shooter, by power; the element, by area; a uniform point in it.
+            double u = (static_cast<double>(r) + next()) / static_cast<double>(rays) * total;
+            std::size_t k = std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin();
+            k = std::min(k, cdf.size() - 1);
+            const Patch& P = patches[shooters[k]];
+            double pickArea = next() * P.area;
+            int se = P.elements.back();
+            for (int e : P.elements) {
+                if (pickArea <= mDisc.elements()[e].area) {
+                    se = e;
+                    break;
+                }
+                pickArea -= mDisc.elements()[e].area;
+            }
+            const Element& src = mDisc.elements()[se];
+            poly = mDisc.elementPolygon(se);
+            double pick = next() * src.area * 2, r1 = next(), r2 = next();
+            std::size_t t = 1;
+            for (; t + 2 < poly.size(); ++t) {
+                double a = glm::length(glm::cross(poly[t] - poly[0], poly[t + 1] - poly[0]));
+                if (pick <= a) break;
+                pick -= a;
+            }
+            double sq = std::sqrt(r1);
+            Vec3 origin = (1 - sq) * poly[0] + sq * (1 - r2) * poly[t] + sq * r2 * poly[t + 1];
+            // Cosine-distributed direction about the source normal (Malley's method).
+            double phi = 2 * M_PI * next(), rr = std::sqrt(next());
+            const Vec3& nz = src.normal;
+            Vec3 tx = std::abs(nz.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
+            tx = glm::normalize(glm::cross(tx, nz));
+            Vec3 ty = glm::cross(nz, tx);
+            Vec3 dir = rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
+                       std::sqrt(std::max(0.0, 1 - rr * rr)) * nz;
+            RayHit hit = mTracer.intersect(origin + nz * eps, dir, 0.0, 1e30);
+            if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
+            const Element& rec = mDisc.elements()[hit.element];
+            if (rec.patch == shooters[k]) continue;
+            // This ray carries power total/rays, in the colour of its shooter's ΔB.
+            const Rgb carried = unshot[k] * (P.area * total /
+                                             (static_cast<double>(rays) *
+                                              energyKey(unshot[k], P.area)));
+            const Rgb& rho = mDisc.patchMaterial(rec.patch).reflectance;
+            hits[r] = {hit.element, rho * carried / rec.area};
+        }
+    });
+    // Accumulate in ray order: independent of the thread count.
+    for (const auto& [e, d] : hits) {
+        if (e < 0) continue;
+        const Element& el = mDisc.elements()[e];
+        mElementB[e] += d;
+        mPatchUnshot[el.patch] += d * (el.area / patches[el.patch].area);
+    }
+    for (const auto& [e, d] : hits) {
+        if (e < 0) continue;
+        int p = mDisc.elements()[e].patch;
+        mImpl->queue.update(p, energyKey(mPatchUnshot[p], patches[p].area));
+    }
+    ++mStats.shots;
+    ++mStats.stochasticBatches;
+    mStats.rays += mTracer.rayCount() - raysBefore;
 }
 
 void ProgressiveSolver::subdivideSteepElements(int shooter, const Rgb& dB) {

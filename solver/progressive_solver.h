@@ -17,13 +17,28 @@ struct SolverOptions {
     int maxRaysPerPair = 16;      ///< visibility rays for the closest pairs
     double gradientThreshold = 0; ///< >0: adaptive element subdivision (Cohen §3.4)
     int maxSubdivisionLevel = 2;
+    /// Once the strongest shooter carries less than this fraction of the emitted power, all
+    /// remaining unshot energy is shot at once stochastically (Monte Carlo rays from the
+    /// patches in proportion to ΔB·A, cosine-distributed; unbiased, cost independent of the
+    /// element count). 0 turns stochastic shooting off: every shot is deterministic.
+    double stochasticBelow = 0;
+    /// Rays a stochastic batch of the whole emitted power would cast; a batch of power Φ
+    /// casts raysPerEmittedPower × Φ / Φ_emitted rays (at least minStochasticRays).
+    double raysPerEmittedPower = 4e6;
+    int minStochasticRays = 1024;
 };
+
+/// The configuration the command line and editor use: deterministic shots for the strong
+/// shooters, stochastic shooting for the weak tail (see docs/solver.md for the choice and its
+/// error). Plain SolverOptions{} is fully deterministic.
+SolverOptions interactiveSolverOptions();
 
 struct SolverStats {
     std::uint64_t shots = 0;
     std::uint64_t rays = 0;
     double seconds = 0;
     std::uint64_t subdivisions = 0;
+    std::uint64_t stochasticBatches = 0;  ///< each counts as one shot in `shots`
 };
 
 class ProgressiveSolver {
@@ -72,6 +87,8 @@ private:
     /// Radiosity element `e` receives when `shooter` shoots unshot radiosity dB.
     Rgb receivedFrom(int shooter, int e, const Rgb& dB) const;
     void subdivideSteepElements(int shooter, const Rgb& dB);
+    /// Shoots all remaining unshot energy at once on rays (the weak tail).
+    void shootStochasticBatch();
 
     Discretization& mDisc;
     RayTracer& mTracer;

@@ -1,0 +1,22 @@
+#pragma once
+// Benchmarks behind `penumbra bench`: each prints figures and ratios against a baseline
+// measured in the same run (STYLE: speed lives in benchmarks, never in timed tests).
+
+#include <string>
+#include <vector>
+
+#include "solver/progressive_solver.h"
+
+namespace penumbra {
+
+struct BenchOptions {
+    std::vector<std::string> scenes;
+    double maxSecondsPerScene = 120;  ///< solver time cap per scene
+    std::string jsonOut;              ///< optional JSON with every figure
+};
+
+/// `penumbra bench solver`: raw Embree occlusion rays/s vs solver rays/s, time to 10%, 1%,
+/// 0.1% unshot energy, peak memory, per scene. Returns the process exit status.
+int runSolverBench(const BenchOptions& options);
+
+}  // namespace penumbra

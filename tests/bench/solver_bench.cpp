@@ -1,0 +1,216 @@
+// `penumbra bench solver`: raw Embree occlusion throughput on each scene, the solver's own
+// ray throughput and their ratio, time to 10%, 1% and 0.1% unshot energy, and peak memory.
+// Each scene runs in a forked child so its peak resident memory is its own.
+//
+// Index: measurements · Google Benchmark micro-benchmarks · table
+#include "bench/bench.h"
+
+#include <benchmark/benchmark.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "edit/lit_scene.h"
+#include "solver/form_factor.h"
+
+namespace penumbra {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t) {
+    return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+/// Random element-to-element occlusion segments, the same kind of query a shot makes.
+struct Segments {
+    std::vector<Vec3> from, to;
+};
+
+Segments makeSegments(const Discretization& disc, std::size_t count) {
+    Segments s;
+    s.from.resize(count);
+    s.to.resize(count);
+    const auto& el = disc.elements();
+    for (std::size_t i = 0; i < count; ++i) {
+        std::uint64_t h = hashPair(0xbe7c4ull, i);
+        const Element& a = el[h % el.size()];
+        const Element& b = el[hashPair(h, 1) % el.size()];
+        s.from[i] = a.centroid + a.normal * 1e-4;
+        s.to[i] = b.centroid + b.normal * 1e-4;
+    }
+    return s;
+}
+
+/// Occlusion rays per second over all worker threads.
+double rawOcclusionRate(const RayTracer& tracer, const Segments& s) {
+    auto start = Clock::now();
+    std::size_t blocked = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, s.from.size(), 1024), std::size_t(0),
+        [&](const auto& r, std::size_t acc) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i)
+                acc += tracer.occluded(s.from[i], s.to[i]) ? 1 : 0;
+            return acc;
+        },
+        std::plus<>());
+    benchmark::DoNotOptimize(blocked);
+    return static_cast<double>(s.from.size()) / secondsSince(start);
+}
+
+long peakResidentKiB() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_maxrss;
+}
+
+nlohmann::json measureScene(const std::string& path, const BenchOptions& options) {
+    nlohmann::json r;
+    r["scene"] = path;
+    auto loadStart = Clock::now();
+    auto lit = LitScene::open(path, interactiveSolverOptions());
+    r["load_seconds"] = secondsSince(loadStart);
+    r["patches"] = lit->discretization().patches().size();
+    r["elements"] = lit->discretization().elements().size();
+
+    Segments segs = makeSegments(lit->discretization(), 1 << 20);
+    rawOcclusionRate(lit->tracer(), segs);  // warm up
+    double raw = rawOcclusionRate(lit->tracer(), segs);
+    r["raw_occlusion_rays_per_s"] = raw;
+
+    ProgressiveSolver& solver = lit->solver();
+    const double thresholds[] = {0.1, 0.01, 0.001};
+    const char* names[] = {"seconds_to_10pct", "seconds_to_1pct", "seconds_to_0.1pct"};
+    for (int k = 0; k < 3; ++k) r[names[k]] = nullptr;
+    for (int k = 0; k < 3; ++k) {
+        while (solver.unshotFraction() > thresholds[k] &&
+               solver.stats().seconds < options.maxSecondsPerScene) {
+            if (solver.step(1) == 0) break;
+        }
+        if (solver.unshotFraction() > thresholds[k]) break;
+        r[names[k]] = solver.stats().seconds;
+        r[std::string("shots_to_") + (names[k] + 11)] = solver.stats().shots;
+    }
+    const SolverStats& st = solver.stats();
+    double solverRate = st.seconds > 0 ? st.rays / st.seconds : 0;
+    r["solver_rays_per_s"] = solverRate;
+    r["ratio_solver_to_raw"] = raw > 0 ? solverRate / raw : 0;
+    r["shots"] = st.shots;
+    r["stochastic_batches"] = st.stochasticBatches;
+    r["unshot_fraction"] = solver.unshotFraction();
+    r["solver_seconds"] = st.seconds;
+    r["peak_rss_mib"] = peakResidentKiB() / 1024.0;
+    return r;
+}
+
+/// Runs measureScene in a child process so its peak memory is its own.
+nlohmann::json measureSceneIsolated(const std::string& path, const BenchOptions& options) {
+    int fds[2];
+    if (pipe(fds) != 0) return measureScene(path, options);
+    pid_t pid = fork();
+    if (pid == 0) {
+        close(fds[0]);
+        std::string out;
+        try {
+            out = measureScene(path, options).dump();
+        } catch (const std::exception& e) {
+            out = nlohmann::json{{"scene", path}, {"error", e.what()}}.dump();
+        }
+        std::size_t done = 0;
+        while (done < out.size()) {
+            ssize_t w = write(fds[1], out.data() + done, out.size() - done);
+            if (w <= 0) break;
+            done += static_cast<std::size_t>(w);
+        }
+        close(fds[1]);
+        _exit(0);
+    }
+    close(fds[1]);
+    std::string text;
+    char buf[4096];
+    ssize_t n;
+    while ((n = read(fds[0], buf, sizeof buf)) > 0) text.append(buf, static_cast<std::size_t>(n));
+    close(fds[0]);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    if (text.empty()) return {{"scene", path}, {"error", "benchmark child failed"}};
+    return nlohmann::json::parse(text);
+}
+
+std::string cell(const nlohmann::json& v, const char* fmt) {
+    if (v.is_null()) return "—";
+    char b[64];
+    std::snprintf(b, sizeof b, fmt, v.get<double>());
+    return b;
+}
+
+}  // namespace
+
+int runSolverBench(const BenchOptions& options) {
+    // Micro-benchmarks through Google Benchmark: the per-query costs behind the table.
+    {
+        auto lit = LitScene::open(options.scenes.front(), interactiveSolverOptions());
+        Segments segs = makeSegments(lit->discretization(), 1 << 16);
+        const Discretization& disc = lit->discretization();
+        benchmark::RegisterBenchmark(("occluded1/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
+            std::size_t i = 0;
+            for (auto _ : st) {
+                benchmark::DoNotOptimize(lit->tracer().occluded(segs.from[i], segs.to[i]));
+                i = (i + 1) & 0xffff;
+            }
+            st.SetItemsProcessed(st.iterations());
+        });
+        benchmark::RegisterBenchmark(("formFactorToPatch/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
+            std::size_t i = 0;
+            for (auto _ : st) {
+                const Element& e = disc.elements()[(i * 7919) % disc.elements().size()];
+                int p = static_cast<int>((i * 104729) % disc.patches().size());
+                benchmark::DoNotOptimize(formFactorToPatch(disc, lit->tracer(), e.centroid,
+                                                           e.normal, p, i, 1, 16));
+                ++i;
+            }
+            st.SetItemsProcessed(st.iterations());
+        });
+        int argc = 1;
+        char arg0[] = "penumbra-bench";
+        char* argv[] = {arg0, nullptr};
+        benchmark::Initialize(&argc, argv);
+        benchmark::RunSpecifiedBenchmarks();
+        benchmark::ClearRegisteredBenchmarks();
+    }
+
+    nlohmann::json rows = nlohmann::json::array();
+    std::printf("\n| scene | patches | elements | raw Mrays/s | solver Mrays/s | ratio | to 10%% s | to 1%% s | to 0.1%% s | peak MiB |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    for (const std::string& scene : options.scenes) {
+        nlohmann::json r = measureSceneIsolated(scene, options);
+        rows.push_back(r);
+        if (r.contains("error")) {
+            std::printf("| %s | error: %s |\n", scene.c_str(), r["error"].get<std::string>().c_str());
+            continue;
+        }
+        std::printf("| %s | %zu | %zu | %s | %s | %s | %s | %s | %s | %s |\n", scene.c_str(),
+                    r["patches"].get<std::size_t>(), r["elements"].get<std::size_t>(),
+                    cell(r["raw_occlusion_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
+                    cell(r["solver_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
+                    cell(r["ratio_solver_to_raw"], "%.2f").c_str(),
+                    cell(r["seconds_to_10pct"], "%.2f").c_str(),
+                    cell(r["seconds_to_1pct"], "%.2f").c_str(),
+                    cell(r["seconds_to_0.1pct"], "%.2f").c_str(),
+                    cell(r["peak_rss_mib"], "%.0f").c_str());
+        std::fflush(stdout);
+    }
+    if (!options.jsonOut.empty()) writeFileAtomically(options.jsonOut, rows.dump(2) + "\n");
+    return 0;
+}
+
+}  // namespace penumbra
