@@ -72,7 +72,28 @@ std::string Discretization::toString() const {
 // Construction
 
 Discretization::Discretization(const Scene& scene) {
-    for (int i = 0; i < static_cast<int>(scene.objects.size()); ++i) addObject(scene, i);
+    for (const SceneObject& object : scene.objects) buildObject(scene, object);
+}
+
+int Discretization::addObject(const Scene& scene, const SceneObject& object) {
+    buildObject(scene, object);
+    return static_cast<int>(mObjects.size()) - 1;
+}
+
+void Discretization::setAlive(int object, bool alive) {
+    if (mObjects[object].alive == alive) return;
+    mObjects[object].alive = alive;
+    double area = 0;
+    for (const Patch& p : mPatches)
+        if (p.object == object) area += p.area;
+    mTotalArea += alive ? area : -area;
+}
+
+void Discretization::setObjectMaterial(int object, const Material& material) {
+    int m = addMaterial(material);
+    for (Patch& p : mPatches)
+        if (p.object == object) p.material = m;
+    mObjects[object].twoSided = material.twoSided;
 }
 
 int Discretization::addMaterial(const Material& m) {
@@ -165,8 +186,7 @@ struct ParamGrid {
 
 }  // namespace
 
-void Discretization::addObject(const Scene& scene, int objectIndex) {
-    const SceneObject& obj = scene.objects[objectIndex];
+void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
     mObjects.push_back({});
     ObjectSurface& surface = mObjects.back();
     surface.id = obj.id;
@@ -392,6 +412,7 @@ void Discretization::addObject(const Scene& scene, int objectIndex) {
 
     // Elements, one per face.
     const int objIdx = static_cast<int>(mObjects.size()) - 1;
+    const int firstPatch = static_cast<int>(mPatches.size());
     const int firstElement = static_cast<int>(mElements.size());
     const int faceCount = static_cast<int>(builder.faceVertices.size());
     surface.faceElement.resize(surface.mesh.n_faces(), -1);
@@ -466,11 +487,10 @@ void Discretization::addObject(const Scene& scene, int objectIndex) {
             P.outline.pop_back();
         if (P.outline.size() < 3) P.outline.clear();
     }
-    for (int p = 0; p < static_cast<int>(mPatches.size()); ++p)
-        if (mPatches[p].object == objIdx) {
-            finishPatch(p);
-            mTotalArea += mPatches[p].area;
-        }
+    for (int p = firstPatch; p < static_cast<int>(mPatches.size()); ++p) {
+        finishPatch(p);
+        mTotalArea += mPatches[p].area;
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

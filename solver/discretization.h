@@ -52,6 +52,10 @@ struct ObjectSurface {
     std::vector<Vec3> worldPositions;///< per mesh vertex, world space
     Mat4 worldFromObject{1.0};
     bool twoSided = false;
+    /// False once removed from the scene: its patches and elements keep their indices (pair
+    /// seeds stay valid) and its geometry stays available for redistribution, but it neither
+    /// shoots, receives nor blocks in the current scene.
+    bool alive = true;
 };
 
 /// Splits a scene into patches and elements (Cohen et al. 1988 §3.4). Primitives are gridded
@@ -61,6 +65,17 @@ class Discretization {
 public:
     /// Throws std::invalid_argument naming the object when an object has no valid faces.
     explicit Discretization(const Scene& scene);
+
+    /// Appends a new object version (patches and elements after all existing ones) built
+    /// from `object`, with materials looked up in `scene`. Returns its object index. Throws
+    /// std::invalid_argument as the constructor does.
+    int addObject(const Scene& scene, const SceneObject& object);
+    /// Marks an object removed (or restored). Indices stay valid.
+    void setAlive(int object, bool alive);
+    bool elementAlive(int element) const { return mObjects[mElements[element].object].alive; }
+    bool patchAlive(int patch) const { return mObjects[mPatches[patch].object].alive; }
+    /// Replaces the material of every patch of `object` (a material edit).
+    void setObjectMaterial(int object, const Material& material);
 
     const std::vector<Patch>& patches() const { return mPatches; }
     const std::vector<Element>& elements() const { return mElements; }
@@ -88,7 +103,7 @@ public:
     std::string toString() const;
 
 private:
-    void addObject(const Scene& scene, int objectIndex);
+    void buildObject(const Scene& scene, const SceneObject& object);
     int addMaterial(const Material& m);
     void finishElement(int element);
     void finishPatch(int patch);

@@ -92,7 +92,7 @@ int visibilityRayCount(double fUnoccluded, int maxRays) {
 
 PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
                                const Vec3& n, int patch, std::uint64_t receiverKey,
-                               std::uint64_t seed, int maxRays, int ignoreObject) {
+                               std::uint64_t seed, int maxRays, const Visibility& visibility) {
     PointToPatch out;
     const Patch& P = disc.patches()[patch];
 
@@ -143,7 +143,7 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
         double area = 0.5 * glm::length(polygonNormal(polys[k]));
         w *= area / f[k];
         wAll += w;
-        if (!tracer.occluded(origin, y - d * (eps / dist), ignoreObject)) wVisible += w;
+        if (!tracer.occluded(origin, y - d * (eps / dist), visibility)) wVisible += w;
         ++out.rays;
     }
     out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "solver/ray_tracer.h"
 #include "solver/scene.h"
 
 namespace penumbra {
@@ -30,7 +31,7 @@ int visibilityRayCount(double fUnoccluded, int maxRays);
 /// factor of each of the patch's element polygons, times the visible fraction estimated by
 /// `rays` shadow rays to points stratified over the patch by that form factor. The sample
 /// pattern depends only on (seed, receiverKey, patch), so it is reproducible bit for bit.
-/// `ignoreObject` is passed to the ray tracer. Returns 0 for points behind the patch.
+/// `visibility` is passed to the ray tracer. Returns 0 for points behind the patch.
 struct PointToPatch {
     double unoccluded = 0;  ///< analytic, no visibility
     double visible = 0;     ///< the estimate with visibility
@@ -39,6 +40,6 @@ struct PointToPatch {
 PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer,
                                const Vec3& x, const Vec3& n, int patch,
                                std::uint64_t receiverKey, std::uint64_t seed, int maxRays,
-                               int ignoreObject = -1);
+                               const Visibility& visibility = {});
 
 }  // namespace penumbra

@@ -19,17 +19,21 @@ void reportEmbreeError(void*, RTCError code, const char* message) {
                  message ? message : "");
 }
 
-/// Context carrying the object to ignore into the filter function.
-struct IgnoreContext {
+/// Context carrying the visibility rule into the filter function.
+struct FilterContext {
     RTCIntersectContext context;
     unsigned ignoreInstance;
+    const std::vector<std::uint8_t>* world;
 };
 
-void ignoreFilter(const RTCFilterFunctionNArguments* args) {
-    const auto* ctx = reinterpret_cast<const IgnoreContext*>(args->context);
+void visibilityFilter(const RTCFilterFunctionNArguments* args) {
+    const auto* ctx = reinterpret_cast<const FilterContext*>(args->context);
     for (unsigned i = 0; i < args->N; ++i) {
         if (args->valid[i] != -1) continue;
-        if (RTCHitN_instID(args->hit, args->N, i, 0) == ctx->ignoreInstance) args->valid[i] = 0;
+        unsigned inst = RTCHitN_instID(args->hit, args->N, i, 0);
+        bool blocks = ctx->world ? inst < ctx->world->size() && (*ctx->world)[inst] != 0
+                                 : inst != ctx->ignoreInstance;
+        if (!blocks) args->valid[i] = 0;
     }
 }
 
@@ -37,8 +41,17 @@ void ignoreFilter(const RTCFilterFunctionNArguments* args) {
 
 struct RayTracer::Impl {
     RTCDevice device = nullptr;
-    RTCScene top = nullptr;
+    RTCScene top = nullptr;      ///< alive objects: the current scene
+    RTCScene history = nullptr;  ///< every object version, for Visibility::world queries
     std::vector<RTCScene> objectScenes;
+    /// Picks the top-level scene and sets up the filter for a query.
+    RTCScene prepare(FilterContext& ctx, const Visibility& v) const {
+        rtcInitIntersectContext(&ctx.context);
+        ctx.ignoreInstance = static_cast<unsigned>(v.ignoreObject);
+        ctx.world = v.world;
+        if (v.world || v.ignoreObject >= 0) ctx.context.filter = visibilityFilter;
+        return v.world ? history : top;
+    }
     /// Per object: Embree triangle -> (element face index, fan position).
     std::vector<std::vector<std::pair<int, int>>> triangleFace;
     mutable tbb::enumerable_thread_specific<unsigned long long> rays{0ull};
@@ -47,7 +60,8 @@ struct RayTracer::Impl {
         for (RTCScene s : objectScenes) rtcReleaseScene(s);
         objectScenes.clear();
         if (top) rtcReleaseScene(top);
-        top = nullptr;
+        if (history) rtcReleaseScene(history);
+        top = history = nullptr;
     }
     ~Impl() {
         release();
@@ -68,73 +82,95 @@ RayTracer::~RayTracer() = default;
 void RayTracer::rebuild() {
     Impl& im = *mImpl;
     im.release();
-    im.triangleFace.assign(mDisc.objects().size(), {});
+    im.triangleFace.clear();
     im.top = rtcNewScene(im.device);
+    im.history = rtcNewScene(im.device);
     rtcSetSceneFlags(im.top, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
-    Vec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
-
-    for (std::size_t o = 0; o < mDisc.objects().size(); ++o) {
-        const ObjectSurface& s = mDisc.objects()[o];
-        RTCScene scene = rtcNewScene(im.device);
-        rtcSetSceneFlags(scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
-        im.objectScenes.push_back(scene);
-
-        // Object-space vertices and fan triangles of every element polygon.
-        RTCGeometry geom = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        const std::size_t nv = s.mesh.n_vertices();
-        auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(
-            geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
-        for (auto v : s.mesh.vertices()) {
-            const auto& p = s.mesh.point(v);
-            for (int k = 0; k < 3; ++k) verts[3 * v.idx() + k] = p[k];
-        }
-        for (const Vec3& w : s.worldPositions) lo = glm::min(lo, w), hi = glm::max(hi, w);
-        auto& map = im.triangleFace[o];
-        for (std::size_t f = 0; f < s.faceElement.size(); ++f) {
-            int e = s.faceElement[f];
-            if (e < 0) continue;
-            const auto& vs = mDisc.elements()[e].vertices;
-            for (std::size_t k = 1; k + 1 < vs.size(); ++k) map.push_back({static_cast<int>(f), static_cast<int>(k)});
-        }
-        auto* tris = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-            geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), map.size()));
-        for (std::size_t t = 0; t < map.size(); ++t) {
-            const auto& vs = mDisc.elements()[s.faceElement[map[t].first]].vertices;
-            int k = map[t].second;
-            tris[3 * t + 0] = vs[0];
-            tris[3 * t + 1] = vs[k];
-            tris[3 * t + 2] = vs[k + 1];
-        }
-        rtcCommitGeometry(geom);
-        rtcAttachGeometry(scene, geom);
-        rtcReleaseGeometry(geom);
-        rtcCommitScene(scene);
-
-        // One instance per object: a move is a transform update.
-        RTCGeometry inst = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_INSTANCE);
-        rtcSetGeometryInstancedScene(inst, scene);
-        float xf[12];
-        for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 3; ++r) xf[3 * c + r] = static_cast<float>(s.worldFromObject[c][r]);
-        rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
-        rtcCommitGeometry(inst);
-        rtcAttachGeometryByID(im.top, inst, static_cast<unsigned>(o));
-        rtcReleaseGeometry(inst);
+    rtcSetSceneFlags(im.history, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+    for (std::size_t o = 0; o < mDisc.objects().size(); ++o) addObject(static_cast<int>(o));
+    if (mDisc.objects().empty()) {
+        rtcCommitScene(im.top);
+        rtcCommitScene(im.history);
     }
-    rtcCommitScene(im.top);
-    double diag = mDisc.objects().empty() ? 1.0 : glm::length(hi - lo);
-    mEpsilon = std::max(1e-6, 2e-6 * diag);
 }
 
-bool RayTracer::occluded(const Vec3& from, const Vec3& to, int ignoreObject) const {
+void RayTracer::addObject(int o) {
+    Impl& im = *mImpl;
+    const ObjectSurface& s = mDisc.objects()[o];
+    if (static_cast<int>(im.triangleFace.size()) <= o) im.triangleFace.resize(o + 1);
+    if (static_cast<int>(im.objectScenes.size()) <= o) im.objectScenes.resize(o + 1, nullptr);
+    RTCScene scene = rtcNewScene(im.device);
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+    im.objectScenes[o] = scene;
+
+    // Object-space vertices and fan triangles of every element polygon.
+    RTCGeometry geom = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    const std::size_t nv = s.mesh.n_vertices();
+    auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
+    for (auto v : s.mesh.vertices()) {
+        const auto& p = s.mesh.point(v);
+        for (int k = 0; k < 3; ++k) verts[3 * v.idx() + k] = p[k];
+    }
+    auto& map = im.triangleFace[o];
+    map.clear();
+    for (std::size_t f = 0; f < s.faceElement.size(); ++f) {
+        int e = s.faceElement[f];
+        if (e < 0) continue;
+        const auto& vs = mDisc.elements()[e].vertices;
+        for (std::size_t k = 1; k + 1 < vs.size(); ++k)
+            map.push_back({static_cast<int>(f), static_cast<int>(k)});
+    }
+    auto* tris = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), map.size()));
+    for (std::size_t t = 0; t < map.size(); ++t) {
+        const auto& vs = mDisc.elements()[s.faceElement[map[t].first]].vertices;
+        int k = map[t].second;
+        tris[3 * t + 0] = vs[0];
+        tris[3 * t + 1] = vs[k];
+        tris[3 * t + 2] = vs[k + 1];
+    }
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(scene, geom);
+    rtcReleaseGeometry(geom);
+    rtcCommitScene(scene);
+
+    // One instance per object in each top-level scene: a move is a transform update.
+    float xf[12];
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 3; ++r) xf[3 * c + r] = static_cast<float>(s.worldFromObject[c][r]);
+    for (RTCScene top : {im.top, im.history}) {
+        RTCGeometry inst = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(inst, scene);
+        rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
+        rtcCommitGeometry(inst);
+        rtcAttachGeometryByID(top, inst, static_cast<unsigned>(o));
+        rtcReleaseGeometry(inst);
+        if (top == im.top && !s.alive) rtcDisableGeometry(inst);
+        rtcCommitScene(top);
+    }
+
+    // Offsets scale with the scene.
+    Vec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+    for (const auto& obj : mDisc.objects())
+        for (const Vec3& w : obj.worldPositions) lo = glm::min(lo, w), hi = glm::max(hi, w);
+    mEpsilon = std::max(1e-6, 2e-6 * glm::length(hi - lo));
+}
+
+void RayTracer::updateAlive(int o) {
+    RTCGeometry inst = rtcGetGeometry(mImpl->top, static_cast<unsigned>(o));
+    if (mDisc.objects()[o].alive) rtcEnableGeometry(inst);
+    else rtcDisableGeometry(inst);
+    rtcCommitScene(mImpl->top);
+}
+
+bool RayTracer::occluded(const Vec3& from, const Vec3& to, const Visibility& visibility) const {
     Vec3 d = to - from;
     double len = glm::length(d);
     if (!(len > 0)) return false;
     d /= len;
-    IgnoreContext ctx;
-    rtcInitIntersectContext(&ctx.context);
-    ctx.ignoreInstance = static_cast<unsigned>(ignoreObject);
-    if (ignoreObject >= 0) ctx.context.filter = ignoreFilter;
+    FilterContext ctx;
+    RTCScene scene = mImpl->prepare(ctx, visibility);
     RTCRay ray;
     ray.org_x = static_cast<float>(from.x);
     ray.org_y = static_cast<float>(from.y);
@@ -148,17 +184,15 @@ bool RayTracer::occluded(const Vec3& from, const Vec3& to, int ignoreObject) con
     ray.mask = 0xffffffffu;
     ray.id = 0;
     ray.flags = 0;
-    rtcOccluded1(mImpl->top, &ctx.context, &ray);
+    rtcOccluded1(scene, &ctx.context, &ray);
     ++mImpl->rays.local();
     return ray.tfar < 0.0f;
 }
 
 RayHit RayTracer::intersect(const Vec3& origin, const Vec3& dir, double tNear, double tFar,
-                            int ignoreObject) const {
-    IgnoreContext ctx;
-    rtcInitIntersectContext(&ctx.context);
-    ctx.ignoreInstance = static_cast<unsigned>(ignoreObject);
-    if (ignoreObject >= 0) ctx.context.filter = ignoreFilter;
+                            const Visibility& visibility) const {
+    FilterContext ctx;
+    RTCScene scene = mImpl->prepare(ctx, visibility);
     RTCRayHit rh;
     rh.ray.org_x = static_cast<float>(origin.x);
     rh.ray.org_y = static_cast<float>(origin.y);
@@ -174,7 +208,7 @@ RayHit RayTracer::intersect(const Vec3& origin, const Vec3& dir, double tNear, d
     rh.ray.flags = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(mImpl->top, &ctx.context, &rh);
+    rtcIntersect1(scene, &ctx.context, &rh);
     ++mImpl->rays.local();
     RayHit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;

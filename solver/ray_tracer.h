@@ -2,6 +2,7 @@
 // The one owner of Embree: device, one geometry scene per object, a top-level scene of
 // instances. A move is an instance transform update and a top-level commit.
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -14,6 +15,17 @@ struct RTCSceneTy;
 namespace penumbra {
 
 class Discretization;
+
+/// Which objects block a visibility query. By default the current scene (alive objects).
+/// `ignoreObject` removes one object from it; `world`, when set, replaces it: exactly the
+/// objects o with (*world)[o] != 0 block, alive or not (redistribution evaluates form factors
+/// in the scene as it was before and after an edit).
+struct Visibility {
+    Visibility() = default;
+    Visibility(int ignore) : ignoreObject(ignore) {}  // NOLINT: an object index converts
+    int ignoreObject = -1;
+    const std::vector<std::uint8_t>* world = nullptr;
+};
 
 struct RayHit {
     int object = -1;   ///< -1: no hit
@@ -35,16 +47,20 @@ public:
     RayTracer(const RayTracer&) = delete;
     RayTracer& operator=(const RayTracer&) = delete;
 
-    /// Rebuilds everything after the discretization changed (subdivision, added objects).
+    /// Rebuilds everything after the discretization changed (subdivision).
     void rebuild();
+    /// Adds the geometry of a new object of the discretization (an object version).
+    void addObject(int object);
+    /// Follows ObjectSurface::alive of `object`: a dead object stops blocking current-scene
+    /// queries but stays available to `Visibility::world` queries.
+    void updateAlive(int object);
 
-    /// True when the open segment from `from` to `to` is blocked. `ignoreObject` >= 0 makes
-    /// that object transparent (redistribution needs visibility with and without it).
-    bool occluded(const Vec3& from, const Vec3& to, int ignoreObject = -1) const;
+    /// True when the open segment from `from` to `to` is blocked.
+    bool occluded(const Vec3& from, const Vec3& to, const Visibility& visibility = {}) const;
 
     /// Nearest hit along origin + t·dir, t in (tNear, tFar).
     RayHit intersect(const Vec3& origin, const Vec3& dir, double tNear = 0.0,
-                     double tFar = 1e30, int ignoreObject = -1) const;
+                     double tFar = 1e30, const Visibility& visibility = {}) const;
 
     /// Rays traced since construction (occlusion and intersection), for reports.
     unsigned long long rayCount() const;

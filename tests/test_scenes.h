@@ -1,7 +1,9 @@
 #pragma once
 // Scenes built in code for tests: closed rooms of inward-facing quads, emitters, occluders.
 
+#include <cmath>
 #include <string>
+#include <vector>
 
 #include "solver/scene.h"
 
@@ -36,6 +38,57 @@ inline void addMaterial(Scene& scene, const std::string& name, Rgb reflectance,
     m.reflectance = reflectance;
     m.emission = emission;
     scene.materials.push_back({name, m});
+}
+
+}  // namespace penumbra::test
+
+// ---------------------------------------------------------------------------------------------
+// Independent geometry for truths: the scene file's transform (scale, then rotate about X, Y,
+// Z in degrees, then translate) written out with explicit trigonometry, not through glm or
+// Transform::worldFromObject, and the world corners of a quad object.
+
+namespace penumbra::test {
+
+inline Vec3 rotateAboutX(Vec3 p, double deg) {
+    double a = deg * M_PI / 180, c = std::cos(a), s = std::sin(a);
+    return {p.x, c * p.y - s * p.z, s * p.y + c * p.z};
+}
+inline Vec3 rotateAboutY(Vec3 p, double deg) {
+    double a = deg * M_PI / 180, c = std::cos(a), s = std::sin(a);
+    return {c * p.x + s * p.z, p.y, -s * p.x + c * p.z};
+}
+inline Vec3 rotateAboutZ(Vec3 p, double deg) {
+    double a = deg * M_PI / 180, c = std::cos(a), s = std::sin(a);
+    return {c * p.x - s * p.y, s * p.x + c * p.y, p.z};
+}
+
+/// World position of object-space point `p` under the scene-file transform contract.
+inline Vec3 worldPoint(const Transform& t, Vec3 p) {
+    p = Vec3(p.x * t.scale.x, p.y * t.scale.y, p.z * t.scale.z);
+    p = rotateAboutZ(rotateAboutY(rotateAboutX(p, t.rotateDeg.x), t.rotateDeg.y), t.rotateDeg.z);
+    return p + t.translate;
+}
+
+/// World direction of object-space direction `d` (rotation only; no scale, no translate).
+inline Vec3 worldDirection(const Transform& t, Vec3 d) {
+    return rotateAboutZ(rotateAboutY(rotateAboutX(d, t.rotateDeg.x), t.rotateDeg.y), t.rotateDeg.z);
+}
+
+/// World corners of a quad object, counter-clockwise seen from its front (+Y in object space).
+inline std::vector<Vec3> quadCorners(const SceneObject& quad) {
+    double hx = quad.shape.size.x / 2, hz = quad.shape.size.z / 2;
+    std::vector<Vec3> c;
+    for (Vec3 p : {Vec3(-hx, 0, hz), Vec3(hx, 0, hz), Vec3(hx, 0, -hz), Vec3(-hx, 0, -hz)})
+        c.push_back(worldPoint(quad.transform, p));
+    return c;
+}
+
+/// A scene with the given element and patch sizes and no objects.
+inline Scene emptyScene(double patchSize, double elementSize) {
+    Scene scene;
+    scene.settings.patchSize = patchSize;
+    scene.settings.elementSize = elementSize;
+    return scene;
 }
 
 }  // namespace penumbra::test

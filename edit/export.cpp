@@ -1,0 +1,506 @@
+#include "edit/export.h"
+
+// Index: helpers (sRGB, numbers, bytes, files) · lit objects · PLY · glTF/GLB · OBJ · dispatch
+
+#include <algorithm>
+#include <bit>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <glm/gtc/constants.hpp>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <system_error>
+
+#include "solver/discretization.h"
+
+namespace penumbra {
+
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Helpers
+
+/// IEC 61966-2-1 sRGB encoding (the same function as render/image.h's srgbEncode; edit/
+/// does not depend on render/).
+double encodeSrgb(double linear) {
+    if (linear <= 0.0031308) return 12.92 * linear;
+    return 1.055 * std::pow(linear, 1.0 / 2.4) - 0.055;
+}
+
+/// sRGB-encoded and clipped to [0,1]; NaN becomes 0.
+double encodeSrgbClipped(double linear) {
+    const double v = encodeSrgb(linear);
+    if (!(v > 0.0)) return 0.0;
+    return std::min(v, 1.0);
+}
+
+std::uint8_t encodeSrgbByte(double linear) {
+    return static_cast<std::uint8_t>(std::lround(encodeSrgbClipped(linear) * 255.0));
+}
+
+/// Appends a space and the shortest round-trip decimal form of `value` (locale-independent).
+template <typename T>
+void appendNumber(std::string& out, T value) {
+    char buffer[64];
+    auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+    out.push_back(' ');
+    out.append(buffer, result.ptr);
+}
+
+/// Appends a space and `value` with `decimals` fixed decimals (locale-independent).
+void appendFixed(std::string& out, double value, int decimals) {
+    char buffer[64];
+    auto result =
+        std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::fixed, decimals);
+    out.push_back(' ');
+    out.append(buffer, result.ptr);
+}
+
+/// Appends the little-endian bytes of a 4-byte value.
+template <typename T>
+void appendLittleEndian(std::string& out, T value) {
+    static_assert(sizeof(T) == 4);
+    auto bits = std::bit_cast<std::uint32_t>(value);
+    for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>((bits >> (8 * i)) & 0xffu));
+}
+
+/// An object id as one token on a text line: whitespace and control characters become '_'.
+std::string lineToken(const std::string& id) {
+    std::string out = id.empty() ? std::string("_") : id;
+    for (char& c : out) {
+        if (std::isspace(static_cast<unsigned char>(c)) ||
+            std::iscntrl(static_cast<unsigned char>(c)))
+            c = '_';
+    }
+    return out;
+}
+
+std::string base64Encode(const std::string& bytes) {
+    static const char kAlphabet[] =
+        "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::string out;
+    out.reserve((bytes.size() + 2) / 3 * 4);
+    size_t i = 0;
+    for (; i + 2 < bytes.size(); i += 3) {
+        std::uint32_t v = (std::uint32_t(std::uint8_t(bytes[i])) << 16) |
+                          (std::uint32_t(std::uint8_t(bytes[i + 1])) << 8) |
+                          std::uint32_t(std::uint8_t(bytes[i + 2]));
+        out.push_back(kAlphabet[(v >> 18) & 63]);
+        out.push_back(kAlphabet[(v >> 12) & 63]);
+        out.push_back(kAlphabet[(v >> 6) & 63]);
+        out.push_back(kAlphabet[v & 63]);
+    }
+    if (i < bytes.size()) {
+        std::uint32_t v = std::uint32_t(std::uint8_t(bytes[i])) << 16;
+        if (i + 1 < bytes.size()) v |= std::uint32_t(std::uint8_t(bytes[i + 1])) << 8;
+        out.push_back(kAlphabet[(v >> 18) & 63]);
+        out.push_back(kAlphabet[(v >> 12) & 63]);
+        out.push_back(i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=');
+        out.push_back('=');
+    }
+    return out;
+}
+
+/// Writes `contents` to a temporary file next to `path` and renames it over `path`.
+void writeFileAtomically(const std::string& path, const std::string& contents) {
+    const std::string temporary = path + ".tmp";
+    {
+        std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+        if (!out) throw std::runtime_error("cannot open " + temporary + " for writing");
+        out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
+        out.close();
+        if (!out) {
+            std::error_code ignored;
+            std::filesystem::remove(temporary, ignored);
+            throw std::runtime_error("cannot write " + path);
+        }
+    }
+    std::error_code error;
+    std::filesystem::rename(temporary, path, error);
+    if (error) {
+        std::error_code ignored;
+        std::filesystem::remove(temporary, ignored);
+        throw std::runtime_error("cannot rename " + temporary + " to " + path + ": " +
+                                 error.message());
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Lit objects: what every format writes
+
+struct LitObject {
+    std::string id;
+    bool twoSided = false;
+    std::vector<Vec3> positions;  ///< world space, per mesh vertex
+    std::vector<Vec3> normals;    ///< unit, area-weighted over the elements around a vertex
+    std::vector<Rgb> radiosity;   ///< per mesh vertex, W/m²
+    /// Element polygons of this object (indices into positions), in element order.
+    std::vector<std::vector<int>> polygons;
+};
+
+std::vector<LitObject> collectLitObjects(const Discretization& disc,
+                                         const std::vector<Rgb>& elementRadiosity) {
+    const auto& surfaces = disc.objects();
+    std::vector<LitObject> lit(surfaces.size());
+    for (size_t o = 0; o < surfaces.size(); ++o) {
+        lit[o].id = surfaces[o].id;
+        lit[o].twoSided = surfaces[o].twoSided;
+        lit[o].positions = surfaces[o].worldPositions;
+        lit[o].normals.assign(lit[o].positions.size(), Vec3(0.0));
+        lit[o].radiosity = disc.vertexValues(static_cast<int>(o), elementRadiosity);
+        lit[o].radiosity.resize(lit[o].positions.size(), Rgb(0.0));
+    }
+
+    // Accumulate Newell normals (length = 2 × area) of each element onto its vertices.
+    const auto& elements = disc.elements();
+    for (size_t e = 0; e < elements.size(); ++e) {
+        const Element& element = elements[e];
+        LitObject& object = lit[element.object];
+        object.polygons.push_back(element.vertices);
+        Vec3 newell(0.0);
+        const size_t n = element.vertices.size();
+        for (size_t i = 0; i < n; ++i) {
+            newell += glm::cross(object.positions[element.vertices[i]],
+                                 object.positions[element.vertices[(i + 1) % n]]);
+        }
+        for (int v : element.vertices) object.normals[v] += newell;
+    }
+    for (LitObject& object : lit) {
+        for (Vec3& normal : object.normals) {
+            const double length = glm::length(normal);
+            normal = length > 0.0 ? normal / length : Vec3(0, 0, 1);
+        }
+    }
+    return lit;
+}
+
+/// Fan triangles of a convex element polygon, starting at a corner vertex so that edge
+/// midpoints inserted by subdivision do not produce degenerate triangles.
+void appendFanTriangles(const std::vector<int>& polygon, const std::vector<Vec3>& positions,
+                        std::vector<std::uint32_t>& indices) {
+    const size_t n = polygon.size();
+    if (n < 3) return;
+    size_t start = 0;
+    double bestTurn = -1.0;
+    for (size_t i = 0; i < n; ++i) {
+        const Vec3& prev = positions[polygon[(i + n - 1) % n]];
+        const Vec3& here = positions[polygon[i]];
+        const Vec3& next = positions[polygon[(i + 1) % n]];
+        const Vec3 a = prev - here, b = next - here;
+        const double scale = glm::length(a) * glm::length(b);
+        const double turn = scale > 0.0 ? glm::length(glm::cross(a, b)) / scale : 0.0;
+        if (turn > bestTurn + 1e-9) {
+            bestTurn = turn;
+            start = i;
+        }
+    }
+    for (size_t k = 1; k + 1 < n; ++k) {
+        indices.push_back(static_cast<std::uint32_t>(polygon[start]));
+        indices.push_back(static_cast<std::uint32_t>(polygon[(start + k) % n]));
+        indices.push_back(static_cast<std::uint32_t>(polygon[(start + k + 1) % n]));
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// PLY (binary little-endian)
+
+std::string encodePly(const Discretization& disc, const std::vector<LitObject>& lit) {
+    size_t vertexCount = 0;
+    std::vector<size_t> firstVertex(lit.size());
+    for (size_t o = 0; o < lit.size(); ++o) {
+        firstVertex[o] = vertexCount;
+        vertexCount += lit[o].positions.size();
+    }
+    const auto& elements = disc.elements();
+
+    std::string out =
+        "ply\n"
+        "format binary_little_endian 1.0\n"
+        "comment Penumbra lit scene: world space metres; red green blue = radiance B/pi, "
+        "sRGB-encoded, clipped; radiosity_* = B in W/m^2; face i = element i\n";
+    for (const LitObject& object : lit) {
+        out.append("comment object ").append(lineToken(object.id)).push_back('\n');
+    }
+    out += "element vertex " + std::to_string(vertexCount) +
+           "\n"
+           "property float x\nproperty float y\nproperty float z\n"
+           "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+           "property float radiosity_r\nproperty float radiosity_g\nproperty float radiosity_b\n"
+           "element face " +
+           std::to_string(elements.size()) +
+           "\n"
+           "property list uchar int vertex_indices\n"
+           "end_header\n";
+
+    const double invPi = glm::one_over_pi<double>();
+    for (const LitObject& object : lit) {
+        for (size_t v = 0; v < object.positions.size(); ++v) {
+            const Vec3& p = object.positions[v];
+            const Rgb& b = object.radiosity[v];
+            appendLittleEndian(out, static_cast<float>(p.x));
+            appendLittleEndian(out, static_cast<float>(p.y));
+            appendLittleEndian(out, static_cast<float>(p.z));
+            out.push_back(static_cast<char>(encodeSrgbByte(b.x * invPi)));
+            out.push_back(static_cast<char>(encodeSrgbByte(b.y * invPi)));
+            out.push_back(static_cast<char>(encodeSrgbByte(b.z * invPi)));
+            appendLittleEndian(out, static_cast<float>(b.x));
+            appendLittleEndian(out, static_cast<float>(b.y));
+            appendLittleEndian(out, static_cast<float>(b.z));
+        }
+    }
+    for (const Element& element : elements) {
+        if (element.vertices.size() > 255) {
+            throw std::runtime_error("element with " + std::to_string(element.vertices.size()) +
+                                     " vertices does not fit a PLY uchar list");
+        }
+        out.push_back(static_cast<char>(element.vertices.size()));
+        for (int v : element.vertices) {
+            appendLittleEndian(out, static_cast<std::int32_t>(firstVertex[element.object] + v));
+        }
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------
+// glTF 2.0 (JSON with a data-URI buffer, or GLB)
+
+constexpr int kFloat = 5126;
+constexpr int kUnsignedInt = 5125;
+constexpr int kArrayBuffer = 34962;
+constexpr int kElementArrayBuffer = 34963;
+
+/// Builds the glTF document and its binary buffer; the buffer's `uri` is left to the caller.
+nlohmann::json buildGltf(const std::vector<LitObject>& lit, std::string& buffer) {
+    using nlohmann::json;
+    json bufferViews = json::array();
+    json accessors = json::array();
+    json meshes = json::array();
+    json nodes = json::array();
+    json sceneNodes = json::array();
+
+    // Append a float VEC3 array as one buffer view and accessor; returns the accessor.
+    auto addVec3 = [&](const std::vector<Vec3>& values, bool withBounds) {
+        const size_t offset = buffer.size();
+        Vec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+        for (const Vec3& v : values) {
+            const glm::vec3 f(v);
+            for (int c = 0; c < 3; ++c) appendLittleEndian(buffer, f[c]);
+            lo = glm::min(lo, Vec3(f));
+            hi = glm::max(hi, Vec3(f));
+        }
+        bufferViews.push_back({{"buffer", 0},
+                               {"byteOffset", offset},
+                               {"byteLength", buffer.size() - offset},
+                               {"target", kArrayBuffer}});
+        json accessor = {{"bufferView", bufferViews.size() - 1},
+                         {"componentType", kFloat},
+                         {"count", values.size()},
+                         {"type", "VEC3"}};
+        if (withBounds) {
+            accessor["min"] = {static_cast<float>(lo.x), static_cast<float>(lo.y),
+                               static_cast<float>(lo.z)};
+            accessor["max"] = {static_cast<float>(hi.x), static_cast<float>(hi.y),
+                               static_cast<float>(hi.z)};
+        }
+        accessors.push_back(accessor);
+        return accessors.size() - 1;
+    };
+
+    const double invPi = glm::one_over_pi<double>();
+    for (const LitObject& object : lit) {
+        // Triangulate this object's elements.
+        std::vector<std::uint32_t> indices;
+        for (const auto& polygon : object.polygons) {
+            appendFanTriangles(polygon, object.positions, indices);
+        }
+        if (indices.empty() || object.positions.empty()) continue;  // nothing to draw
+
+        std::vector<Vec3> radiance(object.radiosity.size());
+        for (size_t v = 0; v < radiance.size(); ++v) radiance[v] = object.radiosity[v] * invPi;
+
+        const size_t position = addVec3(object.positions, true);
+        const size_t normal = addVec3(object.normals, false);
+        const size_t color = addVec3(radiance, false);
+
+        const size_t offset = buffer.size();
+        for (std::uint32_t i : indices) appendLittleEndian(buffer, i);
+        bufferViews.push_back({{"buffer", 0},
+                               {"byteOffset", offset},
+                               {"byteLength", buffer.size() - offset},
+                               {"target", kElementArrayBuffer}});
+        accessors.push_back({{"bufferView", bufferViews.size() - 1},
+                             {"componentType", kUnsignedInt},
+                             {"count", indices.size()},
+                             {"type", "SCALAR"}});
+        const size_t indexAccessor = accessors.size() - 1;
+
+        meshes.push_back(
+            {{"name", object.id},
+             {"primitives",
+              json::array({{{"attributes",
+                             {{"POSITION", position}, {"NORMAL", normal}, {"COLOR_0", color}}},
+                            {"indices", indexAccessor},
+                            {"material", object.twoSided ? 1 : 0},
+                            {"mode", 4}}})}});
+        nodes.push_back({{"name", object.id}, {"mesh", meshes.size() - 1}});
+        sceneNodes.push_back(nodes.size() - 1);
+    }
+
+    // Unlit white materials: displayed colour = COLOR_0 = radiance.
+    auto material = [](const char* name, bool doubleSided) {
+        return json{{"name", name},
+                    {"pbrMetallicRoughness",
+                     {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
+                      {"metallicFactor", 0.0},
+                      {"roughnessFactor", 1.0}}},
+                    {"doubleSided", doubleSided},
+                    {"extensions", {{"KHR_materials_unlit", json::object()}}}};
+    };
+
+    json doc = {
+        {"asset",
+         {{"version", "2.0"},
+          {"generator", "Penumbra"},
+          {"extras",
+           {{"description",
+             "Penumbra lit scene: world space metres; COLOR_0 = linear radiance B/pi "
+             "(W/m^2/sr), not clipped; one mesh per object"}}}}},
+        {"extensionsUsed", {"KHR_materials_unlit"}},
+        {"scene", 0},
+        {"scenes", json::array({{{"nodes", sceneNodes}}})},
+        {"nodes", nodes},
+        {"meshes", meshes},
+        {"materials", json::array({material("penumbra_radiance", false),
+                                   material("penumbra_radiance_two_sided", true)})},
+        {"buffers", json::array({{{"byteLength", buffer.size()}}})},
+        {"bufferViews", bufferViews},
+        {"accessors", accessors},
+    };
+    if (buffer.empty()) {
+        // glTF forbids zero-length buffers: a scene without faces has no binary data.
+        doc.erase("buffers");
+        doc.erase("bufferViews");
+        doc.erase("accessors");
+    }
+    return doc;
+}
+
+std::string encodeGltf(const std::vector<LitObject>& lit) {
+    std::string buffer;
+    nlohmann::json doc = buildGltf(lit, buffer);
+    if (!buffer.empty())
+        doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64Encode(buffer);
+    return doc.dump(1) + "\n";
+}
+
+std::string encodeGlb(const std::vector<LitObject>& lit) {
+    std::string buffer;
+    const nlohmann::json doc = buildGltf(lit, buffer);
+
+    // Chunks are 4-byte aligned: JSON padded with spaces, BIN with zeros.
+    std::string jsonChunk = doc.dump();
+    while (jsonChunk.size() % 4 != 0) jsonChunk.push_back(' ');
+    while (buffer.size() % 4 != 0) buffer.push_back('\0');
+
+    std::string out;
+    const size_t total = 12 + 8 + jsonChunk.size() + (buffer.empty() ? 0 : 8 + buffer.size());
+    if (total > std::numeric_limits<std::uint32_t>::max()) {
+        throw std::runtime_error("lit scene too large for GLB (" + std::to_string(total) +
+                                 " bytes)");
+    }
+    appendLittleEndian(out, std::uint32_t{0x46546C67});  // "glTF"
+    appendLittleEndian(out, std::uint32_t{2});
+    appendLittleEndian(out, static_cast<std::uint32_t>(total));
+    appendLittleEndian(out, static_cast<std::uint32_t>(jsonChunk.size()));
+    appendLittleEndian(out, std::uint32_t{0x4E4F534A});  // "JSON"
+    out += jsonChunk;
+    if (!buffer.empty()) {
+        appendLittleEndian(out, static_cast<std::uint32_t>(buffer.size()));
+        appendLittleEndian(out, std::uint32_t{0x004E4942});  // "BIN\0"
+        out += buffer;
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------
+// OBJ with vertex colours
+
+std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& lit) {
+    std::string out =
+        "# Penumbra lit scene\n"
+        "# v x y z r g b: world space metres; r g b = radiance B/pi, sRGB-encoded, clipped to "
+        "[0,1]\n"
+        "# one object group per scene object, one face per element (counter-clockwise from "
+        "the front)\n";
+    out += "# objects " + std::to_string(lit.size()) + ", elements " +
+           std::to_string(disc.elements().size()) + "\n";
+
+    const double invPi = glm::one_over_pi<double>();
+    size_t firstVertex = 1;  // OBJ indices are 1-based and global
+    for (const LitObject& object : lit) {
+        out.append("o ").append(lineToken(object.id)).push_back('\n');
+        for (size_t v = 0; v < object.positions.size(); ++v) {
+            const Vec3& p = object.positions[v];
+            const Rgb& b = object.radiosity[v];
+            out.push_back('v');
+            for (int c = 0; c < 3; ++c) appendNumber(out, p[c]);
+            // Six decimals keep the colour exact to well below one 8-bit step.
+            for (int c = 0; c < 3; ++c) appendFixed(out, encodeSrgbClipped(b[c] * invPi), 6);
+            out.push_back('\n');
+        }
+        for (const auto& polygon : object.polygons) {
+            out.push_back('f');
+            for (int v : polygon) appendNumber(out, firstVertex + v);
+            out.push_back('\n');
+        }
+        firstVertex += object.positions.size();
+    }
+    return out;
+}
+
+std::string lowerExtension(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// Dispatch
+
+void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,
+                    const std::string& path) {
+    const std::string ext = lowerExtension(path);
+    if (ext != ".ply" && ext != ".gltf" && ext != ".glb" && ext != ".obj") {
+        throw std::invalid_argument("cannot export " + path + ": unknown extension '" + ext +
+                                    "' (expected .ply, .gltf, .glb or .obj)");
+    }
+    if (elementRadiosity.size() != disc.elements().size()) {
+        throw std::invalid_argument(
+            "cannot export " + path + ": " + std::to_string(elementRadiosity.size()) +
+            " radiosity values for " + std::to_string(disc.elements().size()) + " elements");
+    }
+
+    const std::vector<LitObject> lit = collectLitObjects(disc, elementRadiosity);
+    std::string contents;
+    if (ext == ".ply") {
+        contents = encodePly(disc, lit);
+    } else if (ext == ".gltf") {
+        contents = encodeGltf(lit);
+    } else if (ext == ".glb") {
+        contents = encodeGlb(lit);
+    } else {
+        contents = encodeObj(disc, lit);
+    }
+    writeFileAtomically(path, contents);
+}
+
+}  // namespace penumbra

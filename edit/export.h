@@ -1,0 +1,39 @@
+#pragma once
+// Export of a lit scene: the element meshes of every object in world space with their
+// radiosity as vertex colours, for viewing in other tools (MeshLab, Blender, glTF viewers).
+
+#include <string>
+#include <vector>
+
+#include "solver/scene.h"
+
+namespace penumbra {
+
+class Discretization;
+
+/// Writes the world-space element meshes of `disc` with per-vertex radiosity (the
+/// area-weighted mean of `elementRadiosity` around each vertex, Discretization::vertexValues)
+/// to `path`; the format follows the extension, case-insensitive:
+///
+/// - `.ply`: binary little-endian PLY. Vertices of all objects in object order, each with
+///   `float x y z` (metres), `uchar red green blue` = radiance B/π sRGB-encoded and clipped
+///   to [0,1], and `float radiosity_r radiosity_g radiosity_b` = B (W/m²). Face i is
+///   element i (`list uchar int vertex_indices`, counter-clockwise seen from the front).
+/// - `.gltf`: glTF 2.0 JSON with the binary buffer embedded as a base64 data URI (one
+///   self-contained file). `.glb`: the same as binary glTF. One node and one mesh per object
+///   with faces (named by object id) with POSITION, NORMAL (area-weighted element normals) and
+///   COLOR_0 = linear float VEC3 radiance B/π, not clipped; uint32 triangles fan-triangulated from
+///   the element polygons; an unlit material (KHR_materials_unlit) so viewers show the
+///   colours as they are, doubleSided for two-sided objects.
+/// - `.obj`: Wavefront OBJ with a comment header, one `o <id>` group per object, vertex
+///   colours as `v x y z r g b` with r g b = radiance B/π sRGB-encoded and clipped to
+///   [0,1] (the convention MeshLab and Blender read), polygon faces per element.
+///
+/// Writes a temporary file next to `path`, then renames it over `path`.
+/// Throws std::invalid_argument naming the extension for an unknown one, or when
+/// elementRadiosity does not have one value per element; std::runtime_error naming the file
+/// when it cannot be written.
+void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,
+                    const std::string& path);
+
+}  // namespace penumbra

@@ -1,0 +1,50 @@
+#pragma once
+// A pinhole camera over an image raster: primary ray directions for pixel coordinates and
+// the inverse projection of world points to pixel coordinates.
+
+#include <glm/glm.hpp>
+#include <optional>
+#include <string>
+
+#include "solver/scene.h"
+
+namespace penumbra {
+
+/// Pinhole camera built from a scene Camera (position, lookAt, up, vertical fovDeg) and an
+/// image size. Pixel coordinates: px grows right in [0, width], py grows down in
+/// [0, height]; pixel (i, j) covers [i, i+1) × [j, j+1), its centre is (i + 0.5, j + 0.5).
+/// Square pixels: the horizontal field of view follows from the aspect ratio.
+class CameraRays {
+public:
+    /// Throws std::invalid_argument when width or height is not positive, fovDeg is not in
+    /// (0, 180), or position == lookAt. An `up` parallel to the view direction is replaced
+    /// by a perpendicular one.
+    CameraRays(const Camera& camera, int width, int height);
+
+    /// World-space eye point, the origin of every primary ray.
+    const Vec3& origin() const { return mOrigin; }
+    /// Unit world-space direction of the ray through pixel coordinates (px, py).
+    Vec3 rayDirection(double px, double py) const;
+    /// Pixel coordinates (px, py) where a world point projects; empty when the point is not
+    /// in front of the camera. The result may lie outside the raster.
+    std::optional<glm::dvec2> projectToPixel(const Vec3& world) const;
+
+    int width() const { return mWidth; }
+    int height() const { return mHeight; }
+    const Vec3& forward() const { return mForward; }  ///< unit view direction
+    const Vec3& right() const { return mRight; }      ///< unit, image +x
+    const Vec3& up() const { return mUp; }            ///< unit, image −y
+    std::string toString() const;
+
+private:
+    Vec3 mOrigin{0.0};
+    Vec3 mForward{0, 0, -1};
+    Vec3 mRight{1, 0, 0};
+    Vec3 mUp{0, 1, 0};
+    double mTanHalfY = 1;  ///< tan(fovY / 2)
+    double mTanHalfX = 1;  ///< tanHalfY · width / height
+    int mWidth = 1;
+    int mHeight = 1;
+};
+
+}  // namespace penumbra

@@ -1,0 +1,54 @@
+#pragma once
+// Linear RGB images and their files: PNG (sRGB-encoded, clipped, 8-bit) through stb and
+// EXR (linear 32-bit float) through tinyexr. See DESIGN.md "Images".
+//
+// Index: sRGB transfer function · Image · writing · reading
+
+#include <string>
+#include <vector>
+
+#include "solver/scene.h"
+
+namespace penumbra {
+
+/// IEC 61966-2-1 sRGB encoding of a linear value. Defined for any finite input; values
+/// above 1 encode above 1 (the caller clips), negative values map to 12.92·x.
+double srgbEncode(double linear);
+/// Inverse of srgbEncode.
+double srgbDecode(double encoded);
+
+/// A linear RGB image, row-major, top row first. For renders the unit is radiance
+/// (W/m²/sr = radiosity/π).
+struct Image {
+    int width = 0;
+    int height = 0;
+    std::vector<Rgb> pixels;  ///< width·height values; pixel (x, y) at y·width + x
+
+    Image() = default;
+    /// A width × height image filled with `fill`. Throws std::invalid_argument for negative
+    /// sizes.
+    Image(int width, int height, const Rgb& fill = Rgb(0.0));
+
+    Rgb& at(int x, int y) { return pixels[static_cast<size_t>(y) * width + x]; }
+    const Rgb& at(int x, int y) const { return pixels[static_cast<size_t>(y) * width + x]; }
+    std::string toString() const;
+};
+
+/// Writes 8-bit RGB PNG: each channel sRGB-encoded, clipped to [0,1] (NaN → 0) and rounded.
+/// Writes a temporary file next to `path` and renames it over `path`.
+/// Throws std::runtime_error with a one-line message naming the file on failure.
+void writePng(const Image& image, const std::string& path);
+
+/// Writes the linear values as a 32-bit float RGB OpenEXR file (tinyexr; ZIP compressed
+/// except for tiny images). Temporary file plus rename; throws std::runtime_error.
+void writeExr(const Image& image, const std::string& path);
+
+/// Writes by extension (case-insensitive): `.png` → writePng, `.exr` → writeExr.
+/// Throws std::invalid_argument naming the extension when it is neither.
+void writeImage(const Image& image, const std::string& path);
+
+/// Reads an 8-bit PNG (any channel count; grey is replicated, alpha is dropped) and returns
+/// linear values (sRGB-decoded). Throws std::runtime_error naming the file on failure.
+Image readPng(const std::string& path);
+
+}  // namespace penumbra

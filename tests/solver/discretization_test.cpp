@@ -1,0 +1,623 @@
+// Discretization into patches and elements, against closed forms computed here:
+//  - counts: the smallest grid whose cells are no longer than patch_size (patches) and, within
+//    each patch, element_size (elements), measured in world space; `segments` for round shapes;
+//  - areas: exact for quads and boxes; for spheres and cylinders the exact area of the
+//    inscribed polyhedron (trapezoid and regular-polygon formulas), which must lie between
+//    cos²(largest facet angle) · 4πr² and 4πr² (resp. the cylinder's 2πrh + 2πr² scaled by the
+//    regular-polygon ratio);
+//  - structure: each element in exactly one patch, patch areas, outward normals, transforms
+//    (written out with explicit trigonometry in test_scenes.h), conforming split meshes (no
+//    interior boundary edges; Euler characteristic of a closed mesh), vertex values, symmetric
+//    neighbours, and element subdivision that keeps area and conformity.
+//
+// Index: helpers · quads and boxes · spheres and cylinders · transforms · meshes ·
+//        vertex values and neighbours · subdivision
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "solver/discretization.h"
+#include "test_scenes.h"
+
+namespace penumbra {
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+std::string str(const Vec3& v) {
+    std::ostringstream s;
+    s.precision(9);
+    s << "(" << v.x << ", " << v.y << ", " << v.z << ")";
+    return s.str();
+}
+
+/// Patches along a length, and elements along one patch: the fewest equal cells no longer
+/// than the target (lengths are chosen away from exact multiples).
+int cells(double length, double target) { return static_cast<int>(std::ceil(length / target)); }
+
+/// Element vertices are stored in single precision (OpenMesh float points) before the
+/// double-precision transform, so geometry is exact to about 1e-7 relative: "exact" below
+/// means within kFloat relative.
+constexpr double kFloat = 1e-6;
+
+SceneObject makeShape(const std::string& id, ShapeType type) {
+    SceneObject o;
+    o.id = id;
+    o.shape.type = type;
+    o.material = "white";
+    return o;
+}
+
+Scene sceneWith(std::vector<SceneObject> objects, double patchSize, double elementSize) {
+    Scene scene = test::emptyScene(patchSize, elementSize);
+    test::addMaterial(scene, "white", Rgb(0.5));
+    scene.objects = std::move(objects);
+    return scene;
+}
+
+/// Each element in exactly one patch, of the same object; patch area = Σ element areas;
+/// element areas positive; total area = Σ patch areas.
+void checkPatchStructure(const Discretization& disc) {
+    std::vector<int> owner(disc.elements().size(), -1);
+    double total = 0;
+    for (int p = 0; p < static_cast<int>(disc.patches().size()); ++p) {
+        const Patch& P = disc.patches()[p];
+        ASSERT_FALSE(P.elements.empty()) << "patch " << p << " has no elements";
+        double sum = 0;
+        for (int e : P.elements) {
+            ASSERT_GE(e, 0);
+            ASSERT_LT(e, static_cast<int>(disc.elements().size()));
+            EXPECT_EQ(owner[e], -1) << "element " << e << " is in patches " << owner[e] << " and "
+                                    << p;
+            owner[e] = p;
+            EXPECT_EQ(disc.elements()[e].patch, p) << "element " << e << " names patch "
+                                                   << disc.elements()[e].patch << ", listed in " << p;
+            EXPECT_EQ(disc.elements()[e].object, P.object);
+            EXPECT_GT(disc.elements()[e].area, 0);
+            sum += disc.elements()[e].area;
+        }
+        EXPECT_NEAR(P.area, sum, 1e-12 * sum) << "patch " << p << ": area " << P.area
+                                              << ", Σ element areas " << sum;
+        total += P.area;
+    }
+    for (std::size_t e = 0; e < owner.size(); ++e)
+        EXPECT_GE(owner[e], 0) << "element " << e << " belongs to no patch";
+    EXPECT_NEAR(disc.totalArea(), total, 1e-12 * total);
+}
+
+double objectArea(const Discretization& disc, int object) {
+    double a = 0;
+    for (const Element& el : disc.elements())
+        if (el.object == object) a += el.area;
+    return a;
+}
+
+int objectElements(const Discretization& disc, int object) {
+    int n = 0;
+    for (const Element& el : disc.elements()) n += el.object == object;
+    return n;
+}
+
+int objectPatches(const Discretization& disc, int object) {
+    int n = 0;
+    for (const Patch& p : disc.patches()) n += p.object == object;
+    return n;
+}
+
+/// Every element's normal points away from `centre`.
+void checkOutward(const Discretization& disc, int object, const Vec3& centre) {
+    for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e) {
+        const Element& el = disc.elements()[e];
+        if (el.object != object) continue;
+        EXPECT_GT(glm::dot(el.centroid - centre, el.normal), 0) << "inward: " << el.toString();
+        EXPECT_NEAR(glm::length(el.normal), 1.0, 1e-12);
+    }
+}
+
+/// World length of the object's boundary edges (OpenMesh): zero for a closed conforming
+/// mesh, the outer rim for an open one; a T-junction or unshared split point adds to it.
+double boundaryLength(const Discretization& disc, int object, int* count = nullptr) {
+    const ObjectSurface& s = disc.objects()[object];
+    double length = 0;
+    int n = 0;
+    for (auto e : s.mesh.edges())
+        if (s.mesh.is_boundary(e)) {
+            auto h = s.mesh.halfedge_handle(e, 0);
+            length += glm::length(s.worldPositions[s.mesh.to_vertex_handle(h).idx()] -
+                                  s.worldPositions[s.mesh.from_vertex_handle(h).idx()]);
+            ++n;
+        }
+    if (count) *count = n;
+    return length;
+}
+
+void checkNeighboursSymmetric(const Discretization& disc) {
+    for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e) {
+        const std::vector<int> nbs = disc.elementNeighbours(e);
+        EXPECT_EQ(std::find(nbs.begin(), nbs.end(), e), nbs.end()) << "element " << e
+                                                                   << " is its own neighbour";
+        for (int nb : nbs) {
+            const std::vector<int> back = disc.elementNeighbours(nb);
+            ASSERT_NE(std::find(back.begin(), back.end(), e), back.end())
+                << "element " << e << " lists " << nb << " as a neighbour, not conversely";
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Quads and boxes
+
+TEST(Discretization, QuadCountsAndAreas) {
+    // 2.3 × 1.1 with patches ≤ 0.5 and elements ≤ 0.12: 5 × 3 patches of 4 × 4 elements.
+    const double sx = 2.3, sz = 1.1, P = 0.5, E = 0.12;
+    Discretization disc(sceneWith({test::makeQuad("q", sx, sz, "white", {0, 0, 0})}, P, E));
+    const int pu = cells(sx, P), pv = cells(sz, P);
+    const int eu = cells(sx / pu, E), ev = cells(sz / pv, E);
+    ASSERT_EQ(pu * pv, 15);
+    EXPECT_EQ(disc.patches().size(), static_cast<std::size_t>(pu * pv));
+    EXPECT_EQ(disc.elements().size(), static_cast<std::size_t>(pu * eu * pv * ev));
+    EXPECT_NEAR(disc.totalArea(), sx * sz, kFloat * sx * sz) << disc.toString();
+    const double elementArea = (sx / (pu * eu)) * (sz / (pv * ev));
+    for (const Element& el : disc.elements()) {
+        EXPECT_NEAR(el.area, elementArea, kFloat * elementArea) << el.toString();
+        EXPECT_NEAR(el.normal.y, 1.0, 1e-12) << el.toString();
+        EXPECT_EQ(el.vertices.size(), 4u);
+    }
+    for (const Patch& p : disc.patches())
+        EXPECT_NEAR(p.area, sx * sz / (pu * pv), kFloat * p.area) << p.toString();
+    checkPatchStructure(disc);
+    EXPECT_NEAR(boundaryLength(disc, 0), 2 * (sx + sz), kFloat) << "shared grid vertices";
+}
+
+TEST(Discretization, BoxCountsAreasAndOutwardNormals) {
+    const Vec3 size(0.9, 0.45, 1.3);
+    const double P = 0.5, E = 0.2;
+    SceneObject box = makeShape("box", ShapeType::Box);
+    box.shape.size = size;
+    Discretization disc(sceneWith({box}, P, E));
+    int elements = 0, patches = 0;
+    for (auto [a, b] : {std::pair{size.y, size.z}, {size.z, size.x}, {size.x, size.y}}) {
+        int pa = cells(a, P), pb = cells(b, P);
+        patches += 2 * pa * pb;
+        elements += 2 * pa * cells(a / pa, E) * pb * cells(b / pb, E);
+    }
+    EXPECT_EQ(static_cast<int>(disc.patches().size()), patches);
+    EXPECT_EQ(static_cast<int>(disc.elements().size()), elements);
+    const double area = 2 * (size.x * size.y + size.y * size.z + size.z * size.x);
+    EXPECT_NEAR(disc.totalArea(), area, kFloat * area);
+    checkOutward(disc, 0, Vec3(0.0));
+    checkPatchStructure(disc);
+    // Every element lies on the box surface, its normal the face's axis.
+    for (const Element& el : disc.elements()) {
+        const Vec3 an = glm::abs(el.normal);
+        const int axis = an.x > 0.5 ? 0 : an.y > 0.5 ? 1 : 2;
+        EXPECT_NEAR(std::abs(el.centroid[axis]), size[axis] / 2, kFloat) << el.toString();
+        EXPECT_NEAR(an[axis], 1.0, kFloat) << el.toString();
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Spheres and cylinders
+
+/// Area of the UV sphere inscribed polyhedron with nu cells around and nv from pole to pole:
+/// isosceles trapezoids (triangles at the poles). Also returns the smallest distance from the
+/// centre to a facet plane, for the bound cos² · 4πr² ≤ area ≤ 4πr².
+double uvSphereArea(double r, int nu, int nv, double* minPlaneDistance) {
+    const double dphi = 2 * M_PI / nu, c = std::cos(dphi / 2), s = std::sin(dphi / 2);
+    double area = 0, dmin = r;
+    for (int j = 0; j < nv; ++j) {
+        const double t0 = M_PI * j / nv, t1 = M_PI * (j + 1) / nv;
+        const double a = 2 * r * std::sin(t0) * s, b = 2 * r * std::sin(t1) * s;
+        // Chord midpoints in the meridian plane through the cell's middle: (ρ, y).
+        const double m0x = r * std::sin(t0) * c, m0y = r * std::cos(t0);
+        const double m1x = r * std::sin(t1) * c, m1y = r * std::cos(t1);
+        const double h = std::hypot(m1x - m0x, m1y - m0y);
+        area += nu * 0.5 * (a + b) * h;
+        dmin = std::min(dmin, std::abs(m0x * m1y - m0y * m1x) / h);
+    }
+    if (minPlaneDistance) *minPlaneDistance = dmin;
+    return area;
+}
+
+/// The number of elements around the vertex at world position `apex` (a pole or cap centre).
+int fanCountAt(const Discretization& disc, int object, const Vec3& apex) {
+    int n = 0;
+    for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e) {
+        if (disc.elements()[e].object != object) continue;
+        for (const Vec3& v : disc.elementPolygon(e))
+            if (glm::length(v - apex) < 1e-6) {
+                ++n;
+                break;
+            }
+    }
+    return n;
+}
+
+void checkSphere(double r, int segments, double P, double E, Vec3 centre, int expectNu,
+                 int expectNv) {
+    SceneObject sphere = makeShape("sphere", ShapeType::Sphere);
+    sphere.shape.radius = r;
+    sphere.shape.segments = segments;
+    sphere.transform.translate = centre;
+    Discretization disc(sceneWith({sphere}, P, E));
+    const int nu = fanCountAt(disc, 0, centre + Vec3(0, r, 0));
+    ASSERT_GT(nu, 0) << "no element touches the north pole";
+    EXPECT_EQ(fanCountAt(disc, 0, centre - Vec3(0, r, 0)), nu) << "south pole";
+    ASSERT_EQ(disc.elements().size() % nu, 0u);
+    const int nv = static_cast<int>(disc.elements().size()) / nu;
+    EXPECT_GE(nu, segments);
+    EXPECT_GE(nv, segments / 2);
+    if (expectNu > 0) {
+        EXPECT_EQ(nu, expectNu);
+    }
+    if (expectNv > 0) {
+        EXPECT_EQ(nv, expectNv);
+    }
+
+    double dmin = 0;
+    const double poly = uvSphereArea(r, nu, nv, &dmin);
+    const double sphereArea = 4 * M_PI * r * r;
+    EXPECT_NEAR(disc.totalArea(), poly, kFloat * poly)
+        << "UV sphere " << nu << " × " << nv << ": area " << disc.totalArea()
+        << ", inscribed polyhedron " << poly;
+    EXPECT_LE(disc.totalArea(), sphereArea) << "an inscribed polyhedron is smaller than 4πr²";
+    EXPECT_GE(disc.totalArea(), sphereArea * (dmin / r) * (dmin / r))
+        << "area " << disc.totalArea() << " below cos²α · 4πr² = "
+        << sphereArea * (dmin / r) * (dmin / r);
+    for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e)
+        for (const Vec3& v : disc.elementPolygon(e))
+            ASSERT_NEAR(glm::length(v - centre), r, 1e-6 * r) << "vertex off the sphere";
+    checkOutward(disc, 0, centre);
+    checkPatchStructure(disc);
+    int boundaryEdges = 0;
+    EXPECT_EQ(boundaryLength(disc, 0, &boundaryEdges), 0.0)
+        << boundaryEdges << " boundary edges: the sphere's seam or poles are not shared";
+    checkNeighboursSymmetric(disc);
+}
+
+TEST(Discretization, SphereCoarseIsSegmentsByHalfSegments) {
+    // Patches and elements larger than the sphere: the grid is `segments` × segments/2, one
+    // patch.
+    checkSphere(1.0, 12, 100, 100, Vec3(0.0), 12, 6);
+    Discretization disc(sceneWith({[] {
+                                      SceneObject s = makeShape("s", ShapeType::Sphere);
+                                      s.shape.radius = 1.0;
+                                      s.shape.segments = 12;
+                                      return s;
+                                  }()},
+                                  100, 100));
+    EXPECT_EQ(disc.patches().size(), 1u);
+    EXPECT_EQ(disc.elements().size(), 72u);
+}
+
+TEST(Discretization, SphereFineAreaApproachesFourPiRSquared) {
+    checkSphere(0.7, 16, 0.5, 0.15, Vec3(1, -2, 0.5), 0, 0);
+    checkSphere(0.3, 8, 0.25, 0.05, Vec3(0.0), 0, 0);
+}
+
+void checkCylinder(double r, double h, int segments, double P, double E, Vec3 centre,
+                   int expectNu) {
+    SceneObject cyl = makeShape("cylinder", ShapeType::Cylinder);
+    cyl.shape.radius = r;
+    cyl.shape.height = h;
+    cyl.shape.segments = segments;
+    cyl.transform.translate = centre;
+    Discretization disc(sceneWith({cyl}, P, E));
+    const int nu = fanCountAt(disc, 0, centre + Vec3(0, h / 2, 0));
+    EXPECT_EQ(fanCountAt(disc, 0, centre - Vec3(0, h / 2, 0)), nu) << "bottom cap";
+    EXPECT_GE(nu, segments);
+    if (expectNu > 0) {
+        EXPECT_EQ(nu, expectNu);
+    }
+    // Side: nu planar rectangles of chord 2r sin(π/nu); caps: regular nu-gons.
+    const double side = nu * 2 * r * std::sin(M_PI / nu) * h;
+    const double caps = 2 * 0.5 * nu * r * r * std::sin(2 * M_PI / nu);
+    const double round = 2 * M_PI * r * h + 2 * M_PI * r * r;
+    EXPECT_NEAR(disc.totalArea(), side + caps, kFloat * (side + caps))
+        << nu << "-sided cylinder: area " << disc.totalArea() << ", closed form " << side + caps;
+    const double ratio = std::sin(2 * M_PI / nu) / (2 * M_PI / nu);  // the smaller of the two
+    EXPECT_LE(disc.totalArea(), round);
+    EXPECT_GE(disc.totalArea(), ratio * round)
+        << "area " << disc.totalArea() << " below the regular-polygon bound " << ratio * round;
+    checkOutward(disc, 0, centre);
+    checkPatchStructure(disc);
+    checkNeighboursSymmetric(disc);
+    // Side vertices on the cylinder, cap vertices within the disk.
+    for (const Element& el : disc.elements()) {
+        const bool cap = std::abs(el.normal.y) > 0.5;
+        for (int v : el.vertices) {
+            const Vec3 p = disc.objects()[0].worldPositions[v] - centre;
+            if (cap) {
+                EXPECT_NEAR(std::abs(p.y), h / 2, kFloat);
+            } else {
+                EXPECT_NEAR(std::hypot(p.x, p.z), r, 1e-6 * r);
+            }
+        }
+    }
+}
+
+TEST(Discretization, CylinderCoarseAndFine) {
+    checkCylinder(0.5, 1.2, 20, 100, 100, Vec3(0.0), 20);
+    Discretization coarse(sceneWith({[] {
+                                        SceneObject c = makeShape("c", ShapeType::Cylinder);
+                                        c.shape.radius = 0.5;
+                                        c.shape.height = 1.2;
+                                        c.shape.segments = 20;
+                                        return c;
+                                    }()},
+                                    100, 100));
+    EXPECT_EQ(coarse.patches().size(), 3u) << "side and two caps";
+    EXPECT_EQ(coarse.elements().size(), 60u) << "20 side quads and 20 triangles per cap";
+    checkCylinder(0.4, 0.9, 12, 0.5, 0.1, Vec3(-1, 0.5, 2), 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Transforms
+
+TEST(Discretization, QuadTransformIsScaleThenRotateXYZThenTranslate) {
+    // Rotating +Y by 90° about X then 90° about Y gives +X (the other order would give +Z).
+    SceneObject quad = test::makeQuad("q", 1, 1, "white", {1, 2, 3}, {90, 90, 0});
+    quad.transform.scale = Vec3(2, 1, 0.5);
+    Discretization disc(sceneWith({quad}, 0.5, 0.25));
+    const Vec3 normal = test::worldDirection(quad.transform, {0, 1, 0});
+    ASSERT_NEAR(normal.x, 1.0, 1e-12) << str(normal);
+    const std::vector<Vec3> corners = test::quadCorners(quad);
+    Vec3 lo(1e9), hi(-1e9), clo(1e9), chi(-1e9);
+    for (const Vec3& c : corners) clo = glm::min(clo, c), chi = glm::max(chi, c);
+    for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e) {
+        const Element& el = disc.elements()[e];
+        EXPECT_NEAR(glm::dot(el.normal, normal), 1.0, kFloat) << el.toString();
+        for (const Vec3& v : disc.elementPolygon(e)) {
+            lo = glm::min(lo, v), hi = glm::max(hi, v);
+            EXPECT_NEAR(glm::dot(v - quad.transform.translate, normal), 0, kFloat);
+        }
+    }
+    for (int k = 0; k < 3; ++k) {
+        EXPECT_NEAR(lo[k], clo[k], 1e-6) << "axis " << k << ": " << str(lo) << " vs " << str(clo);
+        EXPECT_NEAR(hi[k], chi[k], 1e-6) << "axis " << k << ": " << str(hi) << " vs " << str(chi);
+    }
+    EXPECT_NEAR(disc.totalArea(), 2.0 * 0.5, kFloat);
+    // Gridded in world units: 2 m → 4 patches × 2 elements, 0.5 m → 1 patch × 2 elements.
+    EXPECT_EQ(disc.patches().size(), 4u);
+    EXPECT_EQ(disc.elements().size(), 16u);
+}
+
+TEST(Discretization, BoxTransformInWorldSpace) {
+    SceneObject box = makeShape("box", ShapeType::Box);
+    box.shape.size = Vec3(1, 2, 3);
+    box.transform.scale = Vec3(1, 1, 2);
+    box.transform.rotateDeg = Vec3(0, 0, 90);
+    box.transform.translate = Vec3(5, 0, 0);
+    Discretization disc(sceneWith({box}, 0.5, 0.25));
+    // Scaled to 1 × 2 × 6, then (x, y) → (−y, x): AABB [4, 6] × [−0.5, 0.5] × [−3, 3].
+    Vec3 lo(1e9), hi(-1e9);
+    for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e)
+        for (const Vec3& v : disc.elementPolygon(e)) lo = glm::min(lo, v), hi = glm::max(hi, v);
+    const Vec3 wantLo(4, -0.5, -3), wantHi(6, 0.5, 3);
+    for (int k = 0; k < 3; ++k) {
+        EXPECT_NEAR(lo[k], wantLo[k], 1e-6) << str(lo);
+        EXPECT_NEAR(hi[k], wantHi[k], 1e-6) << str(hi);
+    }
+    EXPECT_NEAR(disc.totalArea(), 2 * (2 * 1 + 1 * 6 + 2 * 6), kFloat * 40);
+    checkOutward(disc, 0, box.transform.translate);
+    checkPatchStructure(disc);
+    // World-space gridding: the 6 m edge gets 12 patches of 2 elements.
+    int longFaceElements = 0;
+    for (const Element& el : disc.elements()) longFaceElements += std::abs(el.normal.x) > 0.5;
+    EXPECT_EQ(longFaceElements, 2 * (12 * 2) * (2 * 2)) << "±X faces are 6 m × 1 m";
+}
+
+TEST(Discretization, ScaledRotatedSphere) {
+    // Uniform scale 2 with rotation and translation: the area is 4 × that of the unit-radius
+    // polyhedron with the same grid, and the normals point away from the translated centre.
+    SceneObject s = makeShape("s", ShapeType::Sphere);
+    s.shape.radius = 0.5;
+    s.shape.segments = 10;
+    s.transform.scale = Vec3(2.0);
+    s.transform.rotateDeg = Vec3(20, -35, 50);
+    s.transform.translate = Vec3(-1, 3, 2);
+    Discretization disc(sceneWith({s}, 100, 100));
+    EXPECT_EQ(disc.elements().size(), 50u) << "10 × 5 grid";
+    EXPECT_NEAR(disc.totalArea(), uvSphereArea(1.0, 10, 5, nullptr), kFloat * disc.totalArea());
+    checkOutward(disc, 0, s.transform.translate);
+    // The pole follows the rotation.
+    const Vec3 pole = test::worldPoint(s.transform, {0, 0.5, 0});
+    EXPECT_EQ(fanCountAt(disc, 0, pole), 10) << "no fan at the rotated pole " << str(pole);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Meshes
+
+TEST(Discretization, LargeTriangleIsSplitConformingly) {
+    SceneObject o = makeShape("tri", ShapeType::Mesh);
+    const Vec3 a(0, 0, 0), b(1.3, 0, 0), c(0, 0, -0.9);  // counter-clockwise from +Y
+    o.shape.mesh.positions = {a, b, c};
+    o.shape.mesh.triangles = {{0, 1, 2}};
+    const double E = 0.2;
+    Discretization disc(sceneWith({o}, 0.5, E));
+    const double longest = glm::length(c - b);
+    const int n = cells(longest, E);  // 8: edges split into n, the triangle into n²
+    ASSERT_EQ(n, 8);
+    EXPECT_EQ(disc.elements().size(), static_cast<std::size_t>(n * n));
+    EXPECT_EQ(disc.objects()[0].mesh.n_vertices(), static_cast<std::size_t>((n + 1) * (n + 2) / 2));
+    const double area = 0.5 * 1.3 * 0.9;
+    EXPECT_NEAR(disc.totalArea(), area, kFloat * area);
+    for (const Element& el : disc.elements()) {
+        EXPECT_NEAR(el.area, area / (n * n), kFloat * area / (n * n)) << el.toString();
+        EXPECT_NEAR(el.normal.y, 1.0, kFloat) << el.toString();
+        EXPECT_EQ(el.vertices.size(), 3u);
+    }
+    EXPECT_NEAR(boundaryLength(disc, 0), 1.3 + 0.9 + longest, kFloat)
+        << "interior boundary edges: split points are not shared";
+    checkPatchStructure(disc);
+    checkNeighboursSymmetric(disc);
+}
+
+/// A regular icosahedron of edge 2 (vertices (0, ±1, ±φ) and cyclic), outward winding.
+TriMesh icosahedron() {
+    const double phi = (1 + std::sqrt(5.0)) / 2;
+    TriMesh m;
+    for (double s1 : {-1.0, 1.0})
+        for (double s2 : {-phi, phi}) {
+            m.positions.push_back({0, s1, s2});
+            m.positions.push_back({s1, s2, 0});
+            m.positions.push_back({s2, 0, s1});
+        }
+    const int n = static_cast<int>(m.positions.size());
+    auto edge = [&](int i, int j) {
+        return std::abs(glm::length(m.positions[i] - m.positions[j]) - 2.0) < 1e-9;
+    };
+    for (int i = 0; i < n; ++i)
+        for (int j = i + 1; j < n; ++j)
+            for (int k = j + 1; k < n; ++k)
+                if (edge(i, j) && edge(j, k) && edge(i, k)) {
+                    const Vec3 nrm = glm::cross(m.positions[j] - m.positions[i],
+                                                m.positions[k] - m.positions[i]);
+                    if (glm::dot(nrm, m.positions[i]) > 0) m.triangles.push_back({i, j, k});
+                    else m.triangles.push_back({i, k, j});
+                }
+    return m;
+}
+
+void checkIcosahedron(const Transform& t, double elementSize, int expectN) {
+    SceneObject o = makeShape("ico", ShapeType::Mesh);
+    o.shape.mesh = icosahedron();
+    ASSERT_EQ(o.shape.mesh.positions.size(), 12u);
+    ASSERT_EQ(o.shape.mesh.triangles.size(), 20u);
+    o.transform = t;
+    Discretization disc(sceneWith({o}, 0.5, elementSize));
+    const double edge = 2.0 * t.scale.x;  // uniform scale
+    const int n = cells(edge, elementSize);
+    ASSERT_EQ(n, expectN);
+    // Geodesic frequency n: F = 20 n², V = 10 n² + 2, E = 30 n²; closed: χ = 2, no boundary.
+    const auto& mesh = disc.objects()[0].mesh;
+    EXPECT_EQ(disc.elements().size(), static_cast<std::size_t>(20 * n * n));
+    EXPECT_EQ(mesh.n_vertices(), static_cast<std::size_t>(10 * n * n + 2))
+        << "split points along shared edges must be shared";
+    EXPECT_EQ(mesh.n_edges(), static_cast<std::size_t>(30 * n * n));
+    int boundaryEdges = 0;
+    EXPECT_EQ(boundaryLength(disc, 0, &boundaryEdges), 0.0) << boundaryEdges << " boundary edges";
+    EXPECT_EQ(static_cast<long>(mesh.n_vertices()) - static_cast<long>(mesh.n_edges()) +
+                  static_cast<long>(mesh.n_faces()),
+              2L);
+    const double area = 20 * std::sqrt(3.0) / 4 * edge * edge;
+    EXPECT_NEAR(disc.totalArea(), area, kFloat * area);
+    checkOutward(disc, 0, t.translate);
+    checkPatchStructure(disc);
+    checkNeighboursSymmetric(disc);
+}
+
+TEST(Discretization, IcosahedronSplitStaysClosed) {
+    checkIcosahedron(Transform{}, 0.7, 3);
+    Transform t;
+    t.scale = Vec3(0.5);
+    t.rotateDeg = Vec3(10, 20, 30);
+    t.translate = Vec3(1, 1, 1);
+    checkIcosahedron(t, 0.7, 2);
+    checkIcosahedron(Transform{}, 3.0, 1);  // no split
+}
+
+// ---------------------------------------------------------------------------------------------
+// Vertex values and neighbours
+
+TEST(Discretization, VertexValuesOfConstantAndLinearFields) {
+    SceneObject quad = test::makeQuad("q", 1.1, 0.7, "white", {0, 0, 0});
+    SceneObject box = makeShape("box", ShapeType::Box);
+    box.shape.size = Vec3(0.6, 0.5, 0.4);
+    box.transform.translate = Vec3(3, 0, 0);
+    SceneObject sphere = makeShape("sphere", ShapeType::Sphere);
+    sphere.shape.radius = 0.4;
+    sphere.transform.translate = Vec3(-3, 0, 0);
+    SceneObject cyl = makeShape("cyl", ShapeType::Cylinder);
+    cyl.transform.translate = Vec3(0, 0, 3);
+    SceneObject ico = makeShape("ico", ShapeType::Mesh);
+    ico.shape.mesh = icosahedron();
+    ico.transform.translate = Vec3(0, 0, -5);
+    Discretization disc(sceneWith({quad, box, sphere, cyl, ico}, 0.5, 0.2));
+    const Rgb k(0.3, 1.7, 42.0);
+    const std::vector<Rgb> constant(disc.elements().size(), k);
+    for (int o = 0; o < static_cast<int>(disc.objects().size()); ++o) {
+        const std::vector<Rgb> values = disc.vertexValues(o, constant);
+        ASSERT_EQ(values.size(), disc.objects()[o].mesh.n_vertices());
+        for (std::size_t v = 0; v < values.size(); ++v)
+            for (int c = 0; c < 3; ++c)
+                ASSERT_NEAR(values[v][c], k[c], 1e-12 * k[c])
+                    << disc.objects()[o].id << " vertex " << v << ": " << values[v][c];
+    }
+    // On the uniform quad grid, the area-weighted mean of the linear field x over the four
+    // elements around an interior vertex is the vertex's own x.
+    std::vector<Rgb> linear(disc.elements().size());
+    for (std::size_t e = 0; e < linear.size(); ++e) linear[e] = Rgb(disc.elements()[e].centroid.x);
+    const std::vector<Rgb> values = disc.vertexValues(0, linear);
+    const ObjectSurface& s = disc.objects()[0];
+    int interior = 0;
+    for (auto v : s.mesh.vertices()) {
+        if (s.mesh.is_boundary(v)) continue;
+        ++interior;
+        EXPECT_NEAR(values[v.idx()].x, s.worldPositions[v.idx()].x, kFloat) << "vertex " << v.idx();
+    }
+    EXPECT_GT(interior, 10);
+}
+
+TEST(Discretization, NeighboursOnAGridAndSymmetry) {
+    // 5 × 4 elements in one patch: corner elements have 3 neighbours, edge ones 5, interior 8.
+    Discretization disc(sceneWith({test::makeQuad("q", 1.0, 0.8, "white", {0, 0, 0})}, 10, 0.2));
+    ASSERT_EQ(disc.elements().size(), 20u);
+    for (int e = 0; e < 20; ++e) {
+        const Vec3 c = disc.elements()[e].centroid;
+        const bool edgeX = std::abs(std::abs(c.x) - 0.4) < kFloat;
+        const bool edgeZ = std::abs(std::abs(c.z) - 0.3) < kFloat;
+        const std::size_t want = edgeX && edgeZ ? 3 : edgeX || edgeZ ? 5 : 8;
+        EXPECT_EQ(disc.elementNeighbours(e).size(), want) << disc.elements()[e].toString();
+    }
+    checkNeighboursSymmetric(disc);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Subdivision
+
+TEST(Discretization, SubdivideElementKeepsAreaAndConformity) {
+    Discretization disc(sceneWith({test::makeQuad("q", 1.0, 1.0, "white", {0, 0, 0})}, 10, 0.25));
+    ASSERT_EQ(disc.elements().size(), 16u);
+    const double parentArea = disc.elements()[5].area;
+    const std::vector<int> children = disc.subdivideElement(5);
+    ASSERT_EQ(children.size(), 4u);
+    EXPECT_EQ(children[0], 5) << "the first child reuses the parent's index";
+    for (int c : children) {
+        EXPECT_NEAR(disc.elements()[c].area, parentArea / 4, kFloat * parentArea);
+        EXPECT_EQ(disc.elements()[c].patch, disc.elements()[5].patch);
+    }
+    EXPECT_NEAR(objectArea(disc, 0), 1.0, kFloat);
+    EXPECT_NEAR(boundaryLength(disc, 0), 4.0, kFloat) << "T-junction after subdivision";
+    // A child subdivides again (level 2), still conforming.
+    disc.subdivideElement(children[2]);
+    EXPECT_NEAR(objectArea(disc, 0), 1.0, kFloat);
+    EXPECT_NEAR(boundaryLength(disc, 0), 4.0, kFloat);
+    EXPECT_EQ(objectElements(disc, 0), 16 + 3 + 3);
+    EXPECT_EQ(objectPatches(disc, 0), 1);
+    checkPatchStructure(disc);
+    checkNeighboursSymmetric(disc);
+
+    // Triangles split into four triangles.
+    SceneObject o = makeShape("ico", ShapeType::Mesh);
+    o.shape.mesh = icosahedron();
+    Discretization ico(sceneWith({o}, 0.5, 3.0));
+    const double area = ico.totalArea();
+    std::vector<int> tri = ico.subdivideElement(0);
+    ASSERT_EQ(tri.size(), 4u);
+    for (int c : tri) EXPECT_EQ(ico.elements()[c].vertices.size(), 3u);
+    EXPECT_NEAR(objectArea(ico, 0), area, kFloat * area);
+    EXPECT_EQ(boundaryLength(ico, 0), 0.0) << "the closed mesh opened";
+    checkPatchStructure(ico);
+    checkNeighboursSymmetric(ico);
+}
+
+}  // namespace
+}  // namespace penumbra

@@ -1,0 +1,401 @@
+// Ray-traced point-to-patch form factors (formFactorToPatch) against independent truths:
+//  - reciprocity A_i F_ij = A_j F_ji, each side an area integral over a fine grid of points of
+//    one patch, and the patch-to-patch closed forms of Howell's catalogue (C-11 parallel
+//    coaxial rectangles, C-14 perpendicular rectangles sharing an edge);
+//  - visibility: a fully blocking occluder (0), a half-blocking one (the closed-form F of the
+//    unblocked half), occluders that cannot block (unchanged), `ignoreObject`;
+//  - the unoccluded part equals the sum of Lambert form factors of the patch's element polygons;
+//  - reproducible sample patterns keyed by (seed, receiverKey, patch).
+//
+// Index: helpers and closed forms · unoccluded part · reciprocity · visibility · determinism
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "solver/discretization.h"
+#include "solver/form_factor.h"
+#include "solver/ray_tracer.h"
+#include "test_scenes.h"
+
+namespace penumbra {
+namespace {
+
+std::string str(const Vec3& v) {
+    std::ostringstream s;
+    s.precision(9);
+    s << "(" << v.x << ", " << v.y << ", " << v.z << ")";
+    return s.str();
+}
+
+bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+// ---------------------------------------------------------------------------------------------
+// Closed forms
+
+/// Howell B-3: differential area parallel to an a × b rectangle at distance c, its normal
+/// through one corner; odd in a and b, so corner terms superpose for any foot point.
+double cornerRectangle(double a, double b, double c) {
+    double A = a / c, B = b / c;
+    double sa = std::sqrt(1 + A * A), sb = std::sqrt(1 + B * B);
+    return (A / sa * std::atan(B / sa) + B / sb * std::atan(A / sb)) / (2 * M_PI);
+}
+double parallelRectangle(double x0, double x1, double y0, double y1, double c) {
+    return cornerRectangle(x1, y1, c) - cornerRectangle(x0, y1, c) - cornerRectangle(x1, y0, c) +
+           cornerRectangle(x0, y0, c);
+}
+
+/// Howell C-11: between identical, parallel, directly opposed a × b rectangles at distance c.
+double coaxialRectangles(double a, double b, double c) {
+    double X = a / c, Y = b / c;
+    double x1 = std::sqrt(1 + X * X), y1 = std::sqrt(1 + Y * Y);
+    return 2 / (M_PI * X * Y) *
+           (std::log(std::sqrt((1 + X * X) * (1 + Y * Y) / (1 + X * X + Y * Y))) +
+            X * y1 * std::atan(X / y1) + Y * x1 * std::atan(Y / x1) - X * std::atan(X) -
+            Y * std::atan(Y));
+}
+
+/// Howell C-14: from a w × l rectangle to an h × l rectangle at right angles, sharing the
+/// edge of length l.
+double perpendicularRectangles(double w, double h, double l) {
+    double W = w / l, H = h / l, W2 = W * W, H2 = H * H, s = std::sqrt(W2 + H2);
+    double logTerm = std::log((1 + W2) * (1 + H2) / (1 + W2 + H2)) +
+                     W2 * std::log(W2 * (1 + W2 + H2) / ((1 + W2) * (W2 + H2))) +
+                     H2 * std::log(H2 * (1 + H2 + W2) / ((1 + H2) * (H2 + W2)));
+    return (W * std::atan(1 / W) + H * std::atan(1 / H) - s * std::atan(1 / s) + 0.25 * logTerm) /
+           (M_PI * W);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scene helpers
+
+/// Area integral over quad object `from` (one patch, index `fromPatch`) of the point-to-patch
+/// form factor to patch `toPatch`: A_from F_from→to, midpoint rule on a grid × grid lattice.
+double areaTimesFormFactor(const Discretization& disc, const RayTracer& tracer,
+                           const SceneObject& from, int toPatch, int grid) {
+    const std::vector<Vec3> c = test::quadCorners(from);
+    const Vec3 n = glm::normalize(glm::cross(c[1] - c[0], c[2] - c[1]));
+    const Vec3 du = c[1] - c[0], dv = c[3] - c[0];
+    const double area = glm::length(glm::cross(du, dv));
+    double sum = 0;
+    for (int j = 0; j < grid; ++j)
+        for (int i = 0; i < grid; ++i) {
+            Vec3 x = c[0] + (i + 0.5) / grid * du + (j + 0.5) / grid * dv;
+            PointToPatch ff = formFactorToPatch(disc, tracer, x, n, toPatch,
+                                                static_cast<std::uint64_t>(j * grid + i), 1, 16);
+            sum += ff.visible;
+        }
+    return sum * area / (grid * grid);
+}
+
+/// The patch of object `object`; the scenes here make every object a single patch.
+int onlyPatchOf(const Discretization& disc, int object) {
+    int found = -1;
+    for (int p = 0; p < static_cast<int>(disc.patches().size()); ++p)
+        if (disc.patches()[p].object == object) {
+            EXPECT_EQ(found, -1) << "object " << object << " has several patches";
+            found = p;
+        }
+    return found;
+}
+
+struct PairCase {
+    const char* what;
+    SceneObject a, b;
+    double closedForm = -1;  ///< F_a→b when known in closed form, else < 0
+};
+
+void checkReciprocity(const PairCase& pc) {
+    Scene scene = test::emptyScene(10.0, 0.25);
+    test::addMaterial(scene, "white", Rgb(0.5));
+    scene.objects = {pc.a, pc.b};
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    const int pa = onlyPatchOf(disc, 0), pb = onlyPatchOf(disc, 1);
+    const int grid = 80;
+    const double aFab = areaTimesFormFactor(disc, tracer, pc.a, pb, grid);
+    const double bFba = areaTimesFormFactor(disc, tracer, pc.b, pa, grid);
+    const double areaA = disc.patches()[pa].area;
+    ASSERT_GT(aFab, 0) << pc.what;
+    EXPECT_NEAR(aFab, bFba, 0.02 * std::max(aFab, bFba))
+        << pc.what << ": A_a F_ab = " << aFab << " but A_b F_ba = " << bFba;
+    ::testing::Test::RecordProperty(std::string("reciprocity_") + pc.what,
+                                    std::to_string(aFab / bFba - 1));
+    if (pc.closedForm >= 0) {
+        EXPECT_NEAR(aFab / areaA, pc.closedForm, 0.01 * pc.closedForm)
+            << pc.what << ": F_ab integrated = " << aFab / areaA
+            << ", Howell closed form = " << pc.closedForm;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Unoccluded part
+
+TEST(FormFactor, UnoccludedIsSumOfElementPolygonFormFactors) {
+    // The header's contract: the unoccluded value is the exact form factor of the patch's
+    // element polygons, i.e. of the surface the patch really covers.
+    Scene scene = test::emptyScene(0.5, 0.2);
+    test::addMaterial(scene, "white", Rgb(0.5));
+    SceneObject quad = test::makeQuad("quad", 1.2, 0.7, "white", {0, 0, 0}, {10, 20, 30});
+    SceneObject box;
+    box.id = "box";
+    box.shape.type = ShapeType::Box;
+    box.shape.size = Vec3(0.6, 0.9, 0.4);
+    box.material = "white";
+    box.transform.translate = Vec3(3, 0, 0);
+    SceneObject cyl;
+    cyl.id = "cylinder";
+    cyl.shape.type = ShapeType::Cylinder;
+    cyl.shape.radius = 0.5;
+    cyl.shape.height = 0.6;
+    cyl.shape.segments = 24;
+    cyl.material = "white";
+    cyl.transform.translate = Vec3(-3, 0, 0);
+    SceneObject sphere;
+    sphere.id = "sphere";
+    sphere.shape.type = ShapeType::Sphere;
+    sphere.shape.radius = 0.4;
+    sphere.shape.segments = 16;
+    sphere.material = "white";
+    sphere.transform.translate = Vec3(0, 0, 3);
+    scene.objects = {quad, box, cyl, sphere};
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+
+    int checked = 0;
+    for (int p = 0; p < static_cast<int>(disc.patches().size()); ++p) {
+        const Patch& P = disc.patches()[p];
+        // Points in front of the patch: near, off to the side, far.
+        const Vec3 side = glm::normalize(glm::cross(P.normal, Vec3(0.3, 0.5, 0.7)));
+        const Vec3 points[] = {P.centroid + 0.05 * P.normal,
+                               P.centroid + 0.3 * P.normal + 0.2 * side,
+                               P.centroid + 2.0 * P.normal - 0.5 * side};
+        for (const Vec3& x : points) {
+            const Vec3 n = glm::normalize(P.centroid - x);
+            double expected = 0;
+            for (int e : P.elements) expected += polygonFormFactor(x, n, disc.elementPolygon(e));
+            const PointToPatch ff = formFactorToPatch(disc, tracer, x, n, p, 3, 1, 16);
+            EXPECT_NEAR(ff.unoccluded, expected, 1e-3 * expected + 1e-9)
+                << disc.objects()[P.object].id << " patch " << p << ": unoccluded = "
+                << ff.unoccluded << ", Σ over its " << P.elements.size()
+                << " element polygons = " << expected << " at x = " << str(x) << "; "
+                << P.toString();
+            ++checked;
+        }
+    }
+    EXPECT_GT(checked, 30);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reciprocity
+
+TEST(FormFactor, ReciprocityParallelPatches) {
+    // Coaxial unit squares one apart (Howell C-11: 0.1998), then unequal offset ones.
+    checkReciprocity({"coaxial unit squares", test::makeQuad("a", 1, 1, "white", {0, 0, 0}),
+                      test::makeQuad("b", 1, 1, "white", {0, 1, 0}, {180, 0, 0}),
+                      coaxialRectangles(1, 1, 1)});
+    checkReciprocity({"offset unequal parallel", test::makeQuad("a", 1, 0.5, "white", {0, 0, 0}),
+                      test::makeQuad("b", 0.6, 0.8, "white", {0.4, 0.7, 0.2}, {180, 0, 0})});
+}
+
+TEST(FormFactor, ReciprocityPerpendicularPatches) {
+    // Floor 1 (x, from the edge) × 1 (z) and a wall 0.8 high sharing the edge x = 0.5
+    // (Howell C-14), then a perpendicular pair with a gap and no shared edge.
+    checkReciprocity({"perpendicular, shared edge",
+                      test::makeQuad("floor", 1, 1, "white", {0, 0, 0}),
+                      test::makeQuad("wall", 0.8, 1, "white", {0.5, 0.4, 0}, {0, 0, 90}),
+                      perpendicularRectangles(1, 0.8, 1)});
+    checkReciprocity({"perpendicular with a gap",
+                      test::makeQuad("floor", 1, 0.7, "white", {0, 0, 0}),
+                      test::makeQuad("wall", 0.6, 0.5, "white", {0.8, 0.5, 0.3}, {0, 0, 90})});
+}
+
+TEST(FormFactor, ReciprocityTiltedPatches) {
+    checkReciprocity({"tilted 30 degrees", test::makeQuad("a", 1, 1, "white", {0, 0, 0}),
+                      test::makeQuad("b", 0.7, 0.5, "white", {0.3, 0.8, -0.2}, {150, 20, 0})});
+    checkReciprocity({"tilted 70 degrees, general",
+                      test::makeQuad("a", 0.8, 1.1, "white", {0, 0, 0}, {10, 0, -15}),
+                      test::makeQuad("b", 0.9, 0.4, "white", {-0.6, 0.6, 0.3}, {0, 40, -110})});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Visibility
+
+/// A 1 × 1 emitter facing down at height 0.5 over the receiver point at the origin (normal +Y),
+/// one patch, plus the given occluders.
+struct OcclusionScene {
+    Scene scene;
+    std::unique_ptr<Discretization> disc;
+    std::unique_ptr<RayTracer> tracer;
+    int lampPatch = -1;
+    explicit OcclusionScene(const std::vector<SceneObject>& occluders) {
+        scene = test::emptyScene(2.0, 0.125);
+        test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(1.0));
+        test::addMaterial(scene, "black", Rgb(0.0));
+        scene.objects.push_back(test::makeQuad("lamp", 1, 1, "lamp", {0, 0.5, 0}, {180, 0, 0}));
+        for (const SceneObject& o : occluders) scene.objects.push_back(o);
+        disc = std::make_unique<Discretization>(scene);
+        tracer = std::make_unique<RayTracer>(*disc);
+        lampPatch = onlyPatchOf(*disc, 0);
+    }
+    PointToPatch at(std::uint64_t key, std::uint64_t seed = 1, int maxRays = 100,
+                    int ignore = -1) const {
+        return formFactorToPatch(*disc, *tracer, Vec3(0.0), Vec3(0, 1, 0), lampPatch, key, seed,
+                                 maxRays, ignore);
+    }
+};
+
+const double kLampF = parallelRectangle(-0.5, 0.5, -0.5, 0.5, 0.5);  // ≈ 0.554
+
+/// Covers the whole cone from the origin to the lamp (half-width 0.25 at height 0.25).
+SceneObject fullBlocker() { return test::makeQuad("blocker", 0.8, 0.8, "black", {0, 0.25, 0}); }
+/// Covers exactly the x < 0 half of the lamp as seen from the origin.
+SceneObject halfBlocker() {
+    return test::makeQuad("half", 0.4, 0.8, "black", {-0.2, 0.25, 0});
+}
+
+TEST(FormFactor, VisibilityRayCountIsBoundedAndMonotone) {
+    int previous = 0;
+    for (double f = 0; f <= 1.0; f += 1e-3) {
+        int n = visibilityRayCount(f, 64);
+        EXPECT_GE(n, 1);
+        EXPECT_LE(n, 64);
+        EXPECT_GE(n, previous) << "ray count decreased at F = " << f;
+        previous = n;
+    }
+    EXPECT_EQ(visibilityRayCount(0.9, 1), 1);
+    EXPECT_EQ(visibilityRayCount(0.9, 0), 1);
+    EXPECT_EQ(visibilityRayCount(0.0, 64), 1);
+    EXPECT_EQ(visibilityRayCount(1e-9, 64), 1) << "a distant pair gets one ray";
+    EXPECT_EQ(visibilityRayCount(0.9, 64), 64) << "a close pair gets maxRays";
+}
+
+TEST(FormFactor, UnblockedLampMatchesClosedFormAndIsFullyVisible) {
+    OcclusionScene s({});
+    for (std::uint64_t key = 0; key < 64; ++key) {
+        PointToPatch ff = s.at(key);
+        ASSERT_NEAR(ff.unoccluded, kLampF, 1e-9 * kLampF)
+            << "unoccluded = " << ff.unoccluded << ", Howell B-3 = " << kLampF;
+        ASSERT_NEAR(ff.visible, ff.unoccluded, 1e-12)
+            << "key " << key << ": nothing blocks, yet visible = " << ff.visible
+            << " and unoccluded = " << ff.unoccluded;
+    }
+}
+
+TEST(FormFactor, OccludersOutsideTheSegmentDoNotBlock) {
+    // A quad above the lamp and one below the receiver point: neither crosses a shadow ray.
+    OcclusionScene s({test::makeQuad("above", 2, 2, "black", {0, 0.8, 0}),
+                      test::makeQuad("below", 2, 2, "black", {0, -0.2, 0})});
+    for (std::uint64_t key = 0; key < 16; ++key) {
+        PointToPatch ff = s.at(key);
+        EXPECT_NEAR(ff.visible, kLampF, 1e-9)
+            << "key " << key << ": visible = " << ff.visible << ", closed form = " << kLampF;
+    }
+}
+
+TEST(FormFactor, FullyBlockedLampIsInvisibleUnlessTheBlockerIsIgnored) {
+    OcclusionScene s({fullBlocker()});
+    const int blocker = 1, lamp = 0;
+    for (std::uint64_t key = 0; key < 16; ++key) {
+        PointToPatch ff = s.at(key);
+        EXPECT_NEAR(ff.unoccluded, kLampF, 1e-9) << "unoccluded ignores occluders";
+        EXPECT_EQ(ff.visible, 0.0) << "key " << key << ": the blocker covers the whole cone, "
+                                   << "visible = " << ff.visible;
+        EXPECT_GT(ff.rays, 0);
+        // ignoreObject makes the blocker transparent: the unoccluded value comes back.
+        PointToPatch ignored = s.at(key, 1, 100, blocker);
+        EXPECT_NEAR(ignored.visible, kLampF, 1e-9)
+            << "key " << key << ": blocker ignored, visible = " << ignored.visible
+            << ", closed form = " << kLampF;
+        // Ignoring another object (the lamp itself) leaves the blocker in place.
+        EXPECT_EQ(s.at(key, 1, 100, lamp).visible, 0.0);
+    }
+}
+
+TEST(FormFactor, HalfBlockedLampIsHalfVisible) {
+    // Truth: by symmetry, and in closed form, the visible half is the x > 0 rectangle.
+    const double truth = parallelRectangle(0, 0.5, -0.5, 0.5, 0.5);
+    ASSERT_NEAR(truth, 0.5 * kLampF, 1e-12);
+    OcclusionScene s({halfBlocker()});
+    // visibilityRayCount gives ceil(sqrt(F / 1e-4)) capped by maxRays: 75 rays for F ≈ 0.55.
+    // A single estimate with N independent rays has a relative standard deviation of about
+    // 1/sqrt(N) ≈ 12%, so check each estimate at 4σ, the mean over 64 independent patterns
+    // (σ ≈ 1.4%) at 5%, and that the spread is no worse than independent rays.
+    const int keys = 64;
+    double sum = 0, sumSq = 0;
+    for (std::uint64_t key = 0; key < keys; ++key) {
+        PointToPatch ff = s.at(key);
+        ASSERT_EQ(ff.rays, visibilityRayCount(ff.unoccluded, 100));
+        ASSERT_GE(ff.rays, 64) << "geometry chosen so the pair gets many rays";
+        const double ratio = ff.visible / truth;
+        const double sigma = 1 / std::sqrt(double(ff.rays));
+        EXPECT_NEAR(ratio, 1.0, 4 * sigma)
+            << "key " << key << ": visible = " << ff.visible << ", closed-form half = " << truth
+            << " (" << ff.rays << " rays)";
+        sum += ratio;
+        sumSq += (ratio - 1) * (ratio - 1);
+    }
+    const double mean = sum / keys, rms = std::sqrt(sumSq / keys);
+    const int rays = s.at(0).rays;
+    EXPECT_NEAR(mean, 1.0, 0.05) << "mean visible / closed-form half over " << keys
+                                 << " patterns = " << mean;
+    EXPECT_LE(rms, 1.25 / std::sqrt(double(rays)))
+        << "rms relative error " << rms << " exceeds that of " << rays << " independent rays";
+    ::testing::Test::RecordProperty("mean_ratio", std::to_string(mean));
+    ::testing::Test::RecordProperty("rms_relative_error", std::to_string(rms));
+}
+
+TEST(FormFactor, PatchPartlyBelowTheHorizonIsStillSeen) {
+    // The receiver is 0.01 under the lamp near its +x edge, its normal tipped 80° toward +x:
+    // only the strip x > 0.448 of the lamp is above its horizon, but that strip is close and
+    // carries a large form factor. Nothing occludes, so visible must equal unoccluded for every
+    // sample pattern.
+    OcclusionScene s({});
+    const Vec3 x(0.45, 0.49, 0.0);
+    const double a = 80 * M_PI / 180;
+    const Vec3 n(std::sin(a), std::cos(a), 0);
+    int failures = 0;
+    for (std::uint64_t key = 0; key < 64; ++key) {
+        PointToPatch ff = formFactorToPatch(*s.disc, *s.tracer, x, n, s.lampPatch, key, 1, 16);
+        ASSERT_GT(ff.unoccluded, 0.1);
+        if (std::abs(ff.visible - ff.unoccluded) > 1e-9 * ff.unoccluded) ++failures;
+        EXPECT_NEAR(ff.visible, ff.unoccluded, 1e-9 * ff.unoccluded)
+            << "key " << key << ": nothing occludes, yet visible = " << ff.visible
+            << " and unoccluded = " << ff.unoccluded << " (" << ff.rays << " rays)";
+    }
+    ::testing::Test::RecordProperty("patterns_losing_the_patch", std::to_string(failures));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Determinism
+
+TEST(FormFactor, SamplePatternIsKeyedBySeedAndReceiver) {
+    OcclusionScene s({halfBlocker()});
+    std::set<double> bySeed, byKey;
+    for (std::uint64_t seed = 1; seed <= 16; ++seed) {
+        PointToPatch a = s.at(42, seed), b = s.at(42, seed);
+        EXPECT_TRUE(sameBits(a.visible, b.visible) && sameBits(a.unoccluded, b.unoccluded) &&
+                    a.rays == b.rays)
+            << "seed " << seed << ": " << a.visible << " then " << b.visible;
+        bySeed.insert(a.visible);
+        byKey.insert(s.at(seed, 7).visible);
+    }
+    // A partly occluded pair: different patterns give different visible estimates.
+    EXPECT_GE(bySeed.size(), 12u) << "only " << bySeed.size() << " distinct estimates from 16 seeds";
+    EXPECT_GE(byKey.size(), 12u) << "only " << byKey.size() << " distinct estimates from 16 keys";
+    // Evaluation order does not matter: another pair in between leaves the pattern unchanged.
+    PointToPatch first = s.at(5, 3);
+    s.at(6, 9);
+    formFactorToPatch(*s.disc, *s.tracer, Vec3(0.1, 0, 0.1), Vec3(0, 1, 0), s.lampPatch, 5, 3, 100);
+    EXPECT_TRUE(sameBits(first.visible, s.at(5, 3).visible));
+}
+
+}  // namespace
+}  // namespace penumbra
