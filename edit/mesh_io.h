@@ -1,6 +1,7 @@
 #pragma once
-// Mesh files → TriMesh: OBJ (+MTL) via tinyobjloader, OFF/PLY/STL via OpenMesh IO,
-// glTF/GLB via tinygltf.
+// Mesh files → TriMesh: OBJ (+MTL) via tinyobjloader, STL via OpenMesh IO, glTF/GLB via
+// tinygltf, OFF and PLY (ASCII and binary) via strict readers of our own, because OpenMesh 9's
+// readers for those hang or crash on malformed files.
 
 #include <string>
 

@@ -17,8 +17,7 @@ using VHandle = ElementMesh::VertexHandle;
 using FHandle = ElementMesh::FaceHandle;
 
 ElementMesh::Point toPoint(const Vec3& v) {
-    return ElementMesh::Point(static_cast<float>(v.x), static_cast<float>(v.y),
-                              static_cast<float>(v.z));
+    return ElementMesh::Point(v.x, v.y, v.z);
 }
 
 Vec3 transformPoint(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
@@ -260,9 +259,12 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
                     const auto& q = surface.mesh.point(verts[j * (nu + 1) + i]);
                     return Vec3(q[0], q[1], q[2]);
                 };
-                groupOutline[group] = {corner(a * eu, b * ev), corner((a + 1) * eu, b * ev),
-                                       corner((a + 1) * eu, (b + 1) * ev),
-                                       corner(a * eu, (b + 1) * ev)};
+                // The boundary of the patch's elements, walked along the grid lines.
+                auto& outline = groupOutline[group];
+                for (int i = a * eu; i < (a + 1) * eu; ++i) outline.push_back(corner(i, b * ev));
+                for (int j = b * ev; j < (b + 1) * ev; ++j) outline.push_back(corner((a + 1) * eu, j));
+                for (int i = (a + 1) * eu; i > a * eu; --i) outline.push_back(corner(i, (b + 1) * ev));
+                for (int j = (b + 1) * ev; j > b * ev; --j) outline.push_back(corner(a * eu, j));
                 for (int j = b * ev; j < (b + 1) * ev; ++j)
                     for (int i = a * eu; i < (a + 1) * eu; ++i)
                         builder.addFace({verts[j * (nu + 1) + i], verts[j * (nu + 1) + i + 1],
@@ -479,13 +481,33 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         for (int e : P.elements)
             planar = planar && glm::dot(mElements[e].normal, mElements[P.elements[0]].normal) > 1 - 1e-9;
         if (!planar) continue;
+        std::vector<Vec3> ring;
         for (const Vec3& c : groupOutline[group]) {
             Vec3 w = transformPoint(M, c);
-            if (P.outline.empty() || glm::length(P.outline.back() - w) > 1e-12) P.outline.push_back(w);
+            if (ring.empty() || glm::length(ring.back() - w) > 1e-12) ring.push_back(w);
         }
-        if (P.outline.size() > 1 && glm::length(P.outline.back() - P.outline.front()) <= 1e-12)
-            P.outline.pop_back();
-        if (P.outline.size() < 3) P.outline.clear();
+        while (ring.size() > 1 && glm::length(ring.back() - ring.front()) <= 1e-12) ring.pop_back();
+        // Drop points in the middle of straight runs: fewer edges for the contour integral.
+        for (std::size_t k = 0; k < ring.size() && ring.size() > 3;) {
+            const Vec3& prev = ring[(k + ring.size() - 1) % ring.size()];
+            const Vec3& next = ring[(k + 1) % ring.size()];
+            Vec3 u = ring[k] - prev, v = next - ring[k];
+            if (glm::length(glm::cross(u, v)) <= 1e-12 * glm::length(u) * glm::length(v) &&
+                glm::dot(u, v) > 0)
+                ring.erase(ring.begin() + static_cast<std::ptrdiff_t>(k));
+            else
+                ++k;
+        }
+        // Only a convex outline: sampling fans it from its first vertex.
+        bool convex = ring.size() >= 3;
+        Vec3 n0 = newellNormal(ring);
+        for (std::size_t k = 0; convex && k < ring.size(); ++k) {
+            const Vec3& a = ring[k];
+            const Vec3& b = ring[(k + 1) % ring.size()];
+            const Vec3& c = ring[(k + 2) % ring.size()];
+            convex = glm::dot(glm::cross(b - a, c - b), n0) > -1e-12 * glm::dot(n0, n0);
+        }
+        if (convex) P.outline = std::move(ring);
     }
     for (int p = firstPatch; p < static_cast<int>(mPatches.size()); ++p) {
         finishPatch(p);

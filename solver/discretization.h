@@ -13,8 +13,13 @@
 
 namespace penumbra {
 
+/// Double-precision points, so world positions and areas are exact to ~1e-15.
+struct ElementMeshTraits : OpenMesh::DefaultTraits {
+    using Point = OpenMesh::Vec3d;
+    using Normal = OpenMesh::Vec3d;
+};
 /// Object-space element mesh: one face per element, shared vertices within a smooth surface.
-using ElementMesh = OpenMesh::PolyMesh_ArrayKernelT<>;
+using ElementMesh = OpenMesh::PolyMesh_ArrayKernelT<ElementMeshTraits>;
 
 /// A shooter: a coarse piece of one object's surface made of whole elements.
 struct Patch {

@@ -33,13 +33,16 @@ Vec3 polygonNormal(const std::vector<Vec3>& poly) {
 /// Uniform point in a convex polygon by fan triangle chosen by area.
 Vec3 samplePolygon(const std::vector<Vec3>& poly, double r0, double r1, double r2) {
     double total = 0;
-    double areas[16];
-    std::size_t fans = std::min<std::size_t>(poly.size() - 2, 16);
+    const std::size_t fans = poly.size() - 2;
     for (std::size_t i = 0; i < fans; ++i)
-        total += areas[i] = glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0]));
+        total += glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0]));
     double pick = r0 * total;
     std::size_t i = 0;
-    while (i + 1 < fans && pick > areas[i]) pick -= areas[i++];
+    for (; i + 1 < fans; ++i) {
+        double a = glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0]));
+        if (pick <= a) break;
+        pick -= a;
+    }
     double s = std::sqrt(r1);
     return (1 - s) * poly[0] + s * (1 - r2) * poly[i + 1] + s * r2 * poly[i + 2];
 }
@@ -50,24 +53,32 @@ std::uint64_t hashPair(std::uint64_t a, std::uint64_t b) {
     return splitmix(splitmix(a) ^ (b + 0x632be59bd9b4e019ull + (a << 6) + (a >> 2)));
 }
 
-double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon) {
+namespace {
+
+/// Lambert's contour integral over `polygon` clipped to the hemisphere above (x, n); the
+/// clipped polygon is left in `clipped` (empty when nothing is seen).
+double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon,
+                         std::vector<Vec3>& clipped) {
+    clipped.clear();
     if (polygon.size() < 3) return 0;
     // One-sided: the point must be in front of the polygon.
     Vec3 pn = polygonNormal(polygon);
     if (glm::dot(x - polygon[0], pn) <= 0) return 0;
 
     // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman).
-    Vec3 clipped[32];
-    std::size_t count = 0;
-    const std::size_t m = std::min<std::size_t>(polygon.size(), 15);
+    const std::size_t m = polygon.size();
     for (std::size_t i = 0; i < m; ++i) {
         const Vec3& a = polygon[i];
         const Vec3& b = polygon[(i + 1) % m];
         double da = glm::dot(a - x, n), db = glm::dot(b - x, n);
-        if (da >= 0) clipped[count++] = a;
-        if ((da >= 0) != (db >= 0)) clipped[count++] = a + (b - a) * (da / (da - db));
+        if (da >= 0) clipped.push_back(a);
+        if ((da >= 0) != (db >= 0)) clipped.push_back(a + (b - a) * (da / (da - db)));
     }
-    if (count < 3) return 0;
+    const std::size_t count = clipped.size();
+    if (count < 3) {
+        clipped.clear();
+        return 0;
+    }
 
     // Lambert's contour integral: F = 1/(2π) Σ β_k n·Γ̂_k.
     double sum = 0;
@@ -80,6 +91,13 @@ double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
         sum += beta * glm::dot(n, c) / cl;
     }
     return std::abs(sum) / (2 * M_PI);
+}
+
+}  // namespace
+
+double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon) {
+    thread_local std::vector<Vec3> clipped;
+    return clippedFormFactor(x, n, polygon, clipped);
 }
 
 int visibilityRayCount(double fUnoccluded, int maxRays) {
@@ -96,24 +114,24 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
     PointToPatch out;
     const Patch& P = disc.patches()[patch];
 
-    // Exact unoccluded form factor of each element polygon of the patch.
+    // Exact unoccluded form factor of each element polygon of the patch (or of its outline
+    // when planar), keeping the part above the receiver's horizon for sampling.
     thread_local std::vector<std::vector<Vec3>> polys;
     thread_local std::vector<double> f;
+    thread_local std::vector<Vec3> polygon;
     double total = 0;
-    if (!P.outline.empty()) {
-        polys.resize(1);
-        f.resize(1);
-        polys[0] = P.outline;
-        total = f[0] = polygonFormFactor(x, n, polys[0]);
-    } else {
-        polys.resize(P.elements.size());
-        f.resize(P.elements.size());
-        for (std::size_t k = 0; k < P.elements.size(); ++k) {
+    const std::size_t count = P.outline.empty() ? P.elements.size() : 1;
+    polys.resize(count);
+    f.resize(count);
+    for (std::size_t k = 0; k < count; ++k) {
+        if (P.outline.empty()) {
             const Element& el = disc.elements()[P.elements[k]];
             const auto& pos = disc.objects()[el.object].worldPositions;
-            polys[k].clear();
-            for (int v : el.vertices) polys[k].push_back(pos[v]);
-            total += f[k] = polygonFormFactor(x, n, polys[k]);
+            polygon.clear();
+            for (int v : el.vertices) polygon.push_back(pos[v]);
+            total += f[k] = clippedFormFactor(x, n, polygon, polys[k]);
+        } else {
+            total += f[k] = clippedFormFactor(x, n, P.outline, polys[k]);
         }
     }
     out.unoccluded = total;
@@ -143,7 +161,9 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
         double area = 0.5 * glm::length(polygonNormal(polys[k]));
         w *= area / f[k];
         wAll += w;
-        if (!tracer.occluded(origin, y - d * (eps / dist), visibility)) wVisible += w;
+        // Leave the source surface along its normal (toward x, which is in front of it), so
+        // rays grazing the source plane do not hit the source itself in float precision.
+        if (!tracer.occluded(origin, y + ny * eps, visibility)) wVisible += w;
         ++out.rays;
     }
     out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;

@@ -286,31 +286,47 @@ void ProgressiveSolver::subdivideSteepElements(int shooter, const Rgb& dB) {
     }
     if (steep.empty()) return;
     for (int e : steep) {
-        const Rgb parentBefore = mElementB[e] - mImpl->delta[e];
-        const Rgb parentDelta = mImpl->delta[e];
-        const double parentArea = mDisc.elements()[e].area;
         const int patch = mDisc.elements()[e].patch;
         const int level = mImpl->level[e] + 1;
+        const Rgb parentB = mElementB[e];
+        const double parentArea = mDisc.elements()[e].area;
         std::vector<int> children = mDisc.subdivideElement(e);
         if (children.size() < 2) continue;
         mElementB.resize(mDisc.elements().size(), Rgb(0.0));
         mImpl->level.resize(mDisc.elements().size(), 0);
         mImpl->delta.resize(mDisc.elements().size(), Rgb(0.0));
+        // Each child gathers everything shot so far: every earlier shot of patch j used the
+        // same pair-seeded F(child ← j), so Σ over j of (B_j − ΔB_j) F is its exact history
+        // (Cohen's "reshoot patch i", extended to all earlier shooters).
         Rgb change(0.0);
         for (int c : children) {
-            // Children inherit the parent's radiosity from earlier shots; this shot is
-            // recomputed for each of them.
-            Rgb d = receivedFrom(shooter, c, dB);
-            mElementB[c] = parentBefore + d;
-            mImpl->delta[c] = d;
+            mElementB[c] = mDisc.patchMaterial(patch).emission + gatherShotRadiosity(c);
+            mImpl->delta[c] = mElementB[c] - parentB;
             mImpl->level[c] = level;
-            change += d * mDisc.elements()[c].area;
+            change += mElementB[c] * mDisc.elements()[c].area;
         }
-        change -= parentDelta * parentArea;
+        // The patch's radiosity changed by the children's correction: it is unshot.
+        change -= parentB * parentArea;
         mPatchUnshot[patch] += change / mDisc.patches()[patch].area;
         ++mStats.subdivisions;
     }
     mTracer.rebuild();
+    (void)dB;
+    (void)shooter;
+}
+
+Rgb ProgressiveSolver::gatherShotRadiosity(int element) const {
+    const std::size_t np = mDisc.patches().size();
+    std::vector<Rgb> parts(np, Rgb(0.0));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 64), [&](const auto& range) {
+        for (std::size_t j = range.begin(); j != range.end(); ++j) {
+            Rgb shot = patchRadiosity(static_cast<int>(j)) - mPatchUnshot[j];
+            if (!isZero(shot)) parts[j] = receivedFrom(static_cast<int>(j), element, shot);
+        }
+    });
+    Rgb sum(0.0);
+    for (const Rgb& p : parts) sum += p;
+    return sum;
 }
 
 std::vector<Rgb> ProgressiveSolver::displayRadiosity() const {

@@ -87,6 +87,8 @@ private:
     /// Radiosity element `e` receives when `shooter` shoots unshot radiosity dB.
     Rgb receivedFrom(int shooter, int e, const Rgb& dB) const;
     void subdivideSteepElements(int shooter, const Rgb& dB);
+    /// ρ_e Σ_j (B_j − ΔB_j) F(e ← j): what element e received from everything shot so far.
+    Rgb gatherShotRadiosity(int element) const;
     /// Shoots all remaining unshot energy at once on rays (the weak tail).
     void shootStochasticBatch();
 

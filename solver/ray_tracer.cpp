@@ -110,7 +110,7 @@ void RayTracer::addObject(int o) {
         geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
     for (auto v : s.mesh.vertices()) {
         const auto& p = s.mesh.point(v);
-        for (int k = 0; k < 3; ++k) verts[3 * v.idx() + k] = p[k];
+        for (int k = 0; k < 3; ++k) verts[3 * v.idx() + k] = static_cast<float>(p[k]);
     }
     auto& map = im.triangleFace[o];
     map.clear();

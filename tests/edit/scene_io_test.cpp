@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -40,7 +41,8 @@ public:
         for (char& c : name) {
             if (c == '/') c = '_';
         }
-        mPath = fs::temp_directory_path() / name;
+        // The process id keeps concurrent runs (several build trees, ctest -j) apart.
+        mPath = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
         fs::remove_all(mPath);
         fs::create_directories(mPath);
     }
@@ -615,6 +617,97 @@ TEST(MeshIo, MissingUnreadableAndUnsupportedFilesThrow) {
                            dir.path().string() + ": "));
 }
 
+/// A binary PLY quad (two triangles, area 1, facing +Y) with extra properties and elements
+/// that the reader must skip.
+std::string binaryPly(bool bigEndian) {
+    std::string bytes = std::string("ply\nformat ") +
+                        (bigEndian ? "binary_big_endian" : "binary_little_endian") +
+                        " 1.0\ncomment made by a test\nelement vertex 4\nproperty float x\n"
+                        "property float y\nproperty float z\nproperty uchar red\n"
+                        "element face 1\nproperty list uchar int vertex_indices\n"
+                        "property short flags\nelement edge 1\nproperty int a\nproperty int b\n"
+                        "end_header\n";
+    auto put = [&](const void* data, size_t size) {
+        std::string raw(static_cast<const char*>(data), size);
+        if (bigEndian) std::reverse(raw.begin(), raw.end());
+        bytes += raw;
+    };
+    const float positions[4][3] = {{0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0}};
+    for (const auto& p : positions) {
+        for (float c : p) put(&c, 4);
+        const uint8_t red = 200;
+        put(&red, 1);
+    }
+    const uint8_t n = 4;
+    put(&n, 1);
+    for (int32_t i : {0, 1, 2, 3}) put(&i, 4);
+    const int16_t flags = -1;
+    put(&flags, 2);
+    for (int32_t i : {0, 1}) put(&i, 4);
+    return bytes;
+}
+
+TEST(MeshIo, ReadsBinaryPlyOfBothByteOrders) {
+    TempDir dir;
+    for (bool bigEndian : {false, true}) {
+        const std::string path = dir.write(bigEndian ? "be.ply" : "le.ply", binaryPly(bigEndian));
+        const TriMesh mesh = loadMeshFile(path);
+        ASSERT_EQ(mesh.triangles.size(), 2u) << path;
+        EXPECT_NEAR(meshArea(mesh), 1.0, 1e-12) << path;
+        for (size_t t = 0; t < 2; ++t) EXPECT_GT(triangleNormal(mesh, t).y, 0.0) << path;
+    }
+}
+
+TEST(MeshIo, ReadsOffVariants) {
+    TempDir dir;
+    // Counts on the header line, comments, per-vertex and per-face colours.
+    const std::string path = dir.write("c.off", R"(COFF 4 1 0  # counts here
+# a comment line
+
+0 0 0 255 0 0 255
+0 0 1 255 0 0 255
+1 0 1 255 0 0 255   # trailing comment
+1 0 0 255 0 0 255
+4 0 1 2 3 0.5 0.5 0.5
+)");
+    const TriMesh mesh = loadMeshFile(path);
+    ASSERT_EQ(mesh.triangles.size(), 2u);
+    EXPECT_NEAR(meshArea(mesh), 1.0, 1e-12);
+}
+
+TEST(MeshIo, MalformedOffAndPlyFailCleanly) {
+    TempDir dir;
+    const std::string truncatedBinary = binaryPly(false).substr(0, binaryPly(false).size() - 12);
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"negative.off", "OFF\n4 -04 0 0\n0 1 0\n"},
+        {"huge.off", "OFF\n4000000000 1 0\n0 0 0\n"},
+        {"short.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n"},
+        {"badvertex.off", "OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n"},
+        {"facecount.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n5 0 1 2\n"},
+        {"header.off", "OFX\n3 1 0\n"},
+        {"empty.off", ""},
+        {"header1.ply", "ply\nformat ascii 1.0\nelement vertex property float x\nend_header\n"},
+        {"header2.ply", "ply\nformat ascii 1.0\nelemen]t vertex 4\nend_header\n"},
+        {"header3.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty floatf x\nend_header\n"},
+        {"noend.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"},
+        {"noxyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n"},
+        {"truncated.ply", truncatedBinary},
+        {"listlength.ply",
+         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 1\nproperty list uint int vertex_indices\nend_header\n"
+         "0 0 0\n1 0 0\n0 1 0\n4000000000 0 1 2\n"},
+        {"garbage.ply",
+         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+         "property float z\nend_header\n0 0 0\n1 0 1f\n"},
+    };
+    for (const auto& [name, text] : cases) {
+        const std::string path = dir.write(name, text);
+        const std::string message = inputErrorOf([&] { loadMeshFile(path); });
+        EXPECT_TRUE(startsWith(message, path + ": ")) << name << ": " << message;
+        EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Degenerate faces.
 
@@ -752,7 +845,7 @@ std::vector<BadScene> badScenes() {
         {"UnreadableMeshFile",
          sceneWith(
              R"({"id": "m", "shape": {"type": "mesh", "file": "garbage.ply"}, "material": "white"})"),
-         "objects[0].shape.file", "garbage.ply: not a valid PLY file"},
+         "objects[0].shape.file", "garbage.ply: line 2: expected 'format"},
         {"MeshWithoutOwnMaterials",
          sceneWith(R"({"id": "m", "shape": {"type": "mesh", "file": "plain.off"}})"),
          "objects[0].material", "carries no materials"},

@@ -42,10 +42,9 @@ std::string str(const Vec3& v) {
 /// than the target (lengths are chosen away from exact multiples).
 int cells(double length, double target) { return static_cast<int>(std::ceil(length / target)); }
 
-/// Element vertices are stored in single precision (OpenMesh float points) before the
-/// double-precision transform, so geometry is exact to about 1e-7 relative: "exact" below
-/// means within kFloat relative.
-constexpr double kFloat = 1e-6;
+/// Element meshes hold double-precision points, so "exact" geometry below means to within
+/// kExact relative (rounding only).
+constexpr double kExact = 1e-12;
 
 SceneObject makeShape(const std::string& id, ShapeType type) {
     SceneObject o;
@@ -163,17 +162,17 @@ TEST(Discretization, QuadCountsAndAreas) {
     ASSERT_EQ(pu * pv, 15);
     EXPECT_EQ(disc.patches().size(), static_cast<std::size_t>(pu * pv));
     EXPECT_EQ(disc.elements().size(), static_cast<std::size_t>(pu * eu * pv * ev));
-    EXPECT_NEAR(disc.totalArea(), sx * sz, kFloat * sx * sz) << disc.toString();
+    EXPECT_NEAR(disc.totalArea(), sx * sz, kExact * sx * sz) << disc.toString();
     const double elementArea = (sx / (pu * eu)) * (sz / (pv * ev));
     for (const Element& el : disc.elements()) {
-        EXPECT_NEAR(el.area, elementArea, kFloat * elementArea) << el.toString();
+        EXPECT_NEAR(el.area, elementArea, kExact * elementArea) << el.toString();
         EXPECT_NEAR(el.normal.y, 1.0, 1e-12) << el.toString();
         EXPECT_EQ(el.vertices.size(), 4u);
     }
     for (const Patch& p : disc.patches())
-        EXPECT_NEAR(p.area, sx * sz / (pu * pv), kFloat * p.area) << p.toString();
+        EXPECT_NEAR(p.area, sx * sz / (pu * pv), kExact * p.area) << p.toString();
     checkPatchStructure(disc);
-    EXPECT_NEAR(boundaryLength(disc, 0), 2 * (sx + sz), kFloat) << "shared grid vertices";
+    EXPECT_NEAR(boundaryLength(disc, 0), 2 * (sx + sz), kExact) << "shared grid vertices";
 }
 
 TEST(Discretization, BoxCountsAreasAndOutwardNormals) {
@@ -191,15 +190,15 @@ TEST(Discretization, BoxCountsAreasAndOutwardNormals) {
     EXPECT_EQ(static_cast<int>(disc.patches().size()), patches);
     EXPECT_EQ(static_cast<int>(disc.elements().size()), elements);
     const double area = 2 * (size.x * size.y + size.y * size.z + size.z * size.x);
-    EXPECT_NEAR(disc.totalArea(), area, kFloat * area);
+    EXPECT_NEAR(disc.totalArea(), area, kExact * area);
     checkOutward(disc, 0, Vec3(0.0));
     checkPatchStructure(disc);
     // Every element lies on the box surface, its normal the face's axis.
     for (const Element& el : disc.elements()) {
         const Vec3 an = glm::abs(el.normal);
         const int axis = an.x > 0.5 ? 0 : an.y > 0.5 ? 1 : 2;
-        EXPECT_NEAR(std::abs(el.centroid[axis]), size[axis] / 2, kFloat) << el.toString();
-        EXPECT_NEAR(an[axis], 1.0, kFloat) << el.toString();
+        EXPECT_NEAR(std::abs(el.centroid[axis]), size[axis] / 2, kExact) << el.toString();
+        EXPECT_NEAR(an[axis], 1.0, kExact) << el.toString();
     }
 }
 
@@ -264,7 +263,7 @@ void checkSphere(double r, int segments, double P, double E, Vec3 centre, int ex
     double dmin = 0;
     const double poly = uvSphereArea(r, nu, nv, &dmin);
     const double sphereArea = 4 * M_PI * r * r;
-    EXPECT_NEAR(disc.totalArea(), poly, kFloat * poly)
+    EXPECT_NEAR(disc.totalArea(), poly, kExact * poly)
         << "UV sphere " << nu << " × " << nv << ": area " << disc.totalArea()
         << ", inscribed polyhedron " << poly;
     EXPECT_LE(disc.totalArea(), sphereArea) << "an inscribed polyhedron is smaller than 4πr²";
@@ -273,7 +272,7 @@ void checkSphere(double r, int segments, double P, double E, Vec3 centre, int ex
         << sphereArea * (dmin / r) * (dmin / r);
     for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e)
         for (const Vec3& v : disc.elementPolygon(e))
-            ASSERT_NEAR(glm::length(v - centre), r, 1e-6 * r) << "vertex off the sphere";
+            ASSERT_NEAR(glm::length(v - centre), r, kExact * r) << "vertex off the sphere";
     checkOutward(disc, 0, centre);
     checkPatchStructure(disc);
     int boundaryEdges = 0;
@@ -320,7 +319,7 @@ void checkCylinder(double r, double h, int segments, double P, double E, Vec3 ce
     const double side = nu * 2 * r * std::sin(M_PI / nu) * h;
     const double caps = 2 * 0.5 * nu * r * r * std::sin(2 * M_PI / nu);
     const double round = 2 * M_PI * r * h + 2 * M_PI * r * r;
-    EXPECT_NEAR(disc.totalArea(), side + caps, kFloat * (side + caps))
+    EXPECT_NEAR(disc.totalArea(), side + caps, kExact * (side + caps))
         << nu << "-sided cylinder: area " << disc.totalArea() << ", closed form " << side + caps;
     const double ratio = std::sin(2 * M_PI / nu) / (2 * M_PI / nu);  // the smaller of the two
     EXPECT_LE(disc.totalArea(), round);
@@ -335,9 +334,9 @@ void checkCylinder(double r, double h, int segments, double P, double E, Vec3 ce
         for (int v : el.vertices) {
             const Vec3 p = disc.objects()[0].worldPositions[v] - centre;
             if (cap) {
-                EXPECT_NEAR(std::abs(p.y), h / 2, kFloat);
+                EXPECT_NEAR(std::abs(p.y), h / 2, kExact);
             } else {
-                EXPECT_NEAR(std::hypot(p.x, p.z), r, 1e-6 * r);
+                EXPECT_NEAR(std::hypot(p.x, p.z), r, kExact * r);
             }
         }
     }
@@ -373,17 +372,17 @@ TEST(Discretization, QuadTransformIsScaleThenRotateXYZThenTranslate) {
     for (const Vec3& c : corners) clo = glm::min(clo, c), chi = glm::max(chi, c);
     for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e) {
         const Element& el = disc.elements()[e];
-        EXPECT_NEAR(glm::dot(el.normal, normal), 1.0, kFloat) << el.toString();
+        EXPECT_NEAR(glm::dot(el.normal, normal), 1.0, kExact) << el.toString();
         for (const Vec3& v : disc.elementPolygon(e)) {
             lo = glm::min(lo, v), hi = glm::max(hi, v);
-            EXPECT_NEAR(glm::dot(v - quad.transform.translate, normal), 0, kFloat);
+            EXPECT_NEAR(glm::dot(v - quad.transform.translate, normal), 0, kExact);
         }
     }
     for (int k = 0; k < 3; ++k) {
-        EXPECT_NEAR(lo[k], clo[k], 1e-6) << "axis " << k << ": " << str(lo) << " vs " << str(clo);
-        EXPECT_NEAR(hi[k], chi[k], 1e-6) << "axis " << k << ": " << str(hi) << " vs " << str(chi);
+        EXPECT_NEAR(lo[k], clo[k], kExact) << "axis " << k << ": " << str(lo) << " vs " << str(clo);
+        EXPECT_NEAR(hi[k], chi[k], kExact) << "axis " << k << ": " << str(hi) << " vs " << str(chi);
     }
-    EXPECT_NEAR(disc.totalArea(), 2.0 * 0.5, kFloat);
+    EXPECT_NEAR(disc.totalArea(), 2.0 * 0.5, kExact);
     // Gridded in world units: 2 m → 4 patches × 2 elements, 0.5 m → 1 patch × 2 elements.
     EXPECT_EQ(disc.patches().size(), 4u);
     EXPECT_EQ(disc.elements().size(), 16u);
@@ -402,10 +401,10 @@ TEST(Discretization, BoxTransformInWorldSpace) {
         for (const Vec3& v : disc.elementPolygon(e)) lo = glm::min(lo, v), hi = glm::max(hi, v);
     const Vec3 wantLo(4, -0.5, -3), wantHi(6, 0.5, 3);
     for (int k = 0; k < 3; ++k) {
-        EXPECT_NEAR(lo[k], wantLo[k], 1e-6) << str(lo);
-        EXPECT_NEAR(hi[k], wantHi[k], 1e-6) << str(hi);
+        EXPECT_NEAR(lo[k], wantLo[k], kExact * 10) << str(lo);
+        EXPECT_NEAR(hi[k], wantHi[k], kExact * 10) << str(hi);
     }
-    EXPECT_NEAR(disc.totalArea(), 2 * (2 * 1 + 1 * 6 + 2 * 6), kFloat * 40);
+    EXPECT_NEAR(disc.totalArea(), 2 * (2 * 1 + 1 * 6 + 2 * 6), kExact * 40);
     checkOutward(disc, 0, box.transform.translate);
     checkPatchStructure(disc);
     // World-space gridding: the 6 m edge gets 12 patches of 2 elements.
@@ -425,7 +424,7 @@ TEST(Discretization, ScaledRotatedSphere) {
     s.transform.translate = Vec3(-1, 3, 2);
     Discretization disc(sceneWith({s}, 100, 100));
     EXPECT_EQ(disc.elements().size(), 50u) << "10 × 5 grid";
-    EXPECT_NEAR(disc.totalArea(), uvSphereArea(1.0, 10, 5, nullptr), kFloat * disc.totalArea());
+    EXPECT_NEAR(disc.totalArea(), uvSphereArea(1.0, 10, 5, nullptr), kExact * disc.totalArea());
     checkOutward(disc, 0, s.transform.translate);
     // The pole follows the rotation.
     const Vec3 pole = test::worldPoint(s.transform, {0, 0.5, 0});
@@ -448,13 +447,13 @@ TEST(Discretization, LargeTriangleIsSplitConformingly) {
     EXPECT_EQ(disc.elements().size(), static_cast<std::size_t>(n * n));
     EXPECT_EQ(disc.objects()[0].mesh.n_vertices(), static_cast<std::size_t>((n + 1) * (n + 2) / 2));
     const double area = 0.5 * 1.3 * 0.9;
-    EXPECT_NEAR(disc.totalArea(), area, kFloat * area);
+    EXPECT_NEAR(disc.totalArea(), area, kExact * area);
     for (const Element& el : disc.elements()) {
-        EXPECT_NEAR(el.area, area / (n * n), kFloat * area / (n * n)) << el.toString();
-        EXPECT_NEAR(el.normal.y, 1.0, kFloat) << el.toString();
+        EXPECT_NEAR(el.area, area / (n * n), kExact * area / (n * n)) << el.toString();
+        EXPECT_NEAR(el.normal.y, 1.0, kExact) << el.toString();
         EXPECT_EQ(el.vertices.size(), 3u);
     }
-    EXPECT_NEAR(boundaryLength(disc, 0), 1.3 + 0.9 + longest, kFloat)
+    EXPECT_NEAR(boundaryLength(disc, 0), 1.3 + 0.9 + longest, kExact)
         << "interior boundary edges: split points are not shared";
     checkPatchStructure(disc);
     checkNeighboursSymmetric(disc);
@@ -508,7 +507,7 @@ void checkIcosahedron(const Transform& t, double elementSize, int expectN) {
                   static_cast<long>(mesh.n_faces()),
               2L);
     const double area = 20 * std::sqrt(3.0) / 4 * edge * edge;
-    EXPECT_NEAR(disc.totalArea(), area, kFloat * area);
+    EXPECT_NEAR(disc.totalArea(), area, kExact * area);
     checkOutward(disc, 0, t.translate);
     checkPatchStructure(disc);
     checkNeighboursSymmetric(disc);
@@ -561,7 +560,7 @@ TEST(Discretization, VertexValuesOfConstantAndLinearFields) {
     for (auto v : s.mesh.vertices()) {
         if (s.mesh.is_boundary(v)) continue;
         ++interior;
-        EXPECT_NEAR(values[v.idx()].x, s.worldPositions[v.idx()].x, kFloat) << "vertex " << v.idx();
+        EXPECT_NEAR(values[v.idx()].x, s.worldPositions[v.idx()].x, kExact) << "vertex " << v.idx();
     }
     EXPECT_GT(interior, 10);
 }
@@ -572,8 +571,8 @@ TEST(Discretization, NeighboursOnAGridAndSymmetry) {
     ASSERT_EQ(disc.elements().size(), 20u);
     for (int e = 0; e < 20; ++e) {
         const Vec3 c = disc.elements()[e].centroid;
-        const bool edgeX = std::abs(std::abs(c.x) - 0.4) < kFloat;
-        const bool edgeZ = std::abs(std::abs(c.z) - 0.3) < kFloat;
+        const bool edgeX = std::abs(std::abs(c.x) - 0.4) < kExact;
+        const bool edgeZ = std::abs(std::abs(c.z) - 0.3) < kExact;
         const std::size_t want = edgeX && edgeZ ? 3 : edgeX || edgeZ ? 5 : 8;
         EXPECT_EQ(disc.elementNeighbours(e).size(), want) << disc.elements()[e].toString();
     }
@@ -591,15 +590,15 @@ TEST(Discretization, SubdivideElementKeepsAreaAndConformity) {
     ASSERT_EQ(children.size(), 4u);
     EXPECT_EQ(children[0], 5) << "the first child reuses the parent's index";
     for (int c : children) {
-        EXPECT_NEAR(disc.elements()[c].area, parentArea / 4, kFloat * parentArea);
+        EXPECT_NEAR(disc.elements()[c].area, parentArea / 4, kExact * parentArea);
         EXPECT_EQ(disc.elements()[c].patch, disc.elements()[5].patch);
     }
-    EXPECT_NEAR(objectArea(disc, 0), 1.0, kFloat);
-    EXPECT_NEAR(boundaryLength(disc, 0), 4.0, kFloat) << "T-junction after subdivision";
+    EXPECT_NEAR(objectArea(disc, 0), 1.0, kExact);
+    EXPECT_NEAR(boundaryLength(disc, 0), 4.0, kExact) << "T-junction after subdivision";
     // A child subdivides again (level 2), still conforming.
     disc.subdivideElement(children[2]);
-    EXPECT_NEAR(objectArea(disc, 0), 1.0, kFloat);
-    EXPECT_NEAR(boundaryLength(disc, 0), 4.0, kFloat);
+    EXPECT_NEAR(objectArea(disc, 0), 1.0, kExact);
+    EXPECT_NEAR(boundaryLength(disc, 0), 4.0, kExact);
     EXPECT_EQ(objectElements(disc, 0), 16 + 3 + 3);
     EXPECT_EQ(objectPatches(disc, 0), 1);
     checkPatchStructure(disc);
@@ -613,7 +612,7 @@ TEST(Discretization, SubdivideElementKeepsAreaAndConformity) {
     std::vector<int> tri = ico.subdivideElement(0);
     ASSERT_EQ(tri.size(), 4u);
     for (int c : tri) EXPECT_EQ(ico.elements()[c].vertices.size(), 3u);
-    EXPECT_NEAR(objectArea(ico, 0), area, kFloat * area);
+    EXPECT_NEAR(objectArea(ico, 0), area, kExact * area);
     EXPECT_EQ(boundaryLength(ico, 0), 0.0) << "the closed mesh opened";
     checkPatchStructure(ico);
     checkNeighboursSymmetric(ico);
