@@ -327,9 +327,9 @@ struct DoubleTraits : OpenMesh::DefaultTraits {
 };
 using OpenMeshPolyMesh = OpenMesh::PolyMesh_ArrayKernelT<DoubleTraits>;
 
-/// OpenMesh's importer, recording every face as the file states it before OpenMesh's own
-/// checks (which silently refuse faces with repeated vertices), so degenerate faces are
-/// counted like for the other formats.
+/// OpenMesh's importer, recording every face it is handed before the importer's own checks
+/// (which silently refuse faces with repeated vertices), so those are counted as degenerate.
+/// The STL reader itself already skips triangles whose corners merge; those go uncounted.
 class RecordingImporter : public OpenMesh::IO::ImporterT<OpenMeshPolyMesh> {
 public:
     RecordingImporter(OpenMeshPolyMesh& mesh, PolygonSoup& soup)

@@ -150,7 +150,10 @@ struct SurfaceBuilder {
 
     /// Adds a polygon; when OpenMesh refuses it (non-manifold), its vertices are duplicated
     /// so it stands alone. Returns false for degenerate polygons.
+    bool mirrored = false;  ///< the transform has negative determinant: reverse windings
+
     bool addFace(std::vector<VHandle> vs, int group, int material) {
+        if (mirrored) std::reverse(vs.begin(), vs.end());
         // Drop repeated consecutive vertices (grid poles, cap centres).
         std::vector<VHandle> clean;
         for (VHandle v : vs)
@@ -211,6 +214,7 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
     }
 
     SurfaceBuilder builder{surface, {}, {}, {}};
+    builder.mirrored = glm::determinant(linear) < 0;
     int nextGroup = 0;
     std::map<int, std::vector<Vec3>> groupOutline;  // object space
 
@@ -482,6 +486,7 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
             planar = planar && glm::dot(mElements[e].normal, mElements[P.elements[0]].normal) > 1 - 1e-9;
         if (!planar) continue;
         std::vector<Vec3> ring;
+        if (builder.mirrored) std::reverse(groupOutline[group].begin(), groupOutline[group].end());
         for (const Vec3& c : groupOutline[group]) {
             Vec3 w = transformPoint(M, c);
             if (ring.empty() || glm::length(ring.back() - w) > 1e-12) ring.push_back(w);

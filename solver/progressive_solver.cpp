@@ -1,5 +1,6 @@
-// Index: set-up · step/converge · one shot (Cohen et al. 1988 §4 pseudo-code) · adaptive
-//        subdivision (§3.4) · queries (ambient, irradiance)
+// Index: set-up · step/converge (scheduling propagation and redistribution) · one shot
+//        (Cohen et al. 1988 §4 pseudo-code) · stochastic tail · adaptive subdivision (§3.4)
+//        · edits: change log and redistribution shots (George et al. 1990) · queries
 #include "solver/progressive_solver.h"
 
 #include <tbb/blocked_range.h>
@@ -9,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "solver/form_factor.h"
 #include "solver/indexed_heap.h"
@@ -32,7 +34,20 @@ SolverOptions interactiveSolverOptions() {
     return o;
 }
 
+/// One edit's pending redistribution (George et al.: "each log entry records a single
+/// environment change and the patch with the most energy left to redistribute").
+struct ChangeEntry {
+    std::vector<std::uint8_t> before, after;  ///< objects present just before / after the edit
+    std::vector<int> added, removed;
+    std::vector<Rgb> shot;     ///< per patch: B − ΔB at the time of the edit (radiosity shot)
+    IndexedMaxHeap pending;    ///< per patch: estimated power to redistribute; 0 when done
+    double totalPending = 0;
+    Vec3 centre{0};            ///< of the changed objects' bounds, for shadow culling
+    double radius = 0;
+};
+
 struct ProgressiveSolver::Impl {
+    std::vector<ChangeEntry> changes;
     IndexedMaxHeap queue;
     std::vector<Rgb> delta;     ///< per element, radiosity received in the current shot
     std::vector<int> level;     ///< per element, subdivision depth
@@ -56,10 +71,12 @@ void ProgressiveSolver::initialize() {
     // Cohen §4: ΔB_i = E_i for every patch; B_e = E_i for its elements.
     mPatchUnshot.assign(patches.size(), Rgb(0.0));
     mElementB.assign(elements.size(), Rgb(0.0));
+    mElementH.assign(elements.size(), Rgb(0.0));
     mImpl->level.assign(elements.size(), 0);
     mImpl->queue.reset(patches.size());
     mEmittedEnergy = 0;
     for (std::size_t p = 0; p < patches.size(); ++p) {
+        if (!mDisc.patchAlive(static_cast<int>(p))) continue;
         const Rgb& e = mDisc.patchMaterial(static_cast<int>(p)).emission;
         mPatchUnshot[p] = e;
         for (int el : patches[p].elements) mElementB[el] = e;
@@ -84,12 +101,34 @@ int ProgressiveSolver::step(int maxShots) {
     int done = 0;
     for (; done < maxShots; ++done) {
         int p = mImpl->queue.top();
-        if (p < 0 || mImpl->queue.key(p) <= 0) break;
-        if (mOptions.stochasticBelow > 0 &&
-            mImpl->queue.key(p) < mOptions.stochasticBelow * mEmittedEnergy)
+        double propagation = p >= 0 ? mImpl->queue.key(p) : 0.0;
+        double redistribution = bestRedistribution(nullptr);
+        if (propagation <= 0 && redistribution <= 0) break;
+        // George et al.: emitters on an added object propagate first; strategy one then
+        // redistributes down to the threshold; after that (and always in strategy two) the
+        // shot carrying more energy goes next.
+        bool redistribute;
+        if (redistribution <= 0) {
+            redistribute = false;
+        } else if (propagation <= 0) {
+            redistribute = true;
+        } else if (mDisc.patchMaterial(p).isEmitter() &&
+                   mPatchUnshot[p] == mDisc.patchMaterial(p).emission) {
+            redistribute = false;  // a light not yet shot at all
+        } else if (mOptions.strategy == RedistributionStrategy::RedistributeFirst &&
+                   redistribution > mOptions.redistributionThreshold * mEmittedEnergy) {
+            redistribute = true;
+        } else {
+            redistribute = redistribution >= propagation;
+        }
+        if (redistribute) {
+            shootRedistribution();
+        } else if (mOptions.stochasticBelow > 0 &&
+                   propagation < mOptions.stochasticBelow * mEmittedEnergy) {
             shootStochasticBatch();
-        else
+        } else {
             shootPatch(p);
+        }
     }
     mStats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return done;
@@ -98,12 +137,46 @@ int ProgressiveSolver::step(int maxShots) {
 std::uint64_t ProgressiveSolver::converge(double eps, std::uint64_t maxShots,
                                           const std::function<void(double)>& progress) {
     std::uint64_t shots = 0;
-    while (shots < maxShots && unshotFraction() > eps) {
-        if (step(1) == 0) break;
+    while (shots < maxShots && !converged(eps)) {
+        // Propagation is done to eps: finish the logged redistribution, whatever its
+        // estimated importance (George et al.'s error elimination).
+        if (unshotFraction() <= eps) {
+            auto start = std::chrono::steady_clock::now();
+            bool shot = shootRedistribution();
+            mStats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            if (!shot) break;
+        } else if (step(1) == 0) {
+            break;
+        }
         ++shots;
         if (progress) progress(unshotFraction());
     }
     return shots;
+}
+
+bool ProgressiveSolver::converged(double eps) const {
+    return unshotFraction() <= eps && mImpl->changes.empty();
+}
+
+void ProgressiveSolver::ensureSizes() {
+    const std::size_t ne = mDisc.elements().size(), np = mDisc.patches().size();
+    mElementB.resize(ne, Rgb(0.0));
+    mElementH.resize(ne, Rgb(0.0));
+    mImpl->level.resize(ne, 0);
+    mPatchUnshot.resize(np, Rgb(0.0));
+    while (mImpl->queue.size() < np) mImpl->queue.push(0.0);
+}
+
+void ProgressiveSolver::receive(int e, const Rgb& dH) {
+    const Element& el = mDisc.elements()[e];
+    const Rgb dB = mDisc.patchMaterial(el.patch).reflectance * dH;
+    mElementH[e] += dH;
+    mElementB[e] += dB;
+    mPatchUnshot[el.patch] += dB * (el.area / mDisc.patches()[el.patch].area);
+}
+
+void ProgressiveSolver::updatePriority(int patch) {
+    mImpl->queue.update(patch, energyKey(mPatchUnshot[patch], mDisc.patches()[patch].area));
 }
 
 void ProgressiveSolver::shootPatch(int shooter) {
@@ -121,32 +194,28 @@ void ProgressiveSolver::shootPatch(int shooter) {
     delta.assign(n, Rgb(0.0));
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
         for (std::size_t e = range.begin(); e != range.end(); ++e)
-            delta[e] = receivedFrom(shooter, static_cast<int>(e), dB);
+            delta[e] = irradianceFrom(shooter, static_cast<int>(e), dB);
     });
 
     // Apply in element order, so results do not depend on the thread count.
-    for (std::size_t e = 0; e < n; ++e) {
-        if (isZero(delta[e])) continue;
-        const Element& el = mDisc.elements()[e];
-        mElementB[e] += delta[e];
-        mPatchUnshot[el.patch] += delta[e] * (el.area / patches[el.patch].area);
-    }
-    if (mOptions.gradientThreshold > 0) subdivideSteepElements(shooter, dB);
-    for (std::size_t e = 0; e < mDisc.elements().size(); ++e) {
-        if (e < delta.size() && isZero(delta[e])) continue;
-        int p = mDisc.elements()[e].patch;
-        mImpl->queue.update(p, energyKey(mPatchUnshot[p], patches[p].area));
-    }
+    for (std::size_t e = 0; e < n; ++e)
+        if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
+    if (mOptions.gradientThreshold > 0) subdivideSteepElements();
+    for (std::size_t e = 0; e < mDisc.elements().size(); ++e)
+        if (e >= delta.size() || !isZero(delta[e])) updatePriority(mDisc.elements()[e].patch);
+    (void)patches;
     ++mStats.shots;
     mStats.rays += mTracer.rayCount() - raysBefore;
 }
 
-Rgb ProgressiveSolver::receivedFrom(int shooter, int e, const Rgb& dB) const {
+Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
+                                      const Visibility& visibility) const {
     const Patch& P = mDisc.patches()[shooter];
     const Element& el = mDisc.elements()[e];
     if (el.patch == shooter) return Rgb(0.0);
-    const Rgb& rho = mDisc.patchMaterial(el.patch).reflectance;
-    if (isZero(rho)) return Rgb(0.0);
+    // Only receivers present in the scene the form factor is evaluated in.
+    if (visibility.world ? !(*visibility.world)[el.object] : !mDisc.objects()[el.object].alive)
+        return Rgb(0.0);
     // Cull pairs that cannot see each other: receiver behind the shooter's bounding plane or
     // shooter behind the receiver's plane.
     Vec3 toReceiver = el.centroid - P.centroid;
@@ -154,8 +223,8 @@ Rgb ProgressiveSolver::receivedFrom(int shooter, int e, const Rgb& dB) const {
     if (glm::dot(-toReceiver, el.normal) < -P.radius) return Rgb(0.0);
     PointToPatch ff = formFactorToPatch(mDisc, mTracer, el.centroid, el.normal, shooter,
                                         static_cast<std::uint64_t>(e), mOptions.seed,
-                                        mOptions.maxRaysPerPair);
-    return rho * dB * ff.visible;
+                                        mOptions.maxRaysPerPair, visibility);
+    return dB * ff.visible;
 }
 
 void ProgressiveSolver::shootStochasticBatch() {
@@ -242,28 +311,20 @@ void ProgressiveSolver::shootStochasticBatch() {
             const Rgb carried = unshot[k] * (P.area * total /
                                              (static_cast<double>(rays) *
                                               energyKey(unshot[k], P.area)));
-            const Rgb& rho = mDisc.patchMaterial(rec.patch).reflectance;
-            hits[r] = {hit.element, rho * carried / rec.area};
+            hits[r] = {hit.element, carried / rec.area};  // irradiance
         }
     });
     // Accumulate in ray order: independent of the thread count.
-    for (const auto& [e, d] : hits) {
-        if (e < 0) continue;
-        const Element& el = mDisc.elements()[e];
-        mElementB[e] += d;
-        mPatchUnshot[el.patch] += d * (el.area / patches[el.patch].area);
-    }
-    for (const auto& [e, d] : hits) {
-        if (e < 0) continue;
-        int p = mDisc.elements()[e].patch;
-        mImpl->queue.update(p, energyKey(mPatchUnshot[p], patches[p].area));
-    }
+    for (const auto& [e, d] : hits)
+        if (e >= 0) receive(e, d);
+    for (const auto& [e, d] : hits)
+        if (e >= 0) updatePriority(mDisc.elements()[e].patch);
     ++mStats.shots;
     ++mStats.stochasticBatches;
     mStats.rays += mTracer.rayCount() - raysBefore;
 }
 
-void ProgressiveSolver::subdivideSteepElements(int shooter, const Rgb& dB) {
+void ProgressiveSolver::subdivideSteepElements() {
     // Cohen §3.4: where the radiosity difference between neighbouring elements is too high,
     // subdivide and reshoot this patch to the new elements.
     std::vector<int> steep;
@@ -292,15 +353,16 @@ void ProgressiveSolver::subdivideSteepElements(int shooter, const Rgb& dB) {
         const double parentArea = mDisc.elements()[e].area;
         std::vector<int> children = mDisc.subdivideElement(e);
         if (children.size() < 2) continue;
-        mElementB.resize(mDisc.elements().size(), Rgb(0.0));
-        mImpl->level.resize(mDisc.elements().size(), 0);
+        ensureSizes();
         mImpl->delta.resize(mDisc.elements().size(), Rgb(0.0));
         // Each child gathers everything shot so far: every earlier shot of patch j used the
         // same pair-seeded F(child ← j), so Σ over j of (B_j − ΔB_j) F is its exact history
         // (Cohen's "reshoot patch i", extended to all earlier shooters).
         Rgb change(0.0);
         for (int c : children) {
-            mElementB[c] = mDisc.patchMaterial(patch).emission + gatherShotRadiosity(c);
+            mElementH[c] = gatherShotIrradiance(c);
+            mElementB[c] = mDisc.patchMaterial(patch).emission +
+                           mDisc.patchMaterial(patch).reflectance * mElementH[c];
             mImpl->delta[c] = mElementB[c] - parentB;
             mImpl->level[c] = level;
             change += mElementB[c] * mDisc.elements()[c].area;
@@ -311,22 +373,246 @@ void ProgressiveSolver::subdivideSteepElements(int shooter, const Rgb& dB) {
         ++mStats.subdivisions;
     }
     mTracer.rebuild();
-    (void)dB;
-    (void)shooter;
 }
 
-Rgb ProgressiveSolver::gatherShotRadiosity(int element) const {
+Rgb ProgressiveSolver::gatherShotIrradiance(int element) const {
     const std::size_t np = mDisc.patches().size();
     std::vector<Rgb> parts(np, Rgb(0.0));
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 64), [&](const auto& range) {
         for (std::size_t j = range.begin(); j != range.end(); ++j) {
+            if (!mDisc.patchAlive(static_cast<int>(j))) continue;
             Rgb shot = patchRadiosity(static_cast<int>(j)) - mPatchUnshot[j];
-            if (!isZero(shot)) parts[j] = receivedFrom(static_cast<int>(j), element, shot);
+            if (!isZero(shot)) parts[j] = irradianceFrom(static_cast<int>(j), element, shot);
         }
     });
     Rgb sum(0.0);
     for (const Rgb& p : parts) sum += p;
     return sum;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Edits (George, Sillion, Greenberg 1990)
+
+namespace {
+
+struct Bounds {
+    Vec3 lo{std::numeric_limits<double>::max()}, hi{-std::numeric_limits<double>::max()};
+    void add(const Vec3& p) { lo = glm::min(lo, p), hi = glm::max(hi, p); }
+    bool empty() const { return lo.x > hi.x; }
+};
+
+/// Distance from point c to segment [a, b].
+double segmentDistance(const Vec3& c, const Vec3& a, const Vec3& b) {
+    Vec3 ab = b - a;
+    double len2 = glm::dot(ab, ab);
+    double t = len2 > 0 ? std::clamp(glm::dot(c - a, ab) / len2, 0.0, 1.0) : 0.0;
+    return glm::length(c - (a + t * ab));
+}
+
+}  // namespace
+
+void ProgressiveSolver::applyChange(const SceneChange& change) {
+    ensureSizes();
+    const auto& patches = mDisc.patches();
+    const std::size_t nObjects = mDisc.objects().size();
+    ChangeEntry entry;
+    entry.added = change.added;
+    entry.removed = change.removed;
+    entry.after.assign(nObjects, 0);
+    for (std::size_t o = 0; o < nObjects; ++o) entry.after[o] = mDisc.objects()[o].alive ? 1 : 0;
+    entry.before = entry.after;
+    for (int o : change.added) entry.before[o] = 0;
+    for (int o : change.removed) entry.before[o] = 1;
+
+    // Bounds of everything that changed, and sample points for the importance estimate.
+    Bounds bounds;
+    double changedArea = 0;
+    std::vector<char> changed(nObjects, 0);
+    for (const auto* list : {&change.added, &change.removed})
+        for (int o : *list) {
+            changed[o] = 1;
+            for (const Vec3& w : mDisc.objects()[o].worldPositions) bounds.add(w);
+        }
+    for (const Patch& P : patches)
+        if (changed[P.object]) changedArea += P.area;
+    if (!bounds.empty()) {
+        entry.centre = 0.5 * (bounds.lo + bounds.hi);
+        entry.radius = 0.5 * glm::length(bounds.hi - bounds.lo);
+    }
+    std::vector<Vec3> samples{entry.centre};
+    if (!bounds.empty())
+        for (int k = 0; k < 8; ++k)
+            samples.push_back(entry.centre + 0.5 * Vec3((k & 1 ? 0.5 : -0.5) * (bounds.hi.x - bounds.lo.x),
+                                                        (k & 2 ? 0.5 : -0.5) * (bounds.hi.y - bounds.lo.y),
+                                                        (k & 4 ? 0.5 : -0.5) * (bounds.hi.z - bounds.lo.z)));
+
+    // Snapshot the radiosity already shot, B − ΔB, and rank the shooters by the power they
+    // would send toward the changed objects: George et al.'s point-sample estimate, a
+    // differential area at each sample point facing the patch, F ≈ A cosθ / (πr² + A).
+    entry.shot.assign(patches.size(), Rgb(0.0));
+    entry.pending.reset(patches.size());
+    for (std::size_t j = 0; j < patches.size(); ++j) {
+        const Patch& P = patches[j];
+        if (!entry.before[P.object] || entry.added.end() != std::find(entry.added.begin(), entry.added.end(), P.object))
+            continue;
+        Rgb shot = patchRadiosity(static_cast<int>(j)) - mPatchUnshot[j];
+        if (isZero(shot)) continue;
+        entry.shot[j] = shot;
+        double power = energyKey(shot, P.area);
+        double importance;
+        if (changed[P.object]) {
+            importance = power;  // a removed shooter: all it shot is cancelled
+        } else {
+            double f = 0;
+            for (const Vec3& sp : samples) {
+                Vec3 d = sp - P.centroid;
+                double r2 = glm::dot(d, d);
+                double cosj = r2 > 0 ? glm::dot(P.normal, d) / std::sqrt(r2) : 0;
+                if (cosj > 0) f += P.area * cosj / (M_PI * r2 + P.area);
+            }
+            f /= static_cast<double>(samples.size());
+            // Power reaching the objects: radiosity × F × (about a quarter of their area
+            // faces any one direction); at least a tiny amount so every shooter is visited.
+            importance = std::max(energyKey(shot, 1.0) * f * changedArea / 4, 1e-300);
+        }
+        entry.pending.update(static_cast<int>(j), importance);
+        entry.totalPending += importance;
+    }
+
+    // Removed objects leave the solution: their radiosity and unshot energy are gone.
+    for (int o : change.removed)
+        for (std::size_t j = 0; j < patches.size(); ++j) {
+            if (patches[j].object != o) continue;
+            for (int e : patches[j].elements) mElementB[e] = mElementH[e] = Rgb(0.0);
+            mPatchUnshot[j] = Rgb(0.0);
+            updatePriority(static_cast<int>(j));
+        }
+    // Added objects start with their emission unshot (Cohen's initialization).
+    for (int o : change.added)
+        for (std::size_t j = 0; j < patches.size(); ++j) {
+            if (patches[j].object != o) continue;
+            const Rgb& e = mDisc.patchMaterial(static_cast<int>(j)).emission;
+            for (int el : patches[j].elements) mElementB[el] = e, mElementH[el] = Rgb(0.0);
+            mPatchUnshot[j] = e;
+            updatePriority(static_cast<int>(j));
+        }
+    recomputeEmitted();
+    if (entry.totalPending > 0) mImpl->changes.push_back(std::move(entry));
+}
+
+void ProgressiveSolver::recomputeEmitted() {
+    mEmittedEnergy = 0;
+    for (std::size_t p = 0; p < mDisc.patches().size(); ++p) {
+        if (!mDisc.patchAlive(static_cast<int>(p))) continue;
+        const Rgb& e = mDisc.patchMaterial(static_cast<int>(p)).emission;
+        mEmittedEnergy += (e.x + e.y + e.z) * mDisc.patches()[p].area;
+    }
+}
+
+void ProgressiveSolver::changeMaterial(int object, const Material& material) {
+    ensureSizes();
+    // George et al.: "it is sufficient to compute and propagate a radiosity correction for
+    // each patch on the object": ΔB = Δρ·H + ΔE, all of it unshot.
+    const auto& patches = mDisc.patches();
+    std::vector<std::pair<int, Rgb>> old;
+    for (std::size_t j = 0; j < patches.size(); ++j)
+        if (patches[j].object == object) old.push_back({static_cast<int>(j), Rgb(0.0)});
+    if (old.empty()) return;
+    const Material before = mDisc.patchMaterial(old.front().first);
+    mDisc.setObjectMaterial(object, material);
+    const Rgb dRho = material.reflectance - before.reflectance;
+    const Rgb dE = material.emission - before.emission;
+    for (const auto& [j, unused] : old) {
+        const Patch& P = patches[j];
+        Rgb sum(0.0);
+        for (int e : P.elements) {
+            Rgb dB = dRho * mElementH[e] + dE;
+            mElementB[e] += dB;
+            sum += dB * mDisc.elements()[e].area;
+        }
+        mPatchUnshot[j] += sum / P.area;
+        updatePriority(j);
+    }
+    recomputeEmitted();
+}
+
+double ProgressiveSolver::bestRedistribution(int* entryIndex) const {
+    double best = 0;
+    for (std::size_t k = 0; k < mImpl->changes.size(); ++k) {
+        const ChangeEntry& c = mImpl->changes[k];
+        int top = c.pending.top();
+        if (top < 0 || c.pending.key(top) <= 0) continue;
+        if (c.pending.key(top) > best) {
+            best = c.pending.key(top);
+            if (entryIndex) *entryIndex = static_cast<int>(k);
+        }
+    }
+    return best;
+}
+
+double ProgressiveSolver::pendingRedistribution() const {
+    double sum = 0;
+    for (const ChangeEntry& c : mImpl->changes) sum += c.totalPending;
+    return sum;
+}
+
+std::size_t ProgressiveSolver::pendingChanges() const { return mImpl->changes.size(); }
+
+bool ProgressiveSolver::shootRedistribution() {
+    int k = -1;
+    if (bestRedistribution(&k) <= 0 || k < 0) return false;
+    ChangeEntry& c = mImpl->changes[k];
+    const int j = c.pending.top();
+    c.totalPending -= c.pending.key(j);
+    c.pending.update(j, 0.0);
+    const Rgb shot = c.shot[j];
+    const unsigned long long raysBefore = mTracer.rayCount();
+    const Patch& P = mDisc.patches()[j];
+    const bool shooterRemoved =
+        std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
+    Visibility before, after;
+    before.world = &c.before;
+    after.world = &c.after;
+
+    // Receivers: elements present after the edit. Elements of added objects gain
+    // F(t) (F(t−1) = 0: they did not exist); others change only if the changed objects can
+    // block the segment between them and the shooter (a conservative shaft: the capsule
+    // around the segment from the patch to the receiver, widened by both radii).
+    const auto& elements = mDisc.elements();
+    const std::size_t n = elements.size();
+    auto& delta = mImpl->delta;
+    delta.assign(n, Rgb(0.0));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+        for (std::size_t e = range.begin(); e != range.end(); ++e) {
+            const Element& el = elements[e];
+            if (el.object >= static_cast<int>(c.after.size()) || !c.after[el.object]) continue;
+            if (!mDisc.objects()[el.object].alive) continue;
+            const bool receiverAdded = !c.before[el.object];
+            const int ie = static_cast<int>(e);
+            if (shooterRemoved) {
+                // Cancel what the removed patch shot: −F(t−1) (George et al.: "energy that
+                // was distributed by patches on the dynamic object is canceled").
+                if (receiverAdded) continue;
+                delta[e] = -irradianceFrom(j, ie, shot, before);
+            } else if (receiverAdded) {
+                delta[e] = irradianceFrom(j, ie, shot, after);
+            } else {
+                double reach = segmentDistance(c.centre, P.centroid, el.centroid);
+                if (reach > c.radius + P.radius) continue;
+                delta[e] = irradianceFrom(j, ie, shot, after) - irradianceFrom(j, ie, shot, before);
+            }
+        }
+    });
+    for (std::size_t e = 0; e < n; ++e)
+        if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
+    for (std::size_t e = 0; e < n; ++e)
+        if (!isZero(delta[e])) updatePriority(elements[e].patch);
+
+    if (c.pending.key(c.pending.top()) <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
+    ++mStats.shots;
+    ++mStats.redistributionShots;
+    mStats.rays += mTracer.rayCount() - raysBefore;
+    return true;
 }
 
 std::vector<Rgb> ProgressiveSolver::displayRadiosity() const {
@@ -342,6 +628,7 @@ Rgb ProgressiveSolver::ambient() const {
     Rgb rhoSum(0.0), unshot(0.0);
     double area = 0;
     for (std::size_t p = 0; p < mPatchUnshot.size(); ++p) {
+        if (!mDisc.patchAlive(static_cast<int>(p))) continue;
         double a = mDisc.patches()[p].area;
         rhoSum += mDisc.patchMaterial(static_cast<int>(p)).reflectance * a;
         unshot += mPatchUnshot[p] * a;
@@ -370,6 +657,7 @@ Rgb ProgressiveSolver::irradianceAt(const Vec3& x, const Vec3& n, int rays) cons
     Vec3 un = glm::normalize(n);
     Rgb h(0.0);
     for (std::size_t p = 0; p < mDisc.patches().size(); ++p) {
+        if (!mDisc.patchAlive(static_cast<int>(p))) continue;
         Rgb b = patchRadiosity(static_cast<int>(p));
         if (isZero(b)) continue;
         PointToPatch ff = formFactorToPatch(mDisc, mTracer, x, un, static_cast<int>(p), key,

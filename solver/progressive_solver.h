@@ -1,6 +1,9 @@
 #pragma once
 // Progressive refinement radiosity (Cohen, Chen, Wallace, Greenberg 1988): shoot from the
-// patch with the largest unshot energy ΔB·A, to every element, in interruptible steps.
+// patch with the largest unshot energy ΔB·A, to every element, in interruptible steps; and
+// radiosity redistribution (George, Sillion, Greenberg 1990): after an edit, the energy
+// already shot is redistributed by F(t) − F(t−1), positive toward added objects and negative
+// into their shadows, from a change log that keeps each edit's pending work until done.
 
 #include <cstdint>
 #include <functional>
@@ -11,6 +14,12 @@
 #include "solver/ray_tracer.h"
 
 namespace penumbra {
+
+/// George et al.'s interleaving strategies.
+enum class RedistributionStrategy {
+    RedistributeFirst,  ///< strategy one: redistribute down to a threshold, then interleave
+    Interleave,         ///< strategy two: always shoot whichever carries more energy
+};
 
 struct SolverOptions {
     std::uint64_t seed = 1;
@@ -26,6 +35,10 @@ struct SolverOptions {
     /// casts raysPerEmittedPower × Φ / Φ_emitted rays (at least minStochasticRays).
     double raysPerEmittedPower = 4e6;
     int minStochasticRays = 1024;
+    RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
+    /// Strategy one redistributes first while the most important pending redistribution
+    /// carries more than this fraction of the emitted power (0: all of it first).
+    double redistributionThreshold = 0;
 };
 
 /// The configuration the command line and editor use: deterministic shots for the strong
@@ -39,6 +52,14 @@ struct SolverStats {
     double seconds = 0;
     std::uint64_t subdivisions = 0;
     std::uint64_t stochasticBatches = 0;  ///< each counts as one shot in `shots`
+    std::uint64_t redistributionShots = 0;  ///< also counted in `shots`
+};
+
+/// What the solver is told about an edit. Object indices are Discretization objects
+/// (versions): a move removes the old version and adds a new one.
+struct SceneChange {
+    std::vector<int> removed;  ///< already marked dead in the discretization and tracer
+    std::vector<int> added;    ///< already appended, alive, and added to the tracer
 };
 
 class ProgressiveSolver {
@@ -73,6 +94,25 @@ public:
     Rgb patchRadiosity(int patch) const;
     const Rgb& unshotRadiosity(int patch) const { return mPatchUnshot[patch]; }
 
+    /// Records an edit (George et al.): removed objects' elements are zeroed and the energy
+    /// their patches shot is queued for cancellation; added patches start with their emission
+    /// unshot; every patch's already-shot radiosity B − ΔB is queued for redistribution by
+    /// F(t) − F(t−1), evaluated in the scene just before and just after this edit, so edits
+    /// whose redistribution is interrupted by later edits still converge to the right answer.
+    void applyChange(const SceneChange& change);
+    /// A material edit on an alive object: reflectance changes B by Δρ·H, emission by ΔE; the
+    /// correction is unshot radiosity of the object's patches (no redistribution needed).
+    void changeMaterial(int object, const Material& material);
+    /// Estimated power (W) still to redistribute over all pending edits.
+    double pendingRedistribution() const;
+    /// Edits whose redistribution is not finished.
+    std::size_t pendingChanges() const;
+    /// unshotFraction() ≤ eps and no redistribution pending.
+    bool converged(double eps) const;
+
+    /// Element irradiance H (W/m²) received so far: B = E + ρ·H.
+    const std::vector<Rgb>& irradiance() const { return mElementH; }
+
     /// Irradiance H (W/m²) arriving at point x with unit normal n, gathered from every
     /// patch's current radiosity with `rays` visibility rays per patch.
     Rgb irradianceAt(const Vec3& x, const Vec3& n, int rays = 16) const;
@@ -84,11 +124,22 @@ private:
     struct Impl;
     void shootPatch(int patch);
     void initialize();
-    /// Radiosity element `e` receives when `shooter` shoots unshot radiosity dB.
-    Rgb receivedFrom(int shooter, int e, const Rgb& dB) const;
-    void subdivideSteepElements(int shooter, const Rgb& dB);
-    /// ρ_e Σ_j (B_j − ΔB_j) F(e ← j): what element e received from everything shot so far.
-    Rgb gatherShotRadiosity(int element) const;
+    /// Irradiance element `e` receives when `shooter` shoots radiosity dB, with F evaluated
+    /// under `visibility`.
+    Rgb irradianceFrom(int shooter, int e, const Rgb& dB, const Visibility& visibility = {}) const;
+    /// Adds irradiance dH to element e (B += ρ dH) and its share to its patch's unshot.
+    void receive(int e, const Rgb& dH);
+    void updatePriority(int patch);
+    void ensureSizes();
+    void recomputeEmitted();
+    /// One redistribution shot from the most important pending shooter of the most
+    /// important pending edit. Returns false when nothing is pending.
+    bool shootRedistribution();
+    /// Best pending redistribution importance (W), and which edit holds it.
+    double bestRedistribution(int* entry) const;
+    void subdivideSteepElements();
+    /// Σ_j (B_j − ΔB_j) F(e ← j): the irradiance element e received from everything shot.
+    Rgb gatherShotIrradiance(int element) const;
     /// Shoots all remaining unshot energy at once on rays (the weak tail).
     void shootStochasticBatch();
 
@@ -96,6 +147,7 @@ private:
     RayTracer& mTracer;
     SolverOptions mOptions;
     std::vector<Rgb> mElementB;
+    std::vector<Rgb> mElementH;
     std::vector<Rgb> mPatchUnshot;
     double mEmittedEnergy = 0;
     SolverStats mStats;
