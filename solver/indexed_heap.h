@@ -9,7 +9,8 @@ namespace penumbra {
 
 class IndexedMaxHeap {
 public:
-    explicit IndexedMaxHeap(std::size_t n = 0) { reset(n); }
+    IndexedMaxHeap() = default;
+    explicit IndexedMaxHeap(std::size_t n) { reset(n); }
 
     void reset(std::size_t n) {
         mKey.assign(n, 0.0);

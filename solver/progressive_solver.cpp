@@ -48,6 +48,11 @@ struct ChangeEntry {
 
 struct ProgressiveSolver::Impl {
     std::vector<ChangeEntry> changes;
+    // The drag preview's temporary buffer.
+    int previewObject = -1;
+    ChangeEntry previewEntry;
+    std::vector<int> previewEmitters;  ///< emitter patches of the preview not yet shot
+    std::vector<Rgb> temp;             ///< per element radiosity, display only
     IndexedMaxHeap queue;
     std::vector<Rgb> delta;     ///< per element, radiosity received in the current shot
     std::vector<int> level;     ///< per element, subdivision depth
@@ -411,8 +416,7 @@ double segmentDistance(const Vec3& c, const Vec3& a, const Vec3& b) {
 
 }  // namespace
 
-void ProgressiveSolver::applyChange(const SceneChange& change) {
-    ensureSizes();
+ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const {
     const auto& patches = mDisc.patches();
     const std::size_t nObjects = mDisc.objects().size();
     ChangeEntry entry;
@@ -478,6 +482,14 @@ void ProgressiveSolver::applyChange(const SceneChange& change) {
         entry.pending.update(static_cast<int>(j), importance);
         entry.totalPending += importance;
     }
+    return entry;
+}
+
+void ProgressiveSolver::applyChange(const SceneChange& change) {
+    ensureSizes();
+    clearPreview();
+    ChangeEntry entry = makeChangeEntry(change);
+    const auto& patches = mDisc.patches();
 
     // Removed objects leave the solution: their radiosity and unshot energy are gone.
     for (int o : change.removed)
@@ -558,15 +570,9 @@ double ProgressiveSolver::pendingRedistribution() const {
 
 std::size_t ProgressiveSolver::pendingChanges() const { return mImpl->changes.size(); }
 
-bool ProgressiveSolver::shootRedistribution() {
-    int k = -1;
-    if (bestRedistribution(&k) <= 0 || k < 0) return false;
-    ChangeEntry& c = mImpl->changes[k];
-    const int j = c.pending.top();
-    c.totalPending -= c.pending.key(j);
-    c.pending.update(j, 0.0);
+void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool preview,
+                                            std::vector<Rgb>& delta) const {
     const Rgb shot = c.shot[j];
-    const unsigned long long raysBefore = mTracer.rayCount();
     const Patch& P = mDisc.patches()[j];
     const bool shooterRemoved =
         std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
@@ -574,19 +580,22 @@ bool ProgressiveSolver::shootRedistribution() {
     before.world = &c.before;
     after.world = &c.after;
 
-    // Receivers: elements present after the edit. Elements of added objects gain
-    // F(t) (F(t−1) = 0: they did not exist); others change only if the changed objects can
-    // block the segment between them and the shooter (a conservative shaft: the capsule
-    // around the segment from the patch to the receiver, widened by both radii).
+    // Receivers: elements present after the edit (and still alive, or the previewed object).
+    // Elements of added objects gain F(t) (F(t−1) = 0: they did not exist); others change
+    // only if the changed objects can block a segment between them and the shooter: a
+    // conservative shaft, the capsule around the segment from the patch centre to the
+    // receiver widened by the patch radius, tested against the changed objects' bounding
+    // sphere. Unchanged visibility cancels exactly: F(t) and F(t−1) trace the same
+    // pair-seeded rays.
     const auto& elements = mDisc.elements();
     const std::size_t n = elements.size();
-    auto& delta = mImpl->delta;
     delta.assign(n, Rgb(0.0));
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
         for (std::size_t e = range.begin(); e != range.end(); ++e) {
             const Element& el = elements[e];
             if (el.object >= static_cast<int>(c.after.size()) || !c.after[el.object]) continue;
-            if (!mDisc.objects()[el.object].alive) continue;
+            if (!mDisc.objects()[el.object].alive && !(preview && el.object == mImpl->previewObject))
+                continue;
             const bool receiverAdded = !c.before[el.object];
             const int ie = static_cast<int>(e);
             if (shooterRemoved) {
@@ -603,10 +612,23 @@ bool ProgressiveSolver::shootRedistribution() {
             }
         }
     });
+}
+
+bool ProgressiveSolver::shootRedistribution() {
+    int k = -1;
+    if (bestRedistribution(&k) <= 0 || k < 0) return false;
+    ChangeEntry& c = mImpl->changes[k];
+    const int j = c.pending.top();
+    c.totalPending -= c.pending.key(j);
+    c.pending.update(j, 0.0);
+    const unsigned long long raysBefore = mTracer.rayCount();
+    auto& delta = mImpl->delta;
+    redistributionDelta(c, j, false, delta);
+    const std::size_t n = delta.size();
     for (std::size_t e = 0; e < n; ++e)
         if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
     for (std::size_t e = 0; e < n; ++e)
-        if (!isZero(delta[e])) updatePriority(elements[e].patch);
+        if (!isZero(delta[e])) updatePriority(mDisc.elements()[e].patch);
 
     if (c.pending.key(c.pending.top()) <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
     ++mStats.shots;
@@ -615,11 +637,83 @@ bool ProgressiveSolver::shootRedistribution() {
     return true;
 }
 
+// ---------------------------------------------------------------------------------------------
+// Drag preview: the temporary buffer
+
+void ProgressiveSolver::setPreview(int object) {
+    ensureSizes();
+    clearPreview();
+    mImpl->previewObject = object;
+    mImpl->previewEntry = makeChangeEntry({{}, {object}});
+    mImpl->previewEntry.after[object] = 1;
+    mImpl->previewEmitters.clear();
+    for (std::size_t j = 0; j < mDisc.patches().size(); ++j)
+        if (mDisc.patches()[j].object == object && mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
+            mImpl->previewEmitters.push_back(static_cast<int>(j));
+    mImpl->temp.assign(mDisc.elements().size(), Rgb(0.0));
+    // The object shows its own emission at once.
+    for (int j : mImpl->previewEmitters)
+        for (int e : mDisc.patches()[j].elements)
+            mImpl->temp[e] = mDisc.patchMaterial(j).emission;
+}
+
+int ProgressiveSolver::stepPreview(int maxShots) {
+    if (mImpl->previewObject < 0) return 0;
+    auto start = std::chrono::steady_clock::now();
+    const unsigned long long raysBefore = mTracer.rayCount();
+    ChangeEntry& c = mImpl->previewEntry;
+    auto& delta = mImpl->delta;
+    int done = 0;
+    for (; done < maxShots; ++done) {
+        if (!mImpl->previewEmitters.empty()) {
+            // The dragged object's own light first (direct only): E·F to every receiver.
+            int j = mImpl->previewEmitters.back();
+            mImpl->previewEmitters.pop_back();
+            const Rgb e = mDisc.patchMaterial(j).emission;
+            Visibility after;
+            after.world = &c.after;
+            const std::size_t n = mDisc.elements().size();
+            delta.assign(n, Rgb(0.0));
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+                for (std::size_t el = range.begin(); el != range.end(); ++el)
+                    delta[el] = irradianceFrom(j, static_cast<int>(el), e, after);
+            });
+        } else {
+            int j = c.pending.top();
+            if (j < 0 || c.pending.key(j) <= 0) break;
+            c.pending.update(j, 0.0);
+            redistributionDelta(c, j, true, delta);
+        }
+        for (std::size_t el = 0; el < delta.size(); ++el)
+            if (!isZero(delta[el]))
+                mImpl->temp[el] += mDisc.elementMaterial(static_cast<int>(el)).reflectance * delta[el];
+    }
+    mStats.shots += static_cast<std::uint64_t>(done);
+    mStats.rays += mTracer.rayCount() - raysBefore;
+    mStats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return done;
+}
+
+void ProgressiveSolver::clearPreview() {
+    mImpl->previewObject = -1;
+    mImpl->previewEmitters.clear();
+    mImpl->previewEntry = ChangeEntry{};
+    std::fill(mImpl->temp.begin(), mImpl->temp.end(), Rgb(0.0));
+}
+
+int ProgressiveSolver::previewObject() const { return mImpl->previewObject; }
+
+const std::vector<Rgb>& ProgressiveSolver::previewRadiosity() const {
+    mImpl->temp.resize(mDisc.elements().size(), Rgb(0.0));
+    return mImpl->temp;
+}
+
 std::vector<Rgb> ProgressiveSolver::displayRadiosity() const {
     Rgb amb = ambient();
     std::vector<Rgb> out(mElementB.size());
     for (std::size_t e = 0; e < out.size(); ++e)
-        out[e] = mElementB[e] + mDisc.elementMaterial(static_cast<int>(e)).reflectance * amb;
+        out[e] = mElementB[e] + mDisc.elementMaterial(static_cast<int>(e)).reflectance * amb +
+                 (e < mImpl->temp.size() ? mImpl->temp[e] : Rgb(0.0));
     return out;
 }
 

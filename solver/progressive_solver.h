@@ -15,6 +15,8 @@
 
 namespace penumbra {
 
+struct ChangeEntry;
+
 /// George et al.'s interleaving strategies.
 enum class RedistributionStrategy {
     RedistributeFirst,  ///< strategy one: redistribute down to a threshold, then interleave
@@ -110,6 +112,20 @@ public:
     /// unshotFraction() ≤ eps and no redistribution pending.
     bool converged(double eps) const;
 
+    /// Drag preview (George et al.: "while the object is selected, radiosity that is
+    /// redistributed to adjust for changes of the object is stored separately, added to the
+    /// radiosity solution only at display time, and erased if the object is changed again").
+    /// `object` is a dead object version present in the tracer (the dragged object at its
+    /// current position); the previous buffer is discarded.
+    void setPreview(int object);
+    /// Up to `maxShots` preview shots (the object's own emission first, then redistribution
+    /// from the most important shooters) into the temporary buffer. Returns the shots done.
+    int stepPreview(int maxShots);
+    void clearPreview();
+    int previewObject() const;
+    /// The temporary buffer: per element radiosity added for display only.
+    const std::vector<Rgb>& previewRadiosity() const;
+
     /// Element irradiance H (W/m²) received so far: B = E + ρ·H.
     const std::vector<Rgb>& irradiance() const { return mElementH; }
 
@@ -135,6 +151,11 @@ private:
     /// One redistribution shot from the most important pending shooter of the most
     /// important pending edit. Returns false when nothing is pending.
     bool shootRedistribution();
+    /// The change-log entry for `change`: worlds, shot snapshot, importance ranking.
+    ChangeEntry makeChangeEntry(const SceneChange& change) const;
+    /// Irradiance each element receives when shooter j of entry c redistributes.
+    void redistributionDelta(const ChangeEntry& c, int j, bool preview,
+                             std::vector<Rgb>& delta) const;
     /// Best pending redistribution importance (W), and which edit holds it.
     double bestRedistribution(int* entry) const;
     void subdivideSteepElements();

@@ -301,3 +301,52 @@ TEST(Redistribution, HistoryWorldReproducesCurrentFormFactorsBitForBit) {
 
 }  // namespace
 }  // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+TEST(Redistribution, DragPreviewBufferEqualsTheRedistributionOfAnAdd) {
+    // The temporary buffer for a dragged object at position p holds exactly what the
+    // redistribution shots of "add it at p" would add, and leaves the solution untouched.
+    Scene scene = makeRoom();
+    scene.objects.push_back(makeBox("crate", {0.1, -0.55, 0.0}));
+    const int crate = static_cast<int>(scene.objects.size()) - 1;
+    SceneObject moved = scene.objects[crate];
+    moved.transform.translate = Vec3(-0.6, -1.3, 0.5);
+
+    Lit a(scene), b(scene);
+    for (Lit* l : {&a, &b}) {
+        l->solver->converge(kEps, 1000000);
+        l->remove(crate);  // select: the object leaves the solution
+        l->solver->converge(kEps, 1000000);
+    }
+    const std::vector<Rgb> before = a.solver->radiosity();
+
+    int va = a.addVersion(moved);
+    a.kill(va);  // present for visibility queries only
+    a.solver->setPreview(va);
+    while (a.solver->stepPreview(16) > 0) {
+    }
+    const std::vector<Rgb> during(a.solver->radiosity().begin(),
+                                  a.solver->radiosity().begin() + static_cast<std::ptrdiff_t>(before.size()));
+    EXPECT_TRUE(during == before) << "the preview must not touch the solution";
+
+    int vb = b.addVersion(moved);
+    ASSERT_EQ(va, vb);
+    b.solver->applyChange({{}, {vb}});
+    while (b.solver->pendingChanges() > 0) b.solver->step(1);  // redistribution first
+    const auto& temp = a.solver->previewRadiosity();
+    double worst = 0, scale = 0;
+    for (std::size_t e = 0; e < temp.size(); ++e) {
+        // The new object's elements start from nothing (no emission here).
+        Rgb expected = b.solver->radiosity()[e] - (e < before.size() ? before[e] : Rgb(0.0));
+        if (e < before.size()) scale = std::max(scale, luminance(before[e]));
+        worst = std::max(worst, std::abs(luminance(temp[e]) - luminance(expected)));
+    }
+    EXPECT_LT(worst, 1e-9 * scale) << "preview differs from the add's redistribution by " << worst;
+    a.solver->clearPreview();
+    EXPECT_EQ(a.solver->previewObject(), -1);
+}
+
+}  // namespace
+}  // namespace penumbra
