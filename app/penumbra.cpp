@@ -178,6 +178,15 @@ int main(int argc, char** argv) {
                                                "scenes/robot-room.json", "scenes/large.json"});
     benchSolver->add_option("--max-seconds", bench.maxSecondsPerScene, "solver time cap per scene");
     benchSolver->add_option("--json", bench.jsonOut, "write every figure as JSON");
+    RedistributionBenchOptions redist;
+    CLI::App* benchRedist = benchCmd->add_subcommand(
+        "redistribution", "George et al. Figures 6 and 7: error against time after an edit");
+    benchRedist->add_option("--cases", redist.cases, "cube-room and/or robot-room");
+    benchRedist->add_option("--scene-dir", redist.sceneDir, "folder with the scenes");
+    benchRedist->add_option("--reference-eps", redist.referenceEps, "convergence of the references");
+    benchRedist->add_option("--max-ms", redist.maxMs, "solver time per method");
+    benchRedist->add_option("--plot-dir", redist.plotDir, "write error-vs-time plots (PNG) here");
+    benchRedist->add_option("--json", redist.jsonOut, "write every sample as JSON");
 
     try {
         app.parse(argc, argv);
@@ -198,6 +207,7 @@ int main(int argc, char** argv) {
         if (*exportCmd) return runSolve(solve);
         if (*renderCmd) return runRender(solve, render);
         if (*benchSolver) return runSolverBench(bench);
+        if (*benchRedist) return runRedistributionBench(redist);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "penumbra: %s\n", e.what());
         return 2;

@@ -485,7 +485,7 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
     return entry;
 }
 
-void ProgressiveSolver::applyChange(const SceneChange& change) {
+void ProgressiveSolver::applyChange(const SceneChange& change, bool redistribute) {
     ensureSizes();
     clearPreview();
     ChangeEntry entry = makeChangeEntry(change);
@@ -509,7 +509,7 @@ void ProgressiveSolver::applyChange(const SceneChange& change) {
             updatePriority(static_cast<int>(j));
         }
     recomputeEmitted();
-    if (entry.totalPending > 0) mImpl->changes.push_back(std::move(entry));
+    if (redistribute && entry.totalPending > 0) mImpl->changes.push_back(std::move(entry));
 }
 
 void ProgressiveSolver::recomputeEmitted() {

@@ -101,7 +101,9 @@ public:
     /// unshot; every patch's already-shot radiosity B − ΔB is queued for redistribution by
     /// F(t) − F(t−1), evaluated in the scene just before and just after this edit, so edits
     /// whose redistribution is interrupted by later edits still converge to the right answer.
-    void applyChange(const SceneChange& change);
+    /// `redistribute` false skips the redistribution (a baseline for benchmarks: the old
+    /// solution with the object inserted and only new unshot energy propagated).
+    void applyChange(const SceneChange& change, bool redistribute = true);
     /// A material edit on an alive object: reflectance changes B by Δρ·H, emission by ΔE; the
     /// correction is unshot radiosity of the object's patches (no redistribution needed).
     void changeMaterial(int object, const Material& material);
