@@ -31,6 +31,7 @@ SolverOptions interactiveSolverOptions() {
     SolverOptions o;
     o.stochasticBelow = 1e-3;
     o.raysPerEmittedPower = 1e7;
+    o.redistributionThreshold = 1e-3;
     return o;
 }
 
@@ -290,7 +291,8 @@ void ProgressiveSolver::shootStochasticBatch() {
                 pickArea -= mDisc.elements()[e].area;
             }
             const Element& src = mDisc.elements()[se];
-            poly = mDisc.elementPolygon(se);
+            poly.clear();
+            for (int v : src.vertices) poly.push_back(mDisc.objects()[src.object].worldPositions[v]);
             double pick = next() * src.area * 2, r1 = next(), r2 = next();
             std::size_t t = 1;
             for (; t + 2 < poly.size(); ++t) {
@@ -308,7 +310,7 @@ void ProgressiveSolver::shootStochasticBatch() {
             Vec3 ty = glm::cross(nz, tx);
             Vec3 dir = rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
                        std::sqrt(std::max(0.0, 1 - rr * rr)) * nz;
-            RayHit hit = mTracer.intersect(origin + nz * eps, dir, 0.0, 1e30);
+            RayTracer::FirstHit hit = mTracer.firstHit(origin + nz * eps, dir);
             if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
             const Element& rec = mDisc.elements()[hit.element];
             if (rec.patch == shooters[k]) continue;
@@ -616,7 +618,12 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
 
 bool ProgressiveSolver::shootRedistribution() {
     int k = -1;
-    if (bestRedistribution(&k) <= 0 || k < 0) return false;
+    double best = bestRedistribution(&k);
+    if (best <= 0 || k < 0) return false;
+    if (mOptions.stochasticBelow > 0 && best < mOptions.stochasticBelow * mEmittedEnergy) {
+        shootRedistributionBatch(k);
+        return true;
+    }
     ChangeEntry& c = mImpl->changes[k];
     const int j = c.pending.top();
     c.totalPending -= c.pending.key(j);
@@ -635,6 +642,143 @@ bool ProgressiveSolver::shootRedistribution() {
     ++mStats.redistributionShots;
     mStats.rays += mTracer.rayCount() - raysBefore;
     return true;
+}
+
+void ProgressiveSolver::shootRedistributionBatch(int k) {
+    // The weak tail of an edit's redistribution, stochastically (as the propagation tail):
+    // rays leave the pending shooters in proportion to their importance, aimed into the cone
+    // that the changed objects' bounding sphere subtends (no other ray can change), and are
+    // traced in the world before and after the edit. Where the first hits differ, the ray's
+    // power leaves the old receiver (negative energy into the new shadow, or the cancelled
+    // light of a removed object) and reaches the new one. In expectation this is exactly
+    // ρ_i S_j (F_ij(after) − F_ij(before)) summed over the batch.
+    ChangeEntry& c = mImpl->changes[k];
+    const auto& patches = mDisc.patches();
+    const unsigned long long raysBefore = mTracer.rayCount();
+    std::vector<int> shooters;
+    std::vector<double> cdf;
+    double total = 0;
+    while (c.pending.top() >= 0 && c.pending.key(c.pending.top()) > 0) {
+        int j = c.pending.top();
+        shooters.push_back(j);
+        cdf.push_back(total += c.pending.key(j));
+        c.pending.update(j, 0.0);
+    }
+    c.totalPending = 0;
+    if (shooters.empty()) return;
+    const double share = mEmittedEnergy > 0 ? total / mEmittedEnergy : 1.0;
+    const std::size_t rays = static_cast<std::size_t>(std::clamp(
+        std::ceil(share * mOptions.raysPerEmittedPower),
+        static_cast<double>(mOptions.minStochasticRays), 6.4e7));
+    const std::uint64_t batchSeed = hashPair(hashPair(mOptions.seed, 0x7ed157ull),
+                                             mStats.redistributionShots);
+    Visibility before, after;
+    before.world = &c.before;
+    after.world = &c.after;
+    struct Transfer {
+        int from = -1, to = -1;
+        Rgb irradianceFrom{0.0}, irradianceTo{0.0};
+    };
+    std::vector<Transfer> out(rays);
+    const double eps = mTracer.epsilon();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
+        for (std::size_t r = range.begin(); r != range.end(); ++r) {
+            std::uint64_t state = hashPair(batchSeed, r);
+            auto next = [&state] {
+                state = hashPair(state, 0x9e3779b97f4a7c15ull);
+                return static_cast<double>(state >> 11) * 0x1.0p-53;
+            };
+            double u = (static_cast<double>(r) + next()) / static_cast<double>(rays) * total;
+            std::size_t pick = std::min<std::size_t>(
+                std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin(), cdf.size() - 1);
+            const int j = shooters[pick];
+            const double pj = (cdf[pick] - (pick ? cdf[pick - 1] : 0.0)) / total;
+            const Patch& P = patches[j];
+            const bool removed =
+                std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
+            // A uniform point of the patch.
+            double pickArea = next() * P.area;
+            int se = P.elements.back();
+            for (int e : P.elements) {
+                if (pickArea <= mDisc.elements()[e].area) {
+                    se = e;
+                    break;
+                }
+                pickArea -= mDisc.elements()[e].area;
+            }
+            const Element& src = mDisc.elements()[se];
+            thread_local std::vector<Vec3> poly;
+            poly.clear();
+            for (int v : src.vertices) poly.push_back(mDisc.objects()[src.object].worldPositions[v]);
+            double area2 = next() * src.area * 2, r1 = next(), r2 = next();
+            std::size_t t = 1;
+            for (; t + 2 < poly.size(); ++t) {
+                double a = glm::length(glm::cross(poly[t] - poly[0], poly[t + 1] - poly[0]));
+                if (area2 <= a) break;
+                area2 -= a;
+            }
+            double sq = std::sqrt(r1);
+            const Vec3 origin = (1 - sq) * poly[0] + sq * (1 - r2) * poly[t] + sq * r2 * poly[t + 1] +
+                                src.normal * eps;
+            // Direction: the cone toward the changed objects (or the hemisphere when the
+            // point is inside their bounds, or the shooter itself was removed).
+            Vec3 axis = c.centre - origin;
+            double dist = glm::length(axis);
+            double cosMax = -1, weight;  // weight = ∫ cos/π dω estimate per unit area
+            Vec3 dir;
+            const Vec3& nz = src.normal;
+            if (removed || dist <= c.radius) {
+                double phi = 2 * M_PI * next(), rr = std::sqrt(next());
+                Vec3 tx = std::abs(nz.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
+                tx = glm::normalize(glm::cross(tx, nz));
+                Vec3 ty = glm::cross(nz, tx);
+                dir = rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
+                      std::sqrt(std::max(0.0, 1 - rr * rr)) * nz;
+                weight = 1.0;  // cosine sampling of the whole hemisphere
+            } else {
+                axis /= dist;
+                cosMax = std::sqrt(std::max(0.0, 1 - (c.radius / dist) * (c.radius / dist)));
+                double cosT = 1 - next() * (1 - cosMax), sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+                double phi = 2 * M_PI * next();
+                Vec3 tx = std::abs(axis.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
+                tx = glm::normalize(glm::cross(tx, axis));
+                Vec3 ty = glm::cross(axis, tx);
+                dir = sinT * std::cos(phi) * tx + sinT * std::sin(phi) * ty + cosT * axis;
+                double cosSrc = glm::dot(dir, nz);
+                if (cosSrc <= 0) continue;
+                weight = 2 * M_PI * (1 - cosMax) * cosSrc / M_PI;
+            }
+            const Rgb carried = c.shot[j] * (P.area * weight / (static_cast<double>(rays) * pj));
+            RayTracer::FirstHit hb = mTracer.firstHit(origin, dir, before);
+            RayTracer::FirstHit ha = removed ? RayTracer::FirstHit{} : mTracer.firstHit(origin, dir, after);
+            int eb = hb.element >= 0 && !hb.backFace ? hb.element : -1;
+            int ea = ha.element >= 0 && !ha.backFace ? ha.element : -1;
+            if (eb == ea) continue;
+            Transfer& tr = out[r];
+            auto receives = [&](int e) {
+                int o = mDisc.elements()[e].object;
+                return mDisc.objects()[o].alive && c.after[o] && mDisc.elements()[e].patch != j;
+            };
+            if (eb >= 0 && c.before[mDisc.elements()[eb].object] && receives(eb))
+                tr.from = eb, tr.irradianceFrom = -carried / mDisc.elements()[eb].area;
+            if (ea >= 0 && receives(ea))
+                tr.to = ea, tr.irradianceTo = carried / mDisc.elements()[ea].area;
+        }
+    });
+    // Apply in ray order: independent of the thread count.
+    for (const Transfer& tr : out) {
+        if (tr.from >= 0) receive(tr.from, tr.irradianceFrom);
+        if (tr.to >= 0) receive(tr.to, tr.irradianceTo);
+    }
+    for (const Transfer& tr : out) {
+        if (tr.from >= 0) updatePriority(mDisc.elements()[tr.from].patch);
+        if (tr.to >= 0) updatePriority(mDisc.elements()[tr.to].patch);
+    }
+    mImpl->changes.erase(mImpl->changes.begin() + k);
+    ++mStats.shots;
+    ++mStats.redistributionShots;
+    ++mStats.stochasticBatches;
+    mStats.rays += mTracer.rayCount() - raysBefore;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -153,6 +153,8 @@ private:
     /// One redistribution shot from the most important pending shooter of the most
     /// important pending edit. Returns false when nothing is pending.
     bool shootRedistribution();
+    /// All of entry k's remaining (weak) redistribution at once, on rays.
+    void shootRedistributionBatch(int k);
     /// The change-log entry for `change`: worlds, shot snapshot, importance ranking.
     ChangeEntry makeChangeEntry(const SceneChange& change) const;
     /// Irradiance each element receives when shooter j of entry c redistributes.

@@ -230,6 +230,36 @@ RayHit RayTracer::intersect(const Vec3& origin, const Vec3& dir, double tNear, d
     return hit;
 }
 
+RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
+                                        const Visibility& visibility) const {
+    FilterContext ctx;
+    RTCScene scene = mImpl->prepare(ctx, visibility);
+    RTCRayHit rh;
+    rh.ray.org_x = static_cast<float>(origin.x);
+    rh.ray.org_y = static_cast<float>(origin.y);
+    rh.ray.org_z = static_cast<float>(origin.z);
+    rh.ray.dir_x = static_cast<float>(dir.x);
+    rh.ray.dir_y = static_cast<float>(dir.y);
+    rh.ray.dir_z = static_cast<float>(dir.z);
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = std::numeric_limits<float>::infinity();
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &ctx.context, &rh);
+    ++mImpl->rays.local();
+    FirstHit hit;
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
+    int object = static_cast<int>(rh.hit.instID[0]);
+    int face = mImpl->triangleFace[object][rh.hit.primID].first;
+    hit.element = mDisc.objects()[object].faceElement[face];
+    hit.backFace = glm::dot(dir, mDisc.elements()[hit.element].normal) > 0;
+    return hit;
+}
+
 unsigned long long RayTracer::rayCount() const {
     unsigned long long total = 0;
     for (auto c : mImpl->rays) total += c;

@@ -61,6 +61,13 @@ public:
     /// Nearest hit along origin + t·dir, t in (tNear, tFar).
     RayHit intersect(const Vec3& origin, const Vec3& dir, double tNear = 0.0,
                      double tFar = 1e30, const Visibility& visibility = {}) const;
+    /// The element first hit along origin + t·dir (t > 0) and whether its back was hit;
+    /// element -1 for a miss. The allocation-free query stochastic shooting uses.
+    struct FirstHit {
+        int element = -1;
+        bool backFace = false;
+    };
+    FirstHit firstHit(const Vec3& origin, const Vec3& dir, const Visibility& visibility = {}) const;
 
     /// Rays traced since construction (occlusion and intersection), for reports.
     unsigned long long rayCount() const;
