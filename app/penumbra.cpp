@@ -14,6 +14,7 @@
 #include "edit/export.h"
 #include "edit/input_error.h"
 #include "edit/lit_scene.h"
+#include "edit/replay.h"
 #include "render/gouraud_renderer.h"
 #include "render/image.h"
 
@@ -134,6 +135,43 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
     return 0;
 }
 
+struct ReplayArgs {
+    ReplayOptions options;
+    std::string report, check;
+    int threads = 0;
+    double stochasticBelow = interactiveSolverOptions().stochasticBelow;
+    std::uint64_t seed = 1;
+};
+
+/// `replay`: exit 0, 1 on a --check mismatch (one line naming the edit), 2 on bad input.
+int runReplayCommand(ReplayArgs& a) {
+    a.options.solver = interactiveSolverOptions();
+    a.options.solver.seed = a.seed;
+    a.options.solver.stochasticBelow = a.stochasticBelow;
+    // Read the golden report first: a missing golden is bad input, not a mismatch.
+    nlohmann::json golden;
+    if (!a.check.empty()) golden = readReplayReport(a.check);
+    nlohmann::json report = runReplay(a.options);
+    if (report.contains("points"))
+        for (const auto& h : report["points"])
+            std::printf("%.9g %.9g %.9g\n", h[0].get<double>(), h[1].get<double>(),
+                        h[2].get<double>());
+    writeReport(a.report, report);
+    // On a mismatch the one line naming the edit is all that goes to stderr.
+    if (!a.check.empty()) {
+        if (auto mismatch = compareReplayReports(report, golden, a.check)) {
+            std::fprintf(stderr, "penumbra: %s\n", mismatch->c_str());
+            return 1;
+        }
+    }
+    std::fprintf(stderr,
+                 "penumbra: replayed %zu edits, %llu shots, %llu rays, %.3f s, unshot %.3g\n",
+                 report["edits"].size(), report["shots"].get<unsigned long long>(),
+                 report["rays"].get<unsigned long long>(), report["seconds"].get<double>(),
+                 report["unshot_fraction"].get<double>());
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -169,6 +207,36 @@ int main(int argc, char** argv) {
     renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();
     renderCmd->add_option("--report", solve.report, "write a JSON report");
 
+    ReplayArgs replay;
+    CLI::App* replayCmd = app.add_subcommand("replay", "replay an edit log over a scene");
+    replayCmd->add_option("SCENE", replay.options.scenePath, "scene file (*.json)")->required();
+    replayCmd->add_option("LOG", replay.options.logPath, "edit log (*.jsonl)")->required();
+    replayCmd->add_option("--budget-shots", replay.options.budgetShots,
+                          "shots after every edit line (an interactive budget; default 0)")
+        ->check(CLI::Range(0, 1000000000));
+    replayCmd->add_option("--converge", replay.options.converge,
+                          "converge the scene to EPS before the first line; references too "
+                          "(default 1e-3)")
+        ->check(CLI::Range(0.0, 1.0));
+    replayCmd->add_option("--save-scene", replay.options.saveScenePath,
+                          "write the edited scene (JSON)");
+    replayCmd->add_option("--points", replay.options.pointsPath,
+                          "print irradiance at \"x y z nx ny nz\" points after the last line");
+    replayCmd->add_flag("--reference", replay.options.reference,
+                        "from-scratch reference after each edit: error_rms and error_top1");
+    replayCmd->add_option("--export", replay.options.exportPath,
+                          "export the lit scene after the last line (.ply .gltf .glb .obj)");
+    replayCmd->add_option("--report", replay.report, "write a JSON report");
+    replayCmd->add_option("--check", replay.check,
+                          "compare with a golden report; exit 1 naming the first differing edit");
+    replayCmd->add_option("--seed", replay.seed, "seed of the pair-seeded sample patterns");
+    replayCmd->add_option("--threads", replay.threads, "worker threads (default: all cores)")
+        ->check(CLI::NonNegativeNumber);
+    replayCmd->add_option("--stochastic-below", replay.stochasticBelow,
+                          "shoot stochastically when a shot carries less than this fraction of "
+                          "the emitted power (0: every shot deterministic)")
+        ->check(CLI::Range(0.0, 1.0));
+
     CLI::App* benchCmd = app.add_subcommand("bench", "benchmarks (Google Benchmark + tables)");
     benchCmd->require_subcommand(1);
     BenchOptions bench;
@@ -198,14 +266,16 @@ int main(int argc, char** argv) {
     }
 
     std::optional<tbb::global_control> threads;
-    if (solve.threads > 0)
-        threads.emplace(tbb::global_control::max_allowed_parallelism, solve.threads);
+    const int threadCount = *replayCmd ? replay.threads : solve.threads;
+    if (threadCount > 0)
+        threads.emplace(tbb::global_control::max_allowed_parallelism, threadCount);
 
     try {
         if (*solveCmd) return runSolve(solve);
         if (*probeCmd) return runProbe(solve, pointsPath);
         if (*exportCmd) return runSolve(solve);
         if (*renderCmd) return runRender(solve, render);
+        if (*replayCmd) return runReplayCommand(replay);
         if (*benchSolver) return runSolverBench(bench);
         if (*benchRedist) return runRedistributionBench(redist);
     } catch (const std::exception& e) {

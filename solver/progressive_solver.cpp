@@ -25,6 +25,56 @@ double energyKey(const Rgb& unshot, double area) {
 
 bool isZero(const Rgb& c) { return c.x == 0 && c.y == 0 && c.z == 0; }
 
+/// Deterministic uniform numbers in [0, 1) for one stochastic ray.
+struct RayRandom {
+    std::uint64_t state;
+    double next() {
+        state = hashPair(state, 0x9e3779b97f4a7c15ull);
+        return static_cast<double>(state >> 11) * 0x1.0p-53;
+    }
+};
+
+/// An orthonormal frame (tx, ty) completing unit vector z.
+void frameAround(const Vec3& z, Vec3& tx, Vec3& ty) {
+    tx = glm::normalize(glm::cross(std::abs(z.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0), z));
+    ty = glm::cross(z, tx);
+}
+
+/// A cosine-distributed direction about unit normal n (Malley's method).
+Vec3 cosineDirection(const Vec3& n, RayRandom& rng) {
+    double phi = 2 * M_PI * rng.next(), rr = std::sqrt(rng.next());
+    Vec3 tx, ty;
+    frameAround(n, tx, ty);
+    return rr * std::cos(phi) * tx + rr * std::sin(phi) * ty + std::sqrt(std::max(0.0, 1 - rr * rr)) * n;
+}
+
+/// A uniform point of a patch: an element by area, then a point of its fan triangles.
+/// Returns the element; writes the point.
+int samplePatchPoint(const Discretization& disc, const Patch& P, RayRandom& rng, Vec3& point) {
+    double pickArea = rng.next() * P.area;
+    int se = P.elements.back();
+    for (int e : P.elements) {
+        if (pickArea <= disc.elements()[e].area) {
+            se = e;
+            break;
+        }
+        pickArea -= disc.elements()[e].area;
+    }
+    const Element& src = disc.elements()[se];
+    const auto& pos = disc.objects()[src.object].worldPositions;
+    const auto& vs = src.vertices;
+    double pick = rng.next() * src.area * 2, r1 = rng.next(), r2 = rng.next();
+    std::size_t t = 1;
+    for (; t + 2 < vs.size(); ++t) {
+        double a = glm::length(glm::cross(pos[vs[t]] - pos[vs[0]], pos[vs[t + 1]] - pos[vs[0]]));
+        if (pick <= a) break;
+        pick -= a;
+    }
+    double sq = std::sqrt(r1);
+    point = (1 - sq) * pos[vs[0]] + sq * (1 - r2) * pos[vs[t]] + sq * r2 * pos[vs[t + 1]];
+    return se;
+}
+
 }  // namespace
 
 SolverOptions interactiveSolverOptions() {
@@ -269,47 +319,16 @@ void ProgressiveSolver::shootStochasticBatch() {
     hits.assign(rays, {-1, Rgb(0.0)});
     const double eps = mTracer.epsilon();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
-        std::vector<Vec3> poly;
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
-            std::uint64_t state = hashPair(batchSeed, r);
-            auto next = [&state] {
-                state = hashPair(state, 0x9e3779b97f4a7c15ull);
-                return static_cast<double>(state >> 11) * 0x1.0p-53;
-            };
-            // The shooter, by power; the element, by area; a uniform point in it.
-            double u = (static_cast<double>(r) + next()) / static_cast<double>(rays) * total;
+            RayRandom rng{hashPair(batchSeed, r)};
+            // The shooter, by power; a uniform point of it; a cosine-distributed direction.
+            double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
             std::size_t k = std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin();
             k = std::min(k, cdf.size() - 1);
             const Patch& P = patches[shooters[k]];
-            double pickArea = next() * P.area;
-            int se = P.elements.back();
-            for (int e : P.elements) {
-                if (pickArea <= mDisc.elements()[e].area) {
-                    se = e;
-                    break;
-                }
-                pickArea -= mDisc.elements()[e].area;
-            }
-            const Element& src = mDisc.elements()[se];
-            poly.clear();
-            for (int v : src.vertices) poly.push_back(mDisc.objects()[src.object].worldPositions[v]);
-            double pick = next() * src.area * 2, r1 = next(), r2 = next();
-            std::size_t t = 1;
-            for (; t + 2 < poly.size(); ++t) {
-                double a = glm::length(glm::cross(poly[t] - poly[0], poly[t + 1] - poly[0]));
-                if (pick <= a) break;
-                pick -= a;
-            }
-            double sq = std::sqrt(r1);
-            Vec3 origin = (1 - sq) * poly[0] + sq * (1 - r2) * poly[t] + sq * r2 * poly[t + 1];
-            // Cosine-distributed direction about the source normal (Malley's method).
-            double phi = 2 * M_PI * next(), rr = std::sqrt(next());
-            const Vec3& nz = src.normal;
-            Vec3 tx = std::abs(nz.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
-            tx = glm::normalize(glm::cross(tx, nz));
-            Vec3 ty = glm::cross(nz, tx);
-            Vec3 dir = rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
-                       std::sqrt(std::max(0.0, 1 - rr * rr)) * nz;
+            Vec3 origin;
+            const Vec3& nz = mDisc.elements()[samplePatchPoint(mDisc, P, rng, origin)].normal;
+            Vec3 dir = cosineDirection(nz, rng);
             RayTracer::FirstHit hit = mTracer.firstHit(origin + nz * eps, dir);
             if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
             const Element& rec = mDisc.elements()[hit.element];
@@ -683,12 +702,8 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     const double eps = mTracer.epsilon();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
-            std::uint64_t state = hashPair(batchSeed, r);
-            auto next = [&state] {
-                state = hashPair(state, 0x9e3779b97f4a7c15ull);
-                return static_cast<double>(state >> 11) * 0x1.0p-53;
-            };
-            double u = (static_cast<double>(r) + next()) / static_cast<double>(rays) * total;
+            RayRandom rng{hashPair(batchSeed, r)};
+            double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
             std::size_t pick = std::min<std::size_t>(
                 std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin(), cdf.size() - 1);
             const int j = shooters[pick];
@@ -696,53 +711,26 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             const Patch& P = patches[j];
             const bool removed =
                 std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
-            // A uniform point of the patch.
-            double pickArea = next() * P.area;
-            int se = P.elements.back();
-            for (int e : P.elements) {
-                if (pickArea <= mDisc.elements()[e].area) {
-                    se = e;
-                    break;
-                }
-                pickArea -= mDisc.elements()[e].area;
-            }
-            const Element& src = mDisc.elements()[se];
-            thread_local std::vector<Vec3> poly;
-            poly.clear();
-            for (int v : src.vertices) poly.push_back(mDisc.objects()[src.object].worldPositions[v]);
-            double area2 = next() * src.area * 2, r1 = next(), r2 = next();
-            std::size_t t = 1;
-            for (; t + 2 < poly.size(); ++t) {
-                double a = glm::length(glm::cross(poly[t] - poly[0], poly[t + 1] - poly[0]));
-                if (area2 <= a) break;
-                area2 -= a;
-            }
-            double sq = std::sqrt(r1);
-            const Vec3 origin = (1 - sq) * poly[0] + sq * (1 - r2) * poly[t] + sq * r2 * poly[t + 1] +
-                                src.normal * eps;
+            Vec3 origin;
+            const Vec3 nz = mDisc.elements()[samplePatchPoint(mDisc, P, rng, origin)].normal;
+            origin += nz * eps;
             // Direction: the cone toward the changed objects (or the hemisphere when the
             // point is inside their bounds, or the shooter itself was removed).
             Vec3 axis = c.centre - origin;
             double dist = glm::length(axis);
-            double cosMax = -1, weight;  // weight = ∫ cos/π dω estimate per unit area
+            double weight;  // ∫ cos/π dω over the sampled directions, per unit area
             Vec3 dir;
-            const Vec3& nz = src.normal;
             if (removed || dist <= c.radius) {
-                double phi = 2 * M_PI * next(), rr = std::sqrt(next());
-                Vec3 tx = std::abs(nz.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
-                tx = glm::normalize(glm::cross(tx, nz));
-                Vec3 ty = glm::cross(nz, tx);
-                dir = rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
-                      std::sqrt(std::max(0.0, 1 - rr * rr)) * nz;
+                dir = cosineDirection(nz, rng);
                 weight = 1.0;  // cosine sampling of the whole hemisphere
             } else {
                 axis /= dist;
-                cosMax = std::sqrt(std::max(0.0, 1 - (c.radius / dist) * (c.radius / dist)));
-                double cosT = 1 - next() * (1 - cosMax), sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
-                double phi = 2 * M_PI * next();
-                Vec3 tx = std::abs(axis.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
-                tx = glm::normalize(glm::cross(tx, axis));
-                Vec3 ty = glm::cross(axis, tx);
+                double cosMax = std::sqrt(std::max(0.0, 1 - (c.radius / dist) * (c.radius / dist)));
+                double cosT = 1 - rng.next() * (1 - cosMax);
+                double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+                double phi = 2 * M_PI * rng.next();
+                Vec3 tx, ty;
+                frameAround(axis, tx, ty);
                 dir = sinT * std::cos(phi) * tx + sinT * std::sin(phi) * ty + cosT * axis;
                 double cosSrc = glm::dot(dir, nz);
                 if (cosSrc <= 0) continue;

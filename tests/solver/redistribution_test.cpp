@@ -350,3 +350,31 @@ TEST(Redistribution, DragPreviewBufferEqualsTheRedistributionOfAnAdd) {
 
 }  // namespace
 }  // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+TEST(Redistribution, StochasticTailsStayCloseToRecomputation) {
+    // With the interactive configuration the weak tails of both propagation and
+    // redistribution are shot on rays: unbiased, so the edited solution still matches a
+    // deterministic from-scratch solve to within the Monte Carlo noise.
+    SolverOptions options = interactiveSolverOptions();
+    options.stochasticBelow = 0.05;  // make this small scene use both tails heavily
+    options.raysPerEmittedPower = 2e6;
+    Lit edited(makeRoom(), options);
+    edited.solver->converge(1e-4, 1000000);
+    int v = edited.add(makeBox("crate", {0.1, -0.55, 0.0}));
+    edited.solver->converge(1e-4, 1000000);
+    EXPECT_GT(edited.solver->stats().stochasticBatches, 1u);
+
+    Lit reference(makeRoom());
+    ASSERT_EQ(reference.addVersion(makeBox("crate", {0.1, -0.55, 0.0})), v);
+    reference.solver = std::make_unique<ProgressiveSolver>(*reference.disc, *reference.tracer);
+    reference.solver->converge(1e-5, 1000000);
+    Comparison c = compare(edited, reference);
+    EXPECT_LE(c.rms, 0.02) << "RMS luminance error " << c.rms;
+    EXPECT_LE(c.worst, 0.3) << "worst element " << c.worstElement << " off by " << c.worst;
+}
+
+}  // namespace
+}  // namespace penumbra

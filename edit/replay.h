@@ -1,0 +1,59 @@
+#pragma once
+// `penumbra replay` (DESIGN.md "Command line"): replays an edit log over a scene for
+// regression, with per-edit solver cost, George et al.'s eq. 7 error against from-scratch
+// references, and comparison with a golden report.
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "solver/progressive_solver.h"
+
+namespace penumbra {
+
+struct ReplayOptions {
+    std::string scenePath;
+    std::string logPath;
+    /// Shots spent after every line that is not solve/converge (an interactive budget).
+    int budgetShots = 0;
+    /// The scene is converged to this before the first line; references converge to it too.
+    double converge = 1e-3;
+    /// Solver configuration of the session (seed, stochastic tail...). References use
+    /// SolverOptions{} with the same seed: deterministic, no subdivision.
+    SolverOptions solver = interactiveSolverOptions();
+    /// Compute a from-scratch reference after every line that changes the lit scene and
+    /// report "error_rms" and "error_top1".
+    bool reference = false;
+    /// After the last line: probe points ("x y z nx ny nz" per line; irradiance goes to the
+    /// report's "points"), export of the lit scene, and the edited scene.
+    std::string pointsPath;
+    std::string exportPath;
+    std::string saveScenePath;
+    /// Cap on shots of any one convergence.
+    std::uint64_t maxShots = 100000000;
+};
+
+/// Replays the log (see ReplayOptions) and returns the report: shots, rays, seconds (solver
+/// time, references excluded), unshot_fraction, elements, patches, and "edits", one object
+/// per log line with "line", "op", "shots", "rays", "ms", "checksum" (Σ Y·A over elements in
+/// the solution after the line), "unshot_fraction", and with a reference "error_rms" and
+/// "error_top1" (George et al. eq. 7 over all elements in the solution, and over the 1% whose
+/// reference luminance changed most with the last edit that changed the lit scene; 0 before
+/// any such edit; while an object is selected it is out of both the solution and the
+/// reference). Bad input (scene, log, an edit naming an unknown id...) throws InputError
+/// naming the file and line.
+nlohmann::json runReplay(const ReplayOptions& options);
+
+/// Reads a golden report written by `replay --report`. Throws InputError.
+nlohmann::json readReplayReport(const std::string& path);
+
+/// Compares a replay report with a golden one: per edit the op and shots exactly, checksum
+/// within relative 1e-9, error_rms within 1e-6 when both have it, and the number of edits.
+/// Returns one line naming the first differing edit (line, op, field, both values), or
+/// nullopt when they agree. `goldenName` names the golden report in the message.
+std::optional<std::string> compareReplayReports(const nlohmann::json& report,
+                                                const nlohmann::json& golden,
+                                                const std::string& goldenName);
+
+}  // namespace penumbra
