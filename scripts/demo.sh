@@ -1,22 +1,29 @@
 #!/usr/bin/env bash
-# Fresh Debian 12 machine to the main job: install, build, then the headless demo. It solves
-# the bundled scenes and writes images, lit-scene exports and reports under out/. With a
-# display, the editor opens once it exists (ui/ is still to come).
+# Fresh Debian 12 machine to the main job: install, build, then the headless demo. It replays
+# the bundled edit sessions (each edit's lighting redistributed, not recomputed, and checked
+# against a from-scratch reference), and writes images, lit-scene exports and reports under
+# out/. (The editor, for machines with a display, is still to come: ui/.)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 bash scripts/build.sh build
 mkdir -p out
 bin=build/penumbra
-for scene in cornell-box cube-room cubicles; do
-  echo "demo: $scene" >&2
-  "$bin" render "scenes/$scene.json" --converge 1e-3 --width 640 --height 480 \
-    --out "out/$scene.png" --report "out/$scene-render.json"
-  "$bin" export "scenes/$scene.json" "out/$scene.glb" --converge 1e-3 \
-    --report "out/$scene-solve.json"
-done
-"$bin" solve scenes/robot-room.json --converge 1e-2 --export out/robot-room.ply \
-  --report out/robot-room-solve.json
-"$bin" render scenes/robot-room.json --converge 1e-2 --width 640 --height 480 \
-  --out out/robot-room.png
+
+echo "demo: replaying scenes/logs/cube-room-session.jsonl (30 edits) with references" >&2
+"$bin" replay scenes/cube-room.json scenes/logs/cube-room-session.jsonl --budget-shots 5 \
+  --reference --save-scene out/cube-room-edited.json --export out/cube-room-edited.glb \
+  --report out/cube-room-session.json
+"$bin" render out/cube-room-edited.json --width 640 --height 480 --out out/cube-room-edited.png
+
+echo "demo: adding the robot to robot-room" >&2
+"$bin" replay scenes/robot-room-empty.json scenes/logs/robot-room-add-robot.jsonl \
+  --converge 0.01 --export out/robot-room.ply --report out/robot-room-add-robot.json
+"$bin" render scenes/robot-room.json --converge 0.01 --width 640 --height 480 \
+  --out out/robot-room.png --report out/robot-room-render.json
+
+echo "demo: cornell-box" >&2
+"$bin" render scenes/cornell-box.json --width 640 --height 480 --out out/cornell-box.png \
+  --report out/cornell-box-render.json
+"$bin" export scenes/cornell-box.json out/cornell-box.gltf
 echo "demo: wrote $(ls out | wc -l) files under out/" >&2
