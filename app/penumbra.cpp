@@ -1,9 +1,9 @@
 // penumbra: the command line (DESIGN.md "Command line"). Parses arguments and calls the
 // libraries; exit status 0 success, 1 a --check mismatch, 2 bad input.
-#include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -86,11 +86,12 @@ int runSolve(const SolveArgs& a) {
         exportLitScene(lit->discretization(), lit->solver().radiosity(), a.exportPath);
     nlohmann::json report = lit->reportJson();
     writeReport(a.report, report);
-    std::fprintf(stderr, "penumbra: %llu shots, %llu rays, %.3f s, unshot %.3g, %zu patches, %zu elements\n",
-                 static_cast<unsigned long long>(lit->solver().stats().shots),
-                 static_cast<unsigned long long>(lit->solver().stats().rays),
-                 lit->solver().stats().seconds, lit->solver().unshotFraction(),
-                 lit->discretization().patches().size(), lit->discretization().elements().size());
+    std::fprintf(
+        stderr, "penumbra: %llu shots, %llu rays, %.3f s, unshot %.3g, %zu patches, %zu elements\n",
+        static_cast<unsigned long long>(lit->solver().stats().shots),
+        static_cast<unsigned long long>(lit->solver().stats().rays), lit->solver().stats().seconds,
+        lit->solver().unshotFraction(), lit->discretization().patches().size(),
+        lit->discretization().elements().size());
     return 0;
 }
 
@@ -111,8 +112,8 @@ struct RenderArgs {
 
 int runRender(const SolveArgs& a, const RenderArgs& r) {
     if (r.mode != "gouraud")
-        throw InputError("--mode", "", "unknown or not yet available mode '" + r.mode +
-                                           "' (available: gouraud)");
+        throw InputError("--mode", "",
+                         "unknown or not yet available mode '" + r.mode + "' (available: gouraud)");
     auto lit = openAndSolve(a);
     const Scene& scene = lit->scene();
     Camera camera;
@@ -125,9 +126,9 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
     } else if (!scene.cameras.empty()) {
         camera = scene.cameras.front();
     }
-    Image image = renderGouraud(lit->discretization(), lit->tracer(),
-                                lit->solver().displayRadiosity(), camera, r.width, r.height,
-                                r.samples);
+    Image image =
+        renderGouraud(lit->discretization(), lit->tracer(), lit->solver().displayRadiosity(),
+                      camera, r.width, r.height, r.samples);
     writeImage(image, r.out);
     nlohmann::json report = lit->reportJson();
     report["image"] = r.out;
@@ -184,7 +185,8 @@ int main(int argc, char** argv) {
     CLI::App* solveCmd = app.add_subcommand("solve", "solve a scene to convergence");
     addSolveOptions(solveCmd, solve);
     solveCmd->add_option("--save", solve.save, "write the solution (JSON)");
-    solveCmd->add_option("--export", solve.exportPath, "export the lit scene (.ply .gltf .glb .obj)");
+    solveCmd->add_option("--export", solve.exportPath,
+                         "export the lit scene (.ply .gltf .glb .obj)");
     solveCmd->add_option("--report", solve.report, "write a JSON report");
 
     CLI::App* probeCmd = app.add_subcommand("probe", "print irradiance at points");
@@ -198,7 +200,8 @@ int main(int argc, char** argv) {
 
     CLI::App* renderCmd = app.add_subcommand("render", "solve and render an image");
     addSolveOptions(renderCmd, solve);
-    renderCmd->add_option("--camera", render.camera, "camera name (default: 'default' or the first)");
+    renderCmd->add_option("--camera", render.camera,
+                          "camera name (default: 'default' or the first)");
     renderCmd->add_option("--width", render.width)->check(CLI::Range(1, 16384));
     renderCmd->add_option("--height", render.height)->check(CLI::Range(1, 16384));
     renderCmd->add_option("--samples", render.samples, "samples per pixel per axis")
@@ -211,12 +214,14 @@ int main(int argc, char** argv) {
     CLI::App* replayCmd = app.add_subcommand("replay", "replay an edit log over a scene");
     replayCmd->add_option("SCENE", replay.options.scenePath, "scene file (*.json)")->required();
     replayCmd->add_option("LOG", replay.options.logPath, "edit log (*.jsonl)")->required();
-    replayCmd->add_option("--budget-shots", replay.options.budgetShots,
-                          "shots after every edit line (an interactive budget; default 0)")
+    replayCmd
+        ->add_option("--budget-shots", replay.options.budgetShots,
+                     "shots after every edit line (an interactive budget; default 0)")
         ->check(CLI::Range(0, 1000000000));
-    replayCmd->add_option("--converge", replay.options.converge,
-                          "converge the scene to EPS before the first line; references too "
-                          "(default 1e-3)")
+    replayCmd
+        ->add_option("--converge", replay.options.converge,
+                     "converge the scene to EPS before the first line; references too "
+                     "(default 1e-3)")
         ->check(CLI::Range(0.0, 1.0));
     replayCmd->add_option("--save-scene", replay.options.saveScenePath,
                           "write the edited scene (JSON)");
@@ -232,9 +237,10 @@ int main(int argc, char** argv) {
     replayCmd->add_option("--seed", replay.seed, "seed of the pair-seeded sample patterns");
     replayCmd->add_option("--threads", replay.threads, "worker threads (default: all cores)")
         ->check(CLI::NonNegativeNumber);
-    replayCmd->add_option("--stochastic-below", replay.stochasticBelow,
-                          "shoot stochastically when a shot carries less than this fraction of "
-                          "the emitted power (0: every shot deterministic)")
+    replayCmd
+        ->add_option("--stochastic-below", replay.stochasticBelow,
+                     "shoot stochastically when a shot carries less than this fraction of "
+                     "the emitted power (0: every shot deterministic)")
         ->check(CLI::Range(0.0, 1.0));
 
     CLI::App* benchCmd = app.add_subcommand("bench", "benchmarks (Google Benchmark + tables)");
@@ -251,7 +257,8 @@ int main(int argc, char** argv) {
         "redistribution", "George et al. Figures 6 and 7: error against time after an edit");
     benchRedist->add_option("--cases", redist.cases, "cube-room and/or robot-room");
     benchRedist->add_option("--scene-dir", redist.sceneDir, "folder with the scenes");
-    benchRedist->add_option("--reference-eps", redist.referenceEps, "convergence of the references");
+    benchRedist->add_option("--reference-eps", redist.referenceEps,
+                            "convergence of the references");
     benchRedist->add_option("--max-ms", redist.maxMs, "solver time per method");
     benchRedist->add_option("--plot-dir", redist.plotDir, "write error-vs-time plots (PNG) here");
     benchRedist->add_option("--json", redist.jsonOut, "write every sample as JSON");
@@ -267,8 +274,7 @@ int main(int argc, char** argv) {
 
     std::optional<tbb::global_control> threads;
     const int threadCount = *replayCmd ? replay.threads : solve.threads;
-    if (threadCount > 0)
-        threads.emplace(tbb::global_control::max_allowed_parallelism, threadCount);
+    if (threadCount > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, threadCount);
 
     try {
         if (*solveCmd) return runSolve(solve);

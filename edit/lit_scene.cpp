@@ -61,9 +61,11 @@ std::vector<ProbePoint> readProbePoints(const std::string& path) {
             char* end = nullptr;
             x = std::strtod(tok.c_str(), &end);
             if (end == tok.c_str() || *end != '\0')
-                throw InputError(path, "line " + std::to_string(lineNo), "'" + tok + "' is not a number");
+                throw InputError(path, "line " + std::to_string(lineNo),
+                                 "'" + tok + "' is not a number");
             if (!std::isfinite(x))
-                throw InputError(path, "line " + std::to_string(lineNo), "non-finite number '" + tok + "'");
+                throw InputError(path, "line " + std::to_string(lineNo),
+                                 "non-finite number '" + tok + "'");
         }
         std::string extra;
         if (fields >> extra)

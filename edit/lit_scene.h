@@ -4,10 +4,9 @@
 // hold one of these.
 
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"

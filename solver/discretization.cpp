@@ -16,9 +16,7 @@ namespace {
 using VHandle = ElementMesh::VertexHandle;
 using FHandle = ElementMesh::FaceHandle;
 
-ElementMesh::Point toPoint(const Vec3& v) {
-    return ElementMesh::Point(v.x, v.y, v.z);
-}
+ElementMesh::Point toPoint(const Vec3& v) { return ElementMesh::Point(v.x, v.y, v.z); }
 
 Vec3 transformPoint(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
@@ -54,9 +52,9 @@ std::string Patch::toString() const {
 
 std::string Element::toString() const {
     std::ostringstream s;
-    s << "Element{patch " << patch << ", object " << object << ", area " << area
-      << ", centroid (" << centroid.x << ' ' << centroid.y << ' ' << centroid.z << "), normal ("
-      << normal.x << ' ' << normal.y << ' ' << normal.z << ")}";
+    s << "Element{patch " << patch << ", object " << object << ", area " << area << ", centroid ("
+      << centroid.x << ' ' << centroid.y << ' ' << centroid.z << "), normal (" << normal.x << ' '
+      << normal.y << ' ' << normal.z << ")}";
     return s.str();
 }
 
@@ -179,10 +177,10 @@ struct SurfaceBuilder {
 
 /// A parametric surface P(u, v), u and v in [0, 1], gridded into patches of elements.
 struct ParamGrid {
-    std::function<Vec3(double, double)> point;  ///< object space
-    Vec3 outwardAt;                             ///< reference direction at (0.5, 0.5)
-    bool wrapU = false;                         ///< u = 0 and u = 1 coincide
-    bool collapseV0 = false, collapseV1 = false;///< the rows v = 0 / v = 1 are a single point
+    std::function<Vec3(double, double)> point;    ///< object space
+    Vec3 outwardAt;                               ///< reference direction at (0.5, 0.5)
+    bool wrapU = false;                           ///< u = 0 and u = 1 coincide
+    bool collapseV0 = false, collapseV1 = false;  ///< the rows v = 0 / v = 1 are a single point
     int minCellsU = 1, minCellsV = 1;
 };
 
@@ -251,10 +249,14 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         for (int j = 0; j <= nv; ++j)
             for (int i = 0; i <= nu; ++i) {
                 VHandle& h = verts[j * (nu + 1) + i];
-                if (grid.wrapU && i == nu) h = verts[j * (nu + 1)];
-                else if (grid.collapseV0 && j == 0) h = pole0.is_valid() ? pole0 : (pole0 = builder.addVertex(P(i, j)));
-                else if (grid.collapseV1 && j == nv) h = pole1.is_valid() ? pole1 : (pole1 = builder.addVertex(P(i, j)));
-                else h = builder.addVertex(P(i, j));
+                if (grid.wrapU && i == nu)
+                    h = verts[j * (nu + 1)];
+                else if (grid.collapseV0 && j == 0)
+                    h = pole0.is_valid() ? pole0 : (pole0 = builder.addVertex(P(i, j)));
+                else if (grid.collapseV1 && j == nv)
+                    h = pole1.is_valid() ? pole1 : (pole1 = builder.addVertex(P(i, j)));
+                else
+                    h = builder.addVertex(P(i, j));
             }
         for (int b = 0; b < pv; ++b)
             for (int a = 0; a < pu; ++a) {
@@ -266,15 +268,17 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
                 // The boundary of the patch's elements, walked along the grid lines.
                 auto& outline = groupOutline[group];
                 for (int i = a * eu; i < (a + 1) * eu; ++i) outline.push_back(corner(i, b * ev));
-                for (int j = b * ev; j < (b + 1) * ev; ++j) outline.push_back(corner((a + 1) * eu, j));
-                for (int i = (a + 1) * eu; i > a * eu; --i) outline.push_back(corner(i, (b + 1) * ev));
+                for (int j = b * ev; j < (b + 1) * ev; ++j)
+                    outline.push_back(corner((a + 1) * eu, j));
+                for (int i = (a + 1) * eu; i > a * eu; --i)
+                    outline.push_back(corner(i, (b + 1) * ev));
                 for (int j = (b + 1) * ev; j > b * ev; --j) outline.push_back(corner(a * eu, j));
                 for (int j = b * ev; j < (b + 1) * ev; ++j)
                     for (int i = a * eu; i < (a + 1) * eu; ++i)
-                        builder.addFace({verts[j * (nu + 1) + i], verts[j * (nu + 1) + i + 1],
-                                         verts[(j + 1) * (nu + 1) + i + 1],
-                                         verts[(j + 1) * (nu + 1) + i]},
-                                        group, objectMaterial);
+                        builder.addFace(
+                            {verts[j * (nu + 1) + i], verts[j * (nu + 1) + i + 1],
+                             verts[(j + 1) * (nu + 1) + i + 1], verts[(j + 1) * (nu + 1) + i]},
+                            group, objectMaterial);
             }
     };
 
@@ -333,7 +337,8 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
             for (double sign : {1.0, -1.0}) {
                 ParamGrid cap{[=](double u, double v) {
                                   double phi = 2 * M_PI * u;
-                                  return Vec3(v * r * std::cos(phi), sign * hh, v * r * std::sin(phi));
+                                  return Vec3(v * r * std::cos(phi), sign * hh,
+                                              v * r * std::sin(phi));
                               },
                               Vec3(0, sign, 0)};
                 cap.wrapU = true;
@@ -374,17 +379,22 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
                     if (i == n) return base[tri[1]];
                     if (j == n) return base[tri[2]];
                     if (k0 == n) return base[tri[0]];
-                    Vec3 pos = (double(k0) * p[0] + double(i) * p[1] + double(j) * p[2]) / double(n);
+                    Vec3 pos =
+                        (double(k0) * p[0] + double(i) * p[1] + double(j) * p[2]) / double(n);
                     auto edgeKey = [&](int a, int b, int stepsFromA) {
                         int va = tri[a], vb = tri[b];
                         return va < vb ? std::make_tuple(va, vb, stepsFromA)
                                        : std::make_tuple(vb, va, n - stepsFromA);
                     };
                     std::tuple<int, int, int> key;
-                    if (j == 0) key = edgeKey(0, 1, i);
-                    else if (i == 0) key = edgeKey(0, 2, j);
-                    else if (k0 == 0) key = edgeKey(1, 2, j);
-                    else return builder.addVertex(pos);  // interior point
+                    if (j == 0)
+                        key = edgeKey(0, 1, i);
+                    else if (i == 0)
+                        key = edgeKey(0, 2, j);
+                    else if (k0 == 0)
+                        key = edgeKey(1, 2, j);
+                    else
+                        return builder.addVertex(pos);  // interior point
                     auto it = edgePoints.find(key);
                     if (it != edgePoints.end()) return it->second;
                     return edgePoints[key] = builder.addVertex(pos);
@@ -446,7 +456,8 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         int g = builder.faceGroup[f];
         if (g < 0) continue;
         auto it = groupPatch.find(g);
-        int p = it != groupPatch.end() ? it->second : (groupPatch[g] = newPatch(builder.faceMaterial[f]));
+        int p = it != groupPatch.end() ? it->second
+                                       : (groupPatch[g] = newPatch(builder.faceMaterial[f]));
         facePatch[f] = p;
     }
     const double targetArea = patchSize * patchSize;
@@ -483,7 +494,8 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         Patch& P = mPatches[patch];
         bool planar = true;
         for (int e : P.elements)
-            planar = planar && glm::dot(mElements[e].normal, mElements[P.elements[0]].normal) > 1 - 1e-9;
+            planar =
+                planar && glm::dot(mElements[e].normal, mElements[P.elements[0]].normal) > 1 - 1e-9;
         if (!planar) continue;
         std::vector<Vec3> ring;
         if (builder.mirrored) std::reverse(groupOutline[group].begin(), groupOutline[group].end());
@@ -592,8 +604,10 @@ std::vector<int> Discretization::subdivideElement(int element) {
     // New polygons.
     std::vector<std::vector<int>> polys;
     if (n == 3) {
-        polys = {{corner[0], mid[0], mid[2]}, {mid[0], corner[1], mid[1]},
-                 {mid[2], mid[1], corner[2]}, {mid[0], mid[1], mid[2]}};
+        polys = {{corner[0], mid[0], mid[2]},
+                 {mid[0], corner[1], mid[1]},
+                 {mid[2], mid[1], corner[2]},
+                 {mid[0], mid[1], mid[2]}};
     } else {
         Vec3 c(0.0);
         for (int v : corner) c += s.worldPositions[v];
@@ -601,8 +615,7 @@ std::vector<int> Discretization::subdivideElement(int element) {
         VHandle h = mesh.add_vertex(toPoint(Vec3(objectFromWorld * glm::dvec4(c, 1.0))));
         s.worldPositions.push_back(c);
         int centre = h.idx();
-        for (int k = 0; k < 4; ++k)
-            polys.push_back({corner[k], mid[k], centre, mid[(k + 3) % 4]});
+        for (int k = 0; k < 4; ++k) polys.push_back({corner[k], mid[k], centre, mid[(k + 3) % 4]});
     }
 
     // Neighbours across each edge get the midpoint inserted (keeps the mesh conforming).
@@ -619,7 +632,8 @@ std::vector<int> Discretization::subdivideElement(int element) {
             }
         }
     };
-    for (std::size_t k = 0; k < n; ++k) insertIntoNeighbours(corner[k], corner[(k + 1) % n], mid[k]);
+    for (std::size_t k = 0; k < n; ++k)
+        insertIntoNeighbours(corner[k], corner[(k + 1) % n], mid[k]);
 
     // Rebuild the object's OpenMesh faces from the element polygons (topology changed).
     ElementMesh rebuilt;
@@ -649,7 +663,8 @@ std::vector<int> Discretization::subdivideElement(int element) {
             for (std::size_t k = 0; k < copy.size(); ++k) mElements[e].vertices[k] = copy[k].idx();
         }
         mElements[e].face = f.idx();
-        if (static_cast<int>(s.faceElement.size()) <= f.idx()) s.faceElement.resize(f.idx() + 1, -1);
+        if (static_cast<int>(s.faceElement.size()) <= f.idx())
+            s.faceElement.resize(f.idx() + 1, -1);
         s.faceElement[f.idx()] = e;
     }
     mesh = std::move(rebuilt);

@@ -3,11 +3,10 @@
 //
 // Index: Patch · Element · ObjectSurface · Discretization
 
+#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 
 #include "solver/scene.h"
 
@@ -52,9 +51,9 @@ struct Element {
 /// One object's element mesh and its placement.
 struct ObjectSurface {
     std::string id;
-    ElementMesh mesh;                ///< object space; face i is element faceElement[i]
-    std::vector<int> faceElement;    ///< face index -> element index
-    std::vector<Vec3> worldPositions;///< per mesh vertex, world space
+    ElementMesh mesh;                  ///< object space; face i is element faceElement[i]
+    std::vector<int> faceElement;      ///< face index -> element index
+    std::vector<Vec3> worldPositions;  ///< per mesh vertex, world space
     Mat4 worldFromObject{1.0};
     bool twoSided = false;
     /// False once removed from the scene: its patches and elements keep their indices (pair

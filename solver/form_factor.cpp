@@ -26,7 +26,8 @@ struct PairRandom {
 
 Vec3 polygonNormal(const std::vector<Vec3>& poly) {
     Vec3 n(0.0);
-    for (std::size_t i = 0; i < poly.size(); ++i) n += glm::cross(poly[i], poly[(i + 1) % poly.size()]);
+    for (std::size_t i = 0; i < poly.size(); ++i)
+        n += glm::cross(poly[i], poly[(i + 1) % poly.size()]);
     return n;
 }
 

@@ -37,9 +37,8 @@ struct PointToPatch {
     double visible = 0;     ///< the estimate with visibility
     int rays = 0;           ///< rays traced
 };
-PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer,
-                               const Vec3& x, const Vec3& n, int patch,
-                               std::uint64_t receiverKey, std::uint64_t seed, int maxRays,
-                               const Visibility& visibility = {});
+PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
+                               const Vec3& n, int patch, std::uint64_t receiverKey,
+                               std::uint64_t seed, int maxRays, const Visibility& visibility = {});
 
 }  // namespace penumbra

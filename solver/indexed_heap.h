@@ -27,8 +27,10 @@ public:
     void update(int index, double key) {
         double old = mKey[index];
         mKey[index] = key;
-        if (key > old) siftUp(mPos[index]);
-        else siftDown(mPos[index]);
+        if (key > old)
+            siftUp(mPos[index]);
+        else
+            siftDown(mPos[index]);
     }
     /// Appends a new index (== previous size) with `key`.
     void push(double key) {
@@ -40,9 +42,7 @@ public:
     }
 
 private:
-    bool before(int a, int b) const {
-        return mKey[a] > mKey[b] || (mKey[a] == mKey[b] && a < b);
-    }
+    bool before(int a, int b) const { return mKey[a] > mKey[b] || (mKey[a] == mKey[b] && a < b); }
     void place(std::size_t slot, int index) { mHeap[slot] = index, mPos[index] = slot; }
     void siftUp(std::size_t slot) {
         int index = mHeap[slot];

@@ -45,7 +45,8 @@ Vec3 cosineDirection(const Vec3& n, RayRandom& rng) {
     double phi = 2 * M_PI * rng.next(), rr = std::sqrt(rng.next());
     Vec3 tx, ty;
     frameAround(n, tx, ty);
-    return rr * std::cos(phi) * tx + rr * std::sin(phi) * ty + std::sqrt(std::max(0.0, 1 - rr * rr)) * n;
+    return rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
+           std::sqrt(std::max(0.0, 1 - rr * rr)) * n;
 }
 
 /// A uniform point of a patch: an element by area, then a point of its fan triangles.
@@ -90,10 +91,10 @@ SolverOptions interactiveSolverOptions() {
 struct ChangeEntry {
     std::vector<std::uint8_t> before, after;  ///< objects present just before / after the edit
     std::vector<int> added, removed;
-    std::vector<Rgb> shot;     ///< per patch: B − ΔB at the time of the edit (radiosity shot)
-    IndexedMaxHeap pending;    ///< per patch: estimated power to redistribute; 0 when done
+    std::vector<Rgb> shot;   ///< per patch: B − ΔB at the time of the edit (radiosity shot)
+    IndexedMaxHeap pending;  ///< per patch: estimated power to redistribute; 0 when done
     double totalPending = 0;
-    Vec3 centre{0};            ///< of the changed objects' bounds, for shadow culling
+    Vec3 centre{0};  ///< of the changed objects' bounds, for shadow culling
     double radius = 0;
 };
 
@@ -105,8 +106,8 @@ struct ProgressiveSolver::Impl {
     std::vector<int> previewEmitters;  ///< emitter patches of the preview not yet shot
     std::vector<Rgb> temp;             ///< per element radiosity, display only
     IndexedMaxHeap queue;
-    std::vector<Rgb> delta;     ///< per element, radiosity received in the current shot
-    std::vector<int> level;     ///< per element, subdivision depth
+    std::vector<Rgb> delta;  ///< per element, radiosity received in the current shot
+    std::vector<int> level;  ///< per element, subdivision depth
     // Scratch for stochastic batches.
     std::vector<double> patchCdf;              ///< power CDF over the shooters
     std::vector<int> shooters;                 ///< patches shot in the batch
@@ -186,7 +187,8 @@ int ProgressiveSolver::step(int maxShots) {
             shootPatch(p);
         }
     }
-    mStats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    mStats.seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return done;
 }
 
@@ -199,7 +201,8 @@ std::uint64_t ProgressiveSolver::converge(double eps, std::uint64_t maxShots,
         if (unshotFraction() <= eps) {
             auto start = std::chrono::steady_clock::now();
             bool shot = shootRedistribution();
-            mStats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            mStats.seconds +=
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
             if (!shot) break;
         } else if (step(1) == 0) {
             break;
@@ -310,11 +313,11 @@ void ProgressiveSolver::shootStochasticBatch() {
     }
     if (shooters.empty()) return;
     const double share = mEmittedEnergy > 0 ? total / mEmittedEnergy : 1.0;
-    const std::size_t rays = static_cast<std::size_t>(std::clamp(
-        std::ceil(share * mOptions.raysPerEmittedPower),
-        static_cast<double>(mOptions.minStochasticRays), 6.4e7));
-    const std::uint64_t batchSeed = hashPair(hashPair(mOptions.seed, 0x5707c4a57ull),
-                                             mStats.stochasticBatches);
+    const std::size_t rays = static_cast<std::size_t>(
+        std::clamp(std::ceil(share * mOptions.raysPerEmittedPower),
+                   static_cast<double>(mOptions.minStochasticRays), 6.4e7));
+    const std::uint64_t batchSeed =
+        hashPair(hashPair(mOptions.seed, 0x5707c4a57ull), mStats.stochasticBatches);
     auto& hits = mImpl->rayHits;
     hits.assign(rays, {-1, Rgb(0.0)});
     const double eps = mTracer.epsilon();
@@ -334,9 +337,9 @@ void ProgressiveSolver::shootStochasticBatch() {
             const Element& rec = mDisc.elements()[hit.element];
             if (rec.patch == shooters[k]) continue;
             // This ray carries power total/rays, in the colour of its shooter's ΔB.
-            const Rgb carried = unshot[k] * (P.area * total /
-                                             (static_cast<double>(rays) *
-                                              energyKey(unshot[k], P.area)));
+            const Rgb carried =
+                unshot[k] *
+                (P.area * total / (static_cast<double>(rays) * energyKey(unshot[k], P.area)));
             hits[r] = {hit.element, carried / rec.area};  // irradiance
         }
     });
@@ -365,7 +368,8 @@ void ProgressiveSolver::subdivideSteepElements() {
                 glm::dot(mDisc.elements()[nb].normal, mDisc.elements()[e].normal) < 0.99)
                 continue;
             double yn = luminance(mElementB[nb]);
-            if (std::abs(ye - yn) > mOptions.gradientThreshold * std::max(maxY * 1e-2, std::max(ye, yn))) {
+            if (std::abs(ye - yn) >
+                mOptions.gradientThreshold * std::max(maxY * 1e-2, std::max(ye, yn))) {
                 steep.push_back(static_cast<int>(e));
                 break;
             }
@@ -467,9 +471,10 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
     std::vector<Vec3> samples{entry.centre};
     if (!bounds.empty())
         for (int k = 0; k < 8; ++k)
-            samples.push_back(entry.centre + 0.5 * Vec3((k & 1 ? 0.5 : -0.5) * (bounds.hi.x - bounds.lo.x),
-                                                        (k & 2 ? 0.5 : -0.5) * (bounds.hi.y - bounds.lo.y),
-                                                        (k & 4 ? 0.5 : -0.5) * (bounds.hi.z - bounds.lo.z)));
+            samples.push_back(entry.centre +
+                              0.5 * Vec3((k & 1 ? 0.5 : -0.5) * (bounds.hi.x - bounds.lo.x),
+                                         (k & 2 ? 0.5 : -0.5) * (bounds.hi.y - bounds.lo.y),
+                                         (k & 4 ? 0.5 : -0.5) * (bounds.hi.z - bounds.lo.z)));
 
     // Snapshot the radiosity already shot, B − ΔB, and rank the shooters by the power they
     // would send toward the changed objects: George et al.'s point-sample estimate, a
@@ -478,7 +483,8 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
     entry.pending.reset(patches.size());
     for (std::size_t j = 0; j < patches.size(); ++j) {
         const Patch& P = patches[j];
-        if (!entry.before[P.object] || entry.added.end() != std::find(entry.added.begin(), entry.added.end(), P.object))
+        if (!entry.before[P.object] ||
+            entry.added.end() != std::find(entry.added.begin(), entry.added.end(), P.object))
             continue;
         Rgb shot = patchRadiosity(static_cast<int>(j)) - mPatchUnshot[j];
         if (isZero(shot)) continue;
@@ -615,7 +621,8 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
         for (std::size_t e = range.begin(); e != range.end(); ++e) {
             const Element& el = elements[e];
             if (el.object >= static_cast<int>(c.after.size()) || !c.after[el.object]) continue;
-            if (!mDisc.objects()[el.object].alive && !(preview && el.object == mImpl->previewObject))
+            if (!mDisc.objects()[el.object].alive &&
+                !(preview && el.object == mImpl->previewObject))
                 continue;
             const bool receiverAdded = !c.before[el.object];
             const int ie = static_cast<int>(e);
@@ -686,11 +693,11 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     c.totalPending = 0;
     if (shooters.empty()) return;
     const double share = mEmittedEnergy > 0 ? total / mEmittedEnergy : 1.0;
-    const std::size_t rays = static_cast<std::size_t>(std::clamp(
-        std::ceil(share * mOptions.raysPerEmittedPower),
-        static_cast<double>(mOptions.minStochasticRays), 6.4e7));
-    const std::uint64_t batchSeed = hashPair(hashPair(mOptions.seed, 0x7ed157ull),
-                                             mStats.redistributionShots);
+    const std::size_t rays = static_cast<std::size_t>(
+        std::clamp(std::ceil(share * mOptions.raysPerEmittedPower),
+                   static_cast<double>(mOptions.minStochasticRays), 6.4e7));
+    const std::uint64_t batchSeed =
+        hashPair(hashPair(mOptions.seed, 0x7ed157ull), mStats.redistributionShots);
     Visibility before, after;
     before.world = &c.before;
     after.world = &c.after;
@@ -738,7 +745,8 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             }
             const Rgb carried = c.shot[j] * (P.area * weight / (static_cast<double>(rays) * pj));
             RayTracer::FirstHit hb = mTracer.firstHit(origin, dir, before);
-            RayTracer::FirstHit ha = removed ? RayTracer::FirstHit{} : mTracer.firstHit(origin, dir, after);
+            RayTracer::FirstHit ha =
+                removed ? RayTracer::FirstHit{} : mTracer.firstHit(origin, dir, after);
             int eb = hb.element >= 0 && !hb.backFace ? hb.element : -1;
             int ea = ha.element >= 0 && !ha.backFace ? ha.element : -1;
             if (eb == ea) continue;
@@ -780,13 +788,13 @@ void ProgressiveSolver::setPreview(int object) {
     mImpl->previewEntry.after[object] = 1;
     mImpl->previewEmitters.clear();
     for (std::size_t j = 0; j < mDisc.patches().size(); ++j)
-        if (mDisc.patches()[j].object == object && mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
+        if (mDisc.patches()[j].object == object &&
+            mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
             mImpl->previewEmitters.push_back(static_cast<int>(j));
     mImpl->temp.assign(mDisc.elements().size(), Rgb(0.0));
     // The object shows its own emission at once.
     for (int j : mImpl->previewEmitters)
-        for (int e : mDisc.patches()[j].elements)
-            mImpl->temp[e] = mDisc.patchMaterial(j).emission;
+        for (int e : mDisc.patches()[j].elements) mImpl->temp[e] = mDisc.patchMaterial(j).emission;
 }
 
 int ProgressiveSolver::stepPreview(int maxShots) {
@@ -818,11 +826,13 @@ int ProgressiveSolver::stepPreview(int maxShots) {
         }
         for (std::size_t el = 0; el < delta.size(); ++el)
             if (!isZero(delta[el]))
-                mImpl->temp[el] += mDisc.elementMaterial(static_cast<int>(el)).reflectance * delta[el];
+                mImpl->temp[el] +=
+                    mDisc.elementMaterial(static_cast<int>(el)).reflectance * delta[el];
     }
     mStats.shots += static_cast<std::uint64_t>(done);
     mStats.rays += mTracer.rayCount() - raysBefore;
-    mStats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    mStats.seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return done;
 }
 
@@ -886,8 +896,8 @@ Rgb ProgressiveSolver::irradianceAt(const Vec3& x, const Vec3& n, int rays) cons
         if (!mDisc.patchAlive(static_cast<int>(p))) continue;
         Rgb b = patchRadiosity(static_cast<int>(p));
         if (isZero(b)) continue;
-        PointToPatch ff = formFactorToPatch(mDisc, mTracer, x, un, static_cast<int>(p), key,
-                                            mOptions.seed, rays);
+        PointToPatch ff =
+            formFactorToPatch(mDisc, mTracer, x, un, static_cast<int>(p), key, mOptions.seed, rays);
         h += b * ff.visible;
     }
     return h;

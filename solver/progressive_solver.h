@@ -25,8 +25,8 @@ enum class RedistributionStrategy {
 
 struct SolverOptions {
     std::uint64_t seed = 1;
-    int maxRaysPerPair = 16;      ///< visibility rays for the closest pairs
-    double gradientThreshold = 0; ///< >0: adaptive element subdivision (Cohen §3.4)
+    int maxRaysPerPair = 16;       ///< visibility rays for the closest pairs
+    double gradientThreshold = 0;  ///< >0: adaptive element subdivision (Cohen §3.4)
     int maxSubdivisionLevel = 2;
     /// Once the strongest shooter carries less than this fraction of the emitted power, all
     /// remaining unshot energy is shot at once stochastically (Monte Carlo rays from the
@@ -53,7 +53,7 @@ struct SolverStats {
     std::uint64_t rays = 0;
     double seconds = 0;
     std::uint64_t subdivisions = 0;
-    std::uint64_t stochasticBatches = 0;  ///< each counts as one shot in `shots`
+    std::uint64_t stochasticBatches = 0;    ///< each counts as one shot in `shots`
     std::uint64_t redistributionShots = 0;  ///< also counted in `shots`
 };
 

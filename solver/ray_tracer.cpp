@@ -159,8 +159,10 @@ void RayTracer::addObject(int o) {
 
 void RayTracer::updateAlive(int o) {
     RTCGeometry inst = rtcGetGeometry(mImpl->top, static_cast<unsigned>(o));
-    if (mDisc.objects()[o].alive) rtcEnableGeometry(inst);
-    else rtcDisableGeometry(inst);
+    if (mDisc.objects()[o].alive)
+        rtcEnableGeometry(inst);
+    else
+        rtcDisableGeometry(inst);
     rtcCommitScene(mImpl->top);
 }
 

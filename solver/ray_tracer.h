@@ -59,8 +59,8 @@ public:
     bool occluded(const Vec3& from, const Vec3& to, const Visibility& visibility = {}) const;
 
     /// Nearest hit along origin + t·dir, t in (tNear, tFar).
-    RayHit intersect(const Vec3& origin, const Vec3& dir, double tNear = 0.0,
-                     double tFar = 1e30, const Visibility& visibility = {}) const;
+    RayHit intersect(const Vec3& origin, const Vec3& dir, double tNear = 0.0, double tFar = 1e30,
+                     const Visibility& visibility = {}) const;
     /// The element first hit along origin + t·dir (t > 0) and whether its back was hit;
     /// element -1 for a miss. The allocation-free query stochastic shooting uses.
     struct FirstHit {

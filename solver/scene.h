@@ -3,11 +3,10 @@
 // Plain data; no files, no GL. edit/ reads and writes it, solver/ discretizes it.
 
 #include <array>
+#include <glm/glm.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 namespace penumbra {
 

@@ -9,8 +9,9 @@
 
 namespace penumbra::test {
 
-inline SceneObject makeQuad(const std::string& id, double sx, double sz, const std::string& material,
-                            Vec3 translate, Vec3 rotateDeg = Vec3(0.0)) {
+inline SceneObject makeQuad(const std::string& id, double sx, double sz,
+                            const std::string& material, Vec3 translate,
+                            Vec3 rotateDeg = Vec3(0.0)) {
     SceneObject o;
     o.id = id;
     o.shape.type = ShapeType::Quad;

@@ -151,7 +151,8 @@ void plot(const std::vector<std::vector<Sample>>& runs, const std::string& path)
     Image img(W, H, Rgb(1.0));
     double lo = 0.1, hi = 1e5;  // ms
     auto px = [&](double ms) {
-        double t = (std::log10(std::max(ms, lo)) - std::log10(lo)) / (std::log10(hi) - std::log10(lo));
+        double t =
+            (std::log10(std::max(ms, lo)) - std::log10(lo)) / (std::log10(hi) - std::log10(lo));
         return pad + t * (W - 2 * pad);
     };
     auto py = [&](double err) {  // 1e-3 .. 1
@@ -161,7 +162,8 @@ void plot(const std::vector<std::vector<Sample>>& runs, const std::string& path)
     auto line = [&](double x0, double y0, double x1, double y1, Rgb c) {
         int n = static_cast<int>(std::max(std::abs(x1 - x0), std::abs(y1 - y0))) + 1;
         for (int k = 0; k <= n; ++k) {
-            int x = static_cast<int>(x0 + (x1 - x0) * k / n), y = static_cast<int>(y0 + (y1 - y0) * k / n);
+            int x = static_cast<int>(x0 + (x1 - x0) * k / n),
+                y = static_cast<int>(y0 + (y1 - y0) * k / n);
             for (int dy = 0; dy < 2; ++dy)
                 if (x >= 0 && x < W && y + dy >= 0 && y + dy < H) img.at(x, y + dy) = c;
         }
@@ -176,8 +178,7 @@ void plot(const std::vector<std::vector<Sample>>& runs, const std::string& path)
             line(px(runs[r][k - 1].ms), py(runs[r][k - 1].top1), px(runs[r][k].ms),
                  py(runs[r][k].top1), colours[r % 3]);
     // sRGB-encoded values were chosen by eye: convert to linear for writePng.
-    for (Rgb& p : img.pixels)
-        p = Rgb(srgbDecode(p.x), srgbDecode(p.y), srgbDecode(p.z));
+    for (Rgb& p : img.pixels) p = Rgb(srgbDecode(p.x), srgbDecode(p.y), srgbDecode(p.z));
     writePng(img, path);
 }
 
@@ -185,11 +186,14 @@ void plot(const std::vector<std::vector<Sample>>& runs, const std::string& path)
 
 int runRedistributionBench(const RedistributionBenchOptions& options) {
     nlohmann::json report = nlohmann::json::array();
-    std::printf("| scene | method | to top-1%% ≤ 10%% (ms) | top-1%% after 2 shots | after 50 | all after 50 | speedup vs (b) |\n");
+    std::printf(
+        "| scene | method | to top-1%% ≤ 10%% (ms) | top-1%% after 2 shots | after 50 | all after "
+        "50 | speedup vs (b) |\n");
     std::printf("|---|---|---|---|---|---|---|\n");
     std::vector<Case> cases;
     for (const std::string& name : options.cases)
-        cases.push_back(name == "robot-room" ? robotRoomCase(options.sceneDir) : cubeRoomCase(options.sceneDir));
+        cases.push_back(name == "robot-room" ? robotRoomCase(options.sceneDir)
+                                             : cubeRoomCase(options.sceneDir));
     for (Case& c : cases) {
         World w;
         w.scene = c.base;
@@ -214,7 +218,8 @@ int runRedistributionBench(const RedistributionBenchOptions& options) {
         std::vector<int> order;
         for (std::size_t e = 0; e < yAfter.size(); ++e)
             if (w.disc->elementAlive(static_cast<int>(e)) ||
-                std::find(w.versions.begin(), w.versions.end(), w.disc->elements()[e].object) != w.versions.end())
+                std::find(w.versions.begin(), w.versions.end(), w.disc->elements()[e].object) !=
+                    w.versions.end())
                 order.push_back(static_cast<int>(e));
         std::sort(order.begin(), order.end(), [&](int a, int b) {
             return std::abs(yAfter[a] - yBefore[a]) > std::abs(yAfter[b] - yBefore[b]);
@@ -226,12 +231,16 @@ int runRedistributionBench(const RedistributionBenchOptions& options) {
         const char* names[3] = {"(a) redistribution", "(b) from scratch", "(c) insert only"};
         for (int method = 0; method < 3; ++method) {
             w.setAdded(false);
-            auto solver = std::make_unique<ProgressiveSolver>(*w.disc, *w.tracer, interactiveSolverOptions());
+            auto solver =
+                std::make_unique<ProgressiveSolver>(*w.disc, *w.tracer, interactiveSolverOptions());
             if (method != 1) solver->converge(options.referenceEps, 100000000);
             w.setAdded(true);
             auto t0 = Clock::now();
-            if (method == 1) solver = std::make_unique<ProgressiveSolver>(*w.disc, *w.tracer, interactiveSolverOptions());
-            else solver->applyChange({{}, w.versions}, method == 0);
+            if (method == 1)
+                solver = std::make_unique<ProgressiveSolver>(*w.disc, *w.tracer,
+                                                             interactiveSolverOptions());
+            else
+                solver->applyChange({{}, w.versions}, method == 0);
             double setupMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
             runs.push_back(run(*solver, w, yAfter, order, options.maxMs, setupMs));
         }
@@ -242,17 +251,24 @@ int runRedistributionBench(const RedistributionBenchOptions& options) {
             if (t > 0 && tb > 0) std::snprintf(speed, sizeof speed, "%.0f×", tb / t);
             char tt[32] = "not reached";
             if (t >= 0) std::snprintf(tt, sizeof tt, "%.1f", t);
-            std::printf("| %s | %s | %s | %.3f | %.3f | %.4f | %s |\n", c.name.c_str(), names[method], tt,
-                        errorAtShots(runs[method], 2, true), errorAtShots(runs[method], 50, true),
-                        errorAtShots(runs[method], 50, false), speed);
+            std::printf("| %s | %s | %s | %.3f | %.3f | %.4f | %s |\n", c.name.c_str(),
+                        names[method], tt, errorAtShots(runs[method], 2, true),
+                        errorAtShots(runs[method], 50, true), errorAtShots(runs[method], 50, false),
+                        speed);
             nlohmann::json samples = nlohmann::json::array();
             for (const Sample& s : runs[method])
-                samples.push_back({{"ms", s.ms}, {"shots", s.shots}, {"error_rms", s.all}, {"error_top1", s.top1}});
-            report.push_back({{"scene", c.name}, {"method", names[method]}, {"ms_to_top1_10pct", t},
+                samples.push_back({{"ms", s.ms},
+                                   {"shots", s.shots},
+                                   {"error_rms", s.all},
+                                   {"error_top1", s.top1}});
+            report.push_back({{"scene", c.name},
+                              {"method", names[method]},
+                              {"ms_to_top1_10pct", t},
                               {"samples", samples}});
         }
         std::fflush(stdout);
-        if (!options.plotDir.empty()) plot(runs, options.plotDir + "/redistribution-" + c.name + ".png");
+        if (!options.plotDir.empty())
+            plot(runs, options.plotDir + "/redistribution-" + c.name + ".png");
     }
     if (!options.jsonOut.empty()) writeFileAtomically(options.jsonOut, report.dump(1) + "\n");
     return 0;

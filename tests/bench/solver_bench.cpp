@@ -3,8 +3,6 @@
 // Each scene runs in a forked child so its peak resident memory is its own.
 //
 // Index: measurements · Google Benchmark micro-benchmarks · table
-#include "bench/bench.h"
-
 #include <benchmark/benchmark.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -19,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench.h"
 #include "edit/lit_scene.h"
 #include "solver/form_factor.h"
 
@@ -161,25 +160,27 @@ int runSolverBench(const BenchOptions& options) {
         auto lit = LitScene::open(options.scenes.front(), interactiveSolverOptions());
         Segments segs = makeSegments(lit->discretization(), 1 << 16);
         const Discretization& disc = lit->discretization();
-        benchmark::RegisterBenchmark(("occluded1/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
-            std::size_t i = 0;
-            for (auto _ : st) {
-                benchmark::DoNotOptimize(lit->tracer().occluded(segs.from[i], segs.to[i]));
-                i = (i + 1) & 0xffff;
-            }
-            st.SetItemsProcessed(st.iterations());
-        });
-        benchmark::RegisterBenchmark(("formFactorToPatch/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
-            std::size_t i = 0;
-            for (auto _ : st) {
-                const Element& e = disc.elements()[(i * 7919) % disc.elements().size()];
-                int p = static_cast<int>((i * 104729) % disc.patches().size());
-                benchmark::DoNotOptimize(formFactorToPatch(disc, lit->tracer(), e.centroid,
-                                                           e.normal, p, i, 1, 16));
-                ++i;
-            }
-            st.SetItemsProcessed(st.iterations());
-        });
+        benchmark::RegisterBenchmark(
+            ("occluded1/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
+                std::size_t i = 0;
+                for (auto _ : st) {
+                    benchmark::DoNotOptimize(lit->tracer().occluded(segs.from[i], segs.to[i]));
+                    i = (i + 1) & 0xffff;
+                }
+                st.SetItemsProcessed(st.iterations());
+            });
+        benchmark::RegisterBenchmark(
+            ("formFactorToPatch/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
+                std::size_t i = 0;
+                for (auto _ : st) {
+                    const Element& e = disc.elements()[(i * 7919) % disc.elements().size()];
+                    int p = static_cast<int>((i * 104729) % disc.patches().size());
+                    benchmark::DoNotOptimize(
+                        formFactorToPatch(disc, lit->tracer(), e.centroid, e.normal, p, i, 1, 16));
+                    ++i;
+                }
+                st.SetItemsProcessed(st.iterations());
+            });
         int argc = 1;
         char arg0[] = "penumbra-bench";
         char* argv[] = {arg0, nullptr};
@@ -189,24 +190,26 @@ int runSolverBench(const BenchOptions& options) {
     }
 
     nlohmann::json rows = nlohmann::json::array();
-    std::printf("\n| scene | patches | elements | raw Mrays/s | solver Mrays/s | ratio | to 10%% s | to 1%% s | to 0.1%% s | peak MiB |\n");
+    std::printf(
+        "\n| scene | patches | elements | raw Mrays/s | solver Mrays/s | ratio | to 10%% s | to "
+        "1%% s | to 0.1%% s | peak MiB |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
     for (const std::string& scene : options.scenes) {
         nlohmann::json r = measureSceneIsolated(scene, options);
         rows.push_back(r);
         if (r.contains("error")) {
-            std::printf("| %s | error: %s |\n", scene.c_str(), r["error"].get<std::string>().c_str());
+            std::printf("| %s | error: %s |\n", scene.c_str(),
+                        r["error"].get<std::string>().c_str());
             continue;
         }
-        std::printf("| %s | %zu | %zu | %s | %s | %s | %s | %s | %s | %s |\n", scene.c_str(),
-                    r["patches"].get<std::size_t>(), r["elements"].get<std::size_t>(),
-                    cell(r["raw_occlusion_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
-                    cell(r["solver_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
-                    cell(r["ratio_solver_to_raw"], "%.2f").c_str(),
-                    cell(r["seconds_to_10pct"], "%.2f").c_str(),
-                    cell(r["seconds_to_1pct"], "%.2f").c_str(),
-                    cell(r["seconds_to_0.1pct"], "%.2f").c_str(),
-                    cell(r["peak_rss_mib"], "%.0f").c_str());
+        std::printf(
+            "| %s | %zu | %zu | %s | %s | %s | %s | %s | %s | %s |\n", scene.c_str(),
+            r["patches"].get<std::size_t>(), r["elements"].get<std::size_t>(),
+            cell(r["raw_occlusion_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
+            cell(r["solver_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
+            cell(r["ratio_solver_to_raw"], "%.2f").c_str(),
+            cell(r["seconds_to_10pct"], "%.2f").c_str(), cell(r["seconds_to_1pct"], "%.2f").c_str(),
+            cell(r["seconds_to_0.1pct"], "%.2f").c_str(), cell(r["peak_rss_mib"], "%.0f").c_str());
         std::fflush(stdout);
     }
     if (!options.jsonOut.empty()) writeFileAtomically(options.jsonOut, rows.dump(2) + "\n");

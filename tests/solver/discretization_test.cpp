@@ -13,6 +13,8 @@
 // Index: helpers · quads and boxes · spheres and cylinders · transforms · meshes ·
 //        vertex values and neighbours · subdivision
 
+#include "solver/discretization.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -22,7 +24,6 @@
 #include <string>
 #include <vector>
 
-#include "solver/discretization.h"
 #include "test_scenes.h"
 
 namespace penumbra {
@@ -73,17 +74,18 @@ void checkPatchStructure(const Discretization& disc) {
         for (int e : P.elements) {
             ASSERT_GE(e, 0);
             ASSERT_LT(e, static_cast<int>(disc.elements().size()));
-            EXPECT_EQ(owner[e], -1) << "element " << e << " is in patches " << owner[e] << " and "
-                                    << p;
+            EXPECT_EQ(owner[e], -1)
+                << "element " << e << " is in patches " << owner[e] << " and " << p;
             owner[e] = p;
-            EXPECT_EQ(disc.elements()[e].patch, p) << "element " << e << " names patch "
-                                                   << disc.elements()[e].patch << ", listed in " << p;
+            EXPECT_EQ(disc.elements()[e].patch, p)
+                << "element " << e << " names patch " << disc.elements()[e].patch << ", listed in "
+                << p;
             EXPECT_EQ(disc.elements()[e].object, P.object);
             EXPECT_GT(disc.elements()[e].area, 0);
             sum += disc.elements()[e].area;
         }
-        EXPECT_NEAR(P.area, sum, 1e-12 * sum) << "patch " << p << ": area " << P.area
-                                              << ", Σ element areas " << sum;
+        EXPECT_NEAR(P.area, sum, 1e-12 * sum)
+            << "patch " << p << ": area " << P.area << ", Σ element areas " << sum;
         total += P.area;
     }
     for (std::size_t e = 0; e < owner.size(); ++e)
@@ -140,8 +142,8 @@ double boundaryLength(const Discretization& disc, int object, int* count = nullp
 void checkNeighboursSymmetric(const Discretization& disc) {
     for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e) {
         const std::vector<int> nbs = disc.elementNeighbours(e);
-        EXPECT_EQ(std::find(nbs.begin(), nbs.end(), e), nbs.end()) << "element " << e
-                                                                   << " is its own neighbour";
+        EXPECT_EQ(std::find(nbs.begin(), nbs.end(), e), nbs.end())
+            << "element " << e << " is its own neighbour";
         for (int nb : nbs) {
             const std::vector<int> back = disc.elementNeighbours(nb);
             ASSERT_NE(std::find(back.begin(), back.end(), e), back.end())
@@ -268,8 +270,8 @@ void checkSphere(double r, int segments, double P, double E, Vec3 centre, int ex
         << ", inscribed polyhedron " << poly;
     EXPECT_LE(disc.totalArea(), sphereArea) << "an inscribed polyhedron is smaller than 4πr²";
     EXPECT_GE(disc.totalArea(), sphereArea * (dmin / r) * (dmin / r))
-        << "area " << disc.totalArea() << " below cos²α · 4πr² = "
-        << sphereArea * (dmin / r) * (dmin / r);
+        << "area " << disc.totalArea()
+        << " below cos²α · 4πr² = " << sphereArea * (dmin / r) * (dmin / r);
     for (int e = 0; e < static_cast<int>(disc.elements().size()); ++e)
         for (const Vec3& v : disc.elementPolygon(e))
             ASSERT_NEAR(glm::length(v - centre), r, kExact * r) << "vertex off the sphere";
@@ -479,8 +481,10 @@ TriMesh icosahedron() {
                 if (edge(i, j) && edge(j, k) && edge(i, k)) {
                     const Vec3 nrm = glm::cross(m.positions[j] - m.positions[i],
                                                 m.positions[k] - m.positions[i]);
-                    if (glm::dot(nrm, m.positions[i]) > 0) m.triangles.push_back({i, j, k});
-                    else m.triangles.push_back({i, k, j});
+                    if (glm::dot(nrm, m.positions[i]) > 0)
+                        m.triangles.push_back({i, j, k});
+                    else
+                        m.triangles.push_back({i, k, j});
                 }
     return m;
 }

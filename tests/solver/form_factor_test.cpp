@@ -9,6 +9,8 @@
 //
 // Index: helpers and closed forms · unoccluded part · reciprocity · visibility · determinism
 
+#include "solver/form_factor.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -21,7 +23,6 @@
 #include <vector>
 
 #include "solver/discretization.h"
-#include "solver/form_factor.h"
 #include "solver/ray_tracer.h"
 #include "test_scenes.h"
 
@@ -183,8 +184,8 @@ TEST(FormFactor, UnoccludedIsSumOfElementPolygonFormFactors) {
             for (int e : P.elements) expected += polygonFormFactor(x, n, disc.elementPolygon(e));
             const PointToPatch ff = formFactorToPatch(disc, tracer, x, n, p, 3, 1, 16);
             EXPECT_NEAR(ff.unoccluded, expected, 1e-3 * expected + 1e-9)
-                << disc.objects()[P.object].id << " patch " << p << ": unoccluded = "
-                << ff.unoccluded << ", Σ over its " << P.elements.size()
+                << disc.objects()[P.object].id << " patch " << p
+                << ": unoccluded = " << ff.unoccluded << ", Σ over its " << P.elements.size()
                 << " element polygons = " << expected << " at x = " << str(x) << "; "
                 << P.toString();
             ++checked;
@@ -257,9 +258,7 @@ const double kLampF = parallelRectangle(-0.5, 0.5, -0.5, 0.5, 0.5);  // ≈ 0.55
 /// Covers the whole cone from the origin to the lamp (half-width 0.25 at height 0.25).
 SceneObject fullBlocker() { return test::makeQuad("blocker", 0.8, 0.8, "black", {0, 0.25, 0}); }
 /// Covers exactly the x < 0 half of the lamp as seen from the origin.
-SceneObject halfBlocker() {
-    return test::makeQuad("half", 0.4, 0.8, "black", {-0.2, 0.25, 0});
-}
+SceneObject halfBlocker() { return test::makeQuad("half", 0.4, 0.8, "black", {-0.2, 0.25, 0}); }
 
 TEST(FormFactor, VisibilityRayCountIsBoundedAndMonotone) {
     int previous = 0;
@@ -388,7 +387,8 @@ TEST(FormFactor, SamplePatternIsKeyedBySeedAndReceiver) {
         byKey.insert(s.at(seed, 7).visible);
     }
     // A partly occluded pair: different patterns give different visible estimates.
-    EXPECT_GE(bySeed.size(), 12u) << "only " << bySeed.size() << " distinct estimates from 16 seeds";
+    EXPECT_GE(bySeed.size(), 12u) << "only " << bySeed.size()
+                                  << " distinct estimates from 16 seeds";
     EXPECT_GE(byKey.size(), 12u) << "only " << byKey.size() << " distinct estimates from 16 keys";
     // Evaluation order does not matter: another pair in between leaves the pattern unchanged.
     PointToPatch first = s.at(5, 3);

@@ -30,16 +30,14 @@ void runFurnace(Rgb rho, Rgb emission, double patchSize, double elementSize,
             double rel = std::abs(b[c] - expected[c]) / expected[c];
             worst = std::max(worst, rel);
             ASSERT_LT(rel, tolerance) << "element " << e << " channel " << c << ": B = " << b[c]
-                                 << ", expected E/(1-rho) = " << expected[c] << "; "
-                                 << disc.elements()[e].toString();
+                                      << ", expected E/(1-rho) = " << expected[c] << "; "
+                                      << disc.elements()[e].toString();
         }
     }
     ::testing::Test::RecordProperty("worst_relative_error", std::to_string(worst));
 }
 
-TEST(Furnace, GreyBoxConvergesToGeometricSeries) {
-    runFurnace(Rgb(0.5), Rgb(1.0), 0.5, 0.25);
-}
+TEST(Furnace, GreyBoxConvergesToGeometricSeries) { runFurnace(Rgb(0.5), Rgb(1.0), 0.5, 0.25); }
 
 TEST(Furnace, ColouredHighAlbedoBox) {
     runFurnace(Rgb(0.8, 0.6, 0.3), Rgb(2.0, 1.0, 0.5), 1.0, 0.25);

@@ -229,8 +229,8 @@ TEST(Lambert, ParallelRectangleClosedForm) {
     const double x0 = -0.5, x1 = 0.5, y0 = -0.25, y1 = 0.75;
     const std::vector<Vec3> rect = {frame.point({x0, y0, 0}), frame.point({x1, y0, 0}),
                                     frame.point({x1, y1, 0}), frame.point({x0, y1, 0})};
-    const Vec3 feet[] = {{0, 0.25, 0}, {0.5, 0.75, 0}, {0.3, -0.1, 0}, {1.2, 0.2, 0},
-                         {-0.8, -0.9, 0}};
+    const Vec3 feet[] = {
+        {0, 0.25, 0}, {0.5, 0.75, 0}, {0.3, -0.1, 0}, {1.2, 0.2, 0}, {-0.8, -0.9, 0}};
     for (Vec3 foot : feet)
         for (double c : {0.01, 0.05, 0.3, 1.0, 10.0}) {
             const double exact = parallelRectangle(x0, x1, y0, y1, foot.x, foot.y, c);
@@ -281,8 +281,8 @@ TEST(Lambert, ManySidedPolygonBetweenInscribedAndCircumscribedDisks) {
 }
 
 TEST(Lambert, OneSidedAndDegenerate) {
-    const std::vector<Vec3> square = {{-0.5, 0, -0.5}, {-0.5, 0, 0.5}, {0.5, 0, 0.5},
-                                      {0.5, 0, -0.5}};  // front +Y
+    const std::vector<Vec3> square = {
+        {-0.5, 0, -0.5}, {-0.5, 0, 0.5}, {0.5, 0, 0.5}, {0.5, 0, -0.5}};  // front +Y
     EXPECT_GT(polygonFormFactor({0, 1, 0}, {0, -1, 0}, square), 0.2);
     // The same square wound the other way faces -Y: the point is behind it.
     std::vector<Vec3> reversed(square.rbegin(), square.rend());
@@ -373,8 +373,10 @@ TEST(Lambert, IrradianceFromEmittingCylinderCapEqualsEmissionTimesFormFactor) {
     const Vec3 up(0, 1, 0);
     const struct {
         Vec3 x, n;
-    } probes[] = {{{0, -0.3, 0}, up},          {{0, -1.2, 0}, up},
-                  {{0.2, -0.22, 0.1}, up},     {{-0.3, -0.25, -0.2}, glm::normalize(Vec3(0.5, 1, 0))},
+    } probes[] = {{{0, -0.3, 0}, up},
+                  {{0, -1.2, 0}, up},
+                  {{0.2, -0.22, 0.1}, up},
+                  {{-0.3, -0.25, -0.2}, glm::normalize(Vec3(0.5, 1, 0))},
                   {{0.1, -0.6, 0}, glm::normalize(Vec3(1, 0.3, 0))}};
     for (const auto& p : probes) {
         const double f = bruteForceFormFactor(p.x, p.n, cap);
@@ -382,8 +384,9 @@ TEST(Lambert, IrradianceFromEmittingCylinderCapEqualsEmissionTimesFormFactor) {
         for (int c = 0; c < 3; ++c) {
             const double expected = emission[c] * f;
             EXPECT_NEAR(hIrr[c], expected, tolerance(expected))
-                << "channel " << c << ": irradianceAt = " << hIrr[c] << ", E × brute-force F of the "
-                << nu << "-gon cap = " << expected << " at x = " << str(p.x) << ", n = " << str(p.n);
+                << "channel " << c << ": irradianceAt = " << hIrr[c]
+                << ", E × brute-force F of the " << nu << "-gon cap = " << expected
+                << " at x = " << str(p.x) << ", n = " << str(p.n);
         }
     }
 }

@@ -84,8 +84,8 @@ struct Lit {
 };
 
 struct Comparison {
-    double rms = 0;        ///< George eq. 7 over alive elements, relative
-    double worst = 0;      ///< largest relative error on elements brighter than 1% of max
+    double rms = 0;    ///< George eq. 7 over alive elements, relative
+    double worst = 0;  ///< largest relative error on elements brighter than 1% of max
     int worstElement = -1;
     double minB = 0;
 };
@@ -120,10 +120,9 @@ void expectMatches(const Lit& edited, const Lit& reference, const std::string& w
     ASSERT_TRUE(edited.solver->converged(kEps)) << what << ": edited solution did not converge";
     Comparison c = compare(edited, reference);
     EXPECT_LE(c.rms, 0.01) << what << ": RMS luminance error " << c.rms;
-    EXPECT_LE(c.worst, 0.05) << what << ": worst element " << c.worstElement << " off by "
-                             << c.worst << " ("
-                             << (c.worstElement >= 0 ? edited.disc->elements()[c.worstElement].toString() : "")
-                             << ")";
+    EXPECT_LE(c.worst, 0.05)
+        << what << ": worst element " << c.worstElement << " off by " << c.worst << " ("
+        << (c.worstElement >= 0 ? edited.disc->elements()[c.worstElement].toString() : "") << ")";
     EXPECT_GE(c.minB, -1e-6) << what << ": negative radiosity after convergence";
     ::testing::Test::RecordProperty("rms_" + what, std::to_string(c.rms));
 }
@@ -244,7 +243,8 @@ TEST(Redistribution, ManyEditsInterruptedStillConverge) {
         return static_cast<double>(state >> 11) * 0x1.0p-53;
     };
     for (int k = 0; k < 20; ++k) {
-        crate.transform.translate = Vec3(-1.1 + 2.2 * next(), -1.3 + 0.4 * next(), -1.1 + 2.2 * next());
+        crate.transform.translate =
+            Vec3(-1.1 + 2.2 * next(), -1.3 + 0.4 * next(), -1.1 + 2.2 * next());
         crate.transform.rotateDeg.y = 360 * next();
         int old = version;
         version = edited.move(version, crate);
@@ -291,8 +291,10 @@ TEST(Redistribution, HistoryWorldReproducesCurrentFormFactorsBitForBit) {
     for (int e = 0; e < static_cast<int>(lit.disc->elements().size()); e += 7)
         for (int p = 0; p < static_cast<int>(lit.disc->patches().size()); p += 5) {
             const Element& el = lit.disc->elements()[e];
-            PointToPatch now = formFactorToPatch(*lit.disc, *lit.tracer, el.centroid, el.normal, p, e, 1, 16);
-            PointToPatch then = formFactorToPatch(*lit.disc, *lit.tracer, el.centroid, el.normal, p, e, 1, 16, history);
+            PointToPatch now =
+                formFactorToPatch(*lit.disc, *lit.tracer, el.centroid, el.normal, p, e, 1, 16);
+            PointToPatch then = formFactorToPatch(*lit.disc, *lit.tracer, el.centroid, el.normal, p,
+                                                  e, 1, 16, history);
             ++compared;
             if (now.visible != then.visible) ++differing;
         }
@@ -327,8 +329,9 @@ TEST(Redistribution, DragPreviewBufferEqualsTheRedistributionOfAnAdd) {
     a.solver->setPreview(va);
     while (a.solver->stepPreview(16) > 0) {
     }
-    const std::vector<Rgb> during(a.solver->radiosity().begin(),
-                                  a.solver->radiosity().begin() + static_cast<std::ptrdiff_t>(before.size()));
+    const std::vector<Rgb> during(
+        a.solver->radiosity().begin(),
+        a.solver->radiosity().begin() + static_cast<std::ptrdiff_t>(before.size()));
     EXPECT_TRUE(during == before) << "the preview must not touch the solution";
 
     int vb = b.addVersion(moved);

@@ -78,7 +78,8 @@ void polygonQuadrature(const std::vector<Vec3>& poly, int k, std::vector<Vec3>& 
     points.clear();
     weights.clear();
     for (std::size_t t = 1; t + 1 < poly.size(); ++t) {
-        const Vec3 p0 = poly[0], e1 = (poly[t] - p0) / double(k), e2 = (poly[t + 1] - p0) / double(k);
+        const Vec3 p0 = poly[0], e1 = (poly[t] - p0) / double(k),
+                   e2 = (poly[t + 1] - p0) / double(k);
         const double area = 0.5 * glm::length(glm::cross(e1, e2));
         for (int j = 0; j < k; ++j)
             for (int i = 0; i + j < k; ++i) {
@@ -191,7 +192,8 @@ TEST(Solver, AmbientTermAndDisplayRadiosityFollowCohen) {
         const Rgb ambient = s->ambient();
         for (int c = 0; c < 3; ++c)
             EXPECT_NEAR(ambient[c], expected[c], 1e-12 * expected[c])
-                << "channel " << c << ": ambient() = " << ambient[c] << ", eq. 12 = " << expected[c];
+                << "channel " << c << ": ambient() = " << ambient[c]
+                << ", eq. 12 = " << expected[c];
         // Eq. 13: display = B + ρ Ambient, element by element.
         const std::vector<Rgb> display = s->displayRadiosity();
         ASSERT_EQ(display.size(), disc.elements().size());
@@ -243,10 +245,10 @@ TEST(Solver, ShootsTheLargestUnshotEnergyFirst) {
     };
     const int a = patchOf("A"), b = patchOf("B");
     ASSERT_EQ(s->step(1), 1);
-    EXPECT_EQ(s->unshotRadiosity(a), Rgb(0.0)) << "A (ΔB·A = 4) must shoot first; its ΔB is "
-                                                << str(s->unshotRadiosity(a));
-    EXPECT_EQ(s->unshotRadiosity(b), Rgb(3.0)) << "B must not have shot; its ΔB is "
-                                                << str(s->unshotRadiosity(b));
+    EXPECT_EQ(s->unshotRadiosity(a), Rgb(0.0))
+        << "A (ΔB·A = 4) must shoot first; its ΔB is " << str(s->unshotRadiosity(a));
+    EXPECT_EQ(s->unshotRadiosity(b), Rgb(3.0))
+        << "B must not have shot; its ΔB is " << str(s->unshotRadiosity(b));
 
     // From then on, every shot takes the patch with the largest Σ|ΔB|·A (computed here).
     for (int shot = 0; shot < 30; ++shot) {
@@ -315,7 +317,8 @@ TEST(Solver, StepIsResumable) {
     ASSERT_EQ(twice->step(5), 5);
     EXPECT_EQ(differingElements(once->radiosity(), twice->radiosity()), 0);
     for (int p = 0; p < static_cast<int>(once.disc->patches().size()); ++p)
-        ASSERT_EQ(std::memcmp(&once->unshotRadiosity(p), &twice->unshotRadiosity(p), sizeof(Rgb)), 0)
+        ASSERT_EQ(std::memcmp(&once->unshotRadiosity(p), &twice->unshotRadiosity(p), sizeof(Rgb)),
+                  0)
             << "patch " << p;
     // And it carries on identically.
     once->step(7);
@@ -401,13 +404,14 @@ TEST(Solver, AdaptiveSubdivisionRefinesTheShadowBoundary) {
     for (const Element& el : disc.elements()) {
         if (el.object != floor) continue;
         floorArea += el.area;
-        if (distanceToShadowEdge(el.centroid) < 0.15) nearArea += el.area, ++nearCount;
-        else if (distanceToShadowEdge(el.centroid) > 0.3) farArea += el.area, ++farCount;
+        if (distanceToShadowEdge(el.centroid) < 0.15)
+            nearArea += el.area, ++nearCount;
+        else if (distanceToShadowEdge(el.centroid) > 0.3)
+            farArea += el.area, ++farCount;
     }
     const double nearDensity = nearCount / nearArea, farDensity = farCount / farArea;
-    EXPECT_GT(nearDensity, 3 * farDensity)
-        << "elements per m² near the shadow edge " << nearDensity << ", away from it "
-        << farDensity;
+    EXPECT_GT(nearDensity, 3 * farDensity) << "elements per m² near the shadow edge " << nearDensity
+                                           << ", away from it " << farDensity;
     // Area is conserved, patch by patch and in total; the mesh stays conforming.
     EXPECT_NEAR(floorArea, 4.0, 4e-9) << "floor elements cover " << floorArea << " m², not 4";
     for (const Patch& p : disc.patches()) {
