@@ -684,13 +684,18 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     std::vector<int> shooters;
     std::vector<double> cdf;
     double total = 0;
+    // The most important shooters first, as many as fit in one batch of rays; the rest stay
+    // pending for the next batch, so the first corrections arrive quickly.
+    const double raysPerWatt = mOptions.raysPerEmittedPower / std::max(mEmittedEnergy, 1e-300);
     while (c.pending.top() >= 0 && c.pending.key(c.pending.top()) > 0) {
         int j = c.pending.top();
+        if (!shooters.empty() && (total + c.pending.key(j)) * raysPerWatt > mOptions.maxBatchRays)
+            break;
         shooters.push_back(j);
         cdf.push_back(total += c.pending.key(j));
+        c.totalPending -= c.pending.key(j);
         c.pending.update(j, 0.0);
     }
-    c.totalPending = 0;
     if (shooters.empty()) return;
     const double share = mEmittedEnergy > 0 ? total / mEmittedEnergy : 1.0;
     const std::size_t rays = static_cast<std::size_t>(
@@ -770,7 +775,8 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
         if (tr.from >= 0) updatePriority(mDisc.elements()[tr.from].patch);
         if (tr.to >= 0) updatePriority(mDisc.elements()[tr.to].patch);
     }
-    mImpl->changes.erase(mImpl->changes.begin() + k);
+    if (c.pending.top() < 0 || c.pending.key(c.pending.top()) <= 0)
+        mImpl->changes.erase(mImpl->changes.begin() + k);
     ++mStats.shots;
     ++mStats.redistributionShots;
     ++mStats.stochasticBatches;

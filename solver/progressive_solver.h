@@ -37,6 +37,9 @@ struct SolverOptions {
     /// casts raysPerEmittedPower × Φ / Φ_emitted rays (at least minStochasticRays).
     double raysPerEmittedPower = 4e6;
     int minStochasticRays = 1024;
+    /// A stochastic redistribution batch takes the most important pending shooters up to
+    /// about this many rays; the rest wait for the next batch.
+    double maxBatchRays = 2.5e5;
     RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
     /// Strategy one redistributes first while the most important pending redistribution
     /// carries more than this fraction of the emitted power (0: all of it first).
