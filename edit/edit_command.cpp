@@ -25,21 +25,6 @@ namespace {
 constexpr const char* kOpList =
     "add, remove, transform, move, material, select, unselect, undo, redo, solve, converge";
 
-std::string describeType(const Json& value) {
-    if (value.is_number()) return "a number";
-    if (value.is_string()) return "a string";
-    if (value.is_boolean()) return "a boolean";
-    if (value.is_array()) return "an array";
-    if (value.is_object()) return "an object";
-    return "null";
-}
-
-std::string formatNumber(double value) {
-    std::ostringstream out;
-    out << value;
-    return out.str();
-}
-
 Json vec3ToJson(const Vec3& v) { return Json::array({v.x, v.y, v.z}); }
 
 bool isFinite(const Vec3& v) {

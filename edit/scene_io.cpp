@@ -55,21 +55,6 @@ std::string joinIndex(const std::string& parent, size_t index) {
     return parent + "[" + std::to_string(index) + "]";
 }
 
-std::string describeType(const Json& value) {
-    if (value.is_number()) return "a number";
-    if (value.is_string()) return "a string";
-    if (value.is_boolean()) return "a boolean";
-    if (value.is_array()) return "an array";
-    if (value.is_object()) return "an object";
-    return "null";
-}
-
-std::string formatNumber(double value) {
-    std::ostringstream out;
-    out << value;
-    return out.str();
-}
-
 std::string formatVec3(const Vec3& v) {
     std::ostringstream out;
     out << '[' << v.x << ", " << v.y << ", " << v.z << ']';
@@ -816,6 +801,21 @@ void saveScene(const Scene& scene, const std::string& path) {
         ::unlink(temporary.c_str());
         fail(reason);
     }
+}
+
+std::string describeType(const Json& value) {
+    if (value.is_number()) return "a number";
+    if (value.is_string()) return "a string";
+    if (value.is_boolean()) return "a boolean";
+    if (value.is_array()) return "an array";
+    if (value.is_object()) return "an object";
+    return "null";
+}
+
+std::string formatNumber(double value) {
+    std::ostringstream out;
+    out << value;
+    return out.str();
 }
 
 }  // namespace penumbra

@@ -75,4 +75,9 @@ std::string formatSceneText(const nlohmann::ordered_json& json);
 /// cannot be written.
 void saveScene(const Scene& scene, const std::string& path);
 
+/// "a number", "a string", … for error messages about a JSON value of the wrong type.
+std::string describeType(const nlohmann::ordered_json& value);
+/// A number as error messages print it (shortest round-trip-ish form of operator<<).
+std::string formatNumber(double value);
+
 }  // namespace penumbra

@@ -37,6 +37,26 @@ void visibilityFilter(const RTCFilterFunctionNArguments* args) {
     }
 }
 
+/// A ray-hit record for rtcIntersect1 along origin + t·dir, t in [tNear, tFar].
+RTCRayHit makeRayHit(const Vec3& origin, const Vec3& dir, float tNear, float tFar) {
+    RTCRayHit rh;
+    rh.ray.org_x = static_cast<float>(origin.x);
+    rh.ray.org_y = static_cast<float>(origin.y);
+    rh.ray.org_z = static_cast<float>(origin.z);
+    rh.ray.dir_x = static_cast<float>(dir.x);
+    rh.ray.dir_y = static_cast<float>(dir.y);
+    rh.ray.dir_z = static_cast<float>(dir.z);
+    rh.ray.tnear = tNear;
+    rh.ray.tfar = tFar;
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    return rh;
+}
+
 }  // namespace
 
 struct RayTracer::Impl {
@@ -195,21 +215,8 @@ RayHit RayTracer::intersect(const Vec3& origin, const Vec3& dir, double tNear, d
                             const Visibility& visibility) const {
     FilterContext ctx;
     RTCScene scene = mImpl->prepare(ctx, visibility);
-    RTCRayHit rh;
-    rh.ray.org_x = static_cast<float>(origin.x);
-    rh.ray.org_y = static_cast<float>(origin.y);
-    rh.ray.org_z = static_cast<float>(origin.z);
-    rh.ray.dir_x = static_cast<float>(dir.x);
-    rh.ray.dir_y = static_cast<float>(dir.y);
-    rh.ray.dir_z = static_cast<float>(dir.z);
-    rh.ray.tnear = static_cast<float>(tNear);
-    rh.ray.tfar = static_cast<float>(std::min(tFar, 1e30));
-    rh.ray.time = 0.0f;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    RTCRayHit rh = makeRayHit(origin, dir, static_cast<float>(tNear),
+                              static_cast<float>(std::min(tFar, 1e30)));
     rtcIntersect1(scene, &ctx.context, &rh);
     ++mImpl->rays.local();
     RayHit hit;
@@ -236,21 +243,7 @@ RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
                                         const Visibility& visibility) const {
     FilterContext ctx;
     RTCScene scene = mImpl->prepare(ctx, visibility);
-    RTCRayHit rh;
-    rh.ray.org_x = static_cast<float>(origin.x);
-    rh.ray.org_y = static_cast<float>(origin.y);
-    rh.ray.org_z = static_cast<float>(origin.z);
-    rh.ray.dir_x = static_cast<float>(dir.x);
-    rh.ray.dir_y = static_cast<float>(dir.y);
-    rh.ray.dir_z = static_cast<float>(dir.z);
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = std::numeric_limits<float>::infinity();
-    rh.ray.time = 0.0f;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    RTCRayHit rh = makeRayHit(origin, dir, 0.0f, std::numeric_limits<float>::infinity());
     rtcIntersect1(scene, &ctx.context, &rh);
     ++mImpl->rays.local();
     FirstHit hit;
