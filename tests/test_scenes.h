@@ -92,4 +92,23 @@ inline Scene emptyScene(double patchSize, double elementSize) {
     return scene;
 }
 
+/// A closed 3 m room lit by a ceiling lamp, with a slab (table top) of `slabMaterial`; the
+/// scene of the redistribution and edit-session tests. Materials: white, red, lamp.
+inline Scene makeLitRoom(const std::string& slabMaterial) {
+    Scene scene = emptyScene(0.75, 0.375);
+    addMaterial(scene, "white", Rgb(0.6));
+    addMaterial(scene, "red", Rgb(0.7, 0.2, 0.15));
+    addMaterial(scene, "lamp", Rgb(0.5), Rgb(12.0, 11.0, 9.0));
+    addClosedRoom(scene, 3.0, "white");
+    scene.objects.push_back(makeQuad("lamp", 0.6, 0.6, "lamp", {0, 1.49, 0}, {180, 0, 0}));
+    SceneObject slab;
+    slab.id = "slab";
+    slab.shape.type = ShapeType::Box;
+    slab.shape.size = Vec3(1.2, 0.1, 0.8);
+    slab.material = slabMaterial;
+    slab.transform.translate = Vec3(0.2, -0.8, 0.1);
+    scene.objects.push_back(slab);
+    return scene;
+}
+
 }  // namespace penumbra::test

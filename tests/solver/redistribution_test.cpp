@@ -16,22 +16,7 @@ namespace penumbra {
 namespace {
 
 /// A room lit from the ceiling with a table-like slab; the edits move boxes about.
-Scene makeRoom() {
-    Scene scene = test::emptyScene(0.75, 0.375);
-    test::addMaterial(scene, "white", Rgb(0.6));
-    test::addMaterial(scene, "red", Rgb(0.7, 0.2, 0.15));
-    test::addMaterial(scene, "lamp", Rgb(0.5), Rgb(12.0, 11.0, 9.0));
-    test::addClosedRoom(scene, 3.0, "white");
-    scene.objects.push_back(test::makeQuad("lamp", 0.6, 0.6, "lamp", {0, 1.49, 0}, {180, 0, 0}));
-    SceneObject slab;
-    slab.id = "slab";
-    slab.shape.type = ShapeType::Box;
-    slab.shape.size = Vec3(1.2, 0.1, 0.8);
-    slab.material = "white";
-    slab.transform.translate = Vec3(0.2, -0.8, 0.1);
-    scene.objects.push_back(slab);
-    return scene;
-}
+Scene makeRoom() { return test::makeLitRoom("white"); }
 
 SceneObject makeBox(const std::string& id, Vec3 at, const std::string& material = "red") {
     SceneObject box;
