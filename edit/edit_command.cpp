@@ -292,10 +292,6 @@ std::string parseProblem(const std::string& message) {
     return colon == std::string::npos ? message : message.substr(colon + 2);
 }
 
-std::string joinKey(const std::string& parent, const std::string& key) {
-    return parent.empty() ? key : parent + "." + key;
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -400,56 +396,10 @@ EditCommand editCommandFromJson(const Json& json, const EditSource& source, cons
 
 EditCommand parseEditCommand(const std::string& line, const EditSource& source, const Scene* scene,
                              const std::string& meshBaseDir) {
-    // Track the key path of every value so a repeated key (which nlohmann would silently
-    // resolve to the last one) is reported.
-    struct Frame {
-        bool isArray = false;
-        size_t nextIndex = 0;
-        std::string path;
-        std::set<std::string> keys;
-        std::string currentKey;
-    };
-    std::vector<Frame> stack;
-    std::optional<std::string> repeated;
-    auto startChild = [&]() -> std::string {
-        if (stack.empty()) return "";
-        Frame& top = stack.back();
-        if (top.isArray) return top.path + "[" + std::to_string(top.nextIndex++) + "]";
-        return joinKey(top.path, top.currentKey);
-    };
-    auto callback = [&](int depth, Json::parse_event_t event, Json& parsed) -> bool {
-        if (repeated) return true;
-        switch (event) {
-            case Json::parse_event_t::object_start:
-            case Json::parse_event_t::array_start: {
-                Frame frame;
-                frame.isArray = event == Json::parse_event_t::array_start;
-                frame.path = startChild();
-                if (depth > 64) repeated = frame.path + "\x01";
-                stack.push_back(std::move(frame));
-                break;
-            }
-            case Json::parse_event_t::object_end:
-            case Json::parse_event_t::array_end:
-                if (!stack.empty()) stack.pop_back();
-                break;
-            case Json::parse_event_t::key: {
-                Frame& top = stack.back();
-                top.currentKey = parsed.get<std::string>();
-                if (!top.keys.insert(top.currentKey).second)
-                    repeated = joinKey(top.path, top.currentKey);
-                break;
-            }
-            case Json::parse_event_t::value:
-                if (!stack.empty() && stack.back().isArray) ++stack.back().nextIndex;
-                break;
-        }
-        return true;
-    };
-
+    std::optional<JsonStructureProblem> problem;
     Json json;
     try {
-        json = Json::parse(line, callback);
+        json = parseJsonTracked(line, problem);
     } catch (const Json::parse_error& error) {
         const size_t column = error.byte > 0 ? error.byte : 1;
         std::string where = source.where();
@@ -463,15 +413,9 @@ EditCommand parseEditCommand(const std::string& line, const EditSource& source, 
             problem = problem.substr(bracket + 2);
         fail(source, "", problem);
     }
-    if (repeated) {
-        if (!repeated->empty() && repeated->back() == '\x01') {
-            repeated->pop_back();
-            fail(source, *repeated, "nesting deeper than 64 levels");
-        }
-        const size_t dot = repeated->rfind('.');
-        fail(source, *repeated,
-             "repeated key '" + (dot == std::string::npos ? *repeated : repeated->substr(dot + 1)) +
-                 "'");
+    if (problem) {
+        if (problem->tooDeep) fail(source, problem->path, "nesting deeper than 64 levels");
+        fail(source, problem->path, "repeated key '" + problem->key + "'");
     }
     return editCommandFromJson(json, source, scene, meshBaseDir);
 }

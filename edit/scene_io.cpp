@@ -477,74 +477,27 @@ constexpr int kMaxNesting = 64;
 /// Parses `text`, failing on malformed JSON, on nesting deeper than kMaxNesting and on a
 /// key repeated within one object (nlohmann would silently keep the last one).
 Json parseSceneText(const std::string& text, const std::string& sourceName) {
-    struct Frame {
-        bool isArray = false;
-        size_t nextIndex = 0;
-        std::string path;
-        std::set<std::string> keys;
-        std::string currentKey;
-    };
-    std::vector<Frame> stack;
-    std::optional<InputError> problem;
-
-    // Path of the value that starts now inside the innermost open container.
-    auto startChild = [&]() -> std::string {
-        if (stack.empty()) return "";
-        Frame& top = stack.back();
-        if (top.isArray) return joinIndex(top.path, top.nextIndex++);
-        return joinKey(top.path, top.currentKey);
-    };
-    auto callback = [&](int depth, Json::parse_event_t event, Json& parsed) -> bool {
-        if (problem) return true;
-        switch (event) {
-            case Json::parse_event_t::object_start:
-            case Json::parse_event_t::array_start: {
-                Frame frame;
-                frame.isArray = event == Json::parse_event_t::array_start;
-                frame.path = startChild();
-                if (depth > kMaxNesting) {
-                    problem.emplace(
-                        sourceName, frame.path,
-                        "nesting deeper than " + std::to_string(kMaxNesting) + " levels");
-                }
-                stack.push_back(std::move(frame));
-                break;
-            }
-            case Json::parse_event_t::object_end:
-            case Json::parse_event_t::array_end:
-                if (!stack.empty()) stack.pop_back();
-                break;
-            case Json::parse_event_t::key: {
-                Frame& top = stack.back();
-                top.currentKey = parsed.get<std::string>();
-                if (!top.keys.insert(top.currentKey).second) {
-                    const std::string where = joinKey(top.path, top.currentKey);
-                    const std::string kind = top.path == "materials" ? "material name"
-                                             : top.path == "cameras" ? "camera name"
-                                                                     : "key";
-                    problem.emplace(sourceName, where,
-                                    "duplicate " + kind + " '" + top.currentKey + "'");
-                }
-                break;
-            }
-            case Json::parse_event_t::value:
-                if (!stack.empty() && stack.back().isArray) ++stack.back().nextIndex;
-                break;
-        }
-        return true;
-    };
-
     if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
         throw InputError(sourceName, "", "file is empty");
     }
+    std::optional<JsonStructureProblem> problem;
     Json json;
     try {
-        json = Json::parse(text, callback);
+        json = parseJsonTracked(text, problem);
     } catch (const Json::parse_error& error) {
         const size_t offset = error.byte > 0 ? error.byte - 1 : 0;
         throw InputError(sourceName, lineAndColumn(text, offset), parseProblem(error.what()));
     }
-    if (problem) throw *problem;
+    if (problem) {
+        if (problem->tooDeep)
+            throw InputError(sourceName, problem->path,
+                             "nesting deeper than " + std::to_string(kMaxNesting) + " levels");
+        const std::string kind = problem->parent == "materials" ? "material name"
+                                 : problem->parent == "cameras" ? "camera name"
+                                                                : "key";
+        throw InputError(sourceName, problem->path,
+                         "duplicate " + kind + " '" + problem->key + "'");
+    }
     return json;
 }
 
@@ -816,6 +769,58 @@ std::string formatNumber(double value) {
     std::ostringstream out;
     out << value;
     return out.str();
+}
+
+Json parseJsonTracked(const std::string& text, std::optional<JsonStructureProblem>& problem) {
+    // Track the key path of every value as nlohmann's parser reports events.
+    struct Frame {
+        bool isArray = false;
+        size_t nextIndex = 0;
+        std::string path;
+        std::set<std::string> keys;
+        std::string currentKey;
+    };
+    std::vector<Frame> stack;
+    problem.reset();
+
+    // Path of the value that starts now inside the innermost open container.
+    auto startChild = [&]() -> std::string {
+        if (stack.empty()) return "";
+        Frame& top = stack.back();
+        if (top.isArray) return joinIndex(top.path, top.nextIndex++);
+        return joinKey(top.path, top.currentKey);
+    };
+    auto callback = [&](int depth, Json::parse_event_t event, Json& parsed) -> bool {
+        if (problem) return true;
+        switch (event) {
+            case Json::parse_event_t::object_start:
+            case Json::parse_event_t::array_start: {
+                Frame frame;
+                frame.isArray = event == Json::parse_event_t::array_start;
+                frame.path = startChild();
+                if (depth > kMaxNesting) problem = JsonStructureProblem{frame.path, "", "", true};
+                stack.push_back(std::move(frame));
+                break;
+            }
+            case Json::parse_event_t::object_end:
+            case Json::parse_event_t::array_end:
+                if (!stack.empty()) stack.pop_back();
+                break;
+            case Json::parse_event_t::key: {
+                Frame& top = stack.back();
+                top.currentKey = parsed.get<std::string>();
+                if (!top.keys.insert(top.currentKey).second)
+                    problem = JsonStructureProblem{joinKey(top.path, top.currentKey), top.path,
+                                                   top.currentKey, false};
+                break;
+            }
+            case Json::parse_event_t::value:
+                if (!stack.empty() && stack.back().isArray) ++stack.back().nextIndex;
+                break;
+        }
+        return true;
+    };
+    return Json::parse(text, callback);
 }
 
 }  // namespace penumbra

@@ -10,6 +10,7 @@
 // KEY-PATH like `objects[3].transform.scale` or `materials.white.reflectance`.
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "solver/scene.h"
@@ -79,5 +80,18 @@ void saveScene(const Scene& scene, const std::string& path);
 std::string describeType(const nlohmann::ordered_json& value);
 /// A number as error messages print it (shortest round-trip-ish form of operator<<).
 std::string formatNumber(double value);
+
+/// The first structural problem met while parsing JSON text: a key repeated within one
+/// object (nlohmann would silently keep the last one), or nesting deeper than 64 levels.
+struct JsonStructureProblem {
+    std::string path;    ///< key path of the offending value, e.g. `objects[2].id`
+    std::string parent;  ///< key path of the object holding a repeated key
+    std::string key;     ///< the repeated key
+    bool tooDeep = false;
+};
+/// Parses `text` (nlohmann's exceptions propagate) and reports the first structural problem
+/// in `problem`; the scene loader and the edit-log reader turn it into their own messages.
+nlohmann::ordered_json parseJsonTracked(const std::string& text,
+                                        std::optional<JsonStructureProblem>& problem);
 
 }  // namespace penumbra
