@@ -1,0 +1,645 @@
+// Index: helpers (random numbers, hull, light sampling) · lights · per-element direct part
+//        · solution snapshot · synchronous shading · workers · shadow triples · toString
+#include "render/point_shader.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <glm/gtc/constants.hpp>
+#include <sstream>
+
+#include "solver/discretization.h"
+#include "solver/form_factor.h"
+#include "solver/ray_tracer.h"
+
+namespace penumbra {
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+namespace {
+
+std::uint64_t bitsOf(double v) {
+    std::uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+}
+
+/// Deterministic uniform numbers in [0, 1) from a 64-bit state.
+struct SampleRandom {
+    std::uint64_t state;
+    double next() {
+        state = hashPair(state, 0x2545f4914f6cdd1dull);
+        return static_cast<double>(state >> 11) * 0x1.0p-53;
+    }
+};
+
+bool isZero(const Rgb& c) { return c.x == 0 && c.y == 0 && c.z == 0; }
+
+/// Twice the signed area of the 2D triangle (o, a, b).
+double cross2(const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
+
+/// Convex hull (Andrew's monotone chain), counter-clockwise, collinear points dropped.
+std::vector<int> convexHull2d(const std::vector<glm::dvec2>& p) {
+    std::vector<int> idx(p.size());
+    for (std::size_t i = 0; i < p.size(); ++i) idx[i] = static_cast<int>(i);
+    std::sort(idx.begin(), idx.end(), [&](int a, int b) {
+        return p[a].x < p[b].x || (p[a].x == p[b].x && p[a].y < p[b].y);
+    });
+    if (idx.size() < 3) return idx;
+    std::vector<int> hull(2 * idx.size());
+    std::size_t k = 0;
+    for (int i : idx) {
+        while (k >= 2 && cross2(p[hull[k - 2]], p[hull[k - 1]], p[i]) <= 0) --k;
+        hull[k++] = i;
+    }
+    for (std::size_t j = idx.size() - 1, t = k + 1; j-- > 0;) {
+        int i = idx[j];
+        while (k >= t && cross2(p[hull[k - 2]], p[hull[k - 1]], p[i]) <= 0) --k;
+        hull[k++] = i;
+    }
+    hull.resize(k - 1);
+    return hull;
+}
+
+Vec3 newellNormal(const std::vector<Vec3>& poly) {
+    Vec3 n(0.0);
+    for (std::size_t i = 0; i < poly.size(); ++i)
+        n += glm::cross(poly[i], poly[(i + 1) % poly.size()]);
+    return n;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Lights
+
+/// An area light: one or more planar polygons of one emitter object with one emission.
+struct PointShader::Light {
+    int object = -1;
+    Rgb emission{0.0};
+    std::vector<std::vector<Vec3>> polygons;  ///< counter-clockwise seen from the front
+    /// Fan triangles of all polygons, for uniform area sampling.
+    struct Triangle {
+        Vec3 a, b, c, normal;
+        double area;
+    };
+    std::vector<Triangle> triangles;
+    double area = 0;
+    bool planar = true;          ///< every polygon in one plane: cannot light its own object
+    bool parallelogram = false;  ///< one polygon p0..p3 with p0 + p2 = p1 + p3: a 2D grid
+
+    void finish() {
+        triangles.clear();
+        area = 0;
+        for (const auto& poly : polygons) {
+            for (std::size_t k = 1; k + 1 < poly.size(); ++k) {
+                Vec3 c = glm::cross(poly[k] - poly[0], poly[k + 1] - poly[0]);
+                double a = 0.5 * glm::length(c);
+                if (!(a > 0)) continue;
+                triangles.push_back({poly[0], poly[k], poly[k + 1], c / (2 * a), a});
+                area += a;
+            }
+        }
+        planar = true;
+        for (const auto& t : triangles)
+            if (glm::dot(t.normal, triangles[0].normal) < 1 - 1e-9 ||
+                std::abs(glm::dot(t.a - triangles[0].a, triangles[0].normal)) >
+                    1e-9 * (1 + glm::length(t.a - triangles[0].a)))
+                planar = false;
+        parallelogram = false;
+        if (polygons.size() == 1 && polygons[0].size() == 4) {
+            const auto& p = polygons[0];
+            double scale = glm::length(p[2] - p[0]);
+            parallelogram = glm::length(p[0] + p[2] - p[1] - p[3]) <= 1e-9 * scale;
+        }
+    }
+
+    /// Point of stratum (i, N) with jitter (r0, r1); writes the surface normal there.
+    Vec3 sample(int i, int n, int perAxis, double r0, double r1, Vec3& normal) const {
+        if (parallelogram) {
+            const auto& p = polygons[0];
+            double u = (i % perAxis + r0) / perAxis, v = (i / perAxis + r1) / perAxis;
+            normal = triangles[0].normal;
+            return p[0] + u * (p[1] - p[0]) + v * (p[3] - p[0]);
+        }
+        // Stratified over the cumulative area of the fan triangles; the stratum's leftover
+        // fraction drives one triangle coordinate (sqrt warp), r1 the other.
+        double pick = (i + r0) / n * area;
+        std::size_t k = 0;
+        while (k + 1 < triangles.size() && pick > triangles[k].area) pick -= triangles[k++].area;
+        const Triangle& t = triangles[k];
+        double s = std::sqrt(std::clamp(pick / t.area, 0.0, 1.0));
+        normal = t.normal;
+        return (1 - s) * t.a + s * (1 - r1) * t.b + s * r1 * t.c;
+    }
+};
+
+struct PointShader::State {
+    std::vector<Light> lights;
+    std::vector<std::vector<Rgb>> vertexIndirect;  ///< per object, per mesh vertex
+    std::vector<Rgb> elementIndirect;              ///< per element
+};
+
+namespace {
+
+/// Emitter patches of alive objects.
+std::vector<int> emitterPatches(const Discretization& disc) {
+    std::vector<int> out;
+    for (std::size_t p = 0; p < disc.patches().size(); ++p)
+        if (disc.patchAlive(static_cast<int>(p)) &&
+            disc.patchMaterial(static_cast<int>(p)).isEmitter())
+            out.push_back(static_cast<int>(p));
+    return out;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Set-up and per-element direct part
+
+PointShader::PointShader(const Discretization& disc, const RayTracer& tracer,
+                         const SolverOptions& solverOptions, PointShaderOptions options)
+    : mDisc(disc), mTracer(tracer), mSolverOptions(solverOptions), mOptions(options) {
+    mState = std::make_shared<State>();
+    refreshDirect();
+    for (int t = 0; t < mOptions.threads; ++t) mWorkers.emplace_back([this] { workerLoop(); });
+}
+
+PointShader::~PointShader() {
+    {
+        std::lock_guard lock(mQueueMutex);
+        mStop = true;
+    }
+    mWake.notify_all();
+    for (auto& w : mWorkers) w.join();
+}
+
+std::shared_ptr<const PointShader::State> PointShader::state() const {
+    std::lock_guard lock(mStateMutex);
+    return mState;
+}
+
+void PointShader::publish(std::shared_ptr<const State> state) {
+    std::lock_guard lock(mStateMutex);
+    mState = std::move(state);
+}
+
+Rgb PointShader::computeElementDirect(int e, const std::vector<Light>& /*lights*/) const {
+    // The solver's irradianceFrom for the emitters' own shots: same culls, same pair seeds.
+    const Element& el = mDisc.elements()[e];
+    if (!mDisc.objects()[el.object].alive) return Rgb(0.0);
+    Rgb sum(0.0);
+    for (std::size_t j = 0; j < mDisc.patches().size(); ++j) {
+        const Patch& P = mDisc.patches()[j];
+        if (!mDisc.objects()[P.object].alive) continue;
+        const Rgb& emission = mDisc.patchMaterial(static_cast<int>(j)).emission;
+        if (isZero(emission) || el.patch == static_cast<int>(j)) continue;
+        Vec3 toReceiver = el.centroid - P.centroid;
+        if (glm::dot(toReceiver, P.normal) < -P.radius) continue;
+        if (glm::dot(-toReceiver, el.normal) < -P.radius) continue;
+        PointToPatch ff = formFactorToPatch(mDisc, mTracer, el.centroid, el.normal,
+                                            static_cast<int>(j), static_cast<std::uint64_t>(e),
+                                            mSolverOptions.seed, mSolverOptions.maxRaysPerPair);
+        sum += emission * ff.visible;
+    }
+    return sum;
+}
+
+void PointShader::refreshDirect() {
+    // Lights: merge the patches of a planar emitter object into their convex outline when
+    // they tile it exactly (quads, boxes' faces are separate objects' patches only when
+    // coplanar), otherwise one light per patch.
+    auto next = std::make_shared<State>(*state());
+    next->lights.clear();
+    const std::vector<int> emitters = emitterPatches(mDisc);
+    std::vector<std::vector<int>> byObject(mDisc.objects().size());
+    for (int p : emitters) byObject[mDisc.patches()[p].object].push_back(p);
+    for (std::size_t o = 0; o < byObject.size(); ++o) {
+        const auto& ps = byObject[o];
+        if (ps.empty()) continue;
+        bool mergeable = true;
+        const Patch& first = mDisc.patches()[ps[0]];
+        const Rgb e0 = mDisc.patchMaterial(ps[0]).emission;
+        double areaSum = 0;
+        for (int p : ps) {
+            const Patch& P = mDisc.patches()[p];
+            areaSum += P.area;
+            if (P.outline.empty() || mDisc.patchMaterial(p).emission != e0 ||
+                glm::dot(P.normal, first.normal) < 1 - 1e-9)
+                mergeable = false;
+        }
+        if (mergeable && ps.size() > 1) {
+            // Project every outline vertex to the plane; hull; accept when it tiles exactly.
+            Vec3 n = glm::normalize(first.normal);
+            Vec3 u =
+                glm::normalize(glm::cross(std::abs(n.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0), n));
+            Vec3 v = glm::cross(n, u);
+            const Vec3 origin = first.outline[0];
+            std::vector<Vec3> points;
+            std::vector<glm::dvec2> flat;
+            for (int p : ps)
+                for (const Vec3& q : mDisc.patches()[p].outline) {
+                    if (std::abs(glm::dot(q - origin, n)) > 1e-9 * (1 + glm::length(q - origin)))
+                        mergeable = false;
+                    points.push_back(q);
+                    flat.push_back({glm::dot(q - origin, u), glm::dot(q - origin, v)});
+                }
+            std::vector<int> hull = convexHull2d(flat);
+            std::vector<Vec3> polygon;
+            for (int i : hull) polygon.push_back(points[i]);
+            double hullArea = 0.5 * glm::length(newellNormal(polygon));
+            if (mergeable && std::abs(hullArea - areaSum) <= 1e-6 * areaSum) {
+                Light light;
+                light.object = static_cast<int>(o);
+                light.emission = e0;
+                light.polygons.push_back(polygon);
+                light.finish();
+                next->lights.push_back(std::move(light));
+                continue;
+            }
+        }
+        for (int p : ps) {
+            Light light;
+            light.object = static_cast<int>(o);
+            light.emission = mDisc.patchMaterial(p).emission;
+            const Patch& P = mDisc.patches()[p];
+            if (!P.outline.empty())
+                light.polygons.push_back(P.outline);
+            else
+                for (int e : P.elements) light.polygons.push_back(mDisc.elementPolygon(e));
+            light.finish();
+            if (light.area > 0) next->lights.push_back(std::move(light));
+        }
+    }
+
+    // H_direct(e) for every element, in parallel.
+    const std::size_t n = mDisc.elements().size();
+    mElementDirect.assign(n, Rgb(0.0));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& r) {
+        for (std::size_t e = r.begin(); e != r.end(); ++e)
+            mElementDirect[e] = computeElementDirect(static_cast<int>(e), next->lights);
+    });
+    publish(std::move(next));
+}
+
+void PointShader::refreshDirect(const std::vector<int>& changedObjects) {
+    // A changed emitter changes the lights themselves: recompute everything.
+    for (int o : changedObjects)
+        for (const Patch& P : mDisc.patches())
+            if (P.object == o && mDisc.materials()[P.material].isEmitter()) return refreshDirect();
+
+    // Bounding spheres of the changed objects (dead versions keep their geometry).
+    struct Sphere {
+        Vec3 centre;
+        double radius;
+    };
+    std::vector<Sphere> spheres;
+    std::vector<std::uint8_t> changed(mDisc.objects().size(), 0);
+    for (int o : changedObjects) {
+        if (o < 0 || o >= static_cast<int>(mDisc.objects().size())) continue;
+        changed[o] = 1;
+        const auto& ws = mDisc.objects()[o].worldPositions;
+        if (ws.empty()) continue;
+        Vec3 lo = ws[0], hi = ws[0];
+        for (const Vec3& w : ws) lo = glm::min(lo, w), hi = glm::max(hi, w);
+        spheres.push_back({0.5 * (lo + hi), 0.5 * glm::length(hi - lo) + mTracer.epsilon()});
+    }
+    const std::vector<int> emitters = emitterPatches(mDisc);
+    auto lights = state()->lights;
+    const std::size_t n = mDisc.elements().size(), old = mElementDirect.size();
+    mElementDirect.resize(n, Rgb(0.0));
+
+    // Recompute an element when it is new, on a changed object, or when the shaft from its
+    // centroid to an emitter patch (inside the cone of balls of radius t·R about the segment
+    // centroid → patch centre) can meet a changed object's bounding sphere.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& r) {
+        for (std::size_t e = r.begin(); e != r.end(); ++e) {
+            const Element& el = mDisc.elements()[e];
+            bool redo = e >= old || changed[el.object];
+            for (std::size_t k = 0; !redo && k < emitters.size(); ++k) {
+                const Patch& P = mDisc.patches()[emitters[k]];
+                Vec3 a = el.centroid, d = P.centroid - a;
+                double dd = glm::dot(d, d);
+                for (const Sphere& s : spheres) {
+                    double t = dd > 0 ? std::clamp(glm::dot(s.centre - a, d) / dd, 0.0, 1.0) : 0;
+                    if (glm::length(s.centre - (a + t * d)) <= s.radius + P.radius) {
+                        redo = true;
+                        break;
+                    }
+                }
+            }
+            if (redo) mElementDirect[e] = computeElementDirect(static_cast<int>(e), lights);
+        }
+    });
+}
+
+std::vector<Rgb> PointShader::elementDirect() const { return mElementDirect; }
+
+std::vector<Rgb> PointShader::elementIndirect() const { return state()->elementIndirect; }
+
+// ---------------------------------------------------------------------------------------------
+// Solution snapshot
+
+void PointShader::updateSolution(const ProgressiveSolver& solver) {
+    const std::vector<Rgb>& H = solver.irradiance();
+    const std::size_t n = std::min(H.size(), mDisc.elements().size());
+    if (mElementDirect.size() < n) {
+        const std::size_t old = mElementDirect.size();
+        mElementDirect.resize(n, Rgb(0.0));
+        auto lights = state()->lights;
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(old, n, 64), [&](const auto& r) {
+            for (std::size_t e = r.begin(); e != r.end(); ++e)
+                mElementDirect[e] = computeElementDirect(static_cast<int>(e), lights);
+        });
+    }
+    auto next = std::make_shared<State>();
+    next->lights = state()->lights;
+    next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
+    for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementDirect[e];
+    next->vertexIndirect.resize(mDisc.objects().size());
+    tbb::parallel_for(std::size_t(0), mDisc.objects().size(), [&](std::size_t o) {
+        if (mDisc.objects()[o].alive)
+            next->vertexIndirect[o] =
+                mDisc.vertexValues(static_cast<int>(o), next->elementIndirect);
+    });
+    publish(std::move(next));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Synchronous shading
+
+ShadedPoint PointShader::shade(const ShadeRequest& request) const {
+    return shadeWith(*state(), request);
+}
+
+Rgb PointShader::directIrradiance(const Vec3& x, const Vec3& n, int receiver,
+                                  std::uint64_t key) const {
+    return directWith(*state(), x, n, receiver, key);
+}
+
+Rgb PointShader::indirectIrradiance(int element, const std::vector<double>& weights) const {
+    auto st = state();
+    const Element& el = mDisc.elements()[element];
+    if (el.object >= static_cast<int>(st->vertexIndirect.size())) return Rgb(0.0);
+    const auto& vi = st->vertexIndirect[el.object];
+    if (vi.empty() || weights.size() != el.vertices.size())
+        return element < static_cast<int>(st->elementIndirect.size()) ? st->elementIndirect[element]
+                                                                      : Rgb(0.0);
+    Rgb h(0.0);
+    for (std::size_t i = 0; i < weights.size(); ++i) h += weights[i] * vi[el.vertices[i]];
+    return h;
+}
+
+Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int receiver,
+                            std::uint64_t key) const {
+    const double eps = mTracer.epsilon();
+    const double invPi = glm::one_over_pi<double>();
+    const Vec3 from = x + n * eps;
+    Rgb total(0.0);
+    for (std::size_t l = 0; l < st.lights.size(); ++l) {
+        const Light& L = st.lights[l];
+        if (L.planar && L.object == receiver) continue;  // a plane cannot light itself
+        // Analytic unoccluded form factor (Lambert's contour formula).
+        double fUnoccluded = 0;
+        for (const auto& poly : L.polygons) fUnoccluded += polygonFormFactor(x, n, poly);
+        if (!(fUnoccluded > 0)) continue;
+
+        // Strata by the light's projected solid angle.
+        int perAxis =
+            static_cast<int>(std::ceil(std::sqrt(fUnoccluded / mOptions.formFactorPerRay)));
+        perAxis = std::clamp(perAxis, 1, std::max(1, mOptions.maxStrataPerAxis));
+        const int rays = perAxis * perAxis;
+
+        // Unbiased blocked part: (A/N) Σ K(x, y_i)·(1 − V(x, y_i)), K the point-to-point
+        // form factor kernel cosθ_x·cosθ_y / (π r²).
+        SampleRandom rng{hashPair(key, l)};
+        double blocked = 0;
+        for (int i = 0; i < rays; ++i) {
+            double r0 = rng.next(), r1 = rng.next();
+            Vec3 ny;
+            Vec3 y = L.sample(i, rays, perAxis, r0, r1, ny);
+            Vec3 d = y - x;
+            double r2 = glm::dot(d, d);
+            double cx = glm::dot(n, d), cy = -glm::dot(ny, d);
+            if (!(r2 > 0) || cx <= 0 || cy <= 0) continue;
+            const Vec3 to = y + ny * eps;
+            if (!mTracer.occluded(from, to)) continue;
+            blocked += cx * cy / (r2 * r2) * invPi;
+            if (mOptions.recordTriples) {
+                // Who blocked: the first surface along the shadow ray (Bala et al. §6.5).
+                RayTracer::FirstHit b = mTracer.firstHit(from, glm::normalize(to - from));
+                if (b.element >= 0) {
+                    int blocker = mDisc.elements()[b.element].object;
+                    if (blocker != L.object) recordTriple({L.object, blocker, receiver});
+                }
+            }
+        }
+        double f = fUnoccluded - blocked * (L.area / rays);
+        if (f > 0) total += L.emission * f;
+    }
+    return total;
+}
+
+ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request) const {
+    mShaded.fetch_add(1, std::memory_order_relaxed);
+    ShadedPoint out;
+    out.pixel = request.pixel;
+    out.frame = request.frame;
+    const RayHit hit = mTracer.intersect(request.origin, request.direction);
+    if (hit.object < 0 || hit.element < 0) {
+        out.position = request.origin + request.direction * kMissDistance;
+        out.normal = -request.direction;
+        return out;
+    }
+    const Element& el = mDisc.elements()[hit.element];
+    out.position = hit.position;
+    out.object = el.object;
+    out.element = hit.element;
+    out.normal = hit.backFace ? -el.normal : el.normal;
+    // Back faces absorb (black) unless two-sided, which shows the front's radiosity.
+    if (hit.backFace && !mDisc.objects()[el.object].twoSided) return out;
+
+    const Material& material = mDisc.elementMaterial(hit.element);
+    const std::uint64_t key = hashPair(
+        hashPair(hashPair(mOptions.seed, bitsOf(request.pixel.x)), bitsOf(request.pixel.y)),
+        request.frame);
+    Rgb h = directWith(st, hit.position, el.normal, el.object, key);
+    // H_indirect blended from per-vertex values with the hit's barycentric weights.
+    if (el.object < static_cast<int>(st.vertexIndirect.size()) &&
+        !st.vertexIndirect[el.object].empty() && hit.weights.size() == el.vertices.size()) {
+        const auto& vi = st.vertexIndirect[el.object];
+        for (std::size_t i = 0; i < hit.weights.size(); ++i)
+            h += hit.weights[i] * vi[el.vertices[i]];
+    } else if (hit.element < static_cast<int>(st.elementIndirect.size())) {
+        h += st.elementIndirect[hit.element];
+    }
+    h = glm::max(h, Rgb(0.0));
+    const Rgb emission = hit.backFace ? Rgb(0.0) : material.emission;
+    out.radiance = (emission + material.reflectance * h) * glm::one_over_pi<double>();
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Workers
+
+void PointShader::workerLoop() {
+    std::vector<ShadeRequest> batch;
+    std::vector<ShadedPoint> done;
+    for (;;) {
+        {
+            std::unique_lock lock(mQueueMutex);
+            mWake.wait(lock, [&] { return mStop || (mPauseCount == 0 && !mRequests.empty()); });
+            if (mStop) return;
+            batch.clear();
+            while (!mRequests.empty() && static_cast<int>(batch.size()) < mOptions.batchSize) {
+                batch.push_back(mRequests.front());
+                mRequests.pop_front();
+            }
+            mBusy += batch.size();
+            ++mActiveWorkers;
+        }
+        auto st = state();
+        done.clear();
+        for (const ShadeRequest& r : batch) done.push_back(shadeWith(*st, r));
+        {
+            std::lock_guard lock(mQueueMutex);
+            mResults.insert(mResults.end(), done.begin(), done.end());
+            mBusy -= batch.size();
+            --mActiveWorkers;
+        }
+        mIdle.notify_all();
+    }
+}
+
+void PointShader::submit(const std::vector<ShadeRequest>& requests) {
+    {
+        std::lock_guard lock(mQueueMutex);
+        mRequests.insert(mRequests.end(), requests.begin(), requests.end());
+    }
+    mWake.notify_all();
+}
+
+void PointShader::cancelPending() {
+    std::lock_guard lock(mQueueMutex);
+    mRequests.clear();
+}
+
+std::vector<ShadedPoint> PointShader::takeResults() {
+    std::lock_guard lock(mQueueMutex);
+    std::vector<ShadedPoint> out;
+    out.swap(mResults);
+    return out;
+}
+
+std::size_t PointShader::pendingCount() const {
+    std::lock_guard lock(mQueueMutex);
+    return mRequests.size() + mBusy;
+}
+
+void PointShader::waitIdle() {
+    if (mWorkers.empty()) {
+        // No workers: shade the queue here.
+        std::vector<ShadeRequest> batch;
+        {
+            std::lock_guard lock(mQueueMutex);
+            batch.assign(mRequests.begin(), mRequests.end());
+            mRequests.clear();
+        }
+        auto st = state();
+        std::vector<ShadedPoint> done;
+        for (const ShadeRequest& r : batch) done.push_back(shadeWith(*st, r));
+        std::lock_guard lock(mQueueMutex);
+        mResults.insert(mResults.end(), done.begin(), done.end());
+        return;
+    }
+    std::unique_lock lock(mQueueMutex);
+    mIdle.wait(lock, [&] { return (mRequests.empty() || mPauseCount > 0) && mBusy == 0; });
+}
+
+void PointShader::pause() {
+    std::unique_lock lock(mQueueMutex);
+    ++mPauseCount;
+    mIdle.wait(lock, [&] { return mActiveWorkers == 0; });
+}
+
+void PointShader::resume() {
+    {
+        std::lock_guard lock(mQueueMutex);
+        mPauseCount = std::max(0, mPauseCount - 1);
+    }
+    mWake.notify_all();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Shadow triples
+
+std::size_t ShadowTripleHash::operator()(const ShadowTriple& t) const {
+    return static_cast<std::size_t>(hashPair(
+        hashPair(static_cast<std::uint64_t>(t.light), static_cast<std::uint64_t>(t.blocker)),
+        static_cast<std::uint64_t>(t.receiver)));
+}
+
+void PointShader::recordTriple(const ShadowTriple& t) const {
+    if (mTriples.count(t)) return;
+    if (mTriples.insert(t).second) mNewTriples.push(t);
+}
+
+std::vector<ShadowTriple> PointShader::shadowTriples() const {
+    return std::vector<ShadowTriple>(mTriples.begin(), mTriples.end());
+}
+
+std::vector<ShadowTriple> PointShader::takeNewShadowTriples() {
+    std::vector<ShadowTriple> out;
+    ShadowTriple t;
+    while (mNewTriples.try_pop(t)) out.push_back(t);
+    return out;
+}
+
+void PointShader::clearShadowTriples() {
+    mTriples.clear();
+    mNewTriples.clear();
+}
+
+std::uint64_t PointShader::shadedCount() const { return mShaded.load(); }
+
+// ---------------------------------------------------------------------------------------------
+// toString
+
+std::string ShadeRequest::toString() const {
+    std::ostringstream s;
+    s << "ShadeRequest{pixel (" << pixel.x << ", " << pixel.y << "), origin (" << origin.x << ", "
+      << origin.y << ", " << origin.z << "), direction (" << direction.x << ", " << direction.y
+      << ", " << direction.z << "), frame " << frame << "}";
+    return s.str();
+}
+
+std::string ShadedPoint::toString() const {
+    std::ostringstream s;
+    s << "ShadedPoint{pixel (" << pixel.x << ", " << pixel.y << "), position (" << position.x
+      << ", " << position.y << ", " << position.z << "), radiance (" << radiance.x << ", "
+      << radiance.y << ", " << radiance.z << "), object " << object << ", element " << element
+      << ", frame " << frame << "}";
+    return s.str();
+}
+
+std::string ShadowTriple::toString() const {
+    return "ShadowTriple{light " + std::to_string(light) + ", blocker " + std::to_string(blocker) +
+           ", receiver " + std::to_string(receiver) + "}";
+}
+
+std::string PointShader::toString() const {
+    auto st = state();
+    std::ostringstream s;
+    s << "PointShader{" << st->lights.size() << " lights, " << mElementDirect.size()
+      << " elements, " << mWorkers.size() << " workers, seed " << mOptions.seed << ", "
+      << shadedCount() << " shaded, " << mTriples.size() << " shadow triples}";
+    return s.str();
+}
+
+}  // namespace penumbra

@@ -1,0 +1,243 @@
+#pragma once
+// The point shader of the edge-and-point renderer (Bala, Walter, Greenberg 2003 §3, §6.5):
+// an external, asynchronous shading process that turns primary-ray requests into shaded 3D
+// points for the render cache, and reports the light–blocker–receiver triples it discovers to
+// the edge finder.
+//
+// Index: requests and results · shadow triples · options · PointShader (set-up, solution
+//        snapshot, synchronous shading, asynchronous workers, triples)
+//
+// Shading of a hit x on element e with reflectance ρ and emission E (front faces):
+//     L(x) = (E + ρ·(H_direct(x) + H_indirect(x))) / π
+// H_direct(x) is computed per sample from every emitter as an area light with stratified
+// shadow rays (soft shadows); H_indirect is the radiosity solution's non-direct part,
+// H_e − H_direct(e), blended across elements from per-vertex values as the Gouraud renderer
+// does. H_direct(e) = Σ_j E_j·F(e←j) uses the same pair-seeded formFactorToPatch the solver
+// used when the emitters shot, so the subtraction removes exactly the direct share of H_e.
+
+#include <tbb/concurrent_queue.h>
+#include <tbb/concurrent_unordered_set.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <glm/glm.hpp>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "solver/progressive_solver.h"
+#include "solver/scene.h"
+
+namespace penumbra {
+
+class Discretization;
+class RayTracer;
+
+// ---------------------------------------------------------------------------------------------
+// Requests and results
+
+/// One primary ray to shade: the pixel position it was generated for (pixel coordinates as in
+/// CameraRays: x right in [0, width], y down in [0, height]), the ray, and the frame that
+/// asked for it (part of the sample's random seed, and recorded in the result).
+struct ShadeRequest {
+    glm::dvec2 pixel{0.0};
+    Vec3 origin{0.0};
+    Vec3 direction{0, 0, -1};  ///< unit
+    std::uint64_t frame = 0;
+    std::string toString() const;
+};
+
+/// A shaded point: the nearest hit of the request's ray and its radiance (W/m²/sr, linear).
+/// A miss has object == element == −1, radiance 0 and position at origin + direction·1e6 m
+/// (a point "at infinity" the render cache can reproject like any other).
+struct ShadedPoint {
+    glm::dvec2 pixel{0.0};  ///< the request's pixel position
+    Vec3 position{0.0};     ///< world space
+    Vec3 normal{0.0};       ///< unit, the side the ray arrived at
+    Rgb radiance{0.0};
+    int object = -1;  ///< Discretization object index
+    int element = -1;
+    std::uint64_t frame = 0;  ///< the request's frame
+    bool hit() const { return object >= 0; }
+    std::string toString() const;
+};
+
+/// Distance at which misses are placed (metres from the ray origin).
+inline constexpr double kMissDistance = 1e6;
+
+// ---------------------------------------------------------------------------------------------
+// Shadow triples (Bala et al. §6.5 "Finding light-blocker-receiver triples")
+
+/// A shadow ray from a point on object `receiver` toward emitter object `light` was blocked by
+/// object `blocker`. Discretization object indices (object versions).
+struct ShadowTriple {
+    int light = -1;
+    int blocker = -1;
+    int receiver = -1;
+    bool operator==(const ShadowTriple&) const = default;
+    std::string toString() const;
+};
+
+struct ShadowTripleHash {
+    std::size_t operator()(const ShadowTriple& t) const;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Options
+
+struct PointShaderOptions {
+    std::uint64_t seed = 1;  ///< sample patterns depend on (seed, pixel, frame) only
+    /// Shadow rays per light: strata per axis s = clamp(ceil(sqrt(F / formFactorPerRay)), 1,
+    /// maxStrataPerAxis) for a light of unoccluded form factor F (its projected solid angle
+    /// over π), s² rays on a jittered grid over the light.
+    int maxStrataPerAxis = 4;
+    double formFactorPerRay = 2e-3;
+    int threads = 2;     ///< worker threads for asynchronous shading
+    int batchSize = 64;  ///< requests a worker takes at a time
+    bool recordTriples = true;
+};
+
+// ---------------------------------------------------------------------------------------------
+// PointShader
+
+/// Thread safety: shade(), directIrradiance() and the queue functions may be called from any
+/// thread. The Discretization and RayTracer are read by the workers; whoever changes them
+/// (edits, element subdivision) must hold a Pause (or call pause()/resume()) around the change
+/// and then call refreshDirect() and updateSolution() before resuming.
+class PointShader {
+public:
+    /// `disc` and `tracer` must outlive the shader. `solverOptions` must be the options of the
+    /// ProgressiveSolver whose solution is displayed (its seed and maxRaysPerPair reproduce the
+    /// solver's form factors). Computes the per-element direct irradiance (refreshDirect()) and
+    /// starts options.threads workers (none when threads ≤ 0: synchronous use only). Until
+    /// updateSolution() is called the indirect part is zero (direct lighting only).
+    PointShader(const Discretization& disc, const RayTracer& tracer,
+                const SolverOptions& solverOptions, PointShaderOptions options = {});
+    ~PointShader();  ///< stops and joins the workers
+    PointShader(const PointShader&) = delete;
+    PointShader& operator=(const PointShader&) = delete;
+
+    // -- Solution snapshot -------------------------------------------------------------------
+
+    /// Recomputes the lights (emitter patches of alive objects, coplanar patches of one planar
+    /// emitter merged into one polygon) and H_direct(e) = Σ_j E_j·F(e←j) for every element
+    /// (oneTBB parallel). Call after any change to emitters or after subdivision.
+    void refreshDirect();
+    /// Incremental refresh after an edit: `changedObjects` are the object versions added or
+    /// removed. Recomputes H_direct(e) for elements on changed objects, new elements, and
+    /// elements whose shaft to some emitter patch meets a changed object's bounding sphere; a
+    /// changed emitter triggers refreshDirect().
+    void refreshDirect(const std::vector<int>& changedObjects);
+    /// Snapshots the solver's element irradiance: H_indirect(e) = H_e − H_direct(e) and its
+    /// per-vertex blend. Call from the thread that steps the solver, between steps; shading
+    /// picks the new snapshot up at its next batch. `solver` must be over the same
+    /// Discretization.
+    void updateSolution(const ProgressiveSolver& solver);
+    /// H_direct(e) for every element (W/m²), as used by updateSolution().
+    std::vector<Rgb> elementDirect() const;
+    /// The indirect irradiance snapshot per element (W/m²).
+    std::vector<Rgb> elementIndirect() const;
+
+    // -- Synchronous shading -----------------------------------------------------------------
+
+    /// Shades one request on the calling thread. Deterministic in (seed, request).
+    ShadedPoint shade(const ShadeRequest& request) const;
+    /// Direct irradiance (W/m²) at x with unit normal n on object `receiver` from all lights,
+    /// estimated with stratified shadow rays whose pattern depends on `key`:
+    /// H = Σ_L E_L·(F_L − (A_L/N)·Σ_i K(x, y_i)·(1 − V(x, y_i))), the analytic unoccluded form
+    /// factor F_L (Lambert's contour formula) minus an unbiased estimate of the blocked part
+    /// (exact where nothing blocks; each light's term clamped at 0). Blocked rays are recorded
+    /// as shadow triples when options.recordTriples.
+    Rgb directIrradiance(const Vec3& x, const Vec3& n, int receiver, std::uint64_t key) const;
+    /// H_indirect at a hit of `element` with barycentric `weights` over its vertices.
+    Rgb indirectIrradiance(int element, const std::vector<double>& weights) const;
+
+    // -- Asynchronous shading ----------------------------------------------------------------
+
+    /// Queues requests for the workers (FIFO).
+    void submit(const std::vector<ShadeRequest>& requests);
+    /// Drops queued requests no worker has started (e.g. after a fast camera move).
+    void cancelPending();
+    /// Takes every result finished so far (in completion order).
+    std::vector<ShadedPoint> takeResults();
+    /// Requests queued or being shaded.
+    std::size_t pendingCount() const;
+    /// Blocks until every submitted request is shaded.
+    void waitIdle();
+
+    /// Workers finish their current batch and wait; the Discretization and RayTracer may be
+    /// changed until resume(). Nested pauses count.
+    void pause();
+    void resume();
+    class Pause {
+    public:
+        explicit Pause(PointShader& shader) : mShader(shader) { mShader.pause(); }
+        ~Pause() { mShader.resume(); }
+        Pause(const Pause&) = delete;
+        Pause& operator=(const Pause&) = delete;
+
+    private:
+        PointShader& mShader;
+    };
+
+    // -- Shadow triples ----------------------------------------------------------------------
+
+    /// All triples found so far (a snapshot; safe while workers run).
+    std::vector<ShadowTriple> shadowTriples() const;
+    /// Triples first found since the previous call (each triple is returned once).
+    std::vector<ShadowTriple> takeNewShadowTriples();
+    /// Forgets every triple (call while paused, e.g. when objects moved).
+    void clearShadowTriples();
+
+    /// Samples shaded since construction (synchronous and asynchronous).
+    std::uint64_t shadedCount() const;
+    const PointShaderOptions& options() const { return mOptions; }
+    std::string toString() const;
+
+private:
+    struct Light;
+    struct State;
+    std::shared_ptr<const State> state() const;
+    void publish(std::shared_ptr<const State> state);
+    /// Σ_j E_j·F(e←j) with the solver's pair-seeded form factors.
+    Rgb computeElementDirect(int element, const std::vector<Light>& lights) const;
+    ShadedPoint shadeWith(const State& state, const ShadeRequest& request) const;
+    Rgb directWith(const State& state, const Vec3& x, const Vec3& n, int receiver,
+                   std::uint64_t key) const;
+    void recordTriple(const ShadowTriple& t) const;
+    void workerLoop();
+
+    const Discretization& mDisc;
+    const RayTracer& mTracer;
+    SolverOptions mSolverOptions;
+    PointShaderOptions mOptions;
+
+    mutable std::mutex mStateMutex;
+    std::shared_ptr<const State> mState;
+    std::vector<Rgb> mElementDirect;  ///< H_direct(e); written only while paused/idle
+    std::vector<Rgb> mElementH;       ///< the last solver snapshot's H_e
+
+    // Queues.
+    mutable std::mutex mQueueMutex;
+    std::condition_variable mWake;  ///< workers: requests, pause changes, stop
+    std::condition_variable mIdle;  ///< waitIdle/pause: a batch finished
+    std::deque<ShadeRequest> mRequests;
+    std::vector<ShadedPoint> mResults;
+    std::size_t mBusy = 0;  ///< requests taken by workers, not yet in mResults
+    int mPauseCount = 0;
+    int mActiveWorkers = 0;
+    bool mStop = false;
+    std::vector<std::thread> mWorkers;
+
+    // Triples.
+    mutable tbb::concurrent_unordered_set<ShadowTriple, ShadowTripleHash> mTriples;
+    mutable tbb::concurrent_queue<ShadowTriple> mNewTriples;
+    mutable std::atomic<std::uint64_t> mShaded{0};
+};
+
+}  // namespace penumbra
