@@ -1,0 +1,482 @@
+// Index: Box3 · EdgeMesh (welding, OpenMesh adjacency, planes, sharp edges) · EdgeTree build ·
+//        EdgeTree traversal (point eye, polygon eye)
+#include "render/edge_tree.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <unordered_map>
+
+namespace penumbra {
+
+// ---------------------------------------------------------------------------------------------
+// Box3
+
+Box3 Box3::transformed(const Mat4& m) const {
+    Box3 out;
+    if (empty()) return out;
+    for (int i = 0; i < 8; ++i) out.extend(Vec3(m * glm::dvec4(corner(i), 1.0)));
+    return out;
+}
+
+std::string Box3::toString() const {
+    std::ostringstream s;
+    s << "Box3{(" << lo.x << ' ' << lo.y << ' ' << lo.z << ") - (" << hi.x << ' ' << hi.y << ' '
+      << hi.z << ")}";
+    return s.str();
+}
+
+// ---------------------------------------------------------------------------------------------
+// EdgeMesh
+
+namespace {
+
+std::uint64_t hashMix(std::uint64_t h, std::uint64_t v) {
+    // FNV-1a over the 8 bytes of v.
+    for (int i = 0; i < 8; ++i) {
+        h ^= (v >> (8 * i)) & 0xffu;
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+std::uint64_t bitsOf(double x) {
+    std::uint64_t b;
+    std::memcpy(&b, &x, sizeof b);
+    return b;
+}
+
+struct CellKey {
+    long long x, y, z;
+    bool operator==(const CellKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct CellKeyHash {
+    std::size_t operator()(const CellKey& k) const {
+        return std::hash<long long>()(k.x * 73856093LL ^ k.y * 19349663LL ^ k.z * 83492791LL);
+    }
+};
+
+}  // namespace
+
+EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces,
+                   double sharpCutoffDeg, bool weld) {
+    Box3 inputBounds;
+    for (const Vec3& p : positions) inputBounds.extend(p);
+
+    // Weld coincident vertices (hash grid, cells of the tolerance, 27-cell search).
+    std::vector<int> welded(positions.size());
+    for (std::size_t i = 0; i < positions.size(); ++i) welded[i] = static_cast<int>(i);
+    if (weld && !inputBounds.empty()) {
+        double tol = 1e-9 * std::max(glm::length(inputBounds.hi - inputBounds.lo), 1e-300);
+        std::unordered_map<CellKey, int, CellKeyHash> grid;
+        grid.reserve(positions.size() * 2);
+        auto keyOf = [&](const Vec3& p) {
+            return CellKey{static_cast<long long>(std::floor(p.x / tol)),
+                           static_cast<long long>(std::floor(p.y / tol)),
+                           static_cast<long long>(std::floor(p.z / tol))};
+        };
+        for (std::size_t i = 0; i < positions.size(); ++i) {
+            CellKey k = keyOf(positions[i]);
+            int found = -1;
+            for (long long dx = -1; dx <= 1 && found < 0; ++dx)
+                for (long long dy = -1; dy <= 1 && found < 0; ++dy)
+                    for (long long dz = -1; dz <= 1 && found < 0; ++dz) {
+                        auto it = grid.find({k.x + dx, k.y + dy, k.z + dz});
+                        if (it != grid.end() &&
+                            glm::length(positions[it->second] - positions[i]) <= tol)
+                            found = it->second;
+                    }
+            if (found >= 0)
+                welded[i] = found;
+            else
+                grid.emplace(k, static_cast<int>(i));
+        }
+    }
+
+    // OpenMesh connectivity. Vertices are added on first use.
+    ElementMesh om;
+    std::vector<int> vertexOf(positions.size(), -1);
+    auto handleOf = [&](int input) {
+        int w = welded[input];
+        if (vertexOf[w] < 0) {
+            const Vec3& p = positions[w];
+            vertexOf[w] = om.add_vertex(ElementMesh::Point(p.x, p.y, p.z)).idx();
+            mSourceVertex.push_back(w);
+        }
+        return ElementMesh::VertexHandle(vertexOf[w]);
+    };
+    std::vector<int> faceSource;
+    for (std::size_t f = 0; f < faces.size(); ++f) {
+        std::vector<ElementMesh::VertexHandle> vs;
+        for (int v : faces[f]) {
+            if (v < 0 || v >= static_cast<int>(positions.size())) continue;
+            ElementMesh::VertexHandle h = handleOf(v);
+            if (std::find(vs.begin(), vs.end(), h) == vs.end()) vs.push_back(h);
+        }
+        if (vs.size() < 3) continue;
+        ElementMesh::FaceHandle fh = om.add_face(vs);
+        if (!fh.is_valid()) {
+            // Non-manifold here: the face keeps its own vertices.
+            std::vector<ElementMesh::VertexHandle> copy;
+            for (auto h : vs) {
+                copy.push_back(om.add_vertex(om.point(h)));
+                mSourceVertex.push_back(mSourceVertex[h.idx()]);
+            }
+            fh = om.add_face(copy);
+            if (!fh.is_valid()) continue;
+        }
+        faceSource.push_back(static_cast<int>(f));
+    }
+
+    // Positions, faces and planes (Newell normals).
+    mPositions.resize(om.n_vertices());
+    for (auto vh : om.vertices()) {
+        const auto& p = om.point(vh);
+        mPositions[vh.idx()] = Vec3(p[0], p[1], p[2]);
+        mBounds.extend(mPositions[vh.idx()]);
+    }
+    mSourceFace = faceSource;
+    mFaceStart.reserve(om.n_faces() + 1);
+    mFacePlanes.resize(om.n_faces());
+    mFaceStart.push_back(0);
+    for (auto fh : om.faces()) {
+        Vec3 n(0.0), c(0.0);
+        int first = static_cast<int>(mFaceVertices.size());
+        for (auto vh : om.fv_range(fh)) mFaceVertices.push_back(vh.idx());
+        int count = static_cast<int>(mFaceVertices.size()) - first;
+        for (int i = 0; i < count; ++i) {
+            const Vec3& a = mPositions[mFaceVertices[first + i]];
+            const Vec3& b = mPositions[mFaceVertices[first + (i + 1) % count]];
+            n += glm::cross(a, b);
+            c += a;
+        }
+        mFaceStart.push_back(static_cast<int>(mFaceVertices.size()));
+        double len = glm::length(n);
+        FacePlane& plane = mFacePlanes[fh.idx()];
+        plane.n = len > 0 ? n / len : Vec3(0, 1, 0);
+        plane.d = glm::dot(plane.n, c / double(count));
+    }
+
+    // Edges with their two faces; sharp edges (§6.2) and boundary edges.
+    double cosCutoff = std::cos(sharpCutoffDeg * M_PI / 180.0);
+    mEdges.reserve(om.n_edges());
+    for (auto eh : om.edges()) {
+        auto h0 = om.halfedge_handle(eh, 0), h1 = om.halfedge_handle(eh, 1);
+        if (!om.face_handle(h0).is_valid()) std::swap(h0, h1);
+        MeshEdge e;
+        e.v0 = om.from_vertex_handle(h0).idx();
+        e.v1 = om.to_vertex_handle(h0).idx();
+        e.f0 = om.face_handle(h0).idx();
+        e.f1 = om.face_handle(h1).is_valid() ? om.face_handle(h1).idx() : -1;
+        if (e.f0 < 0) continue;  // an edge of no face cannot happen; be safe
+        int id = static_cast<int>(mEdges.size());
+        if (e.f1 < 0) {
+            e.sharp = true;
+            mBoundaryEdges.push_back(id);
+        } else {
+            e.sharp = glm::dot(mFacePlanes[e.f0].n, mFacePlanes[e.f1].n) < cosCutoff;
+        }
+        if (e.sharp) mSharpEdges.push_back(id);
+        mEdges.push_back(e);
+    }
+
+    // Vertex one-rings.
+    mNeighbourStart.reserve(om.n_vertices() + 1);
+    mNeighbourStart.push_back(0);
+    for (auto vh : om.vertices()) {
+        for (auto w : om.vv_range(vh)) mNeighbours.push_back(w.idx());
+        mNeighbourStart.push_back(static_cast<int>(mNeighbours.size()));
+    }
+
+    // Content hash.
+    std::uint64_t h = 1469598103934665603ull;
+    for (const Vec3& p : mPositions)
+        h = hashMix(hashMix(hashMix(h, bitsOf(p.x)), bitsOf(p.y)), bitsOf(p.z));
+    for (int v : mFaceStart) h = hashMix(h, static_cast<std::uint64_t>(v));
+    for (int v : mFaceVertices) h = hashMix(h, static_cast<std::uint64_t>(v));
+    h = hashMix(h, bitsOf(sharpCutoffDeg));
+    mHash = h;
+}
+
+EdgeMesh EdgeMesh::fromTriMesh(const TriMesh& mesh, double sharpCutoffDeg) {
+    std::vector<std::vector<int>> faces;
+    faces.reserve(mesh.triangles.size());
+    for (const auto& t : mesh.triangles) faces.push_back({t[0], t[1], t[2]});
+    return EdgeMesh(mesh.positions, faces, sharpCutoffDeg, false);
+}
+
+EdgeMesh EdgeMesh::fromElementMesh(const ElementMesh& mesh, double sharpCutoffDeg) {
+    std::vector<Vec3> positions(mesh.n_vertices());
+    for (auto vh : mesh.vertices()) {
+        const auto& p = mesh.point(vh);
+        positions[vh.idx()] = Vec3(p[0], p[1], p[2]);
+    }
+    std::vector<std::vector<int>> faces;
+    faces.reserve(mesh.n_faces());
+    for (auto fh : mesh.faces()) {
+        std::vector<int> f;
+        for (auto vh : mesh.fv_range(fh)) f.push_back(vh.idx());
+        faces.push_back(std::move(f));
+    }
+    return EdgeMesh(positions, faces, sharpCutoffDeg, true);
+}
+
+bool EdgeMesh::isSilhouette(int edge, const Vec3& eye) const {
+    const MeshEdge& e = mEdges[edge];
+    if (e.f1 < 0) return true;
+    // Bala et al. eq. 1: sign(N_f0·V_f0) != sign(N_f1·V_f1).
+    return (mFacePlanes[e.f0].eval(eye) > 0) != (mFacePlanes[e.f1].eval(eye) > 0);
+}
+
+std::string EdgeMesh::toString() const {
+    std::ostringstream s;
+    s << "EdgeMesh{" << mPositions.size() << " vertices, " << faceCount() << " faces, "
+      << mEdges.size() << " edges, " << mSharpEdges.size() << " sharp, " << mBoundaryEdges.size()
+      << " boundary}";
+    return s.str();
+}
+
+// ---------------------------------------------------------------------------------------------
+// EdgeTree build
+
+EdgeTree::EdgeTree(std::shared_ptr<const EdgeMesh> mesh, int leafSize)
+    : mMesh(std::move(mesh)), mLeafSize(std::max(1, leafSize)) {
+    const EdgeMesh& m = *mMesh;
+    std::vector<int> order;
+    order.reserve(m.edges().size());
+    for (std::size_t i = 0; i < m.edges().size(); ++i)
+        if (!m.edges()[i].boundary()) order.push_back(static_cast<int>(i));
+    mRecords.reserve(order.size());
+    mNodes.reserve(2 * order.size() / mLeafSize + 16);
+    mNodes.push_back({});
+    if (order.empty()) {
+        Node& root = mNodes[0];
+        for (int k = 0; k < 3; ++k) root.nLo[k] = root.nHi[k] = root.c[k] = 0;
+        root.dLo = root.dHi = 0;
+        return;
+    }
+    // Per-edge normal interval vectors.
+    mItems.resize(m.edges().size());
+    for (int id : order) {
+        const MeshEdge& e = m.edges()[id];
+        const Vec3& a = m.facePlanes()[e.f0].n;
+        const Vec3& b = m.facePlanes()[e.f1].n;
+        for (int k = 0; k < 3; ++k) {
+            mItems[id].lo[k] = std::min(a[k], b[k]);
+            mItems[id].hi[k] = std::max(a[k], b[k]);
+        }
+    }
+    buildNode(0, order, 0, static_cast<int>(order.size()));
+    mItems.clear();
+    mItems.shrink_to_fit();
+}
+
+void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) {
+    const EdgeMesh& m = *mMesh;
+    const auto& items = mItems;
+    // Bounds: normal interval vector, position box, plane-offset interval.
+    double nLo[3] = {1e300, 1e300, 1e300}, nHi[3] = {-1e300, -1e300, -1e300};
+    Box3 pos;
+    for (int i = begin; i < end; ++i) {
+        const auto& it = items[order[i]];
+        for (int k = 0; k < 3; ++k) {
+            nLo[k] = std::min(nLo[k], it.lo[k]);
+            nHi[k] = std::max(nHi[k], it.hi[k]);
+        }
+        const MeshEdge& e = m.edges()[order[i]];
+        pos.extend(m.positions()[e.v0]);
+        pos.extend(m.positions()[e.v1]);
+    }
+    Vec3 c = pos.centre();
+    double dLo = 1e300, dHi = -1e300;
+    for (int i = begin; i < end; ++i) {
+        const MeshEdge& e = m.edges()[order[i]];
+        for (int f : {e.f0, e.f1}) {
+            const FacePlane& p = m.facePlanes()[f];
+            double d = p.d - glm::dot(p.n, c);
+            dLo = std::min(dLo, d);
+            dHi = std::max(dHi, d);
+        }
+    }
+    {
+        Node& node = mNodes[slot];
+        for (int k = 0; k < 3; ++k) {
+            node.nLo[k] = nLo[k];
+            node.nHi[k] = nHi[k];
+            node.c[k] = c[k];
+        }
+        node.dLo = dLo;
+        node.dHi = dHi;
+        node.begin = static_cast<int>(mRecords.size());
+    }
+    auto emit = [&](int from, int to) {
+        for (int i = from; i < to; ++i) {
+            const MeshEdge& e = m.edges()[order[i]];
+            const FacePlane& p0 = m.facePlanes()[e.f0];
+            const FacePlane& p1 = m.facePlanes()[e.f1];
+            mRecords.push_back(
+                {{p0.n.x, p0.n.y, p0.n.z}, p0.d, {p1.n.x, p1.n.y, p1.n.z}, p1.d, order[i]});
+        }
+    };
+    int count = end - begin;
+    if (count <= mLeafSize) {
+        emit(begin, end);
+        mNodes[slot].stored = count;
+        mNodes[slot].end = static_cast<int>(mRecords.size());
+        return;
+    }
+    // Edges whose normals span more than half the node's normal range stay here (§6.4,
+    // non-smooth surfaces).
+    double nodeSpan = (nHi[0] - nLo[0]) + (nHi[1] - nLo[1]) + (nHi[2] - nLo[2]);
+    int mid =
+        static_cast<int>(std::partition(order.begin() + begin, order.begin() + end,
+                                        [&](int id) { return items[id].span() > 0.5 * nodeSpan; }) -
+                         order.begin());
+    int stored = mid - begin;
+    if (end - mid <= mLeafSize) {
+        emit(begin, end);
+        mNodes[slot].stored = count;
+        mNodes[slot].end = static_cast<int>(mRecords.size());
+        return;
+    }
+    emit(begin, mid);
+    mNodes[slot].stored = stored;
+
+    // Split the rest at the median of the normal axis whose children are smallest combined.
+    int half = mid + (end - mid) / 2;
+    auto sizeOf = [&](int from, int to) {
+        double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+        for (int i = from; i < to; ++i)
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], items[order[i]].lo[k]);
+                hi[k] = std::max(hi[k], items[order[i]].hi[k]);
+            }
+        return (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]);
+    };
+    auto partitionOn = [&](int axis) {
+        std::nth_element(
+            order.begin() + mid, order.begin() + half, order.begin() + end,
+            [&](int a, int b) { return items[a].centre(axis) < items[b].centre(axis); });
+    };
+    int bestAxis = 0;
+    double bestCost = 1e300;
+    for (int axis = 0; axis < 3; ++axis) {
+        partitionOn(axis);
+        double cost = sizeOf(mid, half) + sizeOf(half, end);
+        if (cost < bestCost) {
+            bestCost = cost;
+            bestAxis = axis;
+        }
+    }
+    if (bestAxis != 2) partitionOn(bestAxis);
+
+    int child = static_cast<int>(mNodes.size());
+    mNodes.push_back({});
+    mNodes.push_back({});
+    mNodes[slot].child = child;
+    buildNode(child, order, mid, half);
+    buildNode(child + 1, order, half, end);
+    mNodes[slot].end = static_cast<int>(mRecords.size());
+}
+
+// ---------------------------------------------------------------------------------------------
+// EdgeTree traversal
+
+void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, EdgeTreeStats* stats) const {
+    for (int id : mMesh->boundaryEdges()) out.push_back(id);
+    if (mRecords.empty()) return;
+    const double e[3] = {eye.x, eye.y, eye.z};
+    long long visited = 0, tested = 0;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& node = mNodes[stack[--top]];
+        ++visited;
+        // Interval form of eq. 1: [N]·(e − c) − [d] over every face below.
+        double lo = 0, hi = 0, mag = 0;
+        for (int k = 0; k < 3; ++k) {
+            double w = e[k] - node.c[k];
+            double a = node.nLo[k] * w, b = node.nHi[k] * w;
+            lo += std::min(a, b);
+            hi += std::max(a, b);
+            mag += std::abs(w) + std::abs(node.c[k]);
+        }
+        double tol = 1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi));
+        if (lo - node.dHi > tol || hi - node.dLo < -tol) continue;  // all front or all back
+        int last = node.child < 0 ? node.end : node.begin + node.stored;
+        for (int i = node.begin; i < last; ++i) {
+            const Record& r = mRecords[i];
+            bool front0 = r.n0[0] * e[0] + r.n0[1] * e[1] + r.n0[2] * e[2] - r.d0 > 0;
+            bool front1 = r.n1[0] * e[0] + r.n1[1] * e[1] + r.n1[2] * e[2] - r.d1 > 0;
+            if (front0 != front1) out.push_back(r.edge);  // eq. 1
+        }
+        tested += last - node.begin;
+        if (node.child >= 0) {
+            stack[top++] = node.child;
+            stack[top++] = node.child + 1;
+        }
+    }
+    if (stats) {
+        stats->nodesVisited += visited;
+        stats->edgesTested += tested;
+    }
+}
+
+void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::vector<int>& out,
+                                        EdgeTreeStats* stats) const {
+    for (int id : mMesh->boundaryEdges()) out.push_back(id);
+    if (mRecords.empty() || region.empty()) return;
+    Box3 box;
+    for (const Vec3& p : region) box.extend(p);
+    long long visited = 0, tested = 0;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& node = mNodes[stack[--top]];
+        ++visited;
+        // Interval eye: [N]·([e] − c) − [d].
+        double lo = 0, hi = 0, mag = 0;
+        for (int k = 0; k < 3; ++k) {
+            double w0 = box.lo[k] - node.c[k], w1 = box.hi[k] - node.c[k];
+            double p[4] = {node.nLo[k] * w0, node.nLo[k] * w1, node.nHi[k] * w0, node.nHi[k] * w1};
+            lo += std::min(std::min(p[0], p[1]), std::min(p[2], p[3]));
+            hi += std::max(std::max(p[0], p[1]), std::max(p[2], p[3]));
+            mag += std::max(std::abs(w0), std::abs(w1)) + std::abs(node.c[k]);
+        }
+        double tol = 1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi));
+        if (lo - node.dHi > tol || hi - node.dLo < -tol) continue;
+        int last = node.child < 0 ? node.end : node.begin + node.stored;
+        for (int i = node.begin; i < last; ++i) {
+            const Record& r = mRecords[i];
+            bool allFront = true, allBack = true;
+            for (const Vec3& v : region) {
+                bool f0 = r.n0[0] * v.x + r.n0[1] * v.y + r.n0[2] * v.z - r.d0 > 0;
+                bool f1 = r.n1[0] * v.x + r.n1[1] * v.y + r.n1[2] * v.z - r.d1 > 0;
+                allFront = allFront && f0 && f1;
+                allBack = allBack && !f0 && !f1;
+            }
+            if (!allFront && !allBack) out.push_back(r.edge);
+        }
+        tested += last - node.begin;
+        if (node.child >= 0) {
+            stack[top++] = node.child;
+            stack[top++] = node.child + 1;
+        }
+    }
+    if (stats) {
+        stats->nodesVisited += visited;
+        stats->edgesTested += tested;
+    }
+}
+
+std::string EdgeTree::toString() const {
+    std::ostringstream s;
+    s << "EdgeTree{" << mMesh->toString() << ", " << mNodes.size() << " nodes, leaf size "
+      << mLeafSize << "}";
+    return s.str();
+}
+
+}  // namespace penumbra
