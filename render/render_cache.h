@@ -1,0 +1,150 @@
+#pragma once
+// The render cache (Walter, Drettakis, Parker 1999; Walter et al. 2002) as the edge-and-point
+// renderer uses it (Bala, Walter, Greenberg 2003 §4.3): a fixed-size cache of shaded 3D points,
+// reprojected to every new camera, depth-filtered against occlusion errors, and a priority
+// image from which each frame's few new sample requests are drawn.
+//
+// Index: ScreenPoint · CachePoint · options · RenderCache (insert, reproject, requests,
+//        invalidation, plain interpolation)
+//
+// Per frame, in order: insert() the points the shader finished, reproject() to the frame's
+// camera (the visible points feed the EPI), requestSamples() for the shader, and optionally
+// interpolatedImage() for a plain (edge-unaware) reconstruction.
+
+#include <cstdint>
+#include <glm/glm.hpp>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include "render/camera_rays.h"
+#include "render/image.h"
+#include "render/point_shader.h"
+#include "solver/scene.h"
+
+namespace penumbra {
+
+/// A cached point as seen in the current frame: sub-pixel position (CameraRays pixel
+/// coordinates), view depth (distance along the camera's forward axis, metres), radiance, and
+/// age (frames it has been reprojected since it was shaded; 0 in its first frame).
+struct ScreenPoint {
+    glm::dvec2 position{0.0};
+    double depth = 0;
+    Rgb colour{0.0};
+    int age = 0;
+};
+
+/// One cached shaded point (Walter et al. 1999 §3).
+struct CachePoint {
+    Vec3 position{0.0};  ///< world space; misses sit kMissDistance along their ray
+    Rgb colour{0.0};     ///< radiance, W/m²/sr
+    int object = -1;     ///< Discretization object index, −1 for a miss
+    int element = -1;
+    int age = 0;              ///< frames reprojected since shaded
+    std::uint64_t frame = 0;  ///< frame the point was requested in
+    bool visible = true;      ///< survived the last reprojection (new points count as visible)
+    std::string toString() const;
+};
+
+struct RenderCacheOptions {
+    /// Depth culling (after Walter et al. 1999): a point is taken as occluded when at least
+    /// half of the points in its (2·depthRadius+1)² pixel neighbourhood are nearer than its
+    /// depth / (1 + depthMargin).
+    double depthMargin = 0.1;
+    int depthRadius = 1;
+    /// New samples per frame as a fraction of the pixels (Bala et al.: 1–3%), used when
+    /// requestSamples() is given no budget.
+    double sampleFraction = 0.02;
+    int tileSize = 8;  ///< requests are stratified over tiles of this many pixels square
+    /// Priority of a pixel with a point: ageWeight·age/(age + ageScale) +
+    /// contrastWeight·(local luminance contrast in 3×3); an empty pixel has priority 1, above
+    /// any pixel with a point.
+    double ageWeight = 0.45;
+    double ageScale = 16;
+    double contrastWeight = 0.45;
+    /// A pixel requested in one of the last holdFrames frames is not requested again (its
+    /// sample may still be in the shader's queue).
+    int holdFrames = 2;
+    std::uint64_t seed = 1;
+};
+
+class RenderCache {
+public:
+    /// An image raster of width × height pixels and room for `capacity` points (Walter et al.
+    /// use a few times the pixel count). Throws std::invalid_argument for non-positive sizes.
+    RenderCache(int width, int height, std::size_t capacity, RenderCacheOptions options = {});
+
+    // -- Points ----------------------------------------------------------------------------
+
+    /// Adds shaded points with age 0. When the cache is full, the points replaced are those
+    /// not visible in the last frame first, then the oldest (largest age). Never exceeds
+    /// capacity(); of a batch larger than the capacity only the last capacity() points stay.
+    void insert(const std::vector<ShadedPoint>& points);
+    void insert(const ShadedPoint& point) { insert(std::vector<ShadedPoint>{point}); }
+
+    // -- Per frame -------------------------------------------------------------------------
+
+    /// Starts a frame: projects every cached point with camera.projectToPixel (same raster size
+    /// as the cache), keeps the nearest point per pixel (of near-equal depths, within 1%, the
+    /// youngest), removes depth-culled points from the image (they stay cached), marks the
+    /// survivors visible, then increments every point's age. Returns the visible points in
+    /// row-major pixel order, at most one per pixel.
+    const std::vector<ScreenPoint>& reproject(const CameraRays& camera);
+    /// The visible points of the last reproject().
+    const std::vector<ScreenPoint>& screenPoints() const { return mScreen; }
+    /// Per pixel (y·width + x): index into points() of its visible point, or −1. Valid until the
+    /// next insert() or invalidation.
+    const std::vector<int>& pixelPoints() const { return mPixelPoint; }
+    /// Per pixel priority from the last reproject() (Walter et al.: empty pixels first, then
+    /// old points and high local contrast), in [0, 1].
+    const std::vector<double>& priority() const { return mPriority; }
+    /// Draws this frame's new sample requests from the priority image: `budget` requests
+    /// (negative: sampleFraction × pixels), allocated to tiles in proportion to their summed
+    /// priority by systematic sampling, then to each tile's highest-priority pixels, at a
+    /// jittered position inside the pixel. Rays come from `camera` (the frame's camera).
+    std::vector<ShadeRequest> requestSamples(const CameraRays& camera, int budget = -1);
+    /// Plain render-cache reconstruction of the last frame (no edges): a pixel with a point
+    /// shows it, an empty one the distance-weighted mean of the points within 1, 2 or 3 pixels
+    /// (the first ring that has any); black when none.
+    Image interpolatedImage() const;
+
+    // -- Invalidation (Bala et al. §7.5; take effect in the next reproject()) ----------------
+
+    /// Drops every point on one of `objects`. Returns how many.
+    std::size_t invalidateObjects(const std::unordered_set<int>& objects);
+    /// Drops every point within the world-space sphere. Returns how many.
+    std::size_t invalidateRegion(const Vec3& centre, double radius);
+    /// Drops every point on one of `elements`. Returns how many.
+    std::size_t invalidateElements(const std::unordered_set<int>& elements);
+    void clear();
+
+    const std::vector<CachePoint>& points() const { return mPoints; }
+    std::size_t size() const { return mPoints.size(); }
+    std::size_t capacity() const { return mCapacity; }
+    int width() const { return mWidth; }
+    int height() const { return mHeight; }
+    /// Frames started by reproject() so far; requests carry it as their frame.
+    std::uint64_t frame() const { return mFrame; }
+    const RenderCacheOptions& options() const { return mOptions; }
+    std::string toString() const;
+
+private:
+    template <class Drop>
+    std::size_t dropIf(Drop drop);
+    void computePriority();
+
+    int mWidth;
+    int mHeight;
+    std::size_t mCapacity;
+    RenderCacheOptions mOptions;
+    std::vector<CachePoint> mPoints;
+    std::uint64_t mFrame = 0;
+
+    std::vector<int> mPixelPoint;           ///< per pixel, −1 when empty
+    std::vector<ScreenPoint> mScreen;       ///< visible points, row-major
+    std::vector<int> mScreenOfPixel;        ///< per pixel index into mScreen, −1 when empty
+    std::vector<double> mPriority;          ///< per pixel
+    std::vector<std::uint64_t> mRequested;  ///< per pixel, frame + 1 of the last request
+};
+
+}  // namespace penumbra

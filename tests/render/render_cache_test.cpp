@@ -1,0 +1,396 @@
+// The render cache (Walter et al. 1999 as Bala et al. 2003 §4.3 use it): reprojection checked
+// against CameraRays::projectToPixel and a brute-force nearest-point search, depth culling of a
+// hidden point, invalidation against brute-force filters, the capacity and replacement rule, and
+// the priority-driven requests; finally the cache fed by the real point shader.
+//
+// Index: helpers · reprojection · depth culling · invalidation · capacity · requests ·
+//        with the point shader
+
+#include "render/render_cache.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <unordered_set>
+#include <vector>
+
+#include "render/camera_rays.h"
+#include "render/point_shader.h"
+#include "solver/discretization.h"
+#include "solver/progressive_solver.h"
+#include "solver/ray_tracer.h"
+#include "test_scenes.h"
+
+namespace penumbra {
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+Camera cameraAt(Vec3 position, Vec3 lookAt, double fovDeg = 50) {
+    Camera c;
+    c.name = "test";
+    c.position = position;
+    c.lookAt = lookAt;
+    c.up = Vec3(0, 1, 0);
+    c.fovDeg = fovDeg;
+    return c;
+}
+
+/// A point on the ray through pixel coordinates (px, py) at distance t.
+ShadedPoint pointOnRay(const CameraRays& rays, double px, double py, double t, int object = 0,
+                       Rgb colour = Rgb(0.5)) {
+    ShadedPoint p;
+    p.pixel = {px, py};
+    p.position = rays.origin() + t * rays.rayDirection(px, py);
+    p.radiance = colour;
+    p.object = object;
+    p.element = object * 1000 + static_cast<int>(px) + 100 * static_cast<int>(py);
+    return p;
+}
+
+/// One point per pixel centre of a `w` × `h` raster, on a wall 5 m away (object 0).
+std::vector<ShadedPoint> wallPoints(const CameraRays& rays) {
+    std::vector<ShadedPoint> out;
+    for (int y = 0; y < rays.height(); ++y)
+        for (int x = 0; x < rays.width(); ++x)
+            out.push_back(
+                pointOnRay(rays, x + 0.5, y + 0.5,
+                           5.0 / glm::dot(rays.rayDirection(x + 0.5, y + 0.5), rays.forward())));
+    return out;
+}
+
+std::string str(const glm::dvec2& p) {
+    return "(" + std::to_string(p.x) + ", " + std::to_string(p.y) + ")";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reprojection
+
+TEST(RenderCache, UnchangedCameraPutsEveryPointBackInItsPixel) {
+    const CameraRays rays(cameraAt(Vec3(0, 1, 3), Vec3(0, 1, 0)), 40, 30);
+    RenderCache cache(40, 30, 4000);
+    cache.insert(wallPoints(rays));
+    ASSERT_EQ(cache.size(), 1200u);
+    for (int frame = 0; frame < 2; ++frame) {
+        const auto& screen = cache.reproject(rays);
+        ASSERT_EQ(screen.size(), 1200u) << cache.toString();
+        for (int y = 0; y < 30; ++y)
+            for (int x = 0; x < 40; ++x) {
+                const ScreenPoint& s = screen[y * 40 + x];
+                EXPECT_NEAR(s.position.x, x + 0.5, 1e-9) << "pixel " << x << ", " << y;
+                EXPECT_NEAR(s.position.y, y + 0.5, 1e-9) << "pixel " << x << ", " << y;
+                EXPECT_NEAR(s.depth, 5.0, 1e-9);
+                EXPECT_EQ(s.age, frame) << "ages grow by one per frame";
+                const int i = cache.pixelPoints()[y * 40 + x];
+                ASSERT_GE(i, 0);
+                EXPECT_NEAR(cache.points()[i].position.z, -2.0, 1e-9) << "on the wall z = -2";
+            }
+    }
+}
+
+TEST(RenderCache, TranslatedCameraMatchesProjectToPixelAndKeepsTheNearest) {
+    const CameraRays before(cameraAt(Vec3(0, 1, 3), Vec3(0, 1, 0)), 48, 36);
+    RenderCache cache(48, 36, 8000);
+    // Two surfaces: the wall, and a nearer box-ish patch of points 2 m in front of it.
+    std::vector<ShadedPoint> points = wallPoints(before);
+    for (int y = 10; y < 20; ++y)
+        for (int x = 14; x < 30; ++x)
+            points.push_back(pointOnRay(before, x + 0.5, y + 0.5, 3.0, 1));
+    cache.insert(points);
+    cache.reproject(before);
+
+    const CameraRays after(cameraAt(Vec3(0.4, 1.2, 3.3), Vec3(0.4, 1.2, 0.3)), 48, 36);
+    const auto& screen = cache.reproject(after);
+    ASSERT_GT(screen.size(), 800u);
+    // Brute force: the nearest point projecting into each pixel.
+    std::map<int, double> nearest;
+    for (const CachePoint& p : cache.points()) {
+        const auto q = after.projectToPixel(p.position);
+        if (!q || q->x < 0 || q->y < 0 || q->x >= 48 || q->y >= 36) continue;
+        const int k = static_cast<int>(q->y) * 48 + static_cast<int>(q->x);
+        const double d = glm::dot(p.position - after.origin(), after.forward());
+        if (!nearest.count(k) || d < nearest[k]) nearest[k] = d;
+    }
+    int checked = 0;
+    for (int k = 0; k < 48 * 36; ++k) {
+        const int i = cache.pixelPoints()[k];
+        if (i < 0) continue;
+        const CachePoint& p = cache.points()[i];
+        const auto q = after.projectToPixel(p.position);
+        ASSERT_TRUE(q.has_value());
+        EXPECT_EQ(static_cast<int>(q->y) * 48 + static_cast<int>(q->x), k) << p.toString();
+        const double d = glm::dot(p.position - after.origin(), after.forward());
+        EXPECT_LE(d, nearest.at(k) * 1.01) << "pixel " << k << " keeps the nearest point";
+        ++checked;
+    }
+    ASSERT_EQ(static_cast<std::size_t>(checked), screen.size());
+    for (const ScreenPoint& s : screen) {
+        const int k = static_cast<int>(s.position.y) * 48 + static_cast<int>(s.position.x);
+        const CachePoint& p = cache.points()[cache.pixelPoints()[k]];
+        const auto q = after.projectToPixel(p.position);
+        EXPECT_NEAR(glm::length(s.position - *q), 0, 1e-12) << str(s.position);
+        EXPECT_NEAR(s.depth, glm::dot(p.position - after.origin(), after.forward()), 1e-12);
+    }
+    // Wall pixels that show through where the near patch used to be are few: the near points
+    // won almost everywhere they project.
+    int nearShown = 0;
+    for (const ScreenPoint& s : screen) nearShown += s.depth < 4.0;
+    EXPECT_GT(nearShown, 100);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Depth culling
+
+TEST(RenderCache, PointBehindANearerSurfacesPointsIsDiscarded) {
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), 32, 32);
+    RenderCache cache(32, 32, 4000);
+    // A near surface (object 1) with a one-pixel hole at (10, 10) and a far point (object 2)
+    // seen through the hole; a second far point (object 3) with only far neighbours.
+    std::vector<ShadedPoint> points;
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x)
+            if (x != 10 || y != 10) points.push_back(pointOnRay(rays, x + 0.5, y + 0.5, 2.0, 1));
+    points.push_back(pointOnRay(rays, 10.5, 10.5, 4.0, 2));
+    for (int y = 20; y < 30; ++y)
+        for (int x = 20; x < 30; ++x) points.push_back(pointOnRay(rays, x + 0.5, y + 0.5, 4.0, 3));
+    // Far points (object 4) right beside the near surface's silhouette at x = 16.
+    for (int y = 0; y < 16; ++y)
+        for (int x = 16; x < 19; ++x) points.push_back(pointOnRay(rays, x + 0.5, y + 0.5, 4.0, 4));
+    cache.insert(points);
+    cache.reproject(rays);
+    EXPECT_EQ(cache.pixelPoints()[10 * 32 + 10], -1) << "the hidden far point is culled";
+    for (int y = 0; y < 16; ++y)
+        EXPECT_GE(cache.pixelPoints()[y * 32 + 16], 0)
+            << "background beside a silhouette, row " << y;
+    for (const CachePoint& p : cache.points())
+        if (p.object == 2) {
+            EXPECT_FALSE(p.visible) << p.toString();
+        }
+    EXPECT_GE(cache.pixelPoints()[25 * 32 + 25], 0) << "far points among far points stay";
+    int far = 0;
+    for (const ScreenPoint& s : cache.screenPoints()) far += s.depth > 3;
+    EXPECT_EQ(far, 100 + 48) << "every object-3 and object-4 point is visible";
+    EXPECT_EQ(cache.size(), points.size()) << "culled points stay cached";
+
+    // Without the margin test (margin huge) the hole shows the far point.
+    RenderCacheOptions loose;
+    loose.depthMargin = 10;
+    RenderCache plain(32, 32, 4000, loose);
+    plain.insert(points);
+    plain.reproject(rays);
+    EXPECT_GE(plain.pixelPoints()[10 * 32 + 10], 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Invalidation
+
+TEST(RenderCache, InvalidationRemovesExactlyTheMatchingPoints) {
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), 20, 20);
+    std::vector<ShadedPoint> points;
+    for (int y = 0; y < 20; ++y)
+        for (int x = 0; x < 20; ++x)
+            points.push_back(pointOnRay(rays, x + 0.5, y + 0.5, 3.0 + 0.1 * (x % 3), (x + y) % 5));
+    RenderCache cache(20, 20, 1000);
+    cache.insert(points);
+
+    const std::unordered_set<int> gone{1, 3};
+    std::multiset<int> expected;
+    for (const ShadedPoint& p : points)
+        if (!gone.count(p.object)) expected.insert(p.element);
+    EXPECT_EQ(cache.invalidateObjects(gone), points.size() - expected.size());
+    std::multiset<int> left;
+    for (const CachePoint& p : cache.points()) left.insert(p.element);
+    EXPECT_EQ(left, expected);
+
+    // A sphere: brute force over what is left.
+    const Vec3 centre = rays.origin() + 3.0 * rays.rayDirection(10, 10);
+    std::size_t inside = 0;
+    for (const CachePoint& p : cache.points()) inside += glm::length(p.position - centre) <= 0.4;
+    ASSERT_GT(inside, 0u);
+    EXPECT_EQ(cache.invalidateRegion(centre, 0.4), inside);
+    for (const CachePoint& p : cache.points()) EXPECT_GT(glm::length(p.position - centre), 0.4);
+
+    // Elements.
+    const int e0 = cache.points()[0].element, e1 = cache.points()[5].element;
+    std::size_t matching = 0;
+    for (const CachePoint& p : cache.points()) matching += p.element == e0 || p.element == e1;
+    EXPECT_EQ(cache.invalidateElements({e0, e1}), matching);
+
+    // The next frame shows only what is left.
+    cache.reproject(rays);
+    EXPECT_EQ(cache.screenPoints().size(), cache.size());
+    cache.clear();
+    EXPECT_EQ(cache.size(), 0u);
+    EXPECT_TRUE(cache.reproject(rays).empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Capacity
+
+TEST(RenderCache, NeverExceedsCapacityAndReplacesHiddenThenOldest) {
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), 30, 30);
+    RenderCache cache(30, 30, 100);
+    auto batch = [&](int object, int offset) {
+        std::vector<ShadedPoint> b;
+        for (int i = 0; i < 60; ++i) {
+            const int k = offset + i;
+            b.push_back(pointOnRay(rays, k % 30 + 0.5, k / 30 + 0.5, 2.0, object));
+        }
+        return b;
+    };
+    auto count = [&](int object) {
+        int n = 0;
+        for (const CachePoint& p : cache.points()) n += p.object == object;
+        return n;
+    };
+    cache.insert(batch(0, 0));
+    cache.reproject(rays);  // A: age 1
+    cache.insert(batch(1, 300));
+    EXPECT_EQ(cache.size(), 100u);
+    EXPECT_EQ(count(0), 40) << "the 20 replaced are the oldest";
+    cache.reproject(rays);  // A: age 2, B: age 1
+    cache.insert(batch(2, 600));
+    EXPECT_EQ(cache.size(), 100u);
+    EXPECT_EQ(count(0), 0);
+    EXPECT_EQ(count(1), 40);
+    EXPECT_EQ(count(2), 60);
+
+    // A point hidden in the last frame goes before an older visible one.
+    RenderCache small(30, 30, 3);
+    small.insert(pointOnRay(rays, 1.5, 1.5, 2.0, 7));
+    small.reproject(rays);
+    small.insert(pointOnRay(rays, 2.5, 1.5, 2.0, 8));
+    small.insert(pointOnRay(rays, 2.5, 1.5, 2.5, 9));  // behind 8 in the same pixel
+    small.reproject(rays);                             // 7: age 2, 8 and 9: age 1, 9 hidden
+    small.insert(pointOnRay(rays, 3.5, 1.5, 2.0, 10));
+    std::set<int> objects;
+    for (const CachePoint& p : small.points()) objects.insert(p.object);
+    EXPECT_EQ(objects, (std::set<int>{7, 8, 10})) << small.toString();
+
+    // A batch larger than the cache keeps its last points.
+    RenderCache tiny(30, 30, 10);
+    tiny.insert(batch(3, 0));
+    EXPECT_EQ(tiny.size(), 10u);
+    std::set<int> elements;
+    for (const CachePoint& p : tiny.points()) elements.insert(p.element);
+    const auto b3 = batch(3, 0);
+    std::set<int> last;
+    for (int i = 50; i < 60; ++i) last.insert(b3[i].element);
+    EXPECT_EQ(elements, last);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Requests
+
+TEST(RenderCache, RequestsConcentrateOnEmptyPixelsAndAreStratified) {
+    const int w = 64, h = 48;
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), w, h);
+    RenderCache cache(w, h, 10000);
+    // Left half: fresh points of one colour (priority ~0); right half: empty.
+    std::vector<ShadedPoint> points;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w / 2; ++x) points.push_back(pointOnRay(rays, x + 0.5, y + 0.5, 3.0));
+    cache.insert(points);
+    cache.reproject(rays);
+
+    const auto requests = cache.requestSamples(rays, 60);
+    ASSERT_EQ(requests.size(), 60u);
+    std::set<std::pair<int, int>> pixels;
+    for (const ShadeRequest& r : requests) {
+        EXPECT_GE(r.pixel.x, w / 2) << r.toString() << ": requests go to empty pixels";
+        EXPECT_EQ(r.frame, cache.frame());
+        EXPECT_NEAR(glm::length(r.direction - rays.rayDirection(r.pixel.x, r.pixel.y)), 0, 1e-12);
+        pixels.insert({static_cast<int>(r.pixel.x), static_cast<int>(r.pixel.y)});
+    }
+    EXPECT_EQ(pixels.size(), requests.size()) << "distinct pixels";
+    // Asked again in the same frame, the requested pixels are held back.
+    for (const ShadeRequest& r : cache.requestSamples(rays, 60))
+        EXPECT_FALSE(pixels.count({static_cast<int>(r.pixel.x), static_cast<int>(r.pixel.y)}))
+            << r.toString();
+
+    // An empty image, one request per tile: exactly one in each 8×8 tile.
+    RenderCache empty(w, h, 100);
+    empty.reproject(rays);
+    const auto spread = empty.requestSamples(rays, (w / 8) * (h / 8));
+    std::map<int, int> perTile;
+    for (const ShadeRequest& r : spread)
+        ++perTile[static_cast<int>(r.pixel.y) / 8 * 8 + static_cast<int>(r.pixel.x) / 8];
+    EXPECT_EQ(perTile.size(), static_cast<std::size_t>((w / 8) * (h / 8)));
+    for (const auto& [tile, n] : perTile) EXPECT_EQ(n, 1) << "tile " << tile;
+    // Default budget: sampleFraction of the pixels.
+    RenderCache fresh(w, h, 100);
+    fresh.reproject(rays);
+    EXPECT_EQ(fresh.requestSamples(rays).size(),
+              static_cast<std::size_t>(std::lround(0.02 * w * h)));
+}
+
+TEST(RenderCache, OldPointsAndHighContrastRaisePriority) {
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), 16, 16);
+    RenderCache cache(16, 16, 1000);
+    std::vector<ShadedPoint> points;
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x)
+            points.push_back(
+                pointOnRay(rays, x + 0.5, y + 0.5, 3.0, 0, x < 8 ? Rgb(0.1) : Rgb(0.9)));
+    cache.insert(points);
+    cache.reproject(rays);
+    const auto& p0 = cache.priority();
+    EXPECT_GT(p0[3 * 16 + 8], p0[3 * 16 + 12]) << "the colour edge is wanted more";
+    EXPECT_LT(p0[3 * 16 + 12], 1.0) << "below an empty pixel";
+    const double fresh = p0[3 * 16 + 12];
+    for (int i = 0; i < 20; ++i) cache.reproject(rays);
+    EXPECT_GT(cache.priority()[3 * 16 + 12], fresh + 0.1) << "old points are wanted more";
+}
+
+// ---------------------------------------------------------------------------------------------
+// With the point shader
+
+TEST(RenderCache, FedByThePointShaderConvergesToFullShading) {
+    const Scene scene = test::makeLitRoom("red");
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    SolverOptions options;
+    ProgressiveSolver solver(disc, tracer, options);
+    solver.step(30);
+    PointShaderOptions shaderOptions;
+    shaderOptions.threads = 2;
+    PointShader shader(disc, tracer, options, shaderOptions);
+    shader.updateSolution(solver);
+
+    const int w = 40, h = 30;
+    const CameraRays rays(cameraAt(Vec3(0, 0, 1.4), Vec3(0, -0.6, 0), 80), w, h);
+    RenderCache cache(w, h, 4 * w * h);
+    for (int frame = 0; frame < 60; ++frame) {
+        cache.insert(shader.takeResults());
+        cache.reproject(rays);
+        shader.submit(cache.requestSamples(rays, w * h / 10));
+        shader.waitIdle();
+    }
+    cache.insert(shader.takeResults());
+    const auto& screen = cache.reproject(rays);
+    EXPECT_GT(screen.size(), static_cast<std::size_t>(0.97 * w * h)) << cache.toString();
+
+    // Each visible point shows what the shader gives for its 3D point's pixel.
+    PointShaderOptions syncOptions;
+    syncOptions.threads = 0;
+    PointShader reference(disc, tracer, options, syncOptions);
+    reference.updateSolution(solver);
+    const Image image = cache.interpolatedImage();
+    double diff = 0, sum = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            ShadeRequest r{
+                {x + 0.5, y + 0.5}, rays.origin(), rays.rayDirection(x + 0.5, y + 0.5), 1};
+            const Rgb truth = reference.shade(r).radiance;
+            diff += std::abs(luminance(image.at(x, y)) - luminance(truth));
+            sum += luminance(truth);
+        }
+    EXPECT_LT(diff / sum, 0.08) << "mean relative difference of the interpolated image";
+}
+
+}  // namespace
+}  // namespace penumbra
