@@ -1,0 +1,141 @@
+#pragma once
+// The edge finder of Bala, Walter, Greenberg 2003 §6: per frame, silhouettes and sharp edges
+// of every object from the eye; shadow edges of every (light, blocker, receiver) triple, kept
+// and recomputed only when the light, the blocker or an involved receiver moves (§6.5).
+// Output: world-space segments tagged with their kind and objects, ready for projection.
+//
+// Index: WorldEdge · EdgeFinderStats · EdgeFinder
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "render/edge_tree.h"
+#include "render/shadow_events.h"
+#include "solver/discretization.h"
+
+namespace penumbra {
+
+enum class EdgeKind { Silhouette, Sharp, Shadow };
+const char* edgeKindName(EdgeKind kind);
+
+/// A world-space edge segment a–b.
+/// Silhouette/Sharp: `object` owns the edge, `edge` is its EdgeMesh edge id.
+/// Shadow: `object` is the receiver the edge lies on, `blocker` and `light` cast it, `shadow`
+/// tells hard (point light), umbra or penumbra (area light), `edge` is the blocker feature
+/// (EdgeMesh edge for a VE event, vertex for an EV event).
+struct WorldEdge {
+    Vec3 a{0.0}, b{0.0};
+    EdgeKind kind = EdgeKind::Silhouette;
+    ShadowKind shadow = ShadowKind::Hard;
+    int object = -1;
+    int edge = -1;
+    int light = -1;
+    int blocker = -1;
+    std::string toString() const;
+};
+
+/// Work counters (cumulative until resetStats()).
+struct EdgeFinderStats {
+    long long eventRecomputations = 0;   ///< (light, blocker) pairs whose events were rebuilt
+    long long pairRecomputations = 0;    ///< (light, blocker) pairs whose shadow edges were rebuilt
+    long long tripleRecomputations = 0;  ///< (light, blocker, receiver) triples recomputed
+    std::string toString() const;
+};
+
+struct EdgeFinderOptions {
+    double sharpCutoffDeg = 85.0;  ///< §6.2
+    int leafSize = 8;              ///< edges per edge-tree leaf
+};
+
+class EdgeFinder {
+public:
+    using Options = EdgeFinderOptions;
+
+    explicit EdgeFinder(Options options);
+    EdgeFinder() : EdgeFinder(Options{}) {}
+    /// Every object of the discretization (its element mesh, welded, with its transform and
+    /// alive flag; versions of one object share one tree), and one area light per emitting
+    /// planar object (the convex hull of its vertices).
+    explicit EdgeFinder(const Discretization& discretization, Options options = Options{});
+
+    /// Adds an object (object-space mesh). Objects with equal meshes share one edge tree and
+    /// one receiver tree. Returns the object index.
+    int addObject(std::shared_ptr<const EdgeMesh> mesh, const Mat4& worldFromObject,
+                  bool twoSided = false, std::string id = "");
+    /// Moves an object: its trees stay as they are (queries map into object space); the
+    /// shadows involving it become stale.
+    void notifyObjectMoved(int object, const Mat4& worldFromObject);
+    void setObjectAlive(int object, bool alive);
+    /// Adds the objects of `discretization` this finder does not know yet (new versions of
+    /// moved objects reuse their trees) and follows every object's alive flag.
+    void syncWith(const Discretization& discretization);
+
+    int addLight(const Light& light);
+    /// Moves or reshapes a light; its shadows become stale.
+    void setLight(int light, const Light& value);
+    void setLightAlive(int light, bool alive);
+
+    /// Silhouette edges (eq. 1, boundary edges included) of every live object from `eye`.
+    std::vector<WorldEdge> findSilhouettes(const Vec3& eye) const;
+    /// Every sharp edge (§6.2; boundary edges included) of every live object.
+    std::vector<WorldEdge> findSharpEdges() const;
+    /// The sharp edges with at least one front-facing adjacent face seen from `eye`.
+    std::vector<WorldEdge> findSharpEdges(const Vec3& eye) const;
+    /// Shadow edges of every live light: stale (light, blocker) pairs are recomputed (in
+    /// parallel), the others reused.
+    std::vector<WorldEdge> findShadowEdges();
+
+    const EdgeFinderStats& stats() const { return mStats; }
+    void resetStats() { mStats = {}; }
+    int objectCount() const { return static_cast<int>(mObjects.size()); }
+    int lightCount() const { return static_cast<int>(mLights.size()); }
+    const EdgeTree& tree(int object) const { return *mObjects[object].tree; }
+    const Light& light(int index) const { return mLights[index].light; }
+    std::string toString() const;
+
+private:
+    struct Object {
+        std::string id;
+        std::shared_ptr<const EdgeTree> tree;
+        std::shared_ptr<const ReceiverTree> receiver;
+        Mat4 worldFromObject{1.0}, objectFromWorld{1.0};
+        Box3 worldBounds;
+        bool twoSided = false;
+        bool alive = true;
+        unsigned version = 1;
+    };
+    struct LightEntry {
+        Light light;
+        bool alive = true;
+        unsigned version = 1;
+    };
+    struct Pair {
+        bool valid = false;
+        unsigned lightVersion = 0, blockerVersion = 0;
+        std::vector<ShadowEvent> events;
+        std::vector<unsigned> receiverVersion;  ///< per object, at the last computation
+        std::vector<char> involved;             ///< per object: touched some event
+        std::vector<WorldEdge> edges;
+    };
+    void computePair(int light, int blocker, Pair& pair, bool events) const;
+    bool touchesEvents(const Pair& pair, const Box3& worldBox) const;
+
+    Options mOptions;
+    std::vector<Object> mObjects;
+    std::vector<LightEntry> mLights;
+    std::unordered_map<std::uint64_t, std::pair<std::shared_ptr<const EdgeTree>,
+                                                std::shared_ptr<const ReceiverTree>>>
+        mTrees;
+    std::map<std::pair<int, int>, Pair> mPairs;
+    EdgeFinderStats mStats;
+};
+
+/// An area light for an emitting planar object: the convex hull of its world vertices, counter-
+/// clockwise seen from its front. Empty polygon when the object is not planar.
+Light lightForObject(const Discretization& discretization, int object);
+
+}  // namespace penumbra

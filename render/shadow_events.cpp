@@ -1,0 +1,542 @@
+// Index: Light, ShadowEvent · findShadowEvents (point lights, appendix A VE/EV) · EventFrame ·
+//        ReceiverTree (build, intersect) · clipEvent (§6.5)
+#include "render/shadow_events.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <unordered_set>
+
+namespace penumbra {
+
+namespace {
+
+Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
+
+int signOf(double v, double eps) { return v > eps ? 1 : v < -eps ? -1 : 0; }
+
+std::string str(const Vec3& v) {
+    std::ostringstream s;
+    s << '(' << v.x << ' ' << v.y << ' ' << v.z << ')';
+    return s.str();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Light, ShadowEvent
+
+std::string Light::toString() const {
+    std::ostringstream s;
+    s << "Light{" << (isPoint() ? "point" : "polygon") << ", object " << object << ",";
+    for (const Vec3& p : polygon) s << ' ' << str(p);
+    s << '}';
+    return s.str();
+}
+
+const char* shadowKindName(ShadowKind kind) {
+    switch (kind) {
+        case ShadowKind::Hard:
+            return "hard";
+        case ShadowKind::Umbra:
+            return "umbra";
+        case ShadowKind::Penumbra:
+            return "penumbra";
+    }
+    return "?";
+}
+
+ShadowEvent ShadowEvent::mapped(const Mat4& m) const {
+    ShadowEvent e = *this;
+    e.p0 = apply(m, p0);
+    e.p1 = apply(m, p1);
+    e.q0 = apply(m, q0);
+    e.q1 = apply(m, q1);
+    return e;
+}
+
+std::string ShadowEvent::toString() const {
+    std::ostringstream s;
+    s << "ShadowEvent{" << (vertexEdge ? "VE" : "EV") << ' ' << shadowKindName(kind) << ", light "
+      << lightFeature << ", blocker " << blockerFeature << ", P " << str(p0) << '-' << str(p1)
+      << ", Q " << str(q0) << '-' << str(q1) << '}';
+    return s.str();
+}
+
+// ---------------------------------------------------------------------------------------------
+// findShadowEvents
+
+void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
+                      const Mat4& objectFromWorld, const Light& light,
+                      std::vector<ShadowEvent>& out, EdgeTreeStats* stats) {
+    const EdgeMesh& mesh = blocker.mesh();
+    const auto& P = mesh.positions();
+    std::vector<Vec3> L;
+    for (const Vec3& p : light.polygon) L.push_back(apply(objectFromWorld, p));
+    if (L.empty()) return;
+    std::vector<int> edges;
+
+    if (L.size() == 1) {
+        // Point light: shadow events are the silhouettes seen from the light (§6.4).
+        blocker.findSilhouettes(L[0], edges, stats);
+        for (int id : edges) {
+            const MeshEdge& e = mesh.edges()[id];
+            ShadowEvent ev;
+            ev.p0 = ev.p1 = L[0];
+            ev.q0 = P[e.v0];
+            ev.q1 = P[e.v1];
+            ev.lightFeature = 0;
+            ev.blockerFeature = id;
+            out.push_back(ev.mapped(worldFromObject));
+        }
+        return;
+    }
+
+    // Area light (appendix A). Candidates: edges that are silhouettes from some light point.
+    blocker.findSilhouetteCandidates(L, edges, stats);
+    const int n = static_cast<int>(L.size());
+    double lightSize = 0, meshSize = glm::length(mesh.bounds().hi - mesh.bounds().lo);
+    for (int i = 0; i < n; ++i) lightSize = std::max(lightSize, glm::length(L[i] - L[0]));
+    const double rel = 1e-9;
+    std::vector<int> vertices;
+    for (int id : edges) {
+        const MeshEdge& e = mesh.edges()[id];
+        const Vec3 &a = P[e.v0], &b = P[e.v1];
+        vertices.push_back(e.v0);
+        vertices.push_back(e.v1);
+        // VE events: light vertex v, blocker edge e.
+        for (int i = 0; i < n; ++i) {
+            if (!mesh.isSilhouette(id, L[i])) continue;  // eq. 1 from v
+            Vec3 N = glm::cross(a - L[i], b - L[i]);
+            double len = glm::length(N);
+            if (!(len > 0)) continue;
+            double epsL = rel * len * (lightSize + meshSize);
+            // Tangent to the light at v: its neighbours on one side.
+            int sp = signOf(glm::dot(N, L[(i + n - 1) % n] - L[i]), epsL);
+            int sn = signOf(glm::dot(N, L[(i + 1) % n] - L[i]), epsL);
+            if (sp * sn < 0) continue;
+            int lightSide = sp != 0 ? sp : sn;
+            for (int k = 0; k < n && lightSide == 0; ++k)
+                lightSide = signOf(glm::dot(N, L[k] - L[i]), epsL);
+            if (lightSide == 0) continue;
+            // Blocker side: the adjacent faces' farthest vertices (both on one side at a
+            // silhouette).
+            double best = 0;
+            for (int f : {e.f0, e.f1}) {
+                if (f < 0) continue;
+                for (int j = mesh.faceStart()[f]; j < mesh.faceStart()[f + 1]; ++j) {
+                    double d = glm::dot(N, P[mesh.faceVertices()[j]] - L[i]);
+                    if (std::abs(d) > std::abs(best)) best = d;
+                }
+            }
+            int blockerSide = signOf(best, epsL);
+            if (blockerSide == 0) continue;
+            ShadowEvent ev;
+            ev.p0 = ev.p1 = L[i];
+            ev.q0 = a;
+            ev.q1 = b;
+            ev.kind = lightSide == blockerSide ? ShadowKind::Umbra : ShadowKind::Penumbra;
+            ev.vertexEdge = true;
+            ev.lightFeature = i;
+            ev.blockerFeature = id;
+            out.push_back(ev.mapped(worldFromObject));
+        }
+    }
+    // EV events: light edge (L[j], L[j+1]) and a blocker vertex w where the plane supports the
+    // blocker (every one-ring neighbour on one side).
+    std::sort(vertices.begin(), vertices.end());
+    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+    for (int w : vertices) {
+        for (int j = 0; j < n; ++j) {
+            const Vec3 &l0 = L[j], &l1 = L[(j + 1) % n];
+            Vec3 N = glm::cross(l1 - l0, P[w] - l0);
+            double len = glm::length(N);
+            if (!(len > 0)) continue;
+            double epsL = rel * len * (lightSize + meshSize);
+            int blockerSide = 0;
+            bool tangent = true;
+            for (int k = mesh.neighbourStart()[w]; k < mesh.neighbourStart()[w + 1]; ++k) {
+                int s = signOf(glm::dot(N, P[mesh.neighbours()[k]] - P[w]), epsL);
+                if (s == 0) continue;
+                if (blockerSide != 0 && s != blockerSide) {
+                    tangent = false;
+                    break;
+                }
+                blockerSide = s;
+            }
+            if (!tangent || blockerSide == 0) continue;
+            int lightSide = 0;
+            for (int k = 0; k < n && lightSide == 0; ++k)
+                lightSide = signOf(glm::dot(N, L[k] - l0), epsL);
+            if (lightSide == 0) continue;
+            ShadowEvent ev;
+            ev.p0 = l0;
+            ev.p1 = l1;
+            ev.q0 = ev.q1 = P[w];
+            ev.kind = lightSide == blockerSide ? ShadowKind::Umbra : ShadowKind::Penumbra;
+            ev.vertexEdge = false;
+            ev.lightFeature = j;
+            ev.blockerFeature = w;
+            out.push_back(ev.mapped(worldFromObject));
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// EventFrame
+
+EventFrame::EventFrame(const ShadowEvent& ev) : vertexEdge(ev.vertexEdge) {
+    Vec3 N;
+    if (ev.vertexEdge) {
+        const Vec3 &v = ev.p0, &q0 = ev.q0, &q1 = ev.q1;
+        N = glm::cross(q0 - v, q1 - v);
+        k[0] = glm::cross(N, q0 - v);  // G0: zero on the ray v→q0
+        c[0] = -glm::dot(k[0], v);
+        k[1] = glm::cross(q1 - v, N);  // G1: zero on the ray v→q1
+        c[1] = -glm::dot(k[1], v);
+        Vec3 h = glm::cross(N, q1 - q0);  // zero on the line q0 q1
+        double hv = glm::dot(v - q0, h);
+        if (hv == 0) return;
+        k[2] = -h / hv;  // s = 1 − h(x)/h(v)
+        c[2] = 1 + glm::dot(h, q0) / hv;
+    } else {
+        const Vec3 &p0 = ev.p0, &p1 = ev.p1, &w = ev.q0;
+        N = glm::cross(p1 - p0, w - p0);
+        k[0] = glm::cross(w - p0, N);  // G0: zero on the line p0 w
+        c[0] = -glm::dot(k[0], p0);
+        k[1] = glm::cross(N, w - p1);  // G1: zero on the line p1 w
+        c[1] = -glm::dot(k[1], p1);
+        Vec3 h = glm::cross(N, p1 - p0);  // zero on the light edge
+        double hw = glm::dot(w - p0, h);
+        if (hw == 0) return;
+        k[2] = h / hw;  // s = h(x)/h(w)
+        c[2] = -glm::dot(k[2], p0);
+    }
+    double len = glm::length(N);
+    if (!(len > 0) || !std::isfinite(len)) return;
+    normal = N / len;
+    offset = glm::dot(normal, ev.p0);
+    valid = true;
+}
+
+bool EventFrame::inRegion(const double f[3]) const {
+    if (vertexEdge) return f[0] >= 0 && f[1] >= 0;
+    return (f[0] >= 0 && f[1] >= 0 && f[2] >= 0) || (f[0] <= 0 && f[1] <= 0 && f[2] >= 1);
+}
+
+bool EventFrame::touches(const Box3& box, double eps) const {
+    if (!valid || box.empty()) return false;
+    bool above = true, below = true;
+    bool allNeg[3] = {true, true, true}, allPos[3] = {true, true, true};
+    bool allBelow1 = true;
+    double tol[3];
+    for (int i = 0; i < 3; ++i) tol[i] = eps * glm::length(k[i]);
+    for (int i = 0; i < 8; ++i) {
+        Vec3 x = box.corner(i);
+        double d = glm::dot(normal, x) - offset;
+        above = above && d > eps;
+        below = below && d < -eps;
+        for (int j = 0; j < 3; ++j) {
+            double f = eval(j, x);
+            allNeg[j] = allNeg[j] && f < -tol[j];
+            allPos[j] = allPos[j] && f > tol[j];
+        }
+        allBelow1 = allBelow1 && eval(2, x) < 1 - tol[2];
+    }
+    if (above || below) return false;
+    if (vertexEdge) return !(allNeg[0] || allNeg[1]);
+    bool nearOut = allNeg[0] || allNeg[1] || allNeg[2];
+    bool farOut = allPos[0] || allPos[1] || allBelow1;
+    return !(nearOut && farOut);
+}
+
+// ---------------------------------------------------------------------------------------------
+// ReceiverTree
+
+ReceiverTree::ReceiverTree(std::shared_ptr<const EdgeMesh> mesh, int leafSize)
+    : mMesh(std::move(mesh)), mLeafSize(std::max(1, leafSize)) {
+    mFaces.resize(mMesh->faceCount());
+    for (int f = 0; f < mMesh->faceCount(); ++f) mFaces[f] = f;
+    mNodes.reserve(2 * mFaces.size() / mLeafSize + 4);
+    mNodes.push_back({});
+    if (mFaces.empty()) {
+        Node& r = mNodes[0];
+        for (int k = 0; k < 3; ++k) r.nLo[k] = r.nHi[k] = 0;
+        r.c = Vec3(0.0);
+        r.dLo = r.dHi = 0;
+        r.begin = r.end = 0;
+        return;
+    }
+    build(0, 0, static_cast<int>(mFaces.size()));
+}
+
+void ReceiverTree::build(int slot, int begin, int end) {
+    const EdgeMesh& m = *mMesh;
+    Box3 box, centres;
+    double nLo[3] = {1e300, 1e300, 1e300}, nHi[3] = {-1e300, -1e300, -1e300};
+    for (int i = begin; i < end; ++i) {
+        int f = mFaces[i];
+        Vec3 c(0.0);
+        int cnt = m.faceStart()[f + 1] - m.faceStart()[f];
+        for (int j = m.faceStart()[f]; j < m.faceStart()[f + 1]; ++j) {
+            box.extend(m.positions()[m.faceVertices()[j]]);
+            c += m.positions()[m.faceVertices()[j]];
+        }
+        centres.extend(c / double(cnt));
+        const Vec3& n = m.facePlanes()[f].n;
+        for (int k = 0; k < 3; ++k) {
+            nLo[k] = std::min(nLo[k], n[k]);
+            nHi[k] = std::max(nHi[k], n[k]);
+        }
+    }
+    Vec3 c = box.centre();
+    double dLo = 1e300, dHi = -1e300;
+    for (int i = begin; i < end; ++i) {
+        const FacePlane& p = m.facePlanes()[mFaces[i]];
+        double d = p.d - glm::dot(p.n, c);
+        dLo = std::min(dLo, d);
+        dHi = std::max(dHi, d);
+    }
+    {
+        Node& node = mNodes[slot];
+        node.box = box;
+        for (int k = 0; k < 3; ++k) {
+            node.nLo[k] = nLo[k];
+            node.nHi[k] = nHi[k];
+        }
+        node.c = c;
+        node.dLo = dLo;
+        node.dHi = dHi;
+        node.begin = begin;
+        node.end = end;
+        node.child = -1;
+    }
+    if (end - begin <= mLeafSize) return;
+    // Median split on the longest axis of the face centres.
+    Vec3 ext = centres.hi - centres.lo;
+    int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
+    int mid = begin + (end - begin) / 2;
+    auto centreOf = [&](int f) {
+        double s = 0;
+        for (int j = m.faceStart()[f]; j < m.faceStart()[f + 1]; ++j)
+            s += m.positions()[m.faceVertices()[j]][axis];
+        return s / (m.faceStart()[f + 1] - m.faceStart()[f]);
+    };
+    std::nth_element(mFaces.begin() + begin, mFaces.begin() + mid, mFaces.begin() + end,
+                     [&](int a, int b) { return centreOf(a) < centreOf(b); });
+    int child = static_cast<int>(mNodes.size());
+    mNodes[slot].child = child;
+    mNodes.push_back({});
+    mNodes.push_back({});
+    build(child, begin, mid);
+    build(child + 1, mid, end);
+}
+
+void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
+                             std::vector<Crossing>& out, long long* nodesVisited) const {
+    EventFrame frame(event);
+    if (!frame.valid || mFaces.empty()) return;
+    const EdgeMesh& m = *mMesh;
+    double eps = 1e-9 * glm::length(m.bounds().hi - m.bounds().lo);
+    Box3 lightBox;
+    lightBox.extend(event.p0);
+    lightBox.extend(event.p1);
+    long long visited = 0;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    std::vector<Vec3> pts;
+    while (top > 0) {
+        const Node& node = mNodes[stack[--top]];
+        ++visited;
+        if (!frame.touches(node.box, eps)) continue;
+        if (cullBackFaces) {
+            // Every face below faces away from the whole light feature: skip (§6.4).
+            double hi = 0, mag = 0;
+            for (int k = 0; k < 3; ++k) {
+                double w0 = lightBox.lo[k] - node.c[k], w1 = lightBox.hi[k] - node.c[k];
+                hi += std::max(std::max(node.nLo[k] * w0, node.nLo[k] * w1),
+                               std::max(node.nHi[k] * w0, node.nHi[k] * w1));
+                mag += std::max(std::abs(w0), std::abs(w1)) + std::abs(node.c[k]);
+            }
+            if (hi - node.dLo < -1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi))) continue;
+        }
+        if (node.child >= 0) {
+            stack[top++] = node.child;
+            stack[top++] = node.child + 1;
+            continue;
+        }
+        for (int i = node.begin; i < node.end; ++i) {
+            int f = mFaces[i];
+            const FacePlane& plane = m.facePlanes()[f];
+            bool front = plane.eval(event.p0) > 0 || plane.eval(event.p1) > 0;
+            if (cullBackFaces && !front) continue;
+            int fb = m.faceStart()[f], fe = m.faceStart()[f + 1], cnt = fe - fb;
+            // Signed distances to the event plane; faces that only touch it are skipped.
+            double dist[64];
+            int sgn[64];
+            if (cnt > 64) continue;
+            bool pos = false, neg = false;
+            for (int j = 0; j < cnt; ++j) {
+                dist[j] =
+                    glm::dot(frame.normal, m.positions()[m.faceVertices()[fb + j]]) - frame.offset;
+                sgn[j] = signOf(dist[j], eps);
+                pos = pos || sgn[j] > 0;
+                neg = neg || sgn[j] < 0;
+            }
+            if (!pos || !neg) continue;
+            pts.clear();
+            for (int j = 0; j < cnt; ++j) {
+                int j2 = (j + 1) % cnt;
+                const Vec3& a = m.positions()[m.faceVertices()[fb + j]];
+                const Vec3& b = m.positions()[m.faceVertices()[fb + j2]];
+                if (sgn[j] == 0) pts.push_back(a);
+                if (sgn[j] * sgn[j2] < 0) {
+                    double t = dist[j] / (dist[j] - dist[j2]);
+                    pts.push_back(a + t * (b - a));
+                }
+            }
+            if (pts.size() < 2) continue;
+            // The two crossing points farthest apart.
+            Vec3 x0 = pts[0], x1 = pts[1];
+            double best = glm::length(x1 - x0);
+            for (std::size_t p = 0; p < pts.size(); ++p)
+                for (std::size_t q = p + 1; q < pts.size(); ++q) {
+                    double d = glm::length(pts[q] - pts[p]);
+                    if (d > best) {
+                        best = d;
+                        x0 = pts[p];
+                        x1 = pts[q];
+                    }
+                }
+            if (!(best > eps)) continue;
+            // Split the segment where G0, G1, s or s − 1 change sign; keep pieces in the region.
+            double f0[3], f1[3];
+            for (int j = 0; j < 3; ++j) {
+                f0[j] = frame.eval(j, x0);
+                f1[j] = frame.eval(j, x1);
+            }
+            double cuts[6];
+            int nc = 0;
+            cuts[nc++] = 0;
+            cuts[nc++] = 1;
+            for (int j = 0; j < 4; ++j) {
+                double a = j < 3 ? f0[j] : f0[2] - 1, b = j < 3 ? f1[j] : f1[2] - 1;
+                if ((a < 0) != (b < 0) && a != b) {
+                    double t = a / (a - b);
+                    if (t > 0 && t < 1) cuts[nc++] = t;
+                }
+            }
+            std::sort(cuts, cuts + nc);
+            for (int j = 0; j + 1 < nc; ++j) {
+                double ta = cuts[j], tb = cuts[j + 1];
+                if (tb - ta < 1e-12) continue;
+                double tm = 0.5 * (ta + tb), fm[3];
+                for (int q = 0; q < 3; ++q) fm[q] = f0[q] + tm * (f1[q] - f0[q]);
+                if (!frame.inRegion(fm)) continue;
+                Crossing cr;
+                cr.x0 = x0 + ta * (x1 - x0);
+                cr.x1 = x0 + tb * (x1 - x0);
+                for (int q = 0; q < 3; ++q) {
+                    cr.g[0][q] = f0[q] + ta * (f1[q] - f0[q]);
+                    cr.g[1][q] = f0[q] + tb * (f1[q] - f0[q]);
+                }
+                double da = cr.g[0][0] + cr.g[0][1], db = cr.g[1][0] + cr.g[1][1];
+                if (da == 0 || db == 0) continue;
+                cr.u0 = cr.g[0][0] / da;
+                cr.u1 = cr.g[1][0] / db;
+                if (cr.u0 > cr.u1) {
+                    std::swap(cr.u0, cr.u1);
+                    std::swap(cr.x0, cr.x1);
+                    for (int q = 0; q < 3; ++q) std::swap(cr.g[0][q], cr.g[1][q]);
+                }
+                cr.u0 = std::clamp(cr.u0, 0.0, 1.0);
+                cr.u1 = std::clamp(cr.u1, 0.0, 1.0);
+                if (cr.u1 - cr.u0 < 1e-12) continue;
+                cr.face = f;
+                cr.front = front;
+                out.push_back(cr);
+            }
+        }
+    }
+    if (nodesVisited) *nodesVisited += visited;
+}
+
+// ---------------------------------------------------------------------------------------------
+// clipEvent
+
+namespace {
+
+/// Parameter t along a crossing where the event parameter equals u.
+double paramAt(const ReceiverTree::Crossing& c, double u) {
+    double A = c.g[0][0] * (1 - u) - u * c.g[0][1];
+    double B = (c.g[1][0] - c.g[0][0]) * (1 - u) - u * (c.g[1][1] - c.g[0][1]);
+    if (B == 0) return 0.5;
+    return std::clamp(-A / B, 0.0, 1.0);
+}
+
+}  // namespace
+
+void clipEvent(const std::vector<ReceiverCrossings>& receivers, std::vector<EventEdge>& out) {
+    struct Item {
+        double u0, u1;
+        int receiver;
+        const ReceiverTree::Crossing* c;
+        const Mat4* m;
+    };
+    std::vector<Item> items;
+    std::vector<double> breaks;
+    for (const ReceiverCrossings& r : receivers)
+        for (const auto& c : r.crossings) {
+            items.push_back({c.u0, c.u1, r.receiver, &c, r.worldFromObject});
+            breaks.push_back(c.u0);
+            breaks.push_back(c.u1);
+        }
+    if (items.empty()) return;
+    std::sort(items.begin(), items.end(), [](const Item& a, const Item& b) { return a.u0 < b.u0; });
+    std::sort(breaks.begin(), breaks.end());
+    breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
+    std::vector<int> active;
+    std::size_t next = 0;
+    const Item* lastItem = nullptr;
+    double lastU = -1;
+    for (std::size_t b = 0; b + 1 < breaks.size(); ++b) {
+        double ua = breaks[b], ub = breaks[b + 1];
+        while (next < items.size() && items[next].u0 <= ua) active.push_back(int(next++));
+        active.erase(
+            std::remove_if(active.begin(), active.end(), [&](int i) { return items[i].u1 <= ua; }),
+            active.end());
+        if (ub - ua < 1e-12 || active.empty()) continue;
+        double um = 0.5 * (ua + ub), bestS = 1e300;
+        const Item* best = nullptr;
+        for (int i : active) {
+            const Item& it = items[i];
+            if (it.u0 > um || it.u1 < um) continue;
+            double t = paramAt(*it.c, um);
+            double s = it.c->g[0][2] + t * (it.c->g[1][2] - it.c->g[0][2]);
+            if (s < bestS) {
+                bestS = s;
+                best = &it;
+            }
+        }
+        // The nearest surface along the ray: a shadow edge when beyond the blocker and lit.
+        if (!best || bestS <= 1 + 1e-7 || !best->c->front) {
+            lastItem = nullptr;
+            continue;
+        }
+        const auto& c = *best->c;
+        Vec3 xa = c.x0 + paramAt(c, ua) * (c.x1 - c.x0);
+        Vec3 xb = c.x0 + paramAt(c, ub) * (c.x1 - c.x0);
+        xa = Vec3(*best->m * glm::dvec4(xa, 1.0));
+        xb = Vec3(*best->m * glm::dvec4(xb, 1.0));
+        if (lastItem == best && lastU == ua && !out.empty()) {
+            out.back().b = xb;
+        } else {
+            out.push_back({xa, xb, best->receiver, c.face});
+        }
+        lastItem = best;
+        lastU = ub;
+    }
+}
+
+}  // namespace penumbra

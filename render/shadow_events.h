@@ -1,0 +1,141 @@
+#pragma once
+// Shadow events and shadow edges (Bala, Walter, Greenberg 2003 §6.3–6.5 and appendix A):
+// VE/EV events of a blocker's edge tree for point and polygonal lights, a receiver face
+// hierarchy with normal intervals, event–receiver intersection and 1D clipping along events.
+//
+// Index: Light · ShadowEvent · findShadowEvents · ReceiverTree · EventPiece, clipping
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "render/edge_tree.h"
+#include "solver/scene.h"
+
+namespace penumbra {
+
+/// A light in world space: one point (a point light) or a convex planar polygon (an area
+/// light, 3+ vertices in order around it). `object` is the light's own scene object (it
+/// neither blocks nor receives its own shadows), -1 for none.
+struct Light {
+    std::vector<Vec3> polygon;
+    int object = -1;
+    bool isPoint() const { return polygon.size() == 1; }
+    std::string toString() const;
+};
+
+/// Hard: a point light's event. Umbra/Penumbra: an area light's umbral or penumbral event
+/// (§6.3: the light and the blocker on the same side of the event plane, or opposite sides).
+enum class ShadowKind { Hard, Umbra, Penumbra };
+const char* shadowKindName(ShadowKind kind);
+
+/// A VE or EV event (appendix A): the part of a plane swept by rays from a light feature
+/// P(u) = p0 + u (p1 − p0) through a blocker feature Q(u) = q0 + u (q1 − q0), u in [0, 1]:
+/// points P(u) + s (Q(u) − P(u)), s ≥ 0. VE: a light vertex (p0 = p1) and a blocker edge;
+/// EV: a light edge and a blocker vertex (q0 = q1). s < 1 lies between light and blocker,
+/// s > 1 beyond the blocker, where shadow edges are. u and s are affine invariants, so an event
+/// can be mapped into any object's space.
+struct ShadowEvent {
+    Vec3 p0{0.0}, p1{0.0};
+    Vec3 q0{0.0}, q1{0.0};
+    ShadowKind kind = ShadowKind::Hard;
+    bool vertexEdge = true;   ///< VE (else EV)
+    int lightFeature = -1;    ///< light vertex (VE) or first vertex of the light edge (EV)
+    int blockerFeature = -1;  ///< blocker EdgeMesh edge (VE) or vertex (EV)
+    ShadowEvent mapped(const Mat4& m) const;
+    std::string toString() const;
+};
+
+/// Shadow events of one blocker for one light (world space), found through the blocker's edge
+/// tree in object space (`objectFromWorld` maps the light in; events are mapped back).
+/// Point light: the silhouettes seen from the light (§6.4), all Hard VE events. Area light:
+/// VE events — blocker edge e a silhouette from light vertex v (eq. 1) and both light
+/// neighbours of v on one side of plane(v, e); EV events — light edge l and an endpoint w of a
+/// candidate edge with plane(l, w) leaving every one-ring neighbour of w on one side (the
+/// plane supports the blocker at w; this replaces the appendix's walk along the shadow-volume
+/// boundary and finds a superset that clipping reduces). Umbral when the light and the blocker
+/// lie on the same side of the event plane, penumbral otherwise.
+void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
+                      const Mat4& objectFromWorld, const Light& light,
+                      std::vector<ShadowEvent>& out, EdgeTreeStats* stats = nullptr);
+
+/// A bounding-volume hierarchy over an EdgeMesh's faces (object space) whose nodes also bound
+/// the face normals by an interval vector and the plane offsets (§6.4 "shadow edge
+/// computation"): subtrees facing away from the whole light feature are skipped on closed,
+/// one-sided receivers.
+class ReceiverTree {
+public:
+    explicit ReceiverTree(std::shared_ptr<const EdgeMesh> mesh, int leafSize = 4);
+
+    /// One crossing of an event with a receiver face, clipped to the event region.
+    struct Crossing {
+        Vec3 x0, x1;     ///< object space
+        double u0, u1;   ///< event parameter at x0 and x1 (u0 <= u1)
+        double g[2][3];  ///< the event's linear functions (G0, G1, s) at x0 and x1
+        int face = -1;
+        bool front = true;  ///< the face is lit from the front by the light feature
+    };
+    /// Appends the crossings of `event` (in this object's space) with the faces.
+    /// `cullBackFaces`: skip faces facing away from the light feature (closed one-sided
+    /// meshes only: such faces are never the first surface a light ray meets).
+    void intersect(const ShadowEvent& event, bool cullBackFaces, std::vector<Crossing>& out,
+                   long long* nodesVisited = nullptr) const;
+
+    const EdgeMesh& mesh() const { return *mMesh; }
+    const Box3& bounds() const { return mNodes[0].box; }
+
+private:
+    struct Node {
+        Box3 box;
+        double nLo[3], nHi[3];
+        Vec3 c;
+        double dLo, dHi;
+        int begin, end;
+        int child = -1;
+    };
+    void build(int slot, int begin, int end);
+    std::shared_ptr<const EdgeMesh> mMesh;
+    int mLeafSize;
+    std::vector<Node> mNodes;
+    std::vector<int> mFaces;  ///< faces in tree order
+};
+
+/// The linear functions of an event's plane: G0 and G1 vanish on the event's side rays, s is
+/// the ray parameter; u = G0 / (G0 + G1). VE region: G0, G1 ≥ 0. EV region: G0, G1 ≥ 0 with
+/// s ≥ 0 (between light edge and vertex) or G0, G1 ≤ 0 (beyond the vertex).
+struct EventFrame {
+    explicit EventFrame(const ShadowEvent& event);
+    bool valid = false;
+    bool vertexEdge = true;
+    Vec3 normal{0.0};   ///< unit plane normal
+    double offset = 0;  ///< normal·x = offset on the plane
+    Vec3 k[3];          ///< G0, G1, s: f(x) = k·x + c
+    double c[3];
+    double eval(int i, const Vec3& x) const { return glm::dot(k[i], x) + c[i]; }
+    bool inRegion(const double f[3]) const;
+    /// Conservative: false only when the box misses the event region.
+    bool touches(const Box3& box, double eps) const;
+};
+
+/// A shadow edge found on one receiver along one event (world space).
+struct EventEdge {
+    Vec3 a, b;
+    int receiver = -1;  ///< index into the receivers passed to clipEvent
+    int face = -1;
+};
+
+/// A receiver's crossings with one event, mapped to world space.
+struct ReceiverCrossings {
+    int receiver = -1;
+    const Mat4* worldFromObject = nullptr;
+    std::vector<ReceiverTree::Crossing> crossings;
+};
+
+/// Bala et al. §6.5 "clipping": along the event (1D in u), the surface nearest the light
+/// feature (smallest s) wins. Where it lies beyond the blocker (s > 1) and faces the light it is
+/// a shadow edge; where something lies between light and blocker (s < 1) the event is hidden.
+/// Intervals are split at crossing endpoints only (two receivers that cross inside an interval
+/// are resolved at its midpoint).
+void clipEvent(const std::vector<ReceiverCrossings>& receivers, std::vector<EventEdge>& out);
+
+}  // namespace penumbra
