@@ -1,0 +1,202 @@
+#pragma once
+// The edge-and-point image (EPI) of Bala, Walter, Greenberg 2003, §4–5: projected edges and
+// reprojected shaded points combined per pixel with subpixel precision, then reconstructed
+// by table-driven, edge-respecting interpolation and anti-aliasing. Pure 2D image-space code:
+// it does not know where edges and points come from.
+//
+// Index: ScreenEdge · ScreenPoint · EpiStageTimes · EpiOptions · PixelClass · EdgePointImage
+//
+// Pixel coordinates: px grows right, py grows down; pixel (i, j) covers [i, i+1) × [j, j+1).
+
+#include <array>
+#include <cstdint>
+#include <glm/glm.hpp>
+#include <string>
+#include <vector>
+
+#include "render/image.h"
+#include "render/reachability.h"
+#include "solver/scene.h"
+
+namespace penumbra {
+
+/// A projected discontinuity edge in pixel coordinates.
+struct ScreenEdge {
+    enum class Kind : uint8_t { Silhouette, Sharp, Shadow };
+    glm::dvec2 a{0.0};  ///< endpoints (pixels); may lie outside the image
+    glm::dvec2 b{0.0};
+    /// Camera-space depth (distance along the view axis) at the endpoints, for conservative
+    /// occlusion culling (§4.5). A non-positive or non-finite depth disables culling.
+    double depthA = 0.0;
+    double depthB = 0.0;
+    Kind kind = Kind::Silhouette;
+    std::string toString() const;
+};
+
+/// A reprojected shaded point from the render cache.
+struct ScreenPoint {
+    glm::dvec2 position{0.0};  ///< sub-pixel position (pixels)
+    double depth = 0.0;        ///< camera-space depth; the nearest point per pixel is kept
+    Rgb colour{0.0};           ///< radiance, linear
+    int age = 0;               ///< frames since shaded (carried for the render cache)
+    std::string toString() const;
+};
+
+/// Milliseconds spent in each stage of the last build()/reconstruct() (Table 2's columns).
+struct EpiStageTimes {
+    double pointsMs = 0;         ///< nearest point per pixel, 4-bit positions
+    double depthFilterMs = 0;    ///< §4.5 conservative 4×4 block depth
+    double rasterizeMs = 0;      ///< §4.5 edge rasterization to 1/8-pixel intersections
+    double classifyMs = 0;       ///< §4.1/4.5 empty/simple/complex, edge codes, primaries
+    double reachabilityMs = 0;   ///< §5.2
+    double interpolateMs = 0;    ///< §5.3
+    double antiAliasMs = 0;      ///< §5.3 anti-aliasing pass
+    double complexFilterMs = 0;  ///< §5.4
+    double buildMs() const { return pointsMs + depthFilterMs + rasterizeMs + classifyMs; }
+    /// Reachability + interpolation + anti-aliasing: DESIGN.md's "reconstruct_ms".
+    double reconstructMs() const { return reachabilityMs + interpolateMs + antiAliasMs; }
+    std::string toString() const;
+};
+
+/// Switches for the optional parts of the pipeline (all on reproduces the paper).
+struct EpiOptions {
+    bool cullOccludedEdges = true;  ///< §4.5 depth culling against the filtered point depths
+    /// §4.5 offset added to a 4×4 block's maximum point depth, relative to that depth:
+    /// depthSlack + densitySlack · (fraction of the block's 16 pixels without a point).
+    double depthSlack = 0.02;
+    double densitySlack = 0.25;
+    bool antiAlias = true;      ///< §5.3 anti-aliasing of simple pixels
+    bool complexFilter = true;  ///< §5.4 subpixel filter for complex pixels
+    std::string toString() const;
+};
+
+/// §4.1 pixel classification.
+enum class PixelClass : uint8_t { Empty = 0, Simple = 1, Complex = 2 };
+
+/// The edge-and-point image and its reconstruction. Not thread-safe; build() and
+/// reconstruct() use oneTBB internally (rows in parallel; results do not depend on the
+/// thread count).
+class EdgePointImage {
+public:
+    /// Throws std::invalid_argument unless width and height are positive.
+    EdgePointImage(int width, int height, EpiOptions options = {});
+
+    /// Builds the EPI (§4): keeps the nearest point per pixel with its 4-bit position
+    /// (points outside the image or with non-finite values are ignored), filters the point
+    /// depths over 4×4 blocks, rasterizes the edges' intersections with all pixel boundaries
+    /// (and the half-pixel lines for §5.4) to 1/8 pixel, dropping intersections behind the
+    /// filtered depth, classifies pixels, stores the 10-bit edge codes and chooses each
+    /// simple pixel's primary region (§5.1). Edges with non-finite endpoints are ignored.
+    void build(const std::vector<ScreenEdge>& edges, const std::vector<ScreenPoint>& points);
+
+    /// Reconstructs an image (radiance, linear) from the last build(). With useEdges:
+    /// reachability over 5×5 (§5.2), renormalized peaked interpolation of the primary
+    /// regions (§5.3), edge-indexed anti-aliasing of simple pixels (§5.3) and the complex
+    /// pixel filter (§5.4). Without: the plain render-cache interpolation of the same points
+    /// with the same filter, ignoring edges (the comparison baseline). Pixels with no
+    /// sample within reach fall back to the interpolation ignoring edges, and to black when
+    /// there is none within 5×5 either.
+    Image reconstruct(bool useEdges = true);
+
+    /// Empty pixels black (dark grey with a point), simple purple, complex green (as the
+    /// paper's Figure 7) — the edges as the EPI sees them.
+    Image classificationImage() const;
+
+    const EpiStageTimes& stageTimes() const { return mTimes; }
+    const EpiOptions& options() const { return mOptions; }
+    int width() const { return mWidth; }
+    int height() const { return mHeight; }
+
+    // ---- Per-pixel state (valid after build) ----
+    PixelClass pixelClass(int x, int y) const;
+    /// 10-bit edge code (§4.2): kEdgeCodeEmpty, kEdgeCodeComplex or a simple code.
+    uint16_t edgeCode(int x, int y) const { return mEdgeCode[index(x, y)]; }
+    /// 4-bit sample position (§4.3): cx + 4·cy of the 4×4 cell, or −1 without a point.
+    int samplePosition(int x, int y) const;
+    /// The kept point's colour (zero without one).
+    Rgb sampleColour(int x, int y) const;
+    /// True when the pixel's point takes part in edge-respecting interpolation: it exists,
+    /// the pixel is not complex, and it is not edge-ambiguous.
+    bool sampleUsable(int x, int y) const { return mUsable[index(x, y)] != 0; }
+    /// §5.1: for simple pixels, whether region 1 (see reachability.h) is the primary one.
+    bool primaryIsRegion1(int x, int y) const;
+    /// The 4-bit neighbour code used by the reachability tables.
+    uint8_t neighbourCode(int x, int y) const { return mNeighbourCode[index(x, y)]; }
+    /// 8-bit intersection masks of the pixel's top, right, bottom and left boundary
+    /// segments, bit k = k-th eighth along +x (horizontal) or +y (vertical).
+    std::array<uint8_t, 4> boundaryMasks(int x, int y) const;
+
+    /// §5.2 reachability from pixel (x, y) to each pixel of its 5×5 neighbourhood, by
+    /// neighbour lookups, chaining and combining outward from the centre: 4-bit masks
+    /// (kReachPP…) indexed (dy + 2)·5 + (dx + 2); pixels outside the image get 0. The
+    /// centre's own entry is PP (and SS when simple); a complex centre reaches nothing.
+    std::array<uint8_t, 25> computeReachability(int x, int y) const;
+
+    /// After reconstruct(true): bit k of the 24-bit primary-to-primary mask, k running over
+    /// the 5×5 neighbourhood row by row without the centre.
+    uint32_t primaryReachability(int x, int y) const { return mReach[index(x, y)] & 0xFFFFFFu; }
+    /// After reconstruct(): per pixel the total filter weight of the samples used, before
+    /// renormalization (§5.3 prioritized sampling: low weight → high priority; 0 → none).
+    const std::vector<float>& interpolationWeights() const { return mWeight; }
+
+    /// Pixel counts by class and the number of culled intersections of the last build().
+    size_t countPixels(PixelClass c) const;
+    size_t culledIntersections() const { return mCulledIntersections; }
+    std::string toString() const;
+
+private:
+    size_t index(int x, int y) const { return static_cast<size_t>(y) * mWidth + x; }
+    void placePoints(const std::vector<ScreenPoint>& points);
+    void filterDepth();
+    void rasterizeEdges(const std::vector<ScreenEdge>& edges);
+    void classifyPixels();
+    void computeReachabilityMap();
+    void fillPaddedSamples();
+    void interpolatePlain();
+    void interpolatePrimary();
+    void antiAlias(Image& out) const;
+    void filterComplexPixels(Image& out) const;
+    size_t paddedIndex(int x, int y) const {
+        return static_cast<size_t>(y + 2) * (mWidth + 4) + (x + 2);
+    }
+
+    int mWidth = 0;
+    int mHeight = 0;
+    EpiOptions mOptions;
+    EpiStageTimes mTimes;
+    size_t mCulledIntersections = 0;
+
+    // Points (§4.3): nearest per pixel.
+    std::vector<glm::vec3> mSampleColour;
+    std::vector<double> mSampleDepth;  ///< +inf without a point
+    std::vector<uint8_t> mSamplePos;   ///< 0..15, 0xFF without a point
+    std::vector<uint8_t> mUsable;      ///< see sampleUsable()
+    std::vector<float> mBlockDepth;    ///< §4.5 filtered depth per 4×4 block (+inf: none)
+    int mBlocksX = 0;
+    int mBlocksY = 0;
+
+    // Edge rasterization (§4.5, §5.4): 8-bit intersection masks of boundary segments.
+    std::vector<uint8_t> mHorizontal;     ///< line y = j, x ∈ [i, i+1): (H+1) × W
+    std::vector<uint8_t> mVertical;       ///< line x = i, y ∈ [j, j+1): H × (W+1)
+    std::vector<uint8_t> mHorizontalMid;  ///< line y = j + ½: H × W
+    std::vector<uint8_t> mVerticalMid;    ///< line x = i + ½: H × W
+
+    // Classification (§4.1–4.2, §5.1).
+    std::vector<uint16_t> mEdgeCode;
+    std::vector<uint8_t> mNeighbourCode;
+
+    std::vector<uint8_t> mPaddedCode;  ///< neighbour codes, 2-pixel complex border
+
+    // Reconstruction (§5.2–5.4).
+    std::vector<uint32_t> mReach;          ///< 24-bit primary-to-primary masks (+ all-empty flag)
+    std::vector<uint8_t> mSecondaryReach;  ///< bit k: secondary reaches 3×3 neighbour k's primary
+    std::vector<glm::vec4> mPaddedAll;     ///< (colour, 1) of every point, 2-pixel zero border
+    std::vector<glm::vec4> mPaddedUsable;  ///< the same for usable points only
+    std::vector<glm::vec4> mRowSums;       ///< horizontal pass of the plain filter
+    std::vector<glm::vec3> mPlain;         ///< plain (edge-ignoring) interpolation
+    std::vector<float> mPlainWeight;
+    std::vector<glm::vec3> mPrimary;  ///< primary-region colours
+    std::vector<float> mWeight;       ///< interpolation weight before renormalization
+};
+
+}  // namespace penumbra
