@@ -14,6 +14,10 @@ namespace {
 
 Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
+/// Box–event tolerance relative to the box diagonal: below ReceiverTree's face tolerance, so
+/// a box rejected here holds no face that would cross.
+constexpr double kTouchEps = 1e-12;
+
 }  // namespace
 
 const char* edgeKindName(EdgeKind kind) {
@@ -204,9 +208,14 @@ std::vector<WorldEdge> EdgeFinder::findSharpEdges(const Vec3& eye) const {
 // Shadow edges
 
 bool EdgeFinder::touchesEvents(const Pair& pair, const Box3& worldBox) const {
-    double eps = 1e-7 * glm::length(worldBox.hi - worldBox.lo);
-    for (const ShadowEvent& ev : pair.events)
-        if (EventFrame(ev).touches(worldBox, eps)) return true;
+    double eps = kTouchEps * glm::length(worldBox.hi - worldBox.lo);
+    for (std::size_t e = 0; e < pair.events.size(); ++e) {
+        EventFrame frame(pair.events[e]);
+        // A receiver matters beyond the blocker, or before it on an event that has receivers
+        // beyond (it may hide them).
+        if (frame.touches(worldBox, eps, true)) return true;
+        if (pair.eventLive[e] && frame.touches(worldBox, eps)) return true;
+    }
     return false;
 }
 
@@ -228,15 +237,28 @@ void EdgeFinder::computePair(int lightIndex, int blockerIndex, Pair& pair,
     pair.edges.clear();
     std::vector<ReceiverCrossings> crossings;
     std::vector<EventEdge> found;
-    for (const ShadowEvent& ev : pair.events) {
+    pair.eventLive.assign(pair.events.size(), 0);
+    std::vector<int> near;
+    for (std::size_t ei = 0; ei < pair.events.size(); ++ei) {
+        const ShadowEvent& ev = pair.events[ei];
         crossings.clear();
         EventFrame frame(ev);
         if (!frame.valid) continue;
+        // Receivers beyond the blocker first: without any the event casts nothing (§6.5).
+        bool live = false;
+        near.clear();
         for (int r = 0; r < n; ++r) {
             const Object& rec = mObjects[r];
             if (!rec.alive || r == light.light.object) continue;
-            double eps = 1e-7 * glm::length(rec.worldBounds.hi - rec.worldBounds.lo);
+            double eps = kTouchEps * glm::length(rec.worldBounds.hi - rec.worldBounds.lo);
             if (!frame.touches(rec.worldBounds, eps)) continue;
+            near.push_back(r);
+            live = live || frame.touches(rec.worldBounds, eps, true);
+        }
+        if (!live) continue;
+        pair.eventLive[ei] = 1;
+        for (int r : near) {
+            const Object& rec = mObjects[r];
             pair.involved[r] = 1;
             ReceiverCrossings rc;
             rc.receiver = r;

@@ -118,7 +118,8 @@ private:
         unsigned lightVersion = 0, blockerVersion = 0;
         std::vector<ShadowEvent> events;
         std::vector<unsigned> receiverVersion;  ///< per object, at the last computation
-        std::vector<char> involved;             ///< per object: touched some event
+        std::vector<char> involved;             ///< per object: touched some live event
+        std::vector<char> eventLive;            ///< per event: some receiver lies beyond it
         std::vector<WorldEdge> edges;
     };
     void computePair(int light, int blocker, Pair& pair, bool events) const;

@@ -224,28 +224,30 @@ bool EventFrame::inRegion(const double f[3]) const {
     return (f[0] >= 0 && f[1] >= 0 && f[2] >= 0) || (f[0] <= 0 && f[1] <= 0 && f[2] >= 1);
 }
 
-bool EventFrame::touches(const Box3& box, double eps) const {
+bool EventFrame::touches(const Box3& box, double eps, bool farOnly) const {
     if (!valid || box.empty()) return false;
-    bool above = true, below = true;
+    // A face crosses the plane only with vertices strictly on both sides; so must the box.
+    bool anyAbove = false, anyBelow = false;
     bool allNeg[3] = {true, true, true}, allPos[3] = {true, true, true};
     bool allBelow1 = true;
     double tol[3];
     for (int i = 0; i < 3; ++i) tol[i] = eps * glm::length(k[i]);
+    const double farFrom = farOnly ? 1 + 1e-7 : 1 - tol[2];
     for (int i = 0; i < 8; ++i) {
         Vec3 x = box.corner(i);
         double d = glm::dot(normal, x) - offset;
-        above = above && d > eps;
-        below = below && d < -eps;
+        anyAbove = anyAbove || d > eps;
+        anyBelow = anyBelow || d < -eps;
         for (int j = 0; j < 3; ++j) {
             double f = eval(j, x);
             allNeg[j] = allNeg[j] && f < -tol[j];
             allPos[j] = allPos[j] && f > tol[j];
         }
-        allBelow1 = allBelow1 && eval(2, x) < 1 - tol[2];
+        allBelow1 = allBelow1 && eval(2, x) < farFrom;
     }
-    if (above || below) return false;
-    if (vertexEdge) return !(allNeg[0] || allNeg[1]);
-    bool nearOut = allNeg[0] || allNeg[1] || allNeg[2];
+    if (!anyAbove || !anyBelow) return false;
+    if (vertexEdge) return !(allNeg[0] || allNeg[1] || (farOnly && allBelow1));
+    bool nearOut = farOnly || allNeg[0] || allNeg[1] || allNeg[2];
     bool farOut = allPos[0] || allPos[1] || allBelow1;
     return !(nearOut && farOut);
 }

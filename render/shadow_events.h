@@ -113,8 +113,10 @@ struct EventFrame {
     double c[3];
     double eval(int i, const Vec3& x) const { return glm::dot(k[i], x) + c[i]; }
     bool inRegion(const double f[3]) const;
-    /// Conservative: false only when the box misses the event region.
-    bool touches(const Box3& box, double eps) const;
+    /// Conservative: false only when no face inside the box can cross the event region (the
+    /// box must straddle the plane by more than `eps`). `farOnly`: the part beyond the blocker
+    /// (s > 1), where shadow edges lie.
+    bool touches(const Box3& box, double eps, bool farOnly = false) const;
 };
 
 /// A shadow edge found on one receiver along one event (world space).
