@@ -19,6 +19,10 @@
 #include <sstream>
 #include <stdexcept>
 
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
 namespace penumbra {
 
 namespace {
@@ -56,13 +60,14 @@ struct PropagationStep {
     std::array<NeighbourDirection, 2> dir{};
 };
 
-std::vector<PropagationStep> makePropagationOrder() {
-    std::vector<PropagationStep> steps;
+constexpr std::array<PropagationStep, 24> makePropagationOrder() {
+    std::array<PropagationStep, 24> steps{};
+    int n = 0;
     for (int distance = 1; distance <= 4; ++distance) {
         for (int dy = -2; dy <= 2; ++dy) {
             for (int dx = -2; dx <= 2; ++dx) {
-                if (std::abs(dx) + std::abs(dy) != distance) continue;
-                PropagationStep step;
+                if ((dx < 0 ? -dx : dx) + (dy < 0 ? -dy : dy) != distance) continue;
+                PropagationStep step{};
                 step.target = static_cast<int8_t>((dy + 2) * 5 + dx + 2);
                 if (dx != 0) {
                     int px = dx - (dx > 0 ? 1 : -1);
@@ -76,17 +81,57 @@ std::vector<PropagationStep> makePropagationOrder() {
                     step.dir[step.count++] =
                         dy > 0 ? NeighbourDirection::Down : NeighbourDirection::Up;
                 }
-                steps.push_back(step);
+                steps[n++] = step;
             }
         }
     }
     return steps;
 }
 
-const std::vector<PropagationStep>& propagationOrder() {
-    static const std::vector<PropagationStep> order = makePropagationOrder();
-    return order;
+/// The 24 steps, by increasing distance from the centre.
+constexpr std::array<PropagationStep, 24> kPropagationOrder = makePropagationOrder();
+
+/// §5.2 neighbour lookup and chaining fused into one 16 KB table:
+/// [direction << 12 | (mask centre→q) << 8 | code(q) << 4 | code(p)] → mask centre→p through q.
+const std::array<uint8_t, 16384>& fusedHopTable() {
+    static const std::array<uint8_t, 16384> table = [] {
+        std::array<uint8_t, 16384> t{};
+        for (int d = 0; d < 4; ++d) {
+            for (int via = 0; via < 16; ++via) {
+                for (int codes = 0; codes < 256; ++codes) {
+                    const uint8_t hop = neighbourReachabilityTable()[d][codes];
+                    t[(d << 12) | (via << 8) | codes] =
+                        chainReachability(static_cast<uint8_t>(via), hop);
+                }
+            }
+        }
+        return t;
+    }();
+    return table;
 }
+
+/// 4-wide float (colour·w, w) arithmetic for the filters: SSE where available.
+#if defined(__SSE2__)
+using Quad = __m128;
+inline Quad loadQuad(const glm::vec4& v) { return _mm_loadu_ps(&v.x); }
+inline void storeQuad(glm::vec4& v, Quad q) { _mm_storeu_ps(&v.x, q); }
+inline Quad addQuad(Quad a, Quad b) { return _mm_add_ps(a, b); }
+inline Quad scaleQuad(Quad a, float w) { return _mm_mul_ps(a, _mm_set1_ps(w)); }
+inline Quad zeroQuad() { return _mm_setzero_ps(); }
+inline glm::vec4 toVec4(Quad q) {
+    glm::vec4 v;
+    _mm_storeu_ps(&v.x, q);
+    return v;
+}
+#else
+using Quad = glm::vec4;
+inline Quad loadQuad(const glm::vec4& v) { return v; }
+inline void storeQuad(glm::vec4& v, Quad q) { v = q; }
+inline Quad addQuad(Quad a, Quad b) { return a + b; }
+inline Quad scaleQuad(Quad a, float w) { return a * w; }
+inline Quad zeroQuad() { return Quad(0.0f); }
+inline glm::vec4 toVec4(Quad q) { return q; }
+#endif
 
 double millisecondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
@@ -191,13 +236,14 @@ EdgePointImage::EdgePointImage(int width, int height, EpiOptions options)
     mPlain.assign(n, glm::vec3(0.0f));
     mPlainWeight.assign(n, 0.0f);
     mPrimary.assign(n, glm::vec3(0.0f));
+    mNearEdge.assign(padded, 0);
     mWeight.assign(n, 0.0f);
     // Build the shared tables outside any timed stage.
     (void)EdgeCodeTables::pixel();
     (void)EdgeCodeTables::subpixel();
     (void)neighbourReachabilityTable();
     (void)chainingTable();
-    (void)propagationOrder();
+    (void)fusedHopTable();
 }
 
 void EdgePointImage::build(const std::vector<ScreenEdge>& edges,
@@ -217,6 +263,7 @@ void EdgePointImage::build(const std::vector<ScreenEdge>& edges,
 
     start = std::chrono::steady_clock::now();
     classifyPixels();
+    fillPaddedSamples();
     mTimes.classifyMs = millisecondsSince(start);
 }
 
@@ -460,18 +507,15 @@ std::array<uint8_t, 25> EdgePointImage::computeReachability(int x, int y) const 
     if ((centre & 7) == kNeighbourTypeComplex) return reach;
     reach[12] =
         static_cast<uint8_t>(kReachPP | ((centre & 7) != kNeighbourTypeEmpty ? kReachSS : 0));
-    const auto& neighbours = neighbourReachabilityTable();
-    const auto& chain = chainingTable();
-    // Outward from the centre: neighbour lookup, chaining through each predecessor, and
-    // combining the paths with OR.
-    for (const PropagationStep& step : propagationOrder()) {
+    const std::array<uint8_t, 16384>& hopTable = fusedHopTable();
+    // Outward from the centre: neighbour lookup chained onto each predecessor's mask (one
+    // fused lookup), and the paths combined with OR.
+    for (const PropagationStep& step : kPropagationOrder) {
         uint8_t combined = 0;
         for (int k = 0; k < step.count; ++k) {
-            const uint8_t viaMask = reach[step.pred[k]];
-            if (viaMask == 0) continue;
-            const uint8_t hop = neighbours[static_cast<int>(step.dir[k])]
-                                          [(codes[step.pred[k]] << 4) | codes[step.target]];
-            combined |= chain[(viaMask << 4) | hop];
+            const int via = reach[step.pred[k]];
+            combined |= hopTable[(static_cast<int>(step.dir[k]) << 12) | (via << 8) |
+                                 (codes[step.pred[k]] << 4) | codes[step.target]];
         }
         reach[step.target] = combined;
     }
@@ -479,19 +523,23 @@ std::array<uint8_t, 25> EdgePointImage::computeReachability(int x, int y) const 
 }
 
 void EdgePointImage::computeReachabilityMap() {
+    // Pixels whose 5×5 neighbourhood holds any edge: vertical then horizontal OR.
     forRows(mHeight, [&](int y) {
-        // Columns with any non-empty pixel in rows y−2..y+2, padded by 2 on each side.
-        std::vector<uint8_t> column(static_cast<size_t>(mWidth) + 4, 0);
+        uint8_t* out = &mNearEdge[paddedIndex(0, y)];
+        for (int x = 0; x < mWidth; ++x) out[x] = 0;
         for (int dy = -2; dy <= 2; ++dy) {
             const int py = y + dy;
             if (py < 0 || py >= mHeight) continue;
             const uint16_t* row = &mEdgeCode[index(0, py)];
-            for (int x = 0; x < mWidth; ++x) column[x + 2] |= row[x] != kEdgeCodeEmpty;
+            for (int x = 0; x < mWidth; ++x) out[x] |= row[x] != kEdgeCodeEmpty;
         }
+    });
+    forRows(mHeight, [&](int y) {
+        const uint8_t* column = &mNearEdge[paddedIndex(0, y)];
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const bool nearEdge =
-                column[x] | column[x + 1] | column[x + 2] | column[x + 3] | column[x + 4];
+                column[x - 2] | column[x - 1] | column[x] | column[x + 1] | column[x + 2];
             mSecondaryReach[i] = 0;
             if (!nearEdge) {
                 mReach[i] = kAllNeighbours | kAllEmptyFlag;
@@ -537,15 +585,22 @@ void EdgePointImage::interpolatePlain() {
         const glm::vec4* row = &mPaddedAll[static_cast<size_t>(py) * (mWidth + 4) + 2];
         glm::vec4* out = &mRowSums[static_cast<size_t>(py) * mWidth];
         for (int x = 0; x < mWidth; ++x) {
-            out[x] = row[x] + g1 * (row[x - 1] + row[x + 1]) + g2 * (row[x - 2] + row[x + 2]);
+            const Quad sum = addQuad(
+                loadQuad(row[x]),
+                addQuad(scaleQuad(addQuad(loadQuad(row[x - 1]), loadQuad(row[x + 1])), g1),
+                        scaleQuad(addQuad(loadQuad(row[x - 2]), loadQuad(row[x + 2])), g2)));
+            storeQuad(out[x], sum);
         }
     });
     forRows(mHeight, [&](int y) {
         const glm::vec4* r = &mRowSums[static_cast<size_t>(y + 2) * mWidth];
-        const size_t stride = mWidth;
+        const ptrdiff_t stride = mWidth;
         for (int x = 0; x < mWidth; ++x) {
-            const glm::vec4 sum = r[x] + g1 * (r[x - stride] + r[x + stride]) +
-                                  g2 * (r[x - 2 * stride] + r[x + 2 * stride]);
+            const glm::vec4 sum = toVec4(addQuad(
+                loadQuad(r[x]),
+                addQuad(scaleQuad(addQuad(loadQuad(r[x - stride]), loadQuad(r[x + stride])), g1),
+                        scaleQuad(addQuad(loadQuad(r[x - 2 * stride]), loadQuad(r[x + 2 * stride])),
+                                  g2))));
             const size_t i = index(x, y);
             mPlainWeight[i] = sum.w;
             mPlain[i] = sum.w > 0.0f ? glm::vec3(sum) / sum.w : glm::vec3(0.0f);
@@ -553,7 +608,7 @@ void EdgePointImage::interpolatePlain() {
     });
 }
 
-void EdgePointImage::interpolatePrimary() {
+void EdgePointImage::interpolatePrimary(Image& out) {
     // Padded-index offsets and filter weights of the 24 mask bits.
     std::array<ptrdiff_t, 24> offset;
     std::array<float, 24> weight;
@@ -567,33 +622,42 @@ void EdgePointImage::interpolatePrimary() {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const uint32_t reach = mReach[i];
+            glm::vec3 colour;
+            float total;
             if ((reach & kAllEmptyFlag) || mEdgeCode[i] == kEdgeCodeComplex) {
                 // No edge within 5×5 (the plain result is exact), or a complex pixel, whose
                 // first estimate ignores reachability (§5.4).
-                mPrimary[i] = mPlain[i];
-                mWeight[i] = mPlainWeight[i];
-                continue;
+                colour = mPlain[i];
+                total = mPlainWeight[i];
+            } else {
+                // Renormalized filter over the reachable samples (§5.3).
+                const glm::vec4* centre = &mPaddedUsable[paddedIndex(x, y)];
+                Quad acc = loadQuad(centre[0]);
+                for (uint32_t bits = reach; bits; bits &= bits - 1) {
+                    const int k = std::countr_zero(bits);
+                    acc = addQuad(acc, scaleQuad(loadQuad(centre[offset[k]]), weight[k]));
+                }
+                const glm::vec4 sum = toVec4(acc);
+                total = sum.w;
+                colour = total > 0.0f ? glm::vec3(sum) / total : glm::vec3(0.0f);
             }
-            // Renormalized filter over the reachable samples (§5.3).
-            const glm::vec4* centre = &mPaddedUsable[paddedIndex(x, y)];
-            glm::vec4 sum = centre[0];
-            for (uint32_t bits = reach; bits; bits &= bits - 1) {
-                const int k = std::countr_zero(bits);
-                sum += weight[k] * centre[offset[k]];
-            }
-            mWeight[i] = sum.w;
-            mPrimary[i] = sum.w > 0.0f ? glm::vec3(sum) / sum.w : glm::vec3(0.0f);
+            mWeight[i] = total;
+            mPrimary[i] = colour;
+            out.at(x, y) = Rgb(colour);
         }
     });
-    // Pixels near edges whose primary region reaches no sample take the filtered primary
-    // colours of the reachable pixels that have one (one more ring of reach, still
-    // edge-respecting); failing that, the plain estimate. Only zero-weight pixels are
-    // written and only positive-weight pixels read, so rows can run in parallel.
+    // Pixels near edges with samples in their 5×5 neighbourhood, none of them reachable,
+    // take the filtered primary colours of the reachable pixels that have one (one more ring
+    // of reach, still edge-respecting); failing that, the plain estimate. (Pixels with no
+    // sample within 5×5 at all stay black, as in the render cache's interpolation.) Only
+    // zero-weight pixels are written and only positive-weight pixels read, so rows can run in
+    // parallel.
     forRows(mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const uint32_t reach = mReach[i];
-            if (mWeight[i] > 0.0f || (reach & kAllEmptyFlag) || mEdgeCode[i] == kEdgeCodeComplex) {
+            if (mWeight[i] > 0.0f || mPlainWeight[i] == 0.0f || (reach & kAllEmptyFlag) ||
+                mEdgeCode[i] == kEdgeCodeComplex) {
                 continue;
             }
             glm::vec3 sum(0.0f);
@@ -609,6 +673,7 @@ void EdgePointImage::interpolatePrimary() {
                 total += weight[k];
             }
             mPrimary[i] = total > 0.0f ? sum / total : mPlain[i];
+            out.at(x, y) = Rgb(mPrimary[i]);
         }
     });
 }
@@ -803,7 +868,6 @@ Image EdgePointImage::reconstruct(bool useEdges) {
 
     if (!useEdges) {
         auto start = std::chrono::steady_clock::now();
-        fillPaddedSamples();
         interpolatePlain();
         mWeight = mPlainWeight;
         std::fill(mReach.begin(), mReach.end(), kAllNeighbours | kAllEmptyFlag);
@@ -819,12 +883,8 @@ Image EdgePointImage::reconstruct(bool useEdges) {
     mTimes.reachabilityMs = millisecondsSince(start);
 
     start = std::chrono::steady_clock::now();
-    fillPaddedSamples();
     interpolatePlain();
-    interpolatePrimary();
-    forRows(mHeight, [&](int y) {
-        for (int x = 0; x < mWidth; ++x) out.at(x, y) = Rgb(mPrimary[index(x, y)]);
-    });
+    interpolatePrimary(out);
     mTimes.interpolateMs = millisecondsSince(start);
 
     if (mOptions.antiAlias) {

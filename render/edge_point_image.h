@@ -153,7 +153,7 @@ private:
     void computeReachabilityMap();
     void fillPaddedSamples();
     void interpolatePlain();
-    void interpolatePrimary();
+    void interpolatePrimary(Image& out);
     void antiAlias(Image& out) const;
     void filterComplexPixels(Image& out) const;
     size_t paddedIndex(int x, int y) const {
@@ -196,6 +196,7 @@ private:
     std::vector<glm::vec3> mPlain;         ///< plain (edge-ignoring) interpolation
     std::vector<float> mPlainWeight;
     std::vector<glm::vec3> mPrimary;  ///< primary-region colours
+    std::vector<uint8_t> mNearEdge;   ///< padded scratch: edges within 5 rows
     std::vector<float> mWeight;       ///< interpolation weight before renormalization
 };
 
