@@ -4,7 +4,7 @@
 // reprojected to every new camera, depth-filtered against occlusion errors, and a priority
 // image from which each frame's few new sample requests are drawn.
 //
-// Index: ScreenPoint · CachePoint · options · RenderCache (insert, reproject, requests,
+// Index: CachePoint · options · RenderCache (insert, reproject, requests,
 //        invalidation, plain interpolation)
 //
 // Per frame, in order: insert() the points the shader finished, reproject() to the frame's
@@ -18,21 +18,17 @@
 #include <vector>
 
 #include "render/camera_rays.h"
+#include "render/edge_point_image.h"
 #include "render/image.h"
 #include "render/point_shader.h"
 #include "solver/scene.h"
 
 namespace penumbra {
 
-/// A cached point as seen in the current frame: sub-pixel position (CameraRays pixel
-/// coordinates), view depth (distance along the camera's forward axis, metres), radiance, and
-/// age (frames it has been reprojected since it was shaded; 0 in its first frame).
-struct ScreenPoint {
-    glm::dvec2 position{0.0};
-    double depth = 0;
-    Rgb colour{0.0};
-    int age = 0;
-};
+// ScreenPoint (a cached point as seen in the current frame: sub-pixel position in CameraRays
+// pixel coordinates, view depth along the camera's forward axis in metres, radiance, and age in
+// frames reprojected since shaded, 0 in its first frame) is the EPI's input type, defined in
+// render/edge_point_image.h.
 
 /// One cached shaded point (Walter et al. 1999 §3).
 struct CachePoint {
