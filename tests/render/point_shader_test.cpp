@@ -245,6 +245,38 @@ TEST(PointShader, DirectPlusIndirectAtCentroidsReproducesSolverIrradiance) {
         worstExact, mean, p90, relative.back());
 }
 
+TEST(PointShader, IncrementalDirectRefreshEqualsFullRecomputation) {
+    // Move the slab of the lit room (remove its version, add a moved one), refresh only what
+    // the change can reach, and compare with a from-scratch shader over the edited scene.
+    Scene scene = test::makeLitRoom("white");
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    PointShader shader(disc, tracer, SolverOptions{}, syncOptions());
+    const int slab = scene.findObject("slab");
+    SceneObject moved = scene.objects[slab];
+    moved.transform.translate += Vec3(-0.5, 0.3, 0.2);
+    const auto original = shader.elementDirect();
+    {
+        PointShader::Pause pause(shader);
+        disc.setAlive(slab, false);
+        tracer.updateAlive(slab);
+        const int added = disc.addObject(scene, moved);
+        tracer.addObject(added);
+        shader.refreshDirect({slab, added});
+    }
+    const auto incremental = shader.elementDirect();
+    const PointShader fresh(disc, tracer, SolverOptions{}, syncOptions());
+    const auto full = fresh.elementDirect();
+    ASSERT_EQ(incremental.size(), full.size());
+    int changed = 0;
+    for (std::size_t e = 0; e < full.size(); ++e) {
+        EXPECT_EQ(incremental[e], full[e]) << disc.elements()[e].toString();
+        if (e < original.size() && disc.elementAlive(static_cast<int>(e)))
+            changed += glm::length(full[e] - original[e]) > 1e-6 * glm::length(original[e]);
+    }
+    EXPECT_GT(changed, 10) << "the slab's shadow moved across the floor";
+}
+
 // ---------------------------------------------------------------------------------------------
 // Determinism
 
