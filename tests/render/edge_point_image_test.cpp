@@ -297,6 +297,42 @@ TEST(EdgePointImage, ReachablePrimariesAreConnectedOnAFineGrid) {
     }
 }
 
+// The per-frame reachability map (with its all-empty fast path) equals the full 5×5
+// propagation for every pixel.
+TEST(EdgePointImage, ReachabilityMapMatchesFullPropagation) {
+    const int W = 40, H = 30;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<ScreenEdge> edges;
+    for (int k = 0; k < 12; ++k) {
+        edges.push_back(makeEdge({u(rng) * W, u(rng) * H}, {u(rng) * W, u(rng) * H}));
+    }
+    std::vector<ScreenPoint> points;
+    for (int k = 0; k < W * H / 2; ++k)
+        points.push_back(makePoint({u(rng) * W, u(rng) * H}, Rgb(1)));
+    EdgePointImage epi(W, H);
+    epi.build(edges, points);
+    epi.reconstruct(true);
+    for (int y = 0; y < H; ++y) {
+        for (int x = 0; x < W; ++x) {
+            const auto full = epi.computeReachability(x, y);
+            uint32_t expected = 0;
+            for (int k = 0, bit = 0; k < 25; ++k) {
+                if (k == 12) continue;
+                const int px = x + k % 5 - 2, py = y + k / 5 - 2;
+                const bool inside = px >= 0 && py >= 0 && px < W && py < H;
+                // Outside pixels hold no samples; the fast path may mark them reachable.
+                if ((full[k] & kReachPP) ||
+                    (!inside && (epi.primaryReachability(x, y) >> bit & 1))) {
+                    expected |= 1u << bit;
+                }
+                ++bit;
+            }
+            ASSERT_EQ(epi.primaryReachability(x, y), expected) << x << "," << y;
+        }
+    }
+}
+
 // ---- Two-colour scenes (§5.3) --------------------------------------------------------------
 
 const Rgb kColourA(1.0, 0.2, 0.0);
