@@ -368,10 +368,10 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
         if (d.y != 0.0) {
             const double ymin = std::min(e.a.y, e.b.y);
             const double ymax = std::max(e.a.y, e.b.y);
-            const double kFirst = std::max(0.0, std::floor(2.0 * ymin) + 1.0);
-            const double kLast = std::min(2.0 * H, std::floor(2.0 * ymax));
-            for (int k = static_cast<int>(kFirst); k <= static_cast<int>(kLast) && kFirst <= kLast;
-                 ++k) {
+            // Clamped in floating point first: huge coordinates must not overflow int.
+            const double kFirst = std::clamp(std::floor(2.0 * ymin) + 1.0, 0.0, 2.0 * H + 1.0);
+            const double kLast = std::clamp(std::floor(2.0 * ymax), -1.0, 2.0 * H);
+            for (int k = static_cast<int>(kFirst); k <= static_cast<int>(kLast); ++k) {
                 const double c = 0.5 * k;
                 const double t = (c - e.a.y) / d.y;
                 const double x = e.a.x + t * d.x;
@@ -392,10 +392,10 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
             const double xmin = std::min(e.a.x, e.b.x);
             const double xmax = std::max(e.a.x, e.b.x);
             const bool descendsRight = d.x * d.y > 0.0;
-            const double kFirst = std::max(0.0, std::floor(2.0 * xmin) + 1.0);
-            const double kLast = std::min(2.0 * W, std::floor(2.0 * xmax));
-            for (int k = static_cast<int>(kFirst); k <= static_cast<int>(kLast) && kFirst <= kLast;
-                 ++k) {
+            // Clamped in floating point first: huge coordinates must not overflow int.
+            const double kFirst = std::clamp(std::floor(2.0 * xmin) + 1.0, 0.0, 2.0 * W + 1.0);
+            const double kLast = std::clamp(std::floor(2.0 * xmax), -1.0, 2.0 * W);
+            for (int k = static_cast<int>(kFirst); k <= static_cast<int>(kLast); ++k) {
                 const double c = 0.5 * k;
                 const double t = (c - e.a.x) / d.x;
                 const double y = e.a.y + t * d.y;

@@ -627,7 +627,8 @@ TEST(EdgePointImage, DegenerateAndOutsideEdgesChangeNothing) {
     epi.build({makeEdge({4.5, 4.5}, {4.5, 4.5}), makeEdge({3.0, 3.0}, {3.0, 3.0}),
                makeEdge({-5.0, -1.0}, {-1.0, -5.0}), makeEdge({11.0, 0.0}, {30.0, 20.0}),
                makeEdge({-3.0, 10.5}, {13.0, 10.5}), makeEdge({nan, 1.0}, {5.0, 5.0}),
-               makeEdge({1e300, -1e300}, {1e300, 1e300})},
+               makeEdge({1e300, -1e300}, {1e300, 1e300}), makeEdge({0.5, -1e300}, {3.0, -1e299}),
+               makeEdge({-1e300, 2.0}, {-1e299, 3.0}), makeEdge({1e300, 2.0}, {1e301, 3.0})},
               {makePoint({5.5, 5.5}, Rgb(0.5))});
     EXPECT_EQ(epi.countPixels(PixelClass::Empty), 100u) << epi.toString();
     Image image = epi.reconstruct(true);
