@@ -155,13 +155,13 @@ public:
 
 private:
     struct Node {
-        double nLo[3], nHi[3];  ///< interval vector of face normals below
-        double c[3];            ///< centre
-        double dLo, dHi;        ///< interval of d_f − N_f·c below
-        int begin = 0;          ///< first record of this node
-        int stored = 0;         ///< records [begin, begin + stored) stored here
-        int end = 0;            ///< one past the last record of the subtree
-        int child = -1;         ///< children child, child + 1; -1 for a leaf
+        double nLo[3]{}, nHi[3]{};  ///< interval vector of face normals below
+        double c[3]{};              ///< centre
+        double dLo = 0, dHi = 0;    ///< interval of d_f − N_f·c below
+        int begin = 0;              ///< first record of this node
+        int stored = 0;             ///< records [begin, begin + stored) stored here
+        int end = 0;                ///< one past the last record of the subtree
+        int child = -1;             ///< children child, child + 1; -1 for a leaf
     };
     /// An interior edge's two face planes, in tree order.
     struct Record {

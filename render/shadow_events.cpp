@@ -429,7 +429,9 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
                     if (t > 0 && t < 1) cuts[nc++] = t;
                 }
             }
-            std::sort(cuts, cuts + nc);
+            for (int a = 1; a < nc; ++a)  // insertion sort of at most 6 values
+                for (int b = a; b > 0 && cuts[b - 1] > cuts[b]; --b)
+                    std::swap(cuts[b - 1], cuts[b]);
             for (int j = 0; j + 1 < nc; ++j) {
                 double ta = cuts[j], tb = cuts[j + 1];
                 if (tb - ta < 1e-12) continue;

@@ -87,10 +87,10 @@ public:
 private:
     struct Node {
         Box3 box;
-        double nLo[3], nHi[3];
-        Vec3 c;
-        double dLo, dHi;
-        int begin, end;
+        double nLo[3]{}, nHi[3]{};
+        Vec3 c{0.0};
+        double dLo = 0, dHi = 0;
+        int begin = 0, end = 0;
         int child = -1;
     };
     void build(int slot, int begin, int end);
