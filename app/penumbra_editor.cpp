@@ -1,1 +1,49 @@
-int main() { return 0; }
+// penumbra-editor [SCENE] [--log LOG] [--play LOG] [--screenshot PNG --frames N]
+// The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
+// 2 bad input or no display, with one line on stderr.
+
+#include <CLI/CLI.hpp>
+#include <exception>
+#include <iostream>
+
+#include "edit/input_error.h"
+#include "ui/editor_app.h"
+
+int main(int argc, char** argv) {
+    penumbra::EditorOptions options;
+    CLI::App app{"Penumbra editor: interactive radiosity lighting"};
+    app.add_option("scene", options.scene, "scene file (*.json)");
+    app.add_option("--log", options.log, "append every edit to this edit log (JSONL)");
+    app.add_option("--play", options.play, "replay this edit log live");
+    app.add_option("--screenshot", options.screenshot,
+                   "after --frames frames and once the lighting settles, save the window as "
+                   "PNG and exit");
+    app.add_option("--frames", options.frames, "frames before the screenshot (or before exit)")
+        ->check(CLI::NonNegativeNumber);
+    app.add_option("--width", options.width, "window width")->check(CLI::PositiveNumber);
+    app.add_option("--height", options.height, "window height")->check(CLI::PositiveNumber);
+    app.add_option("--play-every", options.playEvery, "frames per replayed log line")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--bench-drag", options.benchDrag,
+                   "drag this object in a circle for --frames frames and print frame times");
+    app.add_flag("--quiet", options.quiet, "no status lines on stderr");
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e) == 0 ? 0 : 2;
+    }
+    if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
+    try {
+        penumbra::EditorApp editor(options);
+        return editor.run();
+    } catch (const penumbra::DisplayError& e) {
+        std::cerr << "penumbra-editor: " << e.what() << "\n";
+        return 2;
+    } catch (const penumbra::InputError& e) {
+        std::cerr << "penumbra-editor: " << e.what() << "\n";
+        return 2;
+    } catch (const std::exception& e) {
+        std::cerr << "penumbra-editor: " << e.what() << "\n";
+        return 2;
+    }
+}

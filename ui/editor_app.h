@@ -1,0 +1,163 @@
+#pragma once
+// The editor window: GLFW + Dear ImGui 1.86 (OpenGL3 backend over the glad loader), a viewport
+// showing the lit scene as a texture, the gizmo, panels (solver, object and material,
+// cameras, scene), menus (open, save, export, undo/redo), a status bar; `--play` replays an
+// edit log live and `--screenshot` saves the window after `--frames` frames.
+//
+// The window reads the document and lighting only through SessionRunner's snapshots and
+// changes them only by submitting edit commands (STYLE.md: the UI emits commands and keeps
+// no copy of the model).
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "edit/edit_log.h"
+#include "ui/drag_controller.h"
+#include "ui/gizmo.h"
+#include "ui/session_runner.h"
+#include "ui/view_camera.h"
+
+struct GLFWwindow;
+
+namespace penumbra {
+
+struct EditorOptions {
+    std::string scene;       ///< scene file to open, "" for none
+    std::string log;         ///< edit log to append to
+    std::string play;        ///< edit log to replay live
+    std::string screenshot;  ///< PNG written after `frames` frames, then exit
+    int frames = 0;
+    int width = 1280, height = 720;
+    int playEvery = 3;      ///< frames per replayed log line
+    double maxFps = 60;     ///< frame loop cap (Xvfb has no vertical sync)
+    std::string benchDrag;  ///< object id: drag it in a circle for `frames` frames, print timings
+    bool quiet = false;
+};
+
+/// No window could be opened (no DISPLAY, no GL 3.3 core context).
+struct DisplayError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+/// Pointer state in viewport pixels, for scripted input (tests, benchmarks): consumed one per
+/// frame instead of the real mouse, through the same handling.
+struct PointerInput {
+    double x = 0, y = 0;
+    bool left = false, right = false, middle = false;
+    double wheel = 0;
+    bool shift = false;
+};
+
+/// Frame-time figures.
+struct FrameStats {
+    int frames = 0;
+    double lastMs = 0;             ///< work time of the last frame (without the cap's sleep)
+    std::vector<double> workMs;    ///< per frame
+    std::vector<double> periodMs;  ///< per frame, frame start to frame start
+    int imagesShown = 0;           ///< viewport images uploaded
+};
+
+class EditorApp {
+public:
+    /// Opens the window and the scene (InputError for a bad scene or log; DisplayError when no
+    /// window can be opened).
+    explicit EditorApp(EditorOptions options);
+    ~EditorApp();
+    EditorApp(const EditorApp&) = delete;
+    EditorApp& operator=(const EditorApp&) = delete;
+
+    /// Runs frames until the window closes, the screenshot is written or the benchmark ends.
+    /// Returns the exit status (0; 1 when the screenshot could not be written).
+    int run();
+    /// One frame. False when the editor should stop.
+    bool frame();
+
+    // For tests and benchmarks.
+    SessionRunner* runner() { return mRunner.get(); }
+    void queuePointer(const PointerInput& input) { mScripted.push_back(input); }
+    std::size_t pendingPointer() const { return mScripted.size(); }
+    const ViewCamera& viewCamera() const { return mView; }
+    int viewportWidth() const { return mViewportW; }
+    int viewportHeight() const { return mViewportH; }
+    const std::string& selection() const { return mSelection; }
+    /// The gizmo as drawn for the selection now (none without a selection).
+    std::optional<Gizmo> gizmo() const;
+    double gizmoSize(const Vec3& pivot) const;
+    bool playing() const { return mPlayNext < mPlay.size(); }
+    const FrameStats& frameStats() const { return mStats; }
+    /// Writes the window's back buffer as PNG (call after the frame was drawn).
+    void writeScreenshot(const std::string& path);
+
+private:
+    void openScene(const std::string& path);
+    void drawMenu();
+    void drawPanels();
+    void drawSolverPanel(const SolverSnapshot& s);
+    void drawObjectPanel(const DocumentSummary& doc);
+    void drawScenePanel(const DocumentSummary& doc);
+    void drawViewport();
+    void drawStatusBar();
+    void drawPopups();
+    void handleViewportInput(const PointerInput& in, bool hovered);
+    void handleKeys();
+    void uploadImage();
+    void submit(const EditCommand& c);
+    void frameSelection();
+    void stepBenchmark();
+
+    EditorOptions mOptions;
+    GLFWwindow* mWindow = nullptr;
+    std::unique_ptr<SessionRunner> mRunner;
+    std::string mScenePath;
+
+    // View and interaction.
+    ViewCamera mView;
+    int mViewportX = 0, mViewportY = 0, mViewportW = 0, mViewportH = 0;
+    std::string mSelection;
+    GizmoMode mGizmoMode = GizmoMode::Translate;
+    GizmoSnap mSnap;
+    std::optional<Gizmo> mDragGizmo;  ///< while dragging a handle
+    DragController mDrag;
+    PointerInput mLastPointer;
+    bool mPointerDownOnViewport = false;
+    double mPressX = 0, mPressY = 0;
+    double mLastInteraction = -1e9;  ///< time of the last camera move or drag
+    std::deque<PointerInput> mScripted;
+
+    // Viewport texture.
+    unsigned int mTexture = 0;
+    int mTextureW = 0, mTextureH = 0;
+    std::shared_ptr<const ViewportImage> mShown;
+
+    // Play.
+    std::vector<LoggedEdit> mPlay;
+    std::size_t mPlayNext = 0;
+    bool mPlayPaused = false;
+
+    // Panels.
+    std::string mMaterialFor;
+    std::uint64_t mMaterialSerial = 0;
+    float mReflectance[3] = {0.5f, 0.5f, 0.5f};
+    float mEmissionColour[3] = {1, 1, 1};
+    float mEmissionStrength = 0;
+    float mConvergeEps = 1e-3f;
+    char mPathBuffer[1024] = {};
+    int mPopup = 0;  ///< 0 none, 1 open, 2 save as, 3 export, 4 play log
+    std::string mStatus;
+    bool mQuit = false;
+
+    // Frames.
+    FrameStats mStats;
+    double mFrameStart = 0;
+    int mFrame = 0;
+    bool mCaptureNow = false;
+    double mCaptureWaitStart = -1;
+    int mBenchFrame = -1;
+};
+
+}  // namespace penumbra
