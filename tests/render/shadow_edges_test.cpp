@@ -288,7 +288,7 @@ TEST(ShadowEdges, RobotRoomUpdateAfterAMove) {
         "[ measure  ] robot-room: discretization %.0f ms, edge finder %.0f ms, all shadow "
         "edges %.0f ms (%zu edges, %s)\n",
         ms(t0, t1), ms(t1, t2), ms(t2, t3), all.size(), finder.stats().toString().c_str());
-    for (const char* id : {"robot-body", "bull", "robot-head"}) {
+    for (const char* id : {"robot-body", "bull"}) {
         int o = scene.findObject(id);
         ASSERT_GE(o, 0);
         Transform t = scene.objects[o].transform;
