@@ -140,6 +140,13 @@ void EditorApp::openScene(const std::string& path) {
     mStatus = "opened " + path;
 }
 
+void EditorApp::saveScene(const std::string& path) {
+    if (!mRunner) return;
+    // Written atomically by the solver thread (edit/scene_io.h), in order with the edits.
+    mRunner->post([path](EditSession& s) { s.saveScene(path); });
+    mStatus = "saving " + path;
+}
+
 void EditorApp::submit(const EditCommand& c) {
     if (mRunner) mRunner->submit(c);
 }
@@ -326,11 +333,7 @@ void EditorApp::handleViewportInput(const PointerInput& in, bool hovered) {
         mPointerDownOnViewport = false;
         // A click (not a drag) picks through Embree.
         if (std::abs(in.x - mPressX) + std::abs(in.y - mPressY) < 4) {
-            Pick pick;
-            mRunner->withSession([&](EditSession& s) {
-                pick = pickObject(s.discretization(), s.tracer(), camera, mViewportW, mViewportH,
-                                  in.x, in.y);
-            });
+            const Pick pick = mRunner->pick(camera, mViewportW, mViewportH, in.x, in.y);
             mSelection = pick.id;
             mStatus = pick.hit() ? "selected " + pick.id : "nothing selected";
         }
@@ -368,16 +371,7 @@ void EditorApp::handleKeys() {
             submit(shift ? EditCommand(RedoCommand{}) : EditCommand(UndoCommand{}));
     }
     if (ctrl && ImGui::IsKeyPressed(GLFW_KEY_Y, false) && !mDrag.active()) submit(RedoCommand{});
-    if (ctrl && ImGui::IsKeyPressed(GLFW_KEY_S, false)) {
-        mRunner->withSession([&](EditSession& s) {
-            try {
-                s.saveScene(mScenePath);
-                mStatus = "saved " + mScenePath;
-            } catch (const std::exception& e) {
-                mStatus = e.what();
-            }
-        });
-    }
+    if (ctrl && ImGui::IsKeyPressed(GLFW_KEY_S, false)) saveScene(mScenePath);
     if (ctrl) return;
     // Fly with WASD (and Q/E down/up) while the right button is held.
     if (ImGui::IsMouseDown(ImGuiMouseButton_Right)) {
@@ -430,15 +424,7 @@ void EditorApp::drawMenu() {
     if (!ImGui::BeginMainMenuBar()) return;
     if (ImGui::BeginMenu("File")) {
         if (ImGui::MenuItem("Open scene...")) mPopup = 1;
-        if (ImGui::MenuItem("Save", "Ctrl+S", false, mRunner != nullptr))
-            mRunner->withSession([&](EditSession& s) {
-                try {
-                    s.saveScene(mScenePath);
-                    mStatus = "saved " + mScenePath;
-                } catch (const std::exception& e) {
-                    mStatus = e.what();
-                }
-            });
+        if (ImGui::MenuItem("Save", "Ctrl+S", false, mRunner != nullptr)) saveScene(mScenePath);
         if (ImGui::MenuItem("Save as...", nullptr, false, mRunner != nullptr)) mPopup = 2;
         if (ImGui::MenuItem("Export...", nullptr, false, mRunner != nullptr)) mPopup = 3;
         if (ImGui::MenuItem("Play edit log...", nullptr, false, mRunner != nullptr)) mPopup = 4;
@@ -577,18 +563,23 @@ void EditorApp::drawObjectPanel(const DocumentSummary& doc) {
     if (ImGui::Button("Duplicate") && !mDrag.active()) {
         // The same object beside it (the document object is not at hand here: only meshes'
         // summaries are, so duplicate through the scene).
-        mRunner->withSession([&](EditSession& s) {
-            const int i = s.scene().findObject(o->id);
+        // The copy is made from the document on the solver thread; its id is chosen here.
+        std::string id;
+        for (int k = 2;; ++k) {
+            id = o->id + "-" + std::to_string(k);
+            if (!doc.find(id)) break;
+        }
+        const std::string from = o->id;
+        const double dx = 0.6 * (o->boundsMax.x - o->boundsMin.x) + 0.1;
+        mRunner->post([from, id, dx](EditSession& s) {
+            const int i = s.scene().findObject(from);
             if (i < 0) return;
             SceneObject copy = s.scene().objects[i];
-            for (int k = 2;; ++k) {
-                copy.id = o->id + "-" + std::to_string(k);
-                if (s.scene().findObject(copy.id) < 0) break;
-            }
-            copy.transform.translate.x += 0.25 * (o->boundsMax.x - o->boundsMin.x + 0.2);
-            mRunner->submit(AddCommand{copy});
-            mSelection = copy.id;
+            copy.id = id;
+            copy.transform.translate.x += dx;
+            s.apply(AddCommand{copy});
         });
+        mSelection = id;
         return;
     }
     ImGui::SameLine();
@@ -672,18 +663,17 @@ void EditorApp::drawPopups() {
                 if (p == 1) {
                     openScene(path);
                 } else if (p == 2) {
-                    mRunner->withSession([&](EditSession& s) { s.saveScene(path); });
+                    saveScene(path);
                     mScenePath = path;
-                    mStatus = "saved " + path;
                 } else if (p == 3) {
                     const std::string ext = std::filesystem::path(path).extension().string();
                     if (ext == ".png" || ext == ".PNG") {
                         if (!mShown) throw std::runtime_error("no image yet");
                         writePng(mShown->render.radiance, path);
                     } else {
-                        mRunner->withSession([&](EditSession& s) { s.exportLitScene(path); });
+                        mRunner->post([path](EditSession& s) { s.exportLitScene(path); });
                     }
-                    mStatus = "exported " + path;
+                    mStatus = "exporting " + path;
                 } else {
                     const std::string base =
                         std::filesystem::path(mScenePath).parent_path().string();
@@ -868,6 +858,8 @@ void EditorApp::stepBenchmark() {
     const auto doc = mRunner->document();
     const ObjectSummary* o = doc ? doc->find(mOptions.benchDrag) : nullptr;
     if (mBenchFrame == 0) {
+        // Start once the scene is lit (at most 120 s), as a user would.
+        if (o && !mRunner->quiescent() && glfwGetTime() < 120) return;
         if (!o) {
             std::cerr << "penumbra-editor: --bench-drag: unknown object '" << mOptions.benchDrag
                       << "'\n";

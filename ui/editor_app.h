@@ -107,6 +107,7 @@ private:
     void handleKeys();
     void uploadImage();
     void submit(const EditCommand& c);
+    void saveScene(const std::string& path);
     void frameSelection();
     void stepBenchmark();
 

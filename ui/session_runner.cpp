@@ -1,14 +1,14 @@
-// Index: DocumentSummary · construction and thread · queue and requests · the worker
-//        iteration (edits, solver budget, image) · snapshots
+// Index: DocumentSummary · construction and threads · queue and requests · the solver
+//        iteration (edits, tasks, shots) · the render iteration · snapshots
 
 #include "ui/session_runner.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
-
-#include "edit/input_error.h"
 
 namespace penumbra {
 
@@ -17,6 +17,10 @@ namespace {
 double nowSeconds() {
     using namespace std::chrono;
     return duration<double>(steady_clock::now().time_since_epoch()).count();
+}
+
+bool sameCamera(const Camera& a, const Camera& b) {
+    return a.position == b.position && a.lookAt == b.lookAt && a.up == b.up && a.fovDeg == b.fovDeg;
 }
 
 }  // namespace
@@ -31,17 +35,18 @@ const ObjectSummary* DocumentSummary::find(const std::string& id) const {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Construction and thread.
+// Construction and threads.
 
 SessionRunner::SessionRunner(std::unique_ptr<EditSession> session, SessionRunnerOptions options)
     : mSession(std::move(session)), mOptions(options), mEps(options.convergeEps) {
     if (!mSession) throw std::invalid_argument("SessionRunner: no session");
-    {
-        std::lock_guard<std::mutex> lock(mSessionMutex);
-        publishDocument();
-        publishSolver(0);
+    publishDocument();
+    publishLight();
+    publishSolver(0);
+    if (mOptions.threaded) {
+        mSolverThread = std::thread([this] { runSolver(); });
+        mRenderThread = std::thread([this] { runRender(); });
     }
-    if (mOptions.threaded) mThread = std::thread([this] { run(); });
 }
 
 SessionRunner::~SessionRunner() {
@@ -50,27 +55,39 @@ SessionRunner::~SessionRunner() {
         mStop = true;
     }
     mWake.notify_all();
-    if (mThread.joinable()) mThread.join();
+    mRenderWake.notify_all();
+    if (mSolverThread.joinable()) mSolverThread.join();
+    if (mRenderThread.joinable()) mRenderThread.join();
 }
 
-void SessionRunner::run() {
+void SessionRunner::runSolver() {
     for (;;) {
-        bool worked;
-        {
-            std::lock_guard<std::mutex> lock(mSessionMutex);
-            worked = iterate();
-        }
+        const bool worked = solverIteration();
         std::unique_lock<std::mutex> lock(mQueueMutex);
         if (mStop) return;
-        // Sleep when there is nothing to do, until woken by an edit or a view change.
-        if (!worked) mWake.wait_for(lock, std::chrono::milliseconds(30));
+        // Sleep when there is nothing to do, until an edit or a setting wakes us.
+        if (!worked) mWake.wait_for(lock, std::chrono::milliseconds(50));
+    }
+}
+
+void SessionRunner::runRender() {
+    for (;;) {
+        const bool rendered = renderIteration();
+        std::unique_lock<std::mutex> lock(mQueueMutex);
+        if (mStop) return;
+        if (!rendered) mRenderWake.wait_for(lock, std::chrono::milliseconds(10));
     }
 }
 
 void SessionRunner::pump() {
     if (mOptions.threaded) throw std::logic_error("SessionRunner::pump: runner is threaded");
-    std::lock_guard<std::mutex> lock(mSessionMutex);
-    iterate();
+    solverIteration();
+    renderIteration();
+}
+
+void SessionRunner::report(const std::string& message) {
+    std::lock_guard<std::mutex> lock(mPublishMutex);
+    mMessages.push_back(message);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -79,7 +96,7 @@ void SessionRunner::pump() {
 void SessionRunner::submit(const EditCommand& command, const EditSource& source) {
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
-        mQueue.emplace_back(command, source);
+        mQueue.push_back({command, source, {}});
     }
     mWake.notify_all();
 }
@@ -88,14 +105,22 @@ void SessionRunner::submitCoalescing(const EditCommand& command) {
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         const auto* t = std::get_if<TransformCommand>(&command.op);
-        if (t && !mQueue.empty()) {
-            const auto* last = std::get_if<TransformCommand>(&mQueue.back().first.op);
-            if (last && last->id == t->id) {
-                mQueue.back().first = command;
-                return;
-            }
-        }
-        mQueue.emplace_back(command, EditSource{});
+        const auto* last = mQueue.empty() || mQueue.back().task
+                               ? nullptr
+                               : std::get_if<TransformCommand>(&mQueue.back().command.op);
+        if (t && last && last->id == t->id)
+            mQueue.back().command = command;
+        else
+            mQueue.push_back({command, EditSource{}, {}});
+    }
+    mWake.notify_all();
+}
+
+void SessionRunner::post(std::function<void(EditSession&)> task) {
+    {
+        std::lock_guard<std::mutex> lock(mQueueMutex);
+        // Tasks run in order with the edits.
+        mQueue.push_back({EditCommand{}, EditSource{}, std::move(task)});
     }
     mWake.notify_all();
 }
@@ -103,17 +128,14 @@ void SessionRunner::submitCoalescing(const EditCommand& command) {
 void SessionRunner::setView(const ViewRequest& request) {
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
-        const bool same =
-            request.width == mView.width && request.height == mView.height &&
+        if (request.width == mView.width && request.height == mView.height &&
             request.highlight == mView.highlight && request.interactive == mView.interactive &&
-            request.camera.position == mView.camera.position &&
-            request.camera.lookAt == mView.camera.lookAt && request.camera.up == mView.camera.up &&
-            request.camera.fovDeg == mView.camera.fovDeg;
-        if (same) return;
+            sameCamera(request.camera, mView.camera))
+            return;
         mView = request;
         mView.serial = ++mViewSerial;
     }
-    mWake.notify_all();
+    mRenderWake.notify_all();
 }
 
 void SessionRunner::setPaused(bool paused) {
@@ -122,6 +144,11 @@ void SessionRunner::setPaused(bool paused) {
         mPaused = paused;
     }
     mWake.notify_all();
+}
+
+bool SessionRunner::paused() const {
+    std::lock_guard<std::mutex> lock(mQueueMutex);
+    return mPaused;
 }
 
 void SessionRunner::setAutoSolve(bool on) {
@@ -140,11 +167,10 @@ void SessionRunner::setConvergeEps(double eps) {
     mWake.notify_all();
 }
 
-void SessionRunner::withSession(const std::function<void(EditSession&)>& f) {
-    std::lock_guard<std::mutex> lock(mSessionMutex);
-    f(*mSession);
-    // Saving and exporting do not change the document; anything else would be published on
-    // the next iteration.
+Pick SessionRunner::pick(const Camera& camera, int width, int height, double px, double py) {
+    std::shared_lock<std::shared_mutex> lock(mStructure);
+    return pickObject(mSession->discretization(), mSession->tracer(), camera, width, height, px,
+                      py);
 }
 
 std::size_t SessionRunner::queued() const {
@@ -153,97 +179,144 @@ std::size_t SessionRunner::queued() const {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The worker iteration.
+// The solver iteration.
 
-bool SessionRunner::iterate() {
-    // Take the queued edits and the view request.
-    std::deque<std::pair<EditCommand, EditSource>> commands;
-    ViewRequest view;
+bool SessionRunner::solverIteration() {
+    std::deque<Queued> commands;
     bool solve;
     double eps;
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         commands.swap(mQueue);
         mApplying = !commands.empty();
-        view = mView;
         solve = mAutoSolve && !mPaused;
         eps = mEps;
     }
-    bool changed = false, documentChanged = false;
 
-    // Apply edits in order; an invalid one is reported and skipped.
-    for (auto& [command, source] : commands) {
-        try {
-            const EditResult r = mSession->apply(command, source);
-            documentChanged |= !command.isSolverWork() || r.geometry || r.material;
-            changed = true;
-        } catch (const std::exception& e) {
-            std::lock_guard<std::mutex> lock(mPublishMutex);
-            mMessages.emplace_back(e.what());
-        }
-    }
-
-    // Solver work for the budget: one shot at a time (the sequence of shots does not depend
-    // on timing, only on the edits between them).
-    const double t0 = nowSeconds();
-    std::uint64_t shots = 0;
-    mSolverIdle = true;
-    if (solve) {
-        const bool dragging = !mSession->selected().empty();
-        if (dragging || !mSession->solver().converged(eps)) {
-            mSolverIdle = false;
-            while (nowSeconds() - t0 < mOptions.solveBudgetMs * 1e-3) {
-                const std::uint64_t n = mSession->solve(1);
-                shots += n;
-                if (n == 0 || (!dragging && mSession->solver().converged(eps))) {
-                    mSolverIdle = true;
-                    break;
-                }
+    // Edits (and tasks, in their place) change the structure: exclusively.
+    if (!commands.empty()) {
+        const double a0 = nowSeconds();
+        std::unique_lock<std::shared_mutex> lock(mStructure);
+        const double a1 = nowSeconds();
+        for (Queued& q : commands) {
+            try {
+                if (q.task)
+                    q.task(*mSession);
+                else
+                    mSession->apply(q.command, q.source);
+            } catch (const std::exception& e) {
+                report(e.what());
             }
         }
+        publishDocument();
+        publishLight();
+        if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+            std::fprintf(stderr, "apply: waited %.1f ms, applied %zu in %.1f ms\n", (a1 - a0) * 1e3,
+                         commands.size(), (nowSeconds() - a1) * 1e3);
+    }
+
+    // Shots, one at a time, for the budget. The sequence of shots depends only on the edits
+    // between them, not on timing.
+    const double t0 = nowSeconds();
+    double lastPublish = t0;
+    std::uint64_t shots = 0;
+    mSolverIdle = true;
+    const bool dragging = !mSession->selected().empty();
+    if (solve && (dragging || !mSession->solver().converged(eps))) {
+        mSolverIdle = false;
+        while (nowSeconds() - t0 < mOptions.solveBudgetMs * 1e-3) {
+            const std::uint64_t n = mSession->solve(1);
+            shots += n;
+            const bool done = n == 0 || (!dragging && mSession->solver().converged(eps));
+            if (done) mSolverIdle = true;
+            // Show progress of long shots as it comes.
+            if (done || nowSeconds() - lastPublish > 0.03) {
+                if (n > 0) publishLight();
+                lastPublish = nowSeconds();
+            }
+            if (done) break;
+        }
+        if (shots > 0 && lastPublish < nowSeconds() - 1e-9) publishLight();
     }
     const double solverMs = (nowSeconds() - t0) * 1e3;
-    if (shots > 0) changed = true;
-    if (changed) ++mStateSerial;
-    if (documentChanged) publishDocument();
-
-    // Render when the state or the view changed, or to refine a reduced image.
-    std::shared_ptr<const ViewportImage> last = image();
-    const bool wantReduced = view.interactive;
-    const bool needImage = view.width > 0 && view.height > 0 &&
-                           (!last || last->stateSerial != mStateSerial ||
-                            last->viewSerial != view.serial || (last->reduced && !wantReduced));
-    if (needImage) {
-        const int d = wantReduced ? std::max(1, mOptions.reducedDivisor) : 1;
-        const int w = std::max(1, view.width / d), h = std::max(1, view.height / d);
-        auto img = std::make_shared<ViewportImage>();
-        const double r0 = nowSeconds();
-        try {
-            const int preview =
-                mSession->selected().empty() ? -1 : mSession->solver().previewObject();
-            const int highlight =
-                view.highlight.empty() ? -1 : mSession->objectVersion(view.highlight);
-            img->render = renderViewport(mSession->discretization(), mSession->tracer(),
-                                         mSession->displayRadiosity(), view.camera, w, h, preview,
-                                         highlight >= 0 ? highlight : preview);
-        } catch (const std::exception& e) {
-            std::lock_guard<std::mutex> lock(mPublishMutex);
-            mMessages.emplace_back(std::string("viewport: ") + e.what());
-        }
-        img->renderMs = (nowSeconds() - r0) * 1e3;
-        img->camera = view.camera;
-        img->viewSerial = view.serial;
-        img->stateSerial = mStateSerial;
-        img->reduced = d > 1;
-        std::lock_guard<std::mutex> lock(mPublishMutex);
-        mImage = std::move(img);
-    }
+    if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+        std::fprintf(stderr, "solver: %zu edits, %llu shots in %.1f ms\n", commands.size(),
+                     static_cast<unsigned long long>(shots), solverMs);
     publishSolver(solverMs);
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         mApplying = false;
     }
-    return changed || needImage || !mSolverIdle;
+    if (!commands.empty() || shots > 0) mRenderWake.notify_all();
+    return !commands.empty() || !mSolverIdle;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The render iteration.
+
+bool SessionRunner::renderIteration() {
+    ViewRequest view;
+    {
+        std::lock_guard<std::mutex> lock(mQueueMutex);
+        view = mView;
+    }
+    if (view.width <= 0 || view.height <= 0) return false;
+    std::shared_lock<std::shared_mutex> structure(mStructure);
+    Light light;
+    std::shared_ptr<const ViewportImage> last;
+    std::shared_ptr<const DocumentSummary> doc;
+    std::string dragged;
+    {
+        std::lock_guard<std::mutex> lock(mPublishMutex);
+        light = mLight;
+        last = mImage;
+        doc = mDocument;
+        dragged = mSolver.selected;
+    }
+    const bool need = !last || last->stateSerial != light.serial ||
+                      last->viewSerial != view.serial || (last->reduced && !view.interactive);
+    if (!need || !light.radiosity) return false;
+
+    // Interactive images: a resolution that renders in about interactiveImageMs.
+    int d = 1;
+    if (view.interactive) {
+        d = 2;
+        if (mMsPerPixel > 0) {
+            const double pixels = mOptions.interactiveImageMs / mMsPerPixel;
+            d = static_cast<int>(std::ceil(std::sqrt(double(view.width) * view.height / pixels)));
+        }
+        d = std::clamp(d, 1, std::max(1, mOptions.maxReducedDivisor));
+    }
+    const int w = std::max(1, view.width / d), h = std::max(1, view.height / d);
+    int highlight = -1;
+    if (const ObjectSummary* o = doc ? doc->find(view.highlight) : nullptr) highlight = o->version;
+    // The dragged object is seen as its preview version.
+    if (light.previewVersion >= 0 && !dragged.empty() && dragged == view.highlight)
+        highlight = light.previewVersion;
+
+    auto img = std::make_shared<ViewportImage>();
+    const double r0 = nowSeconds();
+    try {
+        img->render =
+            renderViewport(mSession->discretization(), mSession->tracer(), *light.radiosity,
+                           view.camera, w, h, light.previewVersion, highlight);
+    } catch (const std::exception& e) {
+        report(std::string("viewport: ") + e.what());
+        return false;
+    }
+    img->renderMs = (nowSeconds() - r0) * 1e3;
+    if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+        std::fprintf(stderr, "render %dx%d %.1f ms light %llu\n", w, h, img->renderMs,
+                     static_cast<unsigned long long>(light.serial));
+    const double perPixel = img->renderMs / (double(w) * h);
+    mMsPerPixel = mMsPerPixel > 0 ? 0.7 * mMsPerPixel + 0.3 * perPixel : perPixel;
+    img->camera = view.camera;
+    img->viewSerial = view.serial;
+    img->stateSerial = light.serial;
+    img->reduced = d > 1;
+    std::lock_guard<std::mutex> lock(mPublishMutex);
+    mImage = std::move(img);
+    return true;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -280,6 +353,18 @@ void SessionRunner::publishDocument() {
     mDocument = std::move(doc);
 }
 
+void SessionRunner::publishLight() {
+    Light light;
+    light.radiosity = std::make_shared<const std::vector<Rgb>>(mSession->displayRadiosity());
+    light.previewVersion = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
+    light.serial = ++mLightSerial;
+    {
+        std::lock_guard<std::mutex> lock(mPublishMutex);
+        mLight = std::move(light);
+    }
+    mRenderWake.notify_all();
+}
+
 void SessionRunner::publishSolver(double solverMs) {
     const ProgressiveSolver& solver = mSession->solver();
     const SolverStats& stats = solver.stats();
@@ -310,10 +395,12 @@ void SessionRunner::publishSolver(double solverMs) {
         s.elements += disc.elementAlive(static_cast<int>(e)) ? 1 : 0;
     for (std::size_t p = 0; p < disc.patches().size(); ++p)
         s.patches += disc.patchAlive(static_cast<int>(p)) ? 1 : 0;
+    double eps;
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
-        s.converged = solver.converged(mEps);
+        eps = mEps;
     }
+    s.converged = solver.converged(eps);
     s.idle = mSolverIdle;
     s.history = mHistory;
     s.undoDepth = mSession->undoDepth();
@@ -355,8 +442,9 @@ bool SessionRunner::quiescent() const {
         view = mView;
     }
     std::lock_guard<std::mutex> lock(mPublishMutex);
-    return mSolver.idle && mImage && mImage->viewSerial == view.serial && !mImage->reduced &&
-           mImage->stateSerial == mStateSerial && mSolver.selected.empty();
+    return mSolver.idle && mSolver.selected.empty() && mImage &&
+           mImage->viewSerial == view.serial && !mImage->reduced &&
+           mImage->stateSerial == mLight.serial;
 }
 
 }  // namespace penumbra

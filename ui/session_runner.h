@@ -1,13 +1,20 @@
 #pragma once
 // Runs an EditSession for the editor without blocking the frame loop.
 //
-// EditSession is not thread-safe (plain members, no locks), so one worker thread owns it and
-// everything touching it is serialized by one mutex: the worker applies queued edit commands,
-// shoots for a time budget, renders the viewport image, and publishes snapshots (the lit
-// image, solver figures, a light document summary) that the frame loop reads without waiting.
-// The frame loop only takes the session lock for rare, short work (picking on click, save,
-// export) through withSession(). With `threaded` false nothing runs in the background and
-// pump() does one worker iteration (tests, deterministic stepping).
+// EditSession is not thread-safe (plain members, no locks) and one solver shot cannot be
+// interrupted (ProgressiveSolver::step(1): ~1 ms in cube-room, 0.1–0.2 s per deterministic
+// shot in robot-room, seconds for a stochastic tail batch). So:
+// - the solver thread owns the session: it applies queued edits and tasks, then shoots one
+//   shot at a time for a time budget, publishing a copy of the display radiosity as it goes;
+// - the render thread draws the viewport image from the latest published radiosity while
+//   shots run: shots only read the discretization and the tracer (Embree queries are
+//   thread-safe) and write the solver's own arrays, which the render thread never reads;
+// - structural changes (edits: new object versions, tracer updates) take mStructure
+//   exclusively; rendering and picking take it shared. The frame loop therefore waits for
+//   nothing but, when picking, for an edit being applied.
+// With `threaded` false nothing runs in the background and pump() does one iteration of
+// each (tests, deterministic stepping). Adaptive element subdivision (which rebuilds the
+// tracer inside a shot) must be off: interactiveSolverOptions() has it off.
 //
 // Index: snapshots · options · SessionRunner
 
@@ -18,11 +25,13 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <shared_mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "edit/edit_session.h"
+#include "ui/picking.h"
 #include "ui/viewport_renderer.h"
 
 namespace penumbra {
@@ -94,7 +103,8 @@ struct SessionRunnerOptions {
     bool threaded = true;
     double solveBudgetMs = 12;  ///< solver time per worker iteration
     double convergeEps = 1e-3;  ///< auto-solve stops at unshotFraction ≤ eps, nothing pending
-    int reducedDivisor = 2;     ///< interactive images: width / d × height / d
+    double interactiveImageMs = 40;  ///< interactive images: resolution for about this time
+    int maxReducedDivisor = 8;       ///< at most width / d × height / d pixels fewer
 };
 
 class SessionRunner {
@@ -104,22 +114,29 @@ public:
     SessionRunner(const SessionRunner&) = delete;
     SessionRunner& operator=(const SessionRunner&) = delete;
 
-    /// Queues an edit; the worker applies it in order. An invalid edit is reported through
-    /// takeMessages() and changes nothing (EditSession::apply validates first).
+    /// Queues an edit; the solver thread applies it in order. An invalid edit is reported
+    /// through takeMessages() and changes nothing (EditSession::apply validates first).
     void submit(const EditCommand& command, const EditSource& source = {});
     /// Like submit, but replaces a queued, not yet applied transform of the same object
     /// (a drag sends positions faster than the lighting can follow; only the newest counts).
     void submitCoalescing(const EditCommand& command);
+    /// Queues work on the session (save, export, duplicate), run by the solver thread
+    /// between shots, in order with the edits. Exceptions are reported through takeMessages().
+    void post(std::function<void(EditSession&)> task);
     void setView(const ViewRequest& request);
     /// Pauses the automatic solver work (queued edits, including solve/converge, still run).
     void setPaused(bool paused);
-    bool paused() const { return mPaused; }
+    bool paused() const;
     /// Automatic solver work on/off (off while a log is played, so the replay shoots exactly
     /// what its solve/converge lines say).
     void setAutoSolve(bool on);
     void setConvergeEps(double eps);
 
-    /// One worker iteration in the calling thread (only when not threaded).
+    /// The object under a pixel (picking.h), against the current structure; waits only for
+    /// an edit being applied, never for a shot.
+    Pick pick(const Camera& camera, int width, int height, double px, double py);
+
+    /// One solver iteration and one render in the calling thread (only when not threaded).
     void pump();
 
     std::shared_ptr<const ViewportImage> image() const;
@@ -129,51 +146,67 @@ public:
     std::vector<std::string> takeMessages();
     /// Commands queued and not yet applied.
     std::size_t queued() const;
-    /// Nothing queued, no solver work pending, and the image shows the current state and
-    /// the latest view at full resolution.
+    /// Nothing queued, no solver work pending, no drag, and the image shows the current
+    /// lighting and the latest view at full resolution.
     bool quiescent() const;
 
-    /// Runs `f` with the session locked (waits for the worker's current step).
-    void withSession(const std::function<void(EditSession&)>& f);
-
 private:
-    void run();
-    /// One iteration; returns whether anything was done. Caller holds mSessionMutex.
-    bool iterate();
+    struct Light {
+        std::shared_ptr<const std::vector<Rgb>> radiosity;  ///< displayRadiosity()
+        int previewVersion = -1;
+        std::uint64_t serial = 0;
+    };
+    void runSolver();
+    void runRender();
+    /// Edits, tasks and a budget of shots; returns whether anything was done.
+    bool solverIteration();
+    /// Renders if the light or the view changed; returns whether it rendered.
+    bool renderIteration();
     void publishDocument();
+    void publishLight();
     void publishSolver(double solverMs);
+    void report(const std::string& message);
 
     std::unique_ptr<EditSession> mSession;
     SessionRunnerOptions mOptions;
+    std::shared_mutex mStructure;  ///< exclusive: edits; shared: rendering, picking
 
-    std::mutex mSessionMutex;  ///< guards mSession
-
-    mutable std::mutex mQueueMutex;  ///< guards the queue, view request, flags
-    std::condition_variable mWake;
-    std::deque<std::pair<EditCommand, EditSource>> mQueue;
+    mutable std::mutex mQueueMutex;       ///< guards the queue, view request and flags
+    std::condition_variable mWake;        ///< solver thread
+    std::condition_variable mRenderWake;  ///< render thread
+    /// An edit, or a task when `task` is set.
+    struct Queued {
+        EditCommand command;
+        EditSource source;
+        std::function<void(EditSession&)> task;
+    };
+    std::deque<Queued> mQueue;
     ViewRequest mView;
     std::uint64_t mViewSerial = 0;
     bool mPaused = false;
     bool mAutoSolve = true;
     double mEps = 1e-3;
     bool mStop = false;
-    bool mApplying = false;  ///< the worker took commands it has not finished
+    bool mApplying = false;
 
     mutable std::mutex mPublishMutex;  ///< guards the published snapshots
     std::shared_ptr<const ViewportImage> mImage;
     std::shared_ptr<const DocumentSummary> mDocument;
     SolverSnapshot mSolver;
+    Light mLight;
     std::vector<std::string> mMessages;
 
-    // Worker-only state.
-    std::atomic<std::uint64_t> mStateSerial{1};  ///< read by quiescent()
+    // Solver-thread state.
     std::uint64_t mDocumentSerial = 0;
+    std::uint64_t mLightSerial = 0;
     std::uint64_t mLastShots = 0;
     double mLastRateTime = 0, mLastHistoryTime = 0, mShotsPerSecond = 0;
     std::vector<float> mHistory;
     bool mSolverIdle = false;
+    // Render-thread state.
+    double mMsPerPixel = 0;  ///< running estimate of the render cost
 
-    std::thread mThread;
+    std::thread mSolverThread, mRenderThread;
 };
 
 }  // namespace penumbra
