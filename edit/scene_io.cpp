@@ -310,7 +310,7 @@ Shape readShape(const JsonReader& in, const Json& json, const std::string& where
 SceneObject readObject(const JsonReader& in, const Json& json, const Scene& scene,
                        const std::string& where, const std::string& baseDir, MeshCache* cache) {
     in.expectObject(json, where);
-    in.checkKeys(json, where, {"id", "shape", "material", "transform"});
+    in.checkKeys(json, where, {"id", "shape", "material", "transform", "patch_size"});
     SceneObject object;
     const std::string idAt = joinKey(where, "id");
     object.id = in.readString(in.require(json, "id", where), idAt);
@@ -338,6 +338,14 @@ SceneObject readObject(const JsonReader& in, const Json& json, const Scene& scen
     }
     if (const Json* transform = JsonReader::find(json, "transform")) {
         object.transform = readTransform(in, *transform, joinKey(where, "transform"), Transform{});
+    }
+    if (const Json* patchSize = JsonReader::find(json, "patch_size")) {
+        const std::string at = joinKey(where, "patch_size");
+        object.patchSize = in.readPositive(*patchSize, at);
+        if (object.patchSize < scene.settings.elementSize)
+            in.fail(at, "patch_size " + formatNumber(object.patchSize) +
+                            " must not be below the scene's element_size " +
+                            formatNumber(scene.settings.elementSize));
     }
     return object;
 }
@@ -683,6 +691,7 @@ Json objectToJson(const SceneObject& object) {
     if (!object.material.empty()) json["material"] = object.material;
     Json transform = transformToJson(object.transform);
     if (!transform.empty()) json["transform"] = std::move(transform);
+    if (object.patchSize > 0) json["patch_size"] = object.patchSize;
     return json;
 }
 

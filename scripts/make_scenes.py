@@ -155,9 +155,12 @@ def room(prefix, w, d, h, materials, centre=(0.0, 0.0), open_front=False):
     return out
 
 
-def lamp(oid, sx, sz, material, x, z, ceiling_h, gap=0.01):
-    """A downward-facing quad lamp just below the ceiling."""
-    return quad(oid, sx, sz, material, (x, ceiling_h - gap, z), [180, 0, 0])
+def lamp(oid, sx, sz, material, x, z, ceiling_h, gap=0.01, patch_size=None):
+    """A downward-facing quad lamp just below the ceiling; `patch_size` makes it one shooter."""
+    obj = quad(oid, sx, sz, material, (x, ceiling_h - gap, z), [180, 0, 0])
+    if patch_size:
+        obj["patch_size"] = patch_size
+    return obj
 
 
 def camera(position, look_at, fov=45.0, up=(0, 1, 0)):
@@ -382,9 +385,11 @@ def robot_room_objects(with_robot):
     objs = room("", W, D, H, {"floor": "floor", "ceiling": "ceiling", "back": "wall",
                               "front": "wall", "left": "wall-accent", "right": "wall"})
     objs += [
-        lamp("lamp-1", 0.8, 0.6, "lamp", -1.2, -0.6, H),
-        lamp("lamp-2", 0.8, 0.6, "lamp", 1.2, -0.6, H),
-        lamp("lamp-3", 0.8, 0.6, "lamp", 0, 1.3, H),
+        # Each lamp is one shooter (its elements stay 0.1 m): a light's redistribution after
+        # an edit is then one deterministic shot, as in George et al.
+        lamp("lamp-1", 0.8, 0.6, "lamp", -1.2, -0.6, H, patch_size=1.0),
+        lamp("lamp-2", 0.8, 0.6, "lamp", 1.2, -0.6, H, patch_size=1.0),
+        lamp("lamp-3", 0.8, 0.6, "lamp", 0, 1.3, H, patch_size=1.0),
     ]
     objs += [
         mesh("cow", "cow", "hide", 1.6, -1.55, -1.5, rotate_y=20, along="length"),

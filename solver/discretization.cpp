@@ -193,7 +193,7 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
     surface.worldFromObject = obj.transform.worldFromObject();
     const Mat4& M = surface.worldFromObject;
     const glm::dmat3 linear(M);
-    const double patchSize = scene.settings.patchSize;
+    const double patchSize = obj.patchSize > 0 ? obj.patchSize : scene.settings.patchSize;
     const double elementSize = scene.settings.elementSize;
 
     // Materials: the object's, or the mesh's own per triangle.

@@ -109,9 +109,20 @@ int visibilityRayCount(double fUnoccluded, int maxRays) {
     return std::clamp(n, 1, maxRays);
 }
 
-PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
-                               const Vec3& n, int patch, std::uint64_t receiverKey,
-                               std::uint64_t seed, int maxRays, const Visibility& visibility) {
+namespace {
+
+/// The pair-seeded sampling shared by every point-to-patch estimate: exact unoccluded form
+/// factors of the patch's polygons clipped to the receiver's hemisphere, then `rays` samples
+/// stratified over them by form factor, each weighted by the point-to-point kernel relative
+/// to its sampling density. `visit(origin, target)` returns the sample's visibility term
+/// (1 visible, 0 blocked; a difference of two such terms for formFactorChange); the result
+/// is unoccluded × Σ w·visit / Σ w (a ratio estimator, exact when nothing blocks and when
+/// everything does).
+template <class Visit>
+PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& tracer,
+                                  const Vec3& x, const Vec3& n, int patch,
+                                  std::uint64_t receiverKey, std::uint64_t seed, int maxRays,
+                                  Visit&& visit) {
     PointToPatch out;
     const Patch& P = disc.patches()[patch];
 
@@ -138,9 +149,6 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
     out.unoccluded = total;
     if (!(total > 0)) return out;
 
-    // Visibility: rays to points stratified over the patch in proportion to form factor; each
-    // sample weighted by the point-to-point kernel, normalized (a ratio estimator that is exact
-    // when nothing blocks and when everything does).
     const int rays = visibilityRayCount(total, maxRays);
     PairRandom rng{hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch))};
     const double eps = tracer.epsilon();
@@ -164,11 +172,42 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
         wAll += w;
         // Leave the source surface along its normal (toward x, which is in front of it), so
         // rays grazing the source plane do not hit the source itself in float precision.
-        if (!tracer.occluded(origin, y + ny * eps, visibility)) wVisible += w;
-        ++out.rays;
+        int v = visit(origin, y + ny * eps, out.rays);
+        if (v == 1)
+            wVisible += w;
+        else if (v == -1)
+            wVisible -= w;
     }
     out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;
     return out;
+}
+
+}  // namespace
+
+PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
+                               const Vec3& n, int patch, std::uint64_t receiverKey,
+                               std::uint64_t seed, int maxRays, const Visibility& visibility) {
+    return estimatePointToPatch(disc, tracer, x, n, patch, receiverKey, seed, maxRays,
+                                [&](const Vec3& from, const Vec3& to, int& rays) {
+                                    ++rays;
+                                    return tracer.occluded(from, to, visibility) ? 0 : 1;
+                                });
+}
+
+PointToPatch formFactorChange(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
+                              const Vec3& n, int patch, std::uint64_t receiverKey,
+                              std::uint64_t seed, int maxRays, const Visibility& before,
+                              const Visibility& after, const Visibility& changed) {
+    return estimatePointToPatch(disc, tracer, x, n, patch, receiverKey, seed, maxRays,
+                                [&](const Vec3& from, const Vec3& to, int& rays) {
+                                    // A sample that misses every changed object has the same
+                                    // visibility in both worlds: its terms cancel exactly.
+                                    ++rays;
+                                    if (!tracer.occluded(from, to, changed)) return 0;
+                                    rays += 2;
+                                    return (tracer.occluded(from, to, after) ? 0 : 1) -
+                                           (tracer.occluded(from, to, before) ? 0 : 1);
+                                });
 }
 
 }  // namespace penumbra

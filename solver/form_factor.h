@@ -41,4 +41,15 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
                                const Vec3& n, int patch, std::uint64_t receiverKey,
                                std::uint64_t seed, int maxRays, const Visibility& visibility = {});
 
+/// F(after) − F(before) for the same pair and the same pair-seeded samples as
+/// formFactorToPatch, where the two worlds differ only by the objects that `changed` admits
+/// (a Visibility::subset of the added and removed objects). Each sample is first traced
+/// against the changed objects alone; only samples that meet one are traced in `before` and
+/// `after`, so unchanged visibility cancels exactly and costs one cheap ray. `visible` holds
+/// the difference, `rays` every ray traced.
+PointToPatch formFactorChange(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
+                              const Vec3& n, int patch, std::uint64_t receiverKey,
+                              std::uint64_t seed, int maxRays, const Visibility& before,
+                              const Visibility& after, const Visibility& changed);
+
 }  // namespace penumbra

@@ -82,7 +82,8 @@ SolverOptions interactiveSolverOptions() {
     SolverOptions o;
     o.stochasticBelow = 1e-3;
     o.raysPerEmittedPower = 1e7;
-    o.redistributionThreshold = 1e-3;
+    o.redistributionRaysPerEmittedPower = 2.5e6;
+    o.redistributionThreshold = 1e-4;
     return o;
 }
 
@@ -96,6 +97,10 @@ struct ChangeEntry {
     double totalPending = 0;
     Vec3 centre{0};  ///< of the changed objects' bounds, for shadow culling
     double radius = 0;
+    /// Bounding sphere (centre, radius) of each changed object: the shaft test.
+    std::vector<std::pair<Vec3, double>> spheres;
+    /// The changed objects alone in a small ray-tracing scene (RayTracer::createSubset).
+    RayTracer::SubsetHandle changed;
 };
 
 struct ProgressiveSolver::Impl {
@@ -286,6 +291,21 @@ Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
     return dB * ff.visible;
 }
 
+Rgb ProgressiveSolver::irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,
+                                        const Visibility& after, const Visibility& changed) const {
+    const Patch& P = mDisc.patches()[shooter];
+    const Element& el = mDisc.elements()[e];
+    if (el.patch == shooter) return Rgb(0.0);
+    // The same culls as irradianceFrom: pairs that cannot see each other.
+    Vec3 toReceiver = el.centroid - P.centroid;
+    if (glm::dot(toReceiver, P.normal) < -P.radius) return Rgb(0.0);
+    if (glm::dot(-toReceiver, el.normal) < -P.radius) return Rgb(0.0);
+    PointToPatch ff = formFactorChange(mDisc, mTracer, el.centroid, el.normal, shooter,
+                                       static_cast<std::uint64_t>(e), mOptions.seed,
+                                       mOptions.maxRaysPerPair, before, after, changed);
+    return dB * ff.visible;
+}
+
 void ProgressiveSolver::shootStochasticBatch() {
     // Stochastic shooting of the weak tail (every remaining shooter is below
     // stochasticBelow × emitted power): all unshot power leaves at once on N rays, chosen
@@ -431,12 +451,21 @@ struct Bounds {
     bool empty() const { return lo.x > hi.x; }
 };
 
-/// Distance from point c to segment [a, b].
-double segmentDistance(const Vec3& c, const Vec3& a, const Vec3& b) {
-    Vec3 ab = b - a;
-    double len2 = glm::dot(ab, ab);
-    double t = len2 > 0 ? std::clamp(glm::dot(c - a, ab) / len2, 0.0, 1.0) : 0.0;
-    return glm::length(c - (a + t * ab));
+/// Whether the sphere (c, r) can meet a segment from x to a point within distance pr of p.
+/// Those segments fill the union of the balls B(x + t(p − x), t·pr), t ∈ [0, 1]; the
+/// sphere meets it iff g(t) = |x + t(p − x) − c| − t·pr < r for some t. g is convex, so its
+/// minimum over [0, 1] is the clamped stationary point, in closed form.
+bool sphereMeetsCone(const Vec3& x, const Vec3& p, double pr, const Vec3& c, double r) {
+    const Vec3 d = p - x;
+    const double l2 = glm::dot(d, d);
+    if (l2 <= pr * pr) return true;  // x is within the patch's bounds
+    const Vec3 w = x - c;
+    const double k = glm::dot(w, d);
+    const double t0 = -k / l2;                                     // closest point on the line
+    const double q2 = std::max(0.0, glm::dot(w, w) - k * k / l2);  // squared line distance
+    const double s = pr * std::sqrt(q2) / (std::sqrt(l2) * std::sqrt(l2 - pr * pr));
+    const double t = std::clamp(t0 + s, 0.0, 1.0);
+    return std::sqrt(l2 * (t - t0) * (t - t0) + q2) - pr * t < r;
 }
 
 }  // namespace
@@ -464,6 +493,19 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
         }
     for (const Patch& P : patches)
         if (changed[P.object]) changedArea += P.area;
+    std::vector<int> changedObjects;
+    for (std::size_t o = 0; o < nObjects; ++o) {
+        if (!changed[o]) continue;
+        changedObjects.push_back(static_cast<int>(o));
+        Bounds b;
+        for (const Vec3& w : mDisc.objects()[o].worldPositions) b.add(w);
+        if (b.empty()) continue;
+        const Vec3 c = 0.5 * (b.lo + b.hi);
+        double r = 0;
+        for (const Vec3& w : mDisc.objects()[o].worldPositions) r = std::max(r, glm::length(w - c));
+        entry.spheres.push_back({c, r});
+    }
+    entry.changed = RayTracer::SubsetHandle(mTracer, changedObjects);
     if (!bounds.empty()) {
         entry.centre = 0.5 * (bounds.lo + bounds.hi);
         entry.radius = 0.5 * glm::length(bounds.hi - bounds.lo);
@@ -597,6 +639,13 @@ double ProgressiveSolver::pendingRedistribution() const {
 
 std::size_t ProgressiveSolver::pendingChanges() const { return mImpl->changes.size(); }
 
+bool ProgressiveSolver::afterIsCurrentScene(const ChangeEntry& c, bool preview) const {
+    if (preview) return false;
+    for (std::size_t o = 0; o < mDisc.objects().size(); ++o)
+        if ((o < c.after.size() && c.after[o]) != mDisc.objects()[o].alive) return false;
+    return true;
+}
+
 void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool preview,
                                             std::vector<Rgb>& delta) const {
     const Rgb shot = c.shot[j];
@@ -614,6 +663,11 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
     // receiver widened by the patch radius, tested against the changed objects' bounding
     // sphere. Unchanged visibility cancels exactly: F(t) and F(t−1) trace the same
     // pair-seeded rays.
+    // The world after the edit is usually the current scene: trace it without a filter.
+    if (afterIsCurrentScene(c, preview)) after.world = nullptr;
+    const Visibility changed = c.changed.visibility();
+    const double margin = 4 * mTracer.epsilon();
+
     const auto& elements = mDisc.elements();
     const std::size_t n = elements.size();
     delta.assign(n, Rgb(0.0));
@@ -634,9 +688,17 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
             } else if (receiverAdded) {
                 delta[e] = irradianceFrom(j, ie, shot, after);
             } else {
-                double reach = segmentDistance(c.centre, P.centroid, el.centroid);
-                if (reach > c.radius + P.radius) continue;
-                delta[e] = irradianceFrom(j, ie, shot, after) - irradianceFrom(j, ie, shot, before);
+                // Haines–Wallace style shaft: can any changed object meet a segment from
+                // the receiver to the shooter patch?
+                bool inShaft = false;
+                for (const auto& [centre, radius] : c.spheres)
+                    if (sphereMeetsCone(el.centroid, P.centroid, P.radius + margin, centre,
+                                        radius + margin)) {
+                        inShaft = true;
+                        break;
+                    }
+                if (!inShaft) continue;
+                delta[e] = irradianceChange(j, ie, shot, before, after, changed);
             }
         }
     });
@@ -686,7 +748,10 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     double total = 0;
     // The most important shooters first, as many as fit in one batch of rays; the rest stay
     // pending for the next batch, so the first corrections arrive quickly.
-    const double raysPerWatt = mOptions.raysPerEmittedPower / std::max(mEmittedEnergy, 1e-300);
+    const double raysPerEmitted = mOptions.redistributionRaysPerEmittedPower > 0
+                                      ? mOptions.redistributionRaysPerEmittedPower
+                                      : mOptions.raysPerEmittedPower;
+    const double raysPerWatt = raysPerEmitted / std::max(mEmittedEnergy, 1e-300);
     while (c.pending.top() >= 0 && c.pending.key(c.pending.top()) > 0) {
         int j = c.pending.top();
         if (!shooters.empty() && (total + c.pending.key(j)) * raysPerWatt > mOptions.maxBatchRays)
@@ -698,14 +763,16 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     }
     if (shooters.empty()) return;
     const double share = mEmittedEnergy > 0 ? total / mEmittedEnergy : 1.0;
-    const std::size_t rays = static_cast<std::size_t>(
-        std::clamp(std::ceil(share * mOptions.raysPerEmittedPower),
-                   static_cast<double>(mOptions.minStochasticRays), 6.4e7));
+    const std::size_t rays = static_cast<std::size_t>(std::clamp(
+        std::ceil(share * raysPerEmitted), static_cast<double>(mOptions.minStochasticRays), 6.4e7));
     const std::uint64_t batchSeed =
         hashPair(hashPair(mOptions.seed, 0x7ed157ull), mStats.redistributionShots);
     Visibility before, after;
     before.world = &c.before;
     after.world = &c.after;
+    if (afterIsCurrentScene(c, false)) after.world = nullptr;
+    const Visibility changed = c.changed.visibility();
+    const bool onlyAdded = c.removed.empty();
     struct Transfer {
         int from = -1, to = -1;
         Rgb irradianceFrom{0.0}, irradianceTo{0.0};
@@ -726,32 +793,67 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             Vec3 origin;
             const Vec3 nz = mDisc.elements()[samplePatchPoint(mDisc, P, rng, origin)].normal;
             origin += nz * eps;
-            // Direction: the cone toward the changed objects (or the hemisphere when the
-            // point is inside their bounds, or the shooter itself was removed).
-            Vec3 axis = c.centre - origin;
-            double dist = glm::length(axis);
-            double weight;  // ∫ cos/π dω over the sampled directions, per unit area
+            // Direction: into the cones the changed objects' bounding spheres subtend (one
+            // picked by solid angle; the density counts every cone holding the direction), or
+            // the hemisphere when the point is inside a sphere or the shooter was removed.
+            double weight;  // cos/π over the sampling density: ∫ cos/π dω per unit area
             Vec3 dir;
-            if (removed || dist <= c.radius) {
+            struct Cone {
+                Vec3 axis;
+                double cosMax, solidAngle;
+            };
+            Cone cones[8];
+            std::size_t nCones = 0;
+            bool inside = removed || c.spheres.size() > 8;
+            double totalSolidAngle = 0;
+            for (std::size_t k = 0; !inside && k < c.spheres.size(); ++k) {
+                Vec3 axis = c.spheres[k].first - origin;
+                const double dist = glm::length(axis), r = c.spheres[k].second;
+                if (dist <= r) {
+                    inside = true;
+                    break;
+                }
+                const double cosMax = std::sqrt(std::max(0.0, 1 - (r / dist) * (r / dist)));
+                cones[nCones++] = {axis / dist, cosMax, 2 * M_PI * (1 - cosMax)};
+                totalSolidAngle += 2 * M_PI * (1 - cosMax);
+            }
+            if (inside || nCones == 0) {
                 dir = cosineDirection(nz, rng);
                 weight = 1.0;  // cosine sampling of the whole hemisphere
             } else {
-                axis /= dist;
-                double cosMax = std::sqrt(std::max(0.0, 1 - (c.radius / dist) * (c.radius / dist)));
-                double cosT = 1 - rng.next() * (1 - cosMax);
+                double pickCone = rng.next() * totalSolidAngle;
+                std::size_t k = 0;
+                while (k + 1 < nCones && pickCone > cones[k].solidAngle)
+                    pickCone -= cones[k++].solidAngle;
+                const Cone& cone = cones[k];
+                double cosT = 1 - rng.next() * (1 - cone.cosMax);
                 double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
                 double phi = 2 * M_PI * rng.next();
                 Vec3 tx, ty;
-                frameAround(axis, tx, ty);
-                dir = sinT * std::cos(phi) * tx + sinT * std::sin(phi) * ty + cosT * axis;
+                frameAround(cone.axis, tx, ty);
+                dir = sinT * std::cos(phi) * tx + sinT * std::sin(phi) * ty + cosT * cone.axis;
                 double cosSrc = glm::dot(dir, nz);
                 if (cosSrc <= 0) continue;
-                weight = 2 * M_PI * (1 - cosMax) * cosSrc / M_PI;
+                int holding = 0;
+                for (std::size_t m = 0; m < nCones; ++m)
+                    if (m == k || glm::dot(dir, cones[m].axis) >= cones[m].cosMax) ++holding;
+                weight = totalSolidAngle / holding * cosSrc / M_PI;
             }
             const Rgb carried = c.shot[j] * (P.area * weight / (static_cast<double>(rays) * pj));
+            // A ray that misses every changed object hits the same element in both worlds.
+            RayTracer::FirstHit hc;
+            if (!removed && (hc = mTracer.firstHit(origin, dir, changed)).element < 0) continue;
             RayTracer::FirstHit hb = mTracer.firstHit(origin, dir, before);
-            RayTracer::FirstHit ha =
-                removed ? RayTracer::FirstHit{} : mTracer.firstHit(origin, dir, after);
+            RayTracer::FirstHit ha;
+            if (removed) {
+                // The shooter is gone: nothing reaches anything after the edit.
+            } else if (onlyAdded) {
+                // After = before ∪ added: the nearer of the two first hits (the same
+                // instances and transforms give the same t as tracing the union).
+                ha = hb.element < 0 || hc.t < hb.t ? hc : hb;
+            } else {
+                ha = mTracer.firstHit(origin, dir, after);
+            }
             int eb = hb.element >= 0 && !hb.backFace ? hb.element : -1;
             int ea = ha.element >= 0 && !ha.backFace ? ha.element : -1;
             if (eb == ea) continue;

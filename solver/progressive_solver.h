@@ -40,6 +40,10 @@ struct SolverOptions {
     /// A stochastic redistribution batch takes the most important pending shooters up to
     /// about this many rays; the rest wait for the next batch.
     double maxBatchRays = 2.5e5;
+    /// Rays a redistribution batch casts per watt of importance, relative to the emitted
+    /// power as raysPerEmittedPower is; 0 uses raysPerEmittedPower. Redistribution rays are
+    /// aimed at the changed objects only, so fewer carry the same information.
+    double redistributionRaysPerEmittedPower = 0;
     RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
     /// Strategy one redistributes first while the most important pending redistribution
     /// carries more than this fraction of the emitted power (0: all of it first).
@@ -148,6 +152,10 @@ private:
     /// Irradiance element `e` receives when `shooter` shoots radiosity dB, with F evaluated
     /// under `visibility`.
     Rgb irradianceFrom(int shooter, int e, const Rgb& dB, const Visibility& visibility = {}) const;
+    /// dB · (F(after) − F(before)) for element e and `shooter`, tracing both worlds only for
+    /// samples that meet an object `changed` admits (formFactorChange).
+    Rgb irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,
+                         const Visibility& after, const Visibility& changed) const;
     /// Adds irradiance dH to element e (B += ρ dH) and its share to its patch's unshot.
     void receive(int e, const Rgb& dH);
     void updatePriority(int patch);
@@ -163,6 +171,9 @@ private:
     /// Irradiance each element receives when shooter j of entry c redistributes.
     void redistributionDelta(const ChangeEntry& c, int j, bool preview,
                              std::vector<Rgb>& delta) const;
+    /// Whether entry c's world after the edit is the current scene (no later edit, no
+    /// preview): its queries can skip the history filter.
+    bool afterIsCurrentScene(const ChangeEntry& c, bool preview) const;
     /// Best pending redistribution importance (W), and which edit holds it.
     double bestRedistribution(int* entry) const;
     void subdivideSteepElements();

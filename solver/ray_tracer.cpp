@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include "solver/discretization.h"
 
@@ -57,6 +58,14 @@ RTCRayHit makeRayHit(const Vec3& origin, const Vec3& dir, float tNear, float tFa
     return rh;
 }
 
+/// Embree's float 3×4 column-major instance transform from a world-from-object matrix.
+void setInstanceTransform(RTCGeometry inst, const Mat4& worldFromObject) {
+    float xf[12];
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 3; ++r) xf[3 * c + r] = static_cast<float>(worldFromObject[c][r]);
+    rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
+}
+
 }  // namespace
 
 struct RayTracer::Impl {
@@ -69,14 +78,37 @@ struct RayTracer::Impl {
         rtcInitIntersectContext(&ctx.context);
         ctx.ignoreInstance = static_cast<unsigned>(v.ignoreObject);
         ctx.world = v.world;
+        if (v.subset >= 0) return subsets[v.subset].scene;
         if (v.world || v.ignoreObject >= 0) ctx.context.filter = visibilityFilter;
         return v.world ? history : top;
+    }
+    struct Subset {
+        std::vector<int> objects;
+        RTCScene scene = nullptr;  ///< null: released
+    };
+    std::vector<Subset> subsets;
+    /// (Re)builds the instance scene of subset s from the current object scenes.
+    void buildSubset(Subset& s, const Discretization& disc) {
+        if (s.scene) rtcReleaseScene(s.scene);
+        s.scene = rtcNewScene(device);
+        for (int o : s.objects) {
+            if (o < 0) continue;
+            RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+            rtcSetGeometryInstancedScene(inst, objectScenes[o]);
+            setInstanceTransform(inst, disc.objects()[o].worldFromObject);
+            rtcCommitGeometry(inst);
+            rtcAttachGeometryByID(s.scene, inst, static_cast<unsigned>(o));
+            rtcReleaseGeometry(inst);
+        }
+        rtcCommitScene(s.scene);
     }
     /// Per object: Embree triangle -> (element face index, fan position).
     std::vector<std::vector<std::pair<int, int>>> triangleFace;
     mutable tbb::enumerable_thread_specific<unsigned long long> rays{0ull};
 
     void release() {
+        for (Subset& s : subsets)
+            if (s.scene) rtcReleaseScene(s.scene), s.scene = nullptr;
         for (RTCScene s : objectScenes) rtcReleaseScene(s);
         objectScenes.clear();
         if (top) rtcReleaseScene(top);
@@ -112,6 +144,34 @@ void RayTracer::rebuild() {
         rtcCommitScene(im.top);
         rtcCommitScene(im.history);
     }
+    for (Impl::Subset& s : im.subsets)
+        if (!s.objects.empty()) im.buildSubset(s, mDisc);
+}
+
+int RayTracer::createSubset(const std::vector<int>& objects) {
+    Impl& im = *mImpl;
+    for (int o : objects)
+        if (o < 0 || o >= static_cast<int>(im.objectScenes.size()))
+            throw std::invalid_argument("RayTracer::createSubset: no object " + std::to_string(o));
+    std::size_t slot = 0;
+    while (slot < im.subsets.size() && !im.subsets[slot].objects.empty()) ++slot;
+    if (slot == im.subsets.size()) im.subsets.emplace_back();
+    im.subsets[slot].objects = objects;
+    if (objects.empty()) im.subsets[slot].objects.push_back(-1);  // keep the slot taken
+    Impl::Subset& s = im.subsets[slot];
+    s.scene = rtcNewScene(im.device);
+    rtcCommitScene(s.scene);
+    if (!objects.empty()) im.buildSubset(s, mDisc);
+    return static_cast<int>(slot);
+}
+
+void RayTracer::releaseSubset(int subset) {
+    Impl& im = *mImpl;
+    if (subset < 0 || subset >= static_cast<int>(im.subsets.size())) return;
+    Impl::Subset& s = im.subsets[subset];
+    if (s.scene) rtcReleaseScene(s.scene);
+    s.scene = nullptr;
+    s.objects.clear();
 }
 
 void RayTracer::addObject(int o) {
@@ -120,7 +180,9 @@ void RayTracer::addObject(int o) {
     if (static_cast<int>(im.triangleFace.size()) <= o) im.triangleFace.resize(o + 1);
     if (static_cast<int>(im.objectScenes.size()) <= o) im.objectScenes.resize(o + 1, nullptr);
     RTCScene scene = rtcNewScene(im.device);
-    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+    // Robust traversal: rays through a shared edge or vertex of two triangles hit one of them
+    // (watertight), so primary rays find no cracks between elements.
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
     im.objectScenes[o] = scene;
 
     // Object-space vertices and fan triangles of every element polygon.
@@ -156,13 +218,10 @@ void RayTracer::addObject(int o) {
     rtcCommitScene(scene);
 
     // One instance per object in each top-level scene: a move is a transform update.
-    float xf[12];
-    for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 3; ++r) xf[3 * c + r] = static_cast<float>(s.worldFromObject[c][r]);
     for (RTCScene top : {im.top, im.history}) {
         RTCGeometry inst = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_INSTANCE);
         rtcSetGeometryInstancedScene(inst, scene);
-        rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
+        setInstanceTransform(inst, s.worldFromObject);
         rtcCommitGeometry(inst);
         rtcAttachGeometryByID(top, inst, static_cast<unsigned>(o));
         rtcReleaseGeometry(inst);
@@ -252,6 +311,7 @@ RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
     int face = mImpl->triangleFace[object][rh.hit.primID].first;
     hit.element = mDisc.objects()[object].faceElement[face];
     hit.backFace = glm::dot(dir, mDisc.elements()[hit.element].normal) > 0;
+    hit.t = rh.ray.tfar;
     return hit;
 }
 

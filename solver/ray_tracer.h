@@ -25,6 +25,10 @@ struct Visibility {
     Visibility(int ignore) : ignoreObject(ignore) {}  // NOLINT: an object index converts
     int ignoreObject = -1;
     const std::vector<std::uint8_t>* world = nullptr;
+    /// When ≥ 0, replaces both: exactly the objects of RayTracer::createSubset(…) `subset`
+    /// block, through a small top-level scene of their own (no filter, so a query costs the
+    /// subset, not the scene).
+    int subset = -1;
 };
 
 struct RayHit {
@@ -55,6 +59,46 @@ public:
     /// queries but stays available to `Visibility::world` queries.
     void updateAlive(int object);
 
+    /// A top-level scene holding only `objects` (any versions, alive or not), for queries
+    /// that only care whether a ray meets those objects (Visibility::subset). Hits equal the
+    /// history scene's for those objects: the same instances and transforms. Cheap for a few
+    /// objects; kept across rebuild() until released.
+    int createSubset(const std::vector<int>& objects);
+    void releaseSubset(int subset);
+    /// Owns a subset: released when destroyed. Move-only.
+    class SubsetHandle {
+    public:
+        SubsetHandle() = default;
+        SubsetHandle(RayTracer& tracer, const std::vector<int>& objects)
+            : mTracer(&tracer), mId(tracer.createSubset(objects)) {}
+        SubsetHandle(SubsetHandle&& o) noexcept : mTracer(o.mTracer), mId(o.mId) { o.mId = -1; }
+        SubsetHandle& operator=(SubsetHandle&& o) noexcept {
+            if (this != &o) {
+                reset();
+                mTracer = o.mTracer, mId = o.mId, o.mId = -1;
+            }
+            return *this;
+        }
+        SubsetHandle(const SubsetHandle&) = delete;
+        SubsetHandle& operator=(const SubsetHandle&) = delete;
+        ~SubsetHandle() { reset(); }
+        void reset() {
+            if (mTracer && mId >= 0) mTracer->releaseSubset(mId);
+            mId = -1;
+        }
+        /// A Visibility admitting exactly the subset's objects.
+        Visibility visibility() const {
+            Visibility v;
+            v.subset = mId;
+            return v;
+        }
+        int id() const { return mId; }
+
+    private:
+        RayTracer* mTracer = nullptr;
+        int mId = -1;
+    };
+
     /// True when the open segment from `from` to `to` is blocked.
     bool occluded(const Vec3& from, const Vec3& to, const Visibility& visibility = {}) const;
 
@@ -66,6 +110,7 @@ public:
     struct FirstHit {
         int element = -1;
         bool backFace = false;
+        float t = 0;  ///< ray parameter of the hit (unit direction: distance)
     };
     FirstHit firstHit(const Vec3& origin, const Vec3& dir, const Visibility& visibility = {}) const;
 

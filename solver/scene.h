@@ -67,6 +67,9 @@ struct SceneObject {
     /// Name of a scene material; empty only for meshes that carry their own materials.
     std::string material;
     Transform transform;
+    /// Shooter size for this object (metres); 0 uses the scene's patch_size. A light is
+    /// usually one shooter: its redistribution then takes one shot, not one per element.
+    double patchSize = 0;
 };
 
 struct Camera {

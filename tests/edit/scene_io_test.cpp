@@ -231,7 +231,7 @@ std::string writeEveryShapeScene(const TempDir& dir) {
     {"id": "floor", "shape": {"type": "quad", "size": [2.0, 3.0]}, "material": "white",
      "transform": {"translate": [0, 0, 0], "rotate_deg": [0, 0, 0], "scale": [1, 1, 1]}},
     {"id": "light", "shape": {"type": "quad", "size": [0.5, 0.5]}, "material": "lamp",
-     "transform": {"translate": [0, 1.98, 0], "rotate_deg": [180, 0, 0]}},
+     "transform": {"translate": [0, 1.98, 0], "rotate_deg": [180, 0, 0]}, "patch_size": 1.0},
     {"id": "crate", "shape": {"type": "box", "size": [0.4, 0.5, 0.6]}, "material": "white",
      "transform": {"rotate_deg": [0, 30, 0], "scale": [1, 2, -1]}},
     {"id": "ball", "shape": {"type": "sphere", "radius": 0.25, "segments": 16}, "material": "card"},
@@ -281,6 +281,7 @@ void expectScenesEqual(const Scene& a, const Scene& b) {
         const std::string what = "object " + x.id;
         EXPECT_EQ(x.id, y.id);
         EXPECT_EQ(x.material, y.material) << what;
+        EXPECT_EQ(x.patchSize, y.patchSize) << what;
         EXPECT_EQ(x.transform.toString(), y.transform.toString()) << what;
         expectVec3Eq(x.transform.translate, y.transform.translate, what);
         expectVec3Eq(x.transform.rotateDeg, y.transform.rotateDeg, what);
@@ -366,6 +367,8 @@ TEST(SceneIo, LoadsEveryShapeTypeInFileOrder) {
 
     const SceneObject& floor = scene.objects[0];
     EXPECT_EQ(floor.shape.type, ShapeType::Quad);
+    EXPECT_EQ(floor.patchSize, 0.0) << "no override: the scene's patch_size";
+    EXPECT_EQ(scene.objects[1].patchSize, 1.0) << "the light is one shooter";
     expectVec3Eq(floor.shape.size, Vec3(2.0, 0.0, 3.0), "quad size is x, -, z");
     const SceneObject& crate = scene.objects[2];
     EXPECT_EQ(crate.shape.type, ShapeType::Box);
@@ -838,6 +841,14 @@ std::vector<BadScene> badScenes() {
          sceneWith(R"({"id": "a", "shape": {"type": "box", "size": [1, 1, 1]}})"),
          "objects[0].material", "missing required key"},
         {"MissingFormat", R"({"objects": []})", "format", "missing required key"},
+        {"ObjectPatchSizeBelowElementSize",
+         sceneWith(
+             R"({"id": "a", "shape": {"type": "box", "size": [1, 1, 1]}, "material": "white", "patch_size": 0.001})"),
+         "objects[0].patch_size", "must not be below the scene's element_size"},
+        {"ObjectPatchSizeNotPositive",
+         sceneWith(
+             R"({"id": "a", "shape": {"type": "box", "size": [1, 1, 1]}, "material": "white", "patch_size": -1})"),
+         "objects[0].patch_size", "positive"},
         {"MissingMeshFile",
          sceneWith(
              R"({"id": "m", "shape": {"type": "mesh", "file": "meshes/none.obj"}, "material": "white"})"),

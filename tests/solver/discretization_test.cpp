@@ -177,6 +177,23 @@ TEST(Discretization, QuadCountsAndAreas) {
     EXPECT_NEAR(boundaryLength(disc, 0), 2 * (sx + sz), kExact) << "shared grid vertices";
 }
 
+TEST(Discretization, ObjectPatchSizeOverridesTheScenes) {
+    // A 0.8 × 0.6 lamp with its own patch_size 1: one shooter whose outline is the whole
+    // quad, elements still of the scene's element_size (8 × 6 of 0.1).
+    SceneObject lamp = test::makeQuad("lamp", 0.8, 0.6, "white", {0, 0, 0});
+    lamp.patchSize = 1.0;
+    Discretization disc(
+        sceneWith({lamp, test::makeQuad("floor", 0.8, 0.6, "white", {0, -1, 0})}, 0.1, 0.1));
+    int lampPatches = 0, floorPatches = 0;
+    for (const Patch& p : disc.patches()) (p.object == 0 ? lampPatches : floorPatches) += 1;
+    EXPECT_EQ(lampPatches, 1);
+    EXPECT_EQ(floorPatches, 48);
+    EXPECT_EQ(disc.patches()[0].elements.size(), 48u);
+    EXPECT_NEAR(disc.patches()[0].area, 0.48, kExact);
+    EXPECT_EQ(disc.patches()[0].outline.size(), 4u) << "a planar patch keeps its outline";
+    checkPatchStructure(disc);
+}
+
 TEST(Discretization, BoxCountsAreasAndOutwardNormals) {
     const Vec3 size(0.9, 0.45, 1.3);
     const double P = 0.5, E = 0.2;

@@ -373,6 +373,60 @@ TEST(FormFactor, PatchPartlyBelowTheHorizonIsStillSeen) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Change of form factor between two worlds (redistribution)
+
+TEST(FormFactor, ChangeEqualsTheDifferenceOfTheTwoWorldsSampleForSample) {
+    // Lamp, a half blocker that stays, and a moved blocker (two versions: before, after)
+    // that partly overlaps it. formFactorChange traces only samples meeting the changed
+    // versions; it must equal F(after) − F(before) evaluated separately with the same
+    // pair-seeded samples, for every pattern and receiver point.
+    OcclusionScene s({halfBlocker(), test::makeQuad("old", 0.3, 0.3, "black", {0.05, 0.3, 0.1}),
+                      test::makeQuad("new", 0.3, 0.3, "black", {0.1, 0.2, -0.1})});
+    const int oldVersion = 2, newVersion = 3;
+    std::vector<std::uint8_t> before{1, 1, 1, 0}, after{1, 1, 0, 1};
+    Visibility vb, va;
+    vb.world = &before;
+    va.world = &after;
+    RayTracer::SubsetHandle changed(*s.tracer, {oldVersion, newVersion});
+    int nonzero = 0;
+    for (std::uint64_t key = 0; key < 48; ++key) {
+        const Vec3 x(0.02 * double(key % 7) - 0.06, 0.0, 0.015 * double(key % 5) - 0.03);
+        const PointToPatch b =
+            formFactorToPatch(*s.disc, *s.tracer, x, Vec3(0, 1, 0), s.lampPatch, key, 1, 100, vb);
+        const PointToPatch a =
+            formFactorToPatch(*s.disc, *s.tracer, x, Vec3(0, 1, 0), s.lampPatch, key, 1, 100, va);
+        const PointToPatch d = formFactorChange(*s.disc, *s.tracer, x, Vec3(0, 1, 0), s.lampPatch,
+                                                key, 1, 100, vb, va, changed.visibility());
+        ASSERT_EQ(d.unoccluded, a.unoccluded);
+        EXPECT_NEAR(d.visible, a.visible - b.visible, 1e-12)
+            << "key " << key << ": change " << d.visible << ", F(after) " << a.visible
+            << " − F(before) " << b.visible;
+        // One ray per sample against the changed objects, two more for those meeting one.
+        EXPECT_GE(d.rays, a.rays);
+        EXPECT_LE(d.rays, 3 * a.rays);
+        EXPECT_EQ((d.rays - a.rays) % 2, 0);
+        if (a.visible != b.visible) ++nonzero;
+    }
+    EXPECT_GT(nonzero, 24) << "the moved blocker changes most of these pairs";
+}
+
+TEST(FormFactor, ChangeOutsideTheConeCostsOneCheapRayPerSampleAndIsZero) {
+    OcclusionScene s({halfBlocker(), test::makeQuad("far", 0.3, 0.3, "black", {3, 0.3, 3})});
+    std::vector<std::uint8_t> before{1, 1, 0}, after{1, 1, 1};
+    Visibility vb, va;
+    vb.world = &before;
+    va.world = &after;
+    RayTracer::SubsetHandle changed(*s.tracer, {2});
+    for (std::uint64_t key = 0; key < 16; ++key) {
+        const PointToPatch d =
+            formFactorChange(*s.disc, *s.tracer, Vec3(0.0), Vec3(0, 1, 0), s.lampPatch, key, 1, 100,
+                             vb, va, changed.visibility());
+        EXPECT_EQ(d.visible, 0.0);
+        EXPECT_EQ(d.rays, visibilityRayCount(d.unoccluded, 100));
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Determinism
 
 TEST(FormFactor, SamplePatternIsKeyedBySeedAndReceiver) {
