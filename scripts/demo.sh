@@ -2,7 +2,7 @@
 # Fresh Debian 12 machine to the main job: install, build, then the headless demo. It replays
 # the bundled edit sessions (each edit's lighting redistributed, not recomputed, and checked
 # against a from-scratch reference), and writes images, lit-scene exports and reports under
-# out/. (The editor, for machines with a display, is still to come: ui/.)
+# out/. On a machine with a display it then opens the editor on robot-room.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -27,3 +27,8 @@ echo "demo: cornell-box" >&2
   --report out/cornell-box-render.json
 "$bin" export scenes/cornell-box.json out/cornell-box.gltf
 echo "demo: wrote $(ls out | wc -l) files under out/" >&2
+
+if [ -n "${DISPLAY:-}" ] && [ -x build/penumbra-editor ]; then
+  echo "demo: a display is present: opening the editor (edits are logged to out/editor.jsonl)" >&2
+  build/penumbra-editor scenes/robot-room.json --log out/editor.jsonl
+fi
