@@ -4,19 +4,25 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
 
 #include "bench/bench.h"
+#include "edit/edit_log.h"
+#include "edit/edit_session.h"
 #include "edit/export.h"
 #include "edit/input_error.h"
 #include "edit/lit_scene.h"
 #include "edit/replay.h"
+#include "render/camera_rays.h"
 #include "render/gouraud_renderer.h"
 #include "render/image.h"
+#include "render/interactive_display.h"
 
 using namespace penumbra;
 
@@ -108,12 +114,190 @@ int runProbe(const SolveArgs& a, const std::string& pointsPath) {
 struct RenderArgs {
     std::string camera, mode = "gouraud", out;
     int width = 512, height = 512, samples = 2;
+    // Interactive display modes (epi, cache, reference).
+    std::string log, overlay, rmseFrames = "last";
+    int frames = 0;  ///< 0: 1, or one per log line plus the first
+    double sampleFraction = 0.02;
+    double warmup = 0.25;
+    double orbitDeg = 0.5;  ///< per frame
 };
 
+/// The scene's camera named `name`, else "default", else the first, else a default Camera.
+Camera pickCamera(const Scene& scene, const std::string& scenePath, const std::string& name) {
+    if (!name.empty()) {
+        const Camera* c = scene.findCamera(name);
+        if (!c) throw InputError(scenePath, "cameras", "no camera named '" + name + "'");
+        return *c;
+    }
+    if (const Camera* c = scene.findCamera("default")) return *c;
+    if (!scene.cameras.empty()) return scene.cameras.front();
+    return Camera{};
+}
+
+/// `path` with "-SUFFIX" before its extension: out.png, "0003" -> out-0003.png.
+std::string siblingPath(const std::string& path, const std::string& suffix) {
+    std::filesystem::path p(path);
+    std::filesystem::path name = p.stem();
+    name += "-" + suffix;
+    name += p.extension();
+    return (p.parent_path() / name).string();
+}
+
+/// Frame k along the camera path: the camera turned about its up axis around the look-at point
+/// by k · degPerFrame.
+Camera orbitCamera(const Camera& camera, int k, double degPerFrame) {
+    if (k == 0 || degPerFrame == 0) return camera;
+    const double angle = glm::radians(degPerFrame * k);
+    Vec3 axis = glm::length(camera.up) > 0 ? glm::normalize(camera.up) : Vec3(0, 1, 0);
+    const Vec3 r = camera.position - camera.lookAt;
+    // Rodrigues' rotation of r about axis.
+    const Vec3 rotated = r * std::cos(angle) + glm::cross(axis, r) * std::sin(angle) +
+                         axis * glm::dot(axis, r) * (1 - std::cos(angle));
+    Camera out = camera;
+    out.position = camera.lookAt + rotated;
+    return out;
+}
+
+nlohmann::json frameJson(const DisplayFrameStats& f) {
+    const DisplayStageTimes& t = f.times;
+    return {{"frame", f.frame},
+            {"total_ms", t.totalMs},
+            {"reconstruct_ms", t.reconstructMs()},
+            {"new_sample_fraction", f.newSampleFraction},
+            {"find_edges_ms", t.findEdgesMs},
+            {"silhouette_ms", t.silhouetteMs},
+            {"shadow_ms", t.shadowMs},
+            {"project_ms", t.projectMs},
+            {"rasterize_ms", t.rasterizeMs},
+            {"points_ms", t.pointsMs},
+            {"reachability_ms", t.reachabilityMs},
+            {"interpolate_ms", t.interpolateMs},
+            {"anti_alias_ms", t.antiAliasMs},
+            {"complex_filter_ms", t.complexFilterMs},
+            {"request_ms", t.requestMs},
+            {"shade_ms", t.shadeMs},
+            {"new_samples", f.newSamples},
+            {"requested_samples", f.requestedSamples},
+            {"visible_points", f.visiblePoints},
+            {"silhouette_edges", f.silhouetteEdges},
+            {"sharp_edges", f.sharpEdges},
+            {"shadow_edges", f.shadowEdges},
+            {"screen_edges", f.screenEdges},
+            {"empty_pixels", f.emptyPixels},
+            {"simple_pixels", f.simplePixels},
+            {"complex_pixels", f.complexPixels}};
+}
+
+/// `render --mode epi|cache|reference`: the interactive display (Bala et al. 2003) over an
+/// edit session, frames along an orbit or while replaying an edit log one line per frame.
+int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
+    using Clock = std::chrono::steady_clock;
+    // Read every input before solving.
+    SolverOptions options = interactiveSolverOptions();
+    options.seed = a.seed;
+    options.stochasticBelow = a.stochasticBelow;
+    options.gradientThreshold = a.subdivide;
+    auto session = EditSession::open(a.scene, options);
+    std::vector<LoggedEdit> edits;
+    if (!r.log.empty())
+        edits = readEditLog(r.log, std::filesystem::path(a.scene).parent_path().string());
+    const Camera camera = pickCamera(session->scene(), a.scene, r.camera);
+    (void)CameraRays(camera, r.width, r.height);  // validates the camera (std::invalid_argument)
+    const int frames = r.frames > 0 ? r.frames : (r.log.empty() ? 1 : int(edits.size()) + 1);
+
+    session->converge(a.converge, a.maxShots);
+    InteractiveDisplayOptions displayOptions;
+    displayOptions.width = r.width;
+    displayOptions.height = r.height;
+    displayOptions.sampleFraction = r.sampleFraction;
+    displayOptions.shader.seed = a.seed;
+    displayOptions.cache.seed = a.seed;
+    InteractiveDisplay display(session->discretization(), session->tracer(), options,
+                               displayOptions);
+    display.updateSolution(session->solver());
+
+    const bool reference = r.mode == "reference";
+    const bool useEdges = r.mode == "epi";
+    nlohmann::json frameReports = nlohmann::json::array();
+    Image image;
+    std::optional<CameraRays> rays;
+    for (int k = 0; k < frames; ++k) {
+        nlohmann::json entry;
+        // One log line per frame (frame 0 shows the scene before the log).
+        if (k >= 1 && k - 1 < static_cast<int>(edits.size())) {
+            const LoggedEdit& logged = edits[k - 1];
+            EditResult result = session->apply(logged.command, EditSource{r.log, logged.line});
+            if (!logged.command.isSolverWork()) session->converge(a.converge, a.maxShots);
+            std::vector<int> changed = result.added;
+            changed.insert(changed.end(), result.removed.begin(), result.removed.end());
+            changed.insert(changed.end(), result.materialChanged.begin(),
+                           result.materialChanged.end());
+            if (!changed.empty())
+                display.notifyChanged(changed, &session->solver());
+            else
+                display.updateSolution(session->solver());
+            entry["edit"] = {{"line", logged.line}, {"op", logged.command.opName()}};
+        }
+        const Camera frameCamera = r.log.empty() ? orbitCamera(camera, k, r.orbitDeg) : camera;
+        rays.emplace(frameCamera, r.width, r.height);
+        if (reference) {
+            const auto start = Clock::now();
+            image = display.renderReference(*rays, r.samples);
+            const double ms =
+                std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+            entry.update({{"frame", k},
+                          {"total_ms", ms},
+                          {"reconstruct_ms", 0.0},
+                          {"new_sample_fraction", double(r.samples) * r.samples}});
+        } else {
+            if (k == 0 && r.warmup > 0) display.warmUp(*rays, r.warmup);
+            image = display.renderFrame(*rays, useEdges);
+            entry.update(frameJson(display.lastFrame()));
+            if (r.rmseFrames == "all" || (r.rmseFrames == "last" && k == frames - 1)) {
+                const Image ref = display.renderReference(*rays, r.samples);
+                entry["rmse"] = displayRmse(image, ref);
+                entry["linear_rmse"] = imageRmse(image, ref);
+            }
+        }
+        if (frames > 1) {
+            char number[16];
+            std::snprintf(number, sizeof number, "%04d", k);
+            writeImage(image, siblingPath(r.out, number));
+        }
+        frameReports.push_back(std::move(entry));
+    }
+    writeImage(image, r.out);
+    if (r.overlay == "edges") {
+        // The reference shades no EPI: run one display frame from the final camera for it.
+        if (reference) {
+            if (r.warmup > 0) display.warmUp(*rays, r.warmup);
+            display.renderFrame(*rays, true);
+        }
+        writePng(display.edgeImage(), siblingPath(r.out, "edges"));
+    }
+    nlohmann::json report = session->reportJson();
+    report["image"] = r.out;
+    report["mode"] = r.mode;
+    report["width"] = r.width;
+    report["height"] = r.height;
+    report["sample_fraction"] = r.sampleFraction;
+    report["warmup"] = r.warmup;
+    report["frames"] = std::move(frameReports);
+    writeReport(a.report, report);
+    return 0;
+}
+
 int runRender(const SolveArgs& a, const RenderArgs& r) {
-    if (r.mode != "gouraud")
-        throw InputError("--mode", "",
-                         "unknown or not yet available mode '" + r.mode + "' (available: gouraud)");
+    if (r.mode != "gouraud" && r.mode != "epi" && r.mode != "cache" && r.mode != "reference")
+        throw InputError(
+            "--mode", "",
+            "unknown mode '" + r.mode + "' (available: epi, cache, reference, gouraud)");
+    if (!r.overlay.empty() && r.overlay != "edges")
+        throw InputError("--overlay", "", "unknown overlay '" + r.overlay + "' (available: edges)");
+    if (r.rmseFrames != "last" && r.rmseFrames != "all" && r.rmseFrames != "none")
+        throw InputError("--rmse", "",
+                         "unknown value '" + r.rmseFrames + "' (available: last, all, none)");
+    if (r.mode != "gouraud") return runDisplayRender(a, r);
     auto lit = openAndSolve(a);
     const Scene& scene = lit->scene();
     Camera camera;
@@ -206,9 +390,31 @@ int main(int argc, char** argv) {
     renderCmd->add_option("--height", render.height)->check(CLI::Range(1, 16384));
     renderCmd->add_option("--samples", render.samples, "samples per pixel per axis")
         ->check(CLI::Range(1, 16));
-    renderCmd->add_option("--mode", render.mode, "gouraud");
+    renderCmd->add_option("--mode", render.mode, "epi, cache, reference or gouraud (default)");
     renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();
     renderCmd->add_option("--report", solve.report, "write a JSON report");
+    renderCmd
+        ->add_option("--frames", render.frames,
+                     "frames along a camera orbit, or one per --log line (epi, cache, "
+                     "reference)")
+        ->check(CLI::Range(1, 100000));
+    renderCmd->add_option("--log", render.log, "replay this edit log, one line per frame");
+    renderCmd->add_option("--overlay", render.overlay,
+                          "edges: also write the EPI pixel classes as OUT-edges.png");
+    renderCmd
+        ->add_option("--sample-fraction", render.sampleFraction,
+                     "new samples per frame as a fraction of the pixels (default 0.02)")
+        ->check(CLI::Range(0.0, 1.0));
+    renderCmd
+        ->add_option("--warmup", render.warmup,
+                     "fraction of the pixels shaded before the first frame (default 0.25)")
+        ->check(CLI::Range(0.0, 1.0));
+    renderCmd
+        ->add_option("--orbit-deg", render.orbitDeg,
+                     "camera orbit per frame about the look-at point, degrees (default 0.5)")
+        ->check(CLI::Range(-360.0, 360.0));
+    renderCmd->add_option("--rmse", render.rmseFrames,
+                          "frames compared with the reference: last (default), all, none");
 
     ReplayArgs replay;
     CLI::App* replayCmd = app.add_subcommand("replay", "replay an edit log over a scene");

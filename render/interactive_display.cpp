@@ -1,0 +1,494 @@
+// The interactive display (Bala, Walter, Greenberg 2003 §3): point shader, render cache, edge
+// finder and edge-and-point image wired into frames.
+//
+// Index: helpers · toString · construction · frames · warm-up · edits and solution updates ·
+//        reference · projectEdges · image error
+#include "render/interactive_display.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include "solver/discretization.h"
+#include "solver/form_factor.h"
+#include "solver/ray_tracer.h"
+
+namespace penumbra {
+
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+/// Frame number of reference samples: far from any frame a cache reaches, so the reference's
+/// shadow-ray patterns are independent of the cached points'.
+constexpr std::uint64_t kReferenceFrame = 0xF00DF00DULL << 16;
+
+/// Uniform double in [0, 1) from a 64-bit key.
+double unitFromKey(std::uint64_t key) {
+    return static_cast<double>(hashPair(key, 0x9E3779B97F4A7C15ULL) >> 11) * 0x1.0p-53;
+}
+
+ScreenEdge::Kind screenKind(EdgeKind kind) {
+    switch (kind) {
+        case EdgeKind::Silhouette:
+            return ScreenEdge::Kind::Silhouette;
+        case EdgeKind::Sharp:
+            return ScreenEdge::Kind::Sharp;
+        case EdgeKind::Shadow:
+            return ScreenEdge::Kind::Shadow;
+    }
+    return ScreenEdge::Kind::Silhouette;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// toString
+
+std::string DisplayStageTimes::toString() const {
+    std::ostringstream s;
+    s.precision(3);
+    s << "DisplayStageTimes{edges " << findEdgesMs << " ms (silhouettes " << silhouetteMs
+      << ", shadows " << shadowMs << ", project " << projectMs << "), rasterize " << rasterizeMs
+      << ", points " << pointsMs << ", reach " << reachabilityMs << ", interp " << interpolateMs
+      << ", aa " << antiAliasMs << ", complex " << complexFilterMs << ", request " << requestMs
+      << ", total " << totalMs << ", shade " << shadeMs << "}";
+    return s.str();
+}
+
+std::string DisplayFrameStats::toString() const {
+    std::ostringstream s;
+    s << "DisplayFrameStats{frame " << frame << ", " << times.toString() << ", edges "
+      << silhouetteEdges << " sil + " << sharpEdges << " sharp + " << shadowEdges << " shadow -> "
+      << screenEdges << " on screen, " << visiblePoints << " points, " << newSamples << " new ("
+      << newSampleFraction << "), " << requestedSamples << " requested, pixels " << emptyPixels
+      << " empty / " << simplePixels << " simple / " << complexPixels << " complex"
+      << (usedEdges ? "" : ", no edges") << "}";
+    return s.str();
+}
+
+std::string InteractiveDisplayOptions::toString() const {
+    std::ostringstream s;
+    s << "InteractiveDisplayOptions{" << width << "x" << height << ", sampleFraction "
+      << sampleFraction << ", " << (synchronous ? "synchronous" : "asynchronous") << ", cache "
+      << cacheCapacityPerPixel << "/pixel, near " << nearPlane << ", shadows "
+      << (shadowEdges ? "on" : "off") << ", invalidate " << invalidateThreshold << ", "
+      << epi.toString() << "}";
+    return s.str();
+}
+
+std::string InteractiveDisplay::toString() const {
+    std::ostringstream s;
+    s << "InteractiveDisplay{" << mOptions.toString() << ", " << mCache.toString() << ", "
+      << mEdges.toString() << ", " << mShadowEdges.size() << " shadow edges"
+      << (mShadowsStale ? " (stale)" : "") << "}";
+    return s.str();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Construction
+
+namespace {
+
+PointShaderOptions shaderOptionsFor(const InteractiveDisplayOptions& o) {
+    PointShaderOptions s = o.shader;
+    if (o.synchronous) s.threads = 0;
+    return s;
+}
+
+std::size_t capacityFor(const InteractiveDisplayOptions& o) {
+    if (o.width <= 0 || o.height <= 0)
+        throw std::invalid_argument("InteractiveDisplay: image size must be positive, got " +
+                                    std::to_string(o.width) + "x" + std::to_string(o.height));
+    const double pixels = static_cast<double>(o.width) * o.height;
+    return static_cast<std::size_t>(std::max(1.0, std::ceil(o.cacheCapacityPerPixel * pixels)));
+}
+
+RenderCacheOptions cacheOptionsFor(const InteractiveDisplayOptions& o) {
+    RenderCacheOptions c = o.cache;
+    c.sampleFraction = o.sampleFraction;
+    return c;
+}
+
+}  // namespace
+
+InteractiveDisplay::InteractiveDisplay(const Discretization& disc, const RayTracer& tracer,
+                                       const SolverOptions& solverOptions,
+                                       InteractiveDisplayOptions options)
+    : mDisc(disc),
+      mOptions(options),
+      mShader(
+          std::make_unique<PointShader>(disc, tracer, solverOptions, shaderOptionsFor(options))),
+      mCache(options.width, options.height, capacityFor(options), cacheOptionsFor(options)),
+      mEdges(disc, options.edges),
+      mEpi(options.width, options.height, options.epi) {}
+
+InteractiveDisplay::~InteractiveDisplay() = default;
+
+// ---------------------------------------------------------------------------------------------
+// Frames
+
+std::vector<ShadedPoint> InteractiveDisplay::shadeAll(
+    const std::vector<ShadeRequest>& requests) const {
+    std::vector<ShadedPoint> out(requests.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, requests.size(), 16),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i)
+                              out[i] = mShader->shade(requests[i]);
+                      });
+    return out;
+}
+
+Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
+    if (camera.width() != mOptions.width || camera.height() != mOptions.height)
+        throw std::invalid_argument(
+            "InteractiveDisplay::renderFrame: camera raster " + std::to_string(camera.width()) +
+            "x" + std::to_string(camera.height()) + " differs from the display's " +
+            std::to_string(mOptions.width) + "x" + std::to_string(mOptions.height));
+    const auto frameStart = Clock::now();
+    DisplayFrameStats st;
+    st.usedEdges = useEdges;
+
+    // Take the points the asynchronous workers finished.
+    auto t = Clock::now();
+    if (!mOptions.synchronous) {
+        std::vector<ShadedPoint> done = mShader->takeResults();
+        mCache.insert(done);
+        mInsertedSinceFrame += done.size();
+    }
+    st.newSamples = mInsertedSinceFrame;
+    mInsertedSinceFrame = 0;
+
+    // Reproject the cache to this camera (Walter et al. 1999).
+    const std::vector<ScreenPoint>& points = mCache.reproject(camera);
+    st.frame = mCache.frame();
+    st.visiblePoints = points.size();
+    st.times.pointsMs = msSince(t);
+
+    // Edges (§6): silhouettes and forward-facing sharp edges per frame, shadow edges kept until
+    // something changes; then clip and project.
+    std::vector<WorldEdge> world;
+    if (useEdges) {
+        t = Clock::now();
+        const Vec3 eye = camera.origin();
+        world = mEdges.findSilhouettes(eye);
+        st.silhouetteEdges = world.size();
+        std::vector<WorldEdge> sharp = mEdges.findSharpEdges(eye);
+        st.sharpEdges = sharp.size();
+        world.insert(world.end(), sharp.begin(), sharp.end());
+        st.times.silhouetteMs = msSince(t);
+        if (mOptions.shadowEdges) {
+            t = Clock::now();
+            if (mShadowsStale) {
+                mShadowEdges = mEdges.findShadowEdges();
+                mShadowsStale = false;
+                mLastShadowUpdateMs = msSince(t);
+                st.times.shadowMs = mLastShadowUpdateMs;
+            }
+            st.shadowEdges = mShadowEdges.size();
+            world.insert(world.end(), mShadowEdges.begin(), mShadowEdges.end());
+        }
+        t = Clock::now();
+        mScreenEdges = projectEdges(world, camera, mOptions.nearPlane);
+        st.times.projectMs = msSince(t);
+        st.times.findEdgesMs = st.times.silhouetteMs + st.times.shadowMs + st.times.projectMs;
+    } else {
+        mScreenEdges.clear();
+    }
+    st.screenEdges = mScreenEdges.size();
+
+    // The edge-and-point image and its reconstruction (§4–5).
+    mEpi.build(mScreenEdges, points);
+    Image image = mEpi.reconstruct(useEdges);
+    const EpiStageTimes& epi = mEpi.stageTimes();
+    st.times.pointsMs += epi.pointsMs;
+    st.times.rasterizeMs = epi.depthFilterMs + epi.rasterizeMs + epi.classifyMs;
+    st.times.reachabilityMs = epi.reachabilityMs;
+    st.times.interpolateMs = epi.interpolateMs;
+    st.times.antiAliasMs = epi.antiAliasMs;
+    st.times.complexFilterMs = epi.complexFilterMs;
+    st.emptyPixels = mEpi.countPixels(PixelClass::Empty);
+    st.simplePixels = mEpi.countPixels(PixelClass::Simple);
+    st.complexPixels = mEpi.countPixels(PixelClass::Complex);
+
+    // New sample requests from the cache's priority image (§5.3 feedback).
+    t = Clock::now();
+    const double pixels = static_cast<double>(mOptions.width) * mOptions.height;
+    int budget = static_cast<int>(std::lround(mOptions.sampleFraction * pixels));
+    if (!mOptions.synchronous) {
+        const std::size_t cap = mOptions.maxPendingPerFrame * static_cast<std::size_t>(budget);
+        const std::size_t pending = mShader->pendingCount();
+        budget =
+            pending >= cap ? 0 : static_cast<int>(std::min<std::size_t>(budget, cap - pending));
+    }
+    std::vector<ShadeRequest> requests;
+    if (budget > 0) requests = mCache.requestSamples(camera, budget);
+    st.requestedSamples = requests.size();
+    if (!mOptions.synchronous && !requests.empty()) mShader->submit(requests);
+    st.times.requestMs = msSince(t);
+    st.times.totalMs = msSince(frameStart);
+    st.newSampleFraction = static_cast<double>(st.newSamples) / pixels;
+
+    // Synchronous mode: shade now, visible from the next frame on.
+    if (mOptions.synchronous && !requests.empty()) {
+        t = Clock::now();
+        std::vector<ShadedPoint> done = shadeAll(requests);
+        mCache.insert(done);
+        mInsertedSinceFrame += done.size();
+        st.times.shadeMs = msSince(t);
+    }
+    mLast = st;
+    return image;
+}
+
+Image InteractiveDisplay::reconstructLast(bool useEdges) { return mEpi.reconstruct(useEdges); }
+
+// ---------------------------------------------------------------------------------------------
+// Warm-up
+
+std::size_t InteractiveDisplay::warmUp(const CameraRays& camera, double density) {
+    if (camera.width() != mOptions.width || camera.height() != mOptions.height)
+        throw std::invalid_argument("InteractiveDisplay::warmUp: camera raster differs");
+    if (!(density > 0)) return 0;
+    const int step =
+        std::max(1, static_cast<int>(std::lround(1.0 / std::sqrt(std::min(1.0, density)))));
+    // One pixel per step × step cell, its position inside the cell and inside the pixel jittered
+    // from a key of (pixel, frame) so the pattern is deterministic.
+    std::vector<ShadeRequest> requests;
+    const std::uint64_t frame = mCache.frame();
+    for (int cy = 0; cy < mOptions.height; cy += step)
+        for (int cx = 0; cx < mOptions.width; cx += step) {
+            const std::uint64_t key =
+                hashPair(hashPair(static_cast<std::uint64_t>(cy), static_cast<std::uint64_t>(cx)),
+                         frame + 0x57A1ULL);
+            const int w = std::min(step, mOptions.width - cx);
+            const int h = std::min(step, mOptions.height - cy);
+            const int px = cx + std::min(w - 1, static_cast<int>(unitFromKey(key) * w));
+            const int py = cy + std::min(h - 1, static_cast<int>(unitFromKey(key + 1) * h));
+            const glm::dvec2 p(px + unitFromKey(key + 2), py + unitFromKey(key + 3));
+            requests.push_back({p, camera.origin(), camera.rayDirection(p.x, p.y), frame});
+        }
+    std::vector<ShadedPoint> done = shadeAll(requests);
+    mCache.insert(done);
+    mInsertedSinceFrame += done.size();
+    return done.size();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Edits and solution updates
+
+std::vector<double> InteractiveDisplay::elementShading() const {
+    const std::vector<Rgb> direct = mShader->elementDirect();
+    const std::vector<Rgb> indirect = mShader->elementIndirect();
+    const std::size_t n = mDisc.elements().size();
+    std::vector<double> out(n, 0.0);
+    for (std::size_t e = 0; e < n; ++e) {
+        const Material& m = mDisc.elementMaterial(static_cast<int>(e));
+        Rgb h(0.0);
+        if (e < direct.size()) h += direct[e];
+        if (e < indirect.size()) h += indirect[e];
+        out[e] = luminance(m.emission + m.reflectance * h);
+    }
+    return out;
+}
+
+std::size_t InteractiveDisplay::invalidateChangedShading(const std::vector<double>& before) {
+    const std::vector<double> after = elementShading();
+    double mean = 0;
+    std::size_t alive = 0;
+    for (std::size_t e = 0; e < after.size(); ++e)
+        if (mDisc.elementAlive(static_cast<int>(e))) {
+            mean += after[e];
+            ++alive;
+        }
+    mean = alive ? mean / static_cast<double>(alive) : 0.0;
+    std::unordered_set<int> changed;
+    for (std::size_t e = 0; e < after.size(); ++e) {
+        const double old = e < before.size() ? before[e] : 0.0;
+        const double scale = std::max({std::abs(old), std::abs(after[e]), 0.01 * mean});
+        if (std::abs(after[e] - old) > mOptions.invalidateThreshold * scale)
+            changed.insert(static_cast<int>(e));
+    }
+    return changed.empty() ? 0 : mCache.invalidateElements(changed);
+}
+
+std::size_t InteractiveDisplay::updateSolution(const ProgressiveSolver& solver) {
+    const std::vector<double> before = elementShading();
+    mShader->updateSolution(solver);
+    return invalidateChangedShading(before);
+}
+
+void InteractiveDisplay::syncLights() {
+    // Which objects emit (from their patches' materials).
+    const int objects = static_cast<int>(mDisc.objects().size());
+    std::vector<char> emits(objects, 0);
+    for (const Patch& p : mDisc.patches())
+        if (mDisc.materials()[p.material].isEmitter()) emits[p.object] = 1;
+    std::vector<char> hasLight(objects, 0);
+    for (int l = 0; l < mEdges.lightCount(); ++l) {
+        const int o = mEdges.light(l).object;
+        const bool live = o >= 0 && o < objects && emits[o] && mDisc.objects()[o].alive;
+        mEdges.setLightAlive(l, live);
+        if (o >= 0 && o < objects) hasLight[o] = 1;
+    }
+    // Lights for emitters the finder does not know yet (added, moved or made emitting).
+    for (int o = 0; o < objects; ++o) {
+        if (!emits[o] || hasLight[o] || !mDisc.objects()[o].alive) continue;
+        Light light = lightForObject(mDisc, o);
+        if (!light.polygon.empty()) mEdges.addLight(light);
+    }
+}
+
+std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObjects,
+                                              const ProgressiveSolver* solver) {
+    // Work from before the edit is stale.
+    mShader->cancelPending();
+    if (!mOptions.synchronous) (void)mShader->takeResults();
+
+    const std::vector<double> before = elementShading();
+    const int knownObjects = mEdges.objectCount();
+
+    // Samples on the changed objects, and near added or removed geometry (contact shadows,
+    // points now inside a moved object).
+    std::unordered_set<int> objects(changedObjects.begin(), changedObjects.end());
+    std::size_t dropped = mCache.invalidateObjects(objects);
+    for (int o : changedObjects) {
+        if (o < 0 || o >= static_cast<int>(mDisc.objects().size())) continue;
+        const ObjectSurface& s = mDisc.objects()[o];
+        const bool geometry = o >= knownObjects || !s.alive;
+        if (!geometry || s.worldPositions.empty()) continue;
+        Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+        for (const Vec3& p : s.worldPositions) {
+            lo = glm::min(lo, p);
+            hi = glm::max(hi, p);
+        }
+        dropped += mCache.invalidateRegion(0.5 * (lo + hi), 0.5 * glm::length(hi - lo));
+    }
+
+    // Edge finder: new object versions, alive flags, lights; shadows recomputed next frame.
+    mEdges.syncWith(mDisc);
+    syncLights();
+    mShadowsStale = true;
+
+    // Direct lighting the change affects, then the solution; drop points whose element shading
+    // changed (Bala et al. §7.5).
+    mShader->refreshDirect(changedObjects);
+    if (solver) mShader->updateSolution(*solver);
+    dropped += invalidateChangedShading(before);
+    return dropped;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reference
+
+Image InteractiveDisplay::renderReference(const CameraRays& camera, int samplesPerAxis) const {
+    if (samplesPerAxis < 1)
+        throw std::invalid_argument("InteractiveDisplay::renderReference: samplesPerAxis < 1");
+    const int w = camera.width(), h = camera.height(), s = samplesPerAxis;
+    Image image(w, h);
+    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+        for (int y = rows.begin(); y != rows.end(); ++y)
+            for (int x = 0; x < w; ++x) {
+                Rgb sum(0.0);
+                for (int j = 0; j < s; ++j)
+                    for (int i = 0; i < s; ++i) {
+                        const glm::dvec2 p(x + (i + 0.5) / s, y + (j + 0.5) / s);
+                        ShadeRequest r{p, camera.origin(), camera.rayDirection(p.x, p.y),
+                                       kReferenceFrame};
+                        sum += mShader->shade(r).radiance;
+                    }
+                image.at(x, y) = sum / static_cast<double>(s * s);
+            }
+    });
+    return image;
+}
+
+// ---------------------------------------------------------------------------------------------
+// projectEdges
+
+std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const CameraRays& camera,
+                                     double nearPlane) {
+    const Vec3 o = camera.origin(), f = camera.forward();
+    std::vector<ScreenEdge> out;
+    out.reserve(edges.size());
+    for (const WorldEdge& e : edges) {
+        Vec3 a = e.a, b = e.b;
+        double da = glm::dot(a - o, f), db = glm::dot(b - o, f);
+        if (!(da >= nearPlane) && !(db >= nearPlane)) continue;  // behind (or NaN)
+        // Clip the part in front of the near plane.
+        if (da < nearPlane) {
+            a = a + (b - a) * ((nearPlane - da) / (db - da));
+            da = nearPlane;
+        } else if (db < nearPlane) {
+            b = b + (a - b) * ((nearPlane - db) / (da - db));
+            db = nearPlane;
+        }
+        auto pa = camera.projectToPixel(a), pb = camera.projectToPixel(b);
+        if (!pa || !pb) continue;
+        ScreenEdge s;
+        s.a = *pa;
+        s.b = *pb;
+        s.depthA = da;
+        s.depthB = db;
+        s.kind = screenKind(e.kind);
+        out.push_back(s);
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Image error
+
+double imageRmse(const Image& a, const Image& b) {
+    if (a.width != b.width || a.height != b.height)
+        throw std::invalid_argument("imageRmse: sizes differ (" + a.toString() + " vs " +
+                                    b.toString() + ")");
+    if (a.pixels.empty()) return 0.0;
+    double sum = 0;
+    for (std::size_t k = 0; k < a.pixels.size(); ++k) {
+        const Rgb d = a.pixels[k] - b.pixels[k];
+        sum += glm::dot(d, d);
+    }
+    return std::sqrt(sum / (3.0 * static_cast<double>(a.pixels.size())));
+}
+
+double displayRmse(const Image& a, const Image& b) {
+    if (a.width != b.width || a.height != b.height)
+        throw std::invalid_argument("displayRmse: sizes differ (" + a.toString() + " vs " +
+                                    b.toString() + ")");
+    if (a.pixels.empty()) return 0.0;
+    auto shown = [](double v) {
+        return std::isfinite(v) ? std::clamp(srgbEncode(v), 0.0, 1.0) : 0.0;
+    };
+    double sum = 0;
+    for (std::size_t k = 0; k < a.pixels.size(); ++k)
+        for (int c = 0; c < 3; ++c) {
+            const double d = shown(a.pixels[k][c]) - shown(b.pixels[k][c]);
+            sum += d * d;
+        }
+    return std::sqrt(sum / (3.0 * static_cast<double>(a.pixels.size())));
+}
+
+double relativeImageRmse(const Image& a, const Image& reference) {
+    const double err = imageRmse(a, reference);
+    double sum = 0;
+    for (const Rgb& c : reference.pixels) sum += glm::dot(c, c);
+    const double rms =
+        reference.pixels.empty() ? 0.0 : std::sqrt(sum / (3.0 * reference.pixels.size()));
+    return rms > 0 ? err / rms : 0.0;
+}
+
+}  // namespace penumbra

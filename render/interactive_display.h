@@ -1,0 +1,227 @@
+#pragma once
+// The interactive display of Bala, Walter, Greenberg 2003 (§3, Figure 2): one owner that wires
+// the point shader (render/point_shader.h), the render cache (render/render_cache.h), the edge
+// finder (render/edge_finder.h) and the edge-and-point image (render/edge_point_image.h) into
+// frames, and tells them about edits.
+//
+// Index: DisplayStageTimes · DisplayFrameStats · InteractiveDisplayOptions · InteractiveDisplay
+//        (frames, warm-up, edits and solution updates, reference and error) · projectEdges ·
+//        imageRmse
+//
+// One frame (renderFrame):
+//   1. shaded points: synchronous mode inserts the points shaded at the end of the previous
+//      frame (already in the cache); asynchronous mode takes whatever the workers finished;
+//   2. the cache reprojects its points to the frame's camera (visible ScreenPoints);
+//   3. edges: silhouettes and forward-facing sharp edges from the eye (per frame), shadow edges
+//      (kept, recomputed only after notifyChanged), clipped to the near plane and projected;
+//   4. EdgePointImage::build + reconstruct(useEdges) (useEdges false: the render-cache baseline
+//      "cache" from the same points);
+//   5. new sample requests (a fraction of the pixels, default 2%) from the cache's priority image;
+//      synchronous mode shades them at once (oneTBB, deterministic in the requests) and inserts
+//      them so they appear in the next frame; asynchronous mode submits them to the workers.
+//
+// Frame times: `totalMs` is the display pipeline (steps 1–5 without the shading), the paper's
+// "Total" of Table 2 with the shader in another process; `shadeMs` is the synchronous shading
+// of the frame's requests on the same cores (0 in asynchronous mode).
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include "render/camera_rays.h"
+#include "render/edge_finder.h"
+#include "render/edge_point_image.h"
+#include "render/image.h"
+#include "render/point_shader.h"
+#include "render/render_cache.h"
+#include "solver/progressive_solver.h"
+#include "solver/scene.h"
+
+namespace penumbra {
+
+class Discretization;
+class RayTracer;
+
+/// Milliseconds per stage of one frame, the columns of Bala et al. Table 2.
+struct DisplayStageTimes {
+    double findEdgesMs = 0;      ///< silhouettes + sharp edges + shadow edges (+ projection)
+    double silhouetteMs = 0;     ///<   of which silhouettes and sharp edges (edge trees)
+    double shadowMs = 0;         ///<   of which shadow edges (0 when the cached ones were reused)
+    double projectMs = 0;        ///<   of which near-plane clipping and projection
+    double rasterizeMs = 0;      ///< EPI: depth filter, edge rasterization, classification
+    double pointsMs = 0;         ///< cache insert + reprojection + EPI point placement
+    double reachabilityMs = 0;   ///< §5.2
+    double interpolateMs = 0;    ///< §5.3
+    double antiAliasMs = 0;      ///< §5.3
+    double complexFilterMs = 0;  ///< §5.4
+    double requestMs = 0;        ///< drawing the new sample requests from the priority image
+    double totalMs = 0;          ///< the whole frame without synchronous shading
+    double shadeMs = 0;          ///< synchronous shading of this frame's requests
+    /// Reachability + interpolation + anti-aliasing (DESIGN.md "reconstruct_ms").
+    double reconstructMs() const { return reachabilityMs + interpolateMs + antiAliasMs; }
+    std::string toString() const;
+};
+
+struct DisplayFrameStats {
+    std::uint64_t frame = 0;  ///< the render cache's frame number
+    DisplayStageTimes times;
+    std::size_t silhouetteEdges = 0;  ///< world edges found this frame
+    std::size_t sharpEdges = 0;
+    std::size_t shadowEdges = 0;
+    std::size_t screenEdges = 0;  ///< after near-plane clipping
+    std::size_t visiblePoints = 0;
+    std::size_t newSamples = 0;        ///< points inserted for this frame (shaded since last)
+    double newSampleFraction = 0;      ///< newSamples / pixels
+    std::size_t requestedSamples = 0;  ///< requests made at the end of this frame
+    std::size_t emptyPixels = 0, simplePixels = 0, complexPixels = 0;
+    bool usedEdges = true;
+    std::string toString() const;
+};
+
+struct InteractiveDisplayOptions {
+    int width = 512;
+    int height = 512;
+    /// New samples per frame as a fraction of the pixels (Bala et al.: 1–3%).
+    double sampleFraction = 0.02;
+    /// Synchronous: every frame's requests are shaded before renderFrame returns and appear in
+    /// the next frame; output depends only on the inputs (CLI, tests, benchmarks).
+    /// Asynchronous: requests go to the shader's worker threads; each frame takes what is done.
+    bool synchronous = true;
+    /// Render cache capacity as a multiple of the pixel count (Walter et al.: a few).
+    double cacheCapacityPerPixel = 4.0;
+    /// Near-plane distance (metres along the view axis) edges are clipped against.
+    double nearPlane = 1e-3;
+    bool shadowEdges = true;  ///< find shadow edges (silhouettes and sharp edges always)
+    /// After a solution update or an edit, cached points on elements whose shading (E + ρ·H,
+    /// luminance) changed by more than this fraction of the element's value, or of 1% of the
+    /// mean, are dropped (Bala et al. §7.5: invalidate samples whose lighting changed).
+    double invalidateThreshold = 0.02;
+    /// At most this many requests wait in the asynchronous shader's queue; a frame asks for
+    /// no more than fit.
+    std::size_t maxPendingPerFrame = 4;
+    PointShaderOptions shader;  ///< threads are forced to 0 in synchronous mode
+    RenderCacheOptions cache;
+    EdgeFinderOptions edges;
+    EpiOptions epi;
+    std::string toString() const;
+};
+
+/// The display for one Discretization/RayTracer and the ProgressiveSolver over them. Not
+/// thread-safe: call everything from one (the render) thread. In asynchronous mode, the
+/// Discretization and RayTracer may only change while the shader is paused: hold
+/// `PointShader::Pause pause(display.shader());` around the edit and call notifyChanged()
+/// before the pause ends.
+class InteractiveDisplay {
+public:
+    /// `disc`, `tracer` must outlive the display; `solverOptions` are the options of the solver
+    /// whose solution is displayed (PointShader reproduces its form factors). Builds the edge
+    /// trees (EdgeFinder over `disc`), the cache and the EPI; direct lighting only until
+    /// updateSolution(). Throws std::invalid_argument for a non-positive size.
+    InteractiveDisplay(const Discretization& disc, const RayTracer& tracer,
+                       const SolverOptions& solverOptions, InteractiveDisplayOptions options = {});
+    ~InteractiveDisplay();
+    InteractiveDisplay(const InteractiveDisplay&) = delete;
+    InteractiveDisplay& operator=(const InteractiveDisplay&) = delete;
+
+    // -- Frames --------------------------------------------------------------------------------
+
+    /// Renders one frame from `camera` (its raster must be width() × height()); `useEdges`
+    /// false reconstructs without edges (the render-cache baseline, same points). Returns the
+    /// reconstructed radiance (W/m²/sr, linear). Throws std::invalid_argument on a size
+    /// mismatch.
+    Image renderFrame(const CameraRays& camera, bool useEdges = true);
+    /// Reconstructs the last frame's EPI again without finding edges or requesting samples:
+    /// `useEdges` true or false on exactly the same points and edges (for epi vs cache).
+    Image reconstructLast(bool useEdges);
+    /// The last frame's pixel classification (EdgePointImage::classificationImage: empty black,
+    /// with a point dark grey, simple purple, complex green).
+    Image edgeImage() const { return mEpi.classificationImage(); }
+    const DisplayFrameStats& lastFrame() const { return mLast; }
+    /// The last frame's projected edges.
+    const std::vector<ScreenEdge>& screenEdges() const { return mScreenEdges; }
+
+    /// Fills the cache from `camera` before the first frame: shades one point in each cell of a
+    /// regular grid over the image whose cells hold 1/density pixels (density 1: every pixel;
+    /// 0.25: every other pixel in x and y), jittered inside its pixel, deterministic. Always
+    /// synchronous (shades on the calling thread with oneTBB). Returns the points shaded.
+    std::size_t warmUp(const CameraRays& camera, double density = 0.25);
+
+    // -- Edits and solution updates ------------------------------------------------------------
+
+    /// Snapshots the solver's solution for the indirect part (PointShader::updateSolution) and
+    /// drops cached points on elements whose shading changed by more than the threshold.
+    /// Returns the points dropped.
+    std::size_t updateSolution(const ProgressiveSolver& solver);
+    /// After an edit changed `changedObjects` (Discretization object versions added, removed,
+    /// or with a new material; EditResult's added/removed/materialChanged): drops cached
+    /// points on them and in their bounding spheres, brings the edge finder up to date
+    /// (syncWith, lights of emitting objects), recomputes the direct lighting the change
+    /// affects (PointShader::refreshDirect(changed)), takes the solver's solution when given
+    /// (updateSolution, dropping points whose element shading changed) and marks the shadow
+    /// edges for recomputation at the next frame (only stale light–blocker pairs are redone).
+    /// Pending asynchronous requests and results from before the edit are discarded. Returns the
+    /// cached points dropped.
+    std::size_t notifyChanged(const std::vector<int>& changedObjects,
+                              const ProgressiveSolver* solver = nullptr);
+    /// Milliseconds the last shadow-edge recomputation took (after a change, or the first frame).
+    double lastShadowUpdateMs() const { return mLastShadowUpdateMs; }
+
+    // -- Reference and parts -------------------------------------------------------------------
+
+    /// Every pixel shaded with the point shader: samplesPerAxis² samples per pixel on a
+    /// regular sub-pixel grid, averaged (box filter). oneTBB over rows; deterministic.
+    Image renderReference(const CameraRays& camera, int samplesPerAxis = 2) const;
+
+    PointShader& shader() { return *mShader; }
+    const PointShader& shader() const { return *mShader; }
+    RenderCache& cache() { return mCache; }
+    const RenderCache& cache() const { return mCache; }
+    EdgeFinder& edgeFinder() { return mEdges; }
+    EdgePointImage& epi() { return mEpi; }
+    int width() const { return mOptions.width; }
+    int height() const { return mOptions.height; }
+    const InteractiveDisplayOptions& options() const { return mOptions; }
+    std::string toString() const;
+
+private:
+    /// Per element E + ρ·(H_direct + H_indirect) luminance from the shader's snapshots.
+    std::vector<double> elementShading() const;
+    /// Drops points on elements whose shading moved from `before` by more than the threshold.
+    std::size_t invalidateChangedShading(const std::vector<double>& before);
+    void syncLights();
+    std::vector<ShadedPoint> shadeAll(const std::vector<ShadeRequest>& requests) const;
+
+    const Discretization& mDisc;
+    InteractiveDisplayOptions mOptions;
+    std::unique_ptr<PointShader> mShader;
+    RenderCache mCache;
+    EdgeFinder mEdges;
+    EdgePointImage mEpi;
+
+    std::vector<WorldEdge> mShadowEdges;  ///< cached world shadow edges
+    bool mShadowsStale = true;
+    double mLastShadowUpdateMs = 0;
+    std::vector<ScreenEdge> mScreenEdges;
+    std::size_t mInsertedSinceFrame = 0;  ///< points inserted since the last frame started
+    DisplayFrameStats mLast;
+};
+
+/// Clips world edges to the camera's near plane (view depth ≥ nearPlane) and projects them to
+/// pixel coordinates; depth at each endpoint is its view depth (distance along forward()).
+/// Segments entirely behind the plane are dropped.
+std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const CameraRays& camera,
+                                     double nearPlane = 1e-3);
+
+/// Root mean square difference over all pixels and channels (linear values). Throws
+/// std::invalid_argument when the sizes differ.
+double imageRmse(const Image& a, const Image& b);
+/// imageRmse(a, reference) / RMS of the reference (0 when the reference is black).
+double relativeImageRmse(const Image& a, const Image& reference);
+/// Root mean square difference of the displayed values: each channel sRGB-encoded and clipped
+/// to [0, 1] as writePng stores it, so bright emitters do not dominate. In [0, 1]. Throws
+/// std::invalid_argument when the sizes differ.
+double displayRmse(const Image& a, const Image& b);
+
+}  // namespace penumbra
