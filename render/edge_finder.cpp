@@ -2,9 +2,11 @@
 //        shadow edges (pair cache, recomputation) · lightForObject
 #include "render/edge_finder.h"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <sstream>
 
@@ -13,10 +15,6 @@ namespace penumbra {
 namespace {
 
 Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
-
-/// Box–event tolerance relative to the box diagonal: below ReceiverTree's face tolerance, so
-/// a box rejected here holds no face that would cross.
-constexpr double kTouchEps = 1e-12;
 
 }  // namespace
 
@@ -45,7 +43,9 @@ std::string WorldEdge::toString() const {
 std::string EdgeFinderStats::toString() const {
     std::ostringstream s;
     s << "EdgeFinderStats{events " << eventRecomputations << ", pairs " << pairRecomputations
-      << ", triples " << tripleRecomputations << "}";
+      << ", triples " << tripleRecomputations << ", events found " << eventsFound
+      << ", intersected " << eventsIntersected << ", hidden " << eventsHidden
+      << ", receiver queries " << receiverQueries << "}";
     return s.str();
 }
 
@@ -207,95 +207,195 @@ std::vector<WorldEdge> EdgeFinder::findSharpEdges(const Vec3& eye) const {
 // ---------------------------------------------------------------------------------------------
 // Shadow edges
 
-bool EdgeFinder::touchesEvents(const Pair& pair, const Box3& worldBox) const {
-    double eps = kTouchEps * glm::length(worldBox.hi - worldBox.lo);
-    for (std::size_t e = 0; e < pair.events.size(); ++e) {
-        EventFrame frame(pair.events[e]);
-        // A receiver matters beyond the blocker, or before it on an event that has receivers
-        // beyond (it may hide them).
-        if (frame.touches(worldBox, eps, true)) return true;
-        if (pair.eventLive[e] && frame.touches(worldBox, eps)) return true;
+struct EdgeFinder::Counters {
+    std::atomic<long long> intersected{0}, hidden{0}, queries{0};
+};
+
+namespace {
+
+/// True when the union of the intervals [u0, u1] covers [0, 1] (gaps up to 1e-12, the
+/// shortest interval clipEvent resolves).
+bool coversUnitInterval(std::vector<std::pair<double, double>>& iv) {
+    if (iv.empty()) return false;
+    std::sort(iv.begin(), iv.end());
+    double reach = 0;
+    for (const auto& [lo, hi] : iv) {
+        if (lo > reach + 1e-12) return false;
+        reach = std::max(reach, hi);
+        if (reach >= 1 - 1e-12) return true;
     }
     return false;
 }
 
-void EdgeFinder::computePair(int lightIndex, int blockerIndex, Pair& pair,
-                             bool recomputeEvents) const {
+}  // namespace
+
+void EdgeFinder::computeEvents(int lightIndex, int blockerIndex, Pair& pair) const {
     const LightEntry& light = mLights[lightIndex];
     const Object& blocker = mObjects[blockerIndex];
-    if (recomputeEvents) {
-        pair.events.clear();
-        findShadowEvents(*blocker.tree, blocker.worldFromObject, blocker.objectFromWorld,
-                         light.light, pair.events);
-        pair.lightVersion = light.version;
-        pair.blockerVersion = blocker.version;
+    pair.events.clear();
+    findShadowEvents(*blocker.tree, blocker.worldFromObject, blocker.objectFromWorld, light.light,
+                     pair.events);
+    pair.lightVersion = light.version;
+    pair.blockerVersion = blocker.version;
+    pair.frames.clear();
+    pair.frames.reserve(pair.events.size());
+    for (const ShadowEvent& ev : pair.events) pair.frames.emplace_back(ev);
+    computeEventBoxes(pair);
+    pair.near.assign(pair.events.size(), {});
+    pair.eventEdges.assign(pair.events.size(), {});
+}
+
+void EdgeFinder::computeEventBoxes(Pair& pair) const {
+    pair.boxes.resize(pair.events.size());
+    pair.bound = Box3();
+    for (std::size_t e = 0; e < pair.events.size(); ++e) {
+        pair.boxes[e] = pair.frames[e].valid ? eventBounds(pair.events[e], mSceneBox) : Box3();
+        pair.bound.extend(pair.boxes[e]);
     }
+}
+
+void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int e,
+                              Counters& counters) const {
+    const LightEntry& light = mLights[lightIndex];
+    const ShadowEvent& ev = pair.events[e];
+    const EventFrame& frame = pair.frames[e];
+    std::vector<int>& near = pair.near[e];
+    std::vector<WorldEdge>& edges = pair.eventEdges[e];
+    near.clear();
+    edges.clear();
+    if (!frame.valid || pair.boxes[e].empty()) return;
+    // clipEvent's rule: no edge where the nearest surface has s <= kHideS.
+    constexpr double kHideS = 1 + 1e-7;
+    // Receivers whose bounds meet the event's region, with the range of s there; without one
+    // beyond the blocker the event casts nothing (§6.5).
+    struct Candidate {
+        double sMin, sMax;
+        int receiver;
+    };
+    std::vector<Candidate> order;
+    bool live = false;
     const int n = static_cast<int>(mObjects.size());
-    pair.receiverVersion.resize(n);
-    pair.involved.assign(n, 0);
-    for (int r = 0; r < n; ++r) pair.receiverVersion[r] = mObjects[r].version;
-    pair.edges.clear();
-    std::vector<ReceiverCrossings> crossings;
-    std::vector<EventEdge> found;
-    pair.eventLive.assign(pair.events.size(), 0);
-    std::vector<int> near;
-    for (std::size_t ei = 0; ei < pair.events.size(); ++ei) {
-        const ShadowEvent& ev = pair.events[ei];
-        crossings.clear();
-        EventFrame frame(ev);
-        if (!frame.valid) continue;
-        // Receivers beyond the blocker first: without any the event casts nothing (§6.5).
-        bool live = false;
-        near.clear();
-        for (int r = 0; r < n; ++r) {
-            const Object& rec = mObjects[r];
-            if (!rec.alive || r == light.light.object) continue;
-            double eps = kTouchEps * glm::length(rec.worldBounds.hi - rec.worldBounds.lo);
-            if (!frame.touches(rec.worldBounds, eps)) continue;
-            near.push_back(r);
-            live = live || frame.touches(rec.worldBounds, eps, true);
-        }
-        if (!live) continue;
-        pair.eventLive[ei] = 1;
-        for (int r : near) {
-            const Object& rec = mObjects[r];
-            pair.involved[r] = 1;
-            ReceiverCrossings rc;
-            rc.receiver = r;
-            rc.worldFromObject = &rec.worldFromObject;
-            const EdgeMesh& mesh = rec.tree->mesh();
-            bool cull = mesh.closed() && !rec.twoSided;
-            rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings);
-            if (rec.twoSided)
-                for (auto& c : rc.crossings) c.front = true;
-            if (!rc.crossings.empty()) crossings.push_back(std::move(rc));
-        }
-        found.clear();
-        clipEvent(crossings, found);
-        for (const EventEdge& fe : found) {
-            WorldEdge w;
-            w.a = fe.a;
-            w.b = fe.b;
-            w.kind = EdgeKind::Shadow;
-            w.shadow = ev.kind;
-            w.object = fe.receiver;
-            w.edge = ev.blockerFeature;
-            w.light = lightIndex;
-            w.blocker = blockerIndex;
-            pair.edges.push_back(w);
-        }
+    for (int r = 0; r < n; ++r) {
+        const Object& rec = mObjects[r];
+        if (!rec.alive || r == light.light.object) continue;
+        if (!pair.boxes[e].overlaps(rec.worldBounds)) continue;
+        Candidate c{0, 0, r};
+        if (!eventRange(ev, frame, rec.worldBounds, &c.sMin, &c.sMax)) continue;
+        near.push_back(r);
+        order.push_back(c);
+        live = live || c.sMax > kHideS;
     }
-    pair.valid = true;
+    if (!live) return;
+    counters.intersected.fetch_add(1, std::memory_order_relaxed);
+
+    std::vector<ReceiverCrossings> crossings;
+    std::vector<std::pair<double, double>> cover;
+    long long queries = 0;
+    // Whether crossings found so far lie before s (or at it, `orAt`) at every u in [0, 1].
+    auto coveredBefore = [&](double s, bool orAt) {
+        cover.clear();
+        for (const ReceiverCrossings& rc : crossings)
+            for (const auto& c : rc.crossings) {
+                double sMax = std::max(c.g[0][2], c.g[1][2]);
+                if (sMax < s || (orAt && sMax <= s)) cover.push_back({c.u0, c.u1});
+            }
+        return coversUnitInterval(cover);
+    };
+    auto query = [&](int r, double sLo, double sHi) {
+        const Object& rec = mObjects[r];
+        ReceiverCrossings rc;
+        rc.receiver = r;
+        rc.worldFromObject = &rec.worldFromObject;
+        bool cull = rec.tree->mesh().closed() && !rec.twoSided;
+        rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, nullptr, sLo,
+                                sHi);
+        ++queries;
+        if (rec.twoSided)
+            for (auto& c : rc.crossings) c.front = true;
+        if (!rc.crossings.empty()) crossings.push_back(std::move(rc));
+    };
+    auto hiddenNow = [&]() {
+        if (crossings.empty() || !coveredBefore(kHideS, true)) return false;
+        counters.queries.fetch_add(queries, std::memory_order_relaxed);
+        counters.hidden.fetch_add(1, std::memory_order_relaxed);
+        return true;
+    };
+    // Between light and blocker (s < 1), the blocker first: surfaces there hide the event
+    // (§6.5 clipping); covered at every u, it casts nothing, whatever lies beyond.
+    std::stable_sort(order.begin(), order.end(), [&](const Candidate& a, const Candidate& b) {
+        bool ab = a.receiver == blockerIndex, bb = b.receiver == blockerIndex;
+        return ab != bb ? ab : a.sMin < b.sMin;
+    });
+    for (const Candidate& c : order) {
+        if (c.sMin >= 1) continue;
+        query(c.receiver, -HUGE_VAL, 1.0);
+        if (hiddenNow()) return;
+    }
+    // Beyond the blocker, front to back: a receiver whose nearest point lies behind surfaces
+    // already found at every u cannot show.
+    std::stable_sort(order.begin(), order.end(), [](const Candidate& a, const Candidate& b) {
+        return std::max(a.sMin, 1.0) < std::max(b.sMin, 1.0);
+    });
+    for (const Candidate& c : order) {
+        if (c.sMax < 1) continue;
+        if (!crossings.empty() && coveredBefore(std::max(c.sMin, 1.0), false)) break;
+        query(c.receiver, 1.0, HUGE_VAL);
+    }
+    if (hiddenNow()) return;
+    counters.queries.fetch_add(queries, std::memory_order_relaxed);
+    std::vector<EventEdge> found;
+    clipEvent(crossings, found);
+    for (const EventEdge& fe : found) {
+        WorldEdge w;
+        w.a = fe.a;
+        w.b = fe.b;
+        w.kind = EdgeKind::Shadow;
+        w.shadow = ev.kind;
+        w.object = fe.receiver;
+        w.edge = ev.blockerFeature;
+        w.light = lightIndex;
+        w.blocker = blockerIndex;
+        edges.push_back(w);
+    }
 }
 
 std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
+    const int n = static_cast<int>(mObjects.size());
+    // Objects changed since the last call: their old and new bounds (§6.5 moving objects).
+    struct Change {
+        int object;
+        Box3 before, after;  ///< empty when not alive then / now
+    };
+    std::vector<Change> changes;
+    for (int o = 0; o < n; ++o) {
+        const Object& obj = mObjects[o];
+        bool known = o < static_cast<int>(mSeenVersion.size());
+        if (known && mSeenVersion[o] == obj.version) continue;
+        Change c{o, {}, {}};
+        if (known && mSeenAlive[o]) c.before = mSeenBounds[o];
+        if (obj.alive) c.after = obj.worldBounds;
+        changes.push_back(c);
+    }
+    // Event regions are clipped to a box around the scene; when it grows, re-clip them.
+    Box3 scene;
+    for (const Object& obj : mObjects) scene.extend(obj.worldBounds);
+    for (const LightEntry& l : mLights)
+        for (const Vec3& p : l.light.polygon) scene.extend(p);
+    bool sceneGrew = !mSceneBox.contains(scene);
+    if (sceneGrew) {
+        mSceneBox.extend(scene);
+        Vec3 pad(0.01 * glm::length(mSceneBox.hi - mSceneBox.lo) + 1e-9);
+        mSceneBox.lo -= pad;
+        mSceneBox.hi += pad;
+    }
+
     struct Job {
         int light, blocker;
         Pair* pair;
-        bool events;
+        bool events;             ///< rebuild the events (then every event is recomputed)
+        std::vector<int> dirty;  ///< otherwise: the events to recompute
     };
     std::vector<Job> jobs;
-    const int n = static_cast<int>(mObjects.size());
     for (int l = 0; l < static_cast<int>(mLights.size()); ++l) {
         const LightEntry& light = mLights[l];
         for (int b = 0; b < n; ++b) {
@@ -306,37 +406,83 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
                 continue;
             }
             Pair& pair = mPairs[key];
-            bool events = !pair.valid || pair.lightVersion != light.version ||
-                          pair.blockerVersion != blocker.version;
-            bool stale = events;
-            // §6.5 moving objects: a receiver that moved matters when it touched or now
-            // touches one of the pair's events.
-            for (int r = 0; r < n && !stale; ++r) {
-                bool known = r < static_cast<int>(pair.receiverVersion.size());
-                if (known && pair.receiverVersion[r] == mObjects[r].version) continue;
-                if (known && pair.involved[r]) {
-                    stale = true;
-                } else if (mObjects[r].alive && r != light.light.object &&
-                           touchesEvents(pair, mObjects[r].worldBounds)) {
-                    stale = true;
-                } else if (known) {
-                    pair.receiverVersion[r] = mObjects[r].version;  // moved but irrelevant
+            if (!pair.valid || pair.lightVersion != light.version ||
+                pair.blockerVersion != blocker.version) {
+                jobs.push_back({l, b, &pair, true, {}});
+                continue;
+            }
+            if (sceneGrew) computeEventBoxes(pair);
+            // A changed receiver matters to the events it touched or now touches.
+            Job job{l, b, &pair, false, {}};
+            for (const Change& c : changes) {
+                if (c.object == light.light.object || c.object == b) continue;
+                if (!pair.bound.overlaps(c.before) && !pair.bound.overlaps(c.after)) continue;
+                for (int e = 0; e < static_cast<int>(pair.events.size()); ++e) {
+                    const auto& nr = pair.near[e];
+                    double s0, s1;
+                    if (std::find(nr.begin(), nr.end(), c.object) != nr.end() ||
+                        (pair.boxes[e].overlaps(c.after) &&
+                         eventRange(pair.events[e], pair.frames[e], c.after, &s0, &s1)))
+                        job.dirty.push_back(e);
                 }
             }
-            if (stale) jobs.push_back({l, b, &pair, events});
+            if (!job.dirty.empty()) {
+                std::sort(job.dirty.begin(), job.dirty.end());
+                job.dirty.erase(std::unique(job.dirty.begin(), job.dirty.end()), job.dirty.end());
+                jobs.push_back(std::move(job));
+            }
         }
     }
+    // Rebuild events of stale pairs, then recompute every dirty event, all in parallel.
     tbb::parallel_for(std::size_t(0), jobs.size(), [&](std::size_t i) {
-        computePair(jobs[i].light, jobs[i].blocker, *jobs[i].pair, jobs[i].events);
+        Job& job = jobs[i];
+        if (!job.events) return;
+        computeEvents(job.light, job.blocker, *job.pair);
+        job.dirty.resize(job.pair->events.size());
+        for (int e = 0; e < static_cast<int>(job.dirty.size()); ++e) job.dirty[e] = e;
+        job.pair->valid = true;
     });
+    std::vector<std::pair<const Job*, int>> tasks;
+    for (const Job& job : jobs)
+        for (int e : job.dirty) tasks.push_back({&job, e});
+    Counters counters;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tasks.size(), 16),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                              const Job& job = *tasks[i].first;
+                              computeEvent(job.light, job.blocker, *job.pair, tasks[i].second,
+                                           counters);
+                          }
+                      });
     for (const Job& job : jobs) {
         mStats.eventRecomputations += job.events;
         ++mStats.pairRecomputations;
-        for (char c : job.pair->involved) mStats.tripleRecomputations += c;
+        if (job.events) mStats.eventsFound += static_cast<long long>(job.pair->events.size());
+        std::vector<char> involved(n, 0);
+        for (int e : job.dirty)
+            for (int r : job.pair->near[e]) involved[r] = 1;
+        for (char c : involved) mStats.tripleRecomputations += c;
     }
-    std::vector<WorldEdge> out;
+    mStats.eventsIntersected += counters.intersected.load();
+    mStats.eventsHidden += counters.hidden.load();
+    mStats.receiverQueries += counters.queries.load();
+
+    // Remember what the objects were like for the next call.
+    mSeenVersion.resize(n);
+    mSeenAlive.resize(n);
+    mSeenBounds.resize(n);
+    for (int o = 0; o < n; ++o) {
+        mSeenVersion[o] = mObjects[o].version;
+        mSeenAlive[o] = mObjects[o].alive;
+        mSeenBounds[o] = mObjects[o].worldBounds;
+    }
+    std::size_t total = 0;
     for (const auto& [key, pair] : mPairs)
-        out.insert(out.end(), pair.edges.begin(), pair.edges.end());
+        for (const auto& ee : pair.eventEdges) total += ee.size();
+    std::vector<WorldEdge> out;
+    out.reserve(total);
+    for (const auto& [key, pair] : mPairs)
+        for (const auto& ee : pair.eventEdges) out.insert(out.end(), ee.begin(), ee.end());
     return out;
 }
 

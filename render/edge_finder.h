@@ -41,8 +41,12 @@ struct WorldEdge {
 /// Work counters (cumulative until resetStats()).
 struct EdgeFinderStats {
     long long eventRecomputations = 0;   ///< (light, blocker) pairs whose events were rebuilt
-    long long pairRecomputations = 0;    ///< (light, blocker) pairs whose shadow edges were rebuilt
+    long long pairRecomputations = 0;    ///< (light, blocker) pairs with any event recomputed
     long long tripleRecomputations = 0;  ///< (light, blocker, receiver) triples recomputed
+    long long eventsFound = 0;           ///< events of the pairs whose events were rebuilt
+    long long eventsIntersected = 0;     ///< events intersected with receivers (all or some)
+    long long eventsHidden = 0;          ///< of those: hidden whole by a surface before them
+    long long receiverQueries = 0;       ///< event × receiver-tree intersections
     std::string toString() const;
 };
 
@@ -113,17 +117,24 @@ private:
         bool alive = true;
         unsigned version = 1;
     };
+    /// One (light, blocker) pair's events and, per event, what it casts (§6.5: kept until the
+    /// light, the blocker or a receiver near the event moves).
     struct Pair {
         bool valid = false;
         unsigned lightVersion = 0, blockerVersion = 0;
         std::vector<ShadowEvent> events;
-        std::vector<unsigned> receiverVersion;  ///< per object, at the last computation
-        std::vector<char> involved;             ///< per object: touched some live event
-        std::vector<char> eventLive;            ///< per event: some receiver lies beyond it
-        std::vector<WorldEdge> edges;
+        std::vector<EventFrame> frames;
+        std::vector<Box3> boxes;             ///< per event: its region clipped to mSceneBox
+        Box3 bound;                          ///< union of `boxes`: the shadow-volume bound
+        std::vector<std::vector<int>> near;  ///< per event: receivers whose bounds touch it
+        std::vector<std::vector<WorldEdge>> eventEdges;  ///< per event: the edges it casts
     };
-    void computePair(int light, int blocker, Pair& pair, bool events) const;
-    bool touchesEvents(const Pair& pair, const Box3& worldBox) const;
+    struct Counters;
+    /// Rebuilds a pair's events, frames and boxes (not its edges).
+    void computeEvents(int light, int blocker, Pair& pair) const;
+    void computeEventBoxes(Pair& pair) const;
+    /// Recomputes event `e` of the pair: its near receivers and the edges it casts.
+    void computeEvent(int light, int blocker, Pair& pair, int e, Counters& counters) const;
 
     Options mOptions;
     std::vector<Object> mObjects;
@@ -132,6 +143,11 @@ private:
                                                 std::shared_ptr<const ReceiverTree>>>
         mTrees;
     std::map<std::pair<int, int>, Pair> mPairs;
+    /// Per object, as of the last findShadowEdges(): version, alive flag and world bounds.
+    std::vector<unsigned> mSeenVersion;
+    std::vector<char> mSeenAlive;
+    std::vector<Box3> mSeenBounds;
+    Box3 mSceneBox;  ///< every object and light; event regions are clipped to it
     EdgeFinderStats mStats;
 };
 

@@ -29,6 +29,16 @@ struct Box3 {
         hi = glm::max(hi, b.hi);
     }
     bool empty() const { return lo.x > hi.x; }
+    /// Both non-empty and sharing at least a point.
+    bool overlaps(const Box3& b) const {
+        return !empty() && !b.empty() && lo.x <= b.hi.x && b.lo.x <= hi.x && lo.y <= b.hi.y &&
+               b.lo.y <= hi.y && lo.z <= b.hi.z && b.lo.z <= hi.z;
+    }
+    /// `b` lies inside this box (an empty `b` always does).
+    bool contains(const Box3& b) const {
+        return b.empty() || (!empty() && lo.x <= b.lo.x && lo.y <= b.lo.y && lo.z <= b.lo.z &&
+                             b.hi.x <= hi.x && b.hi.y <= hi.y && b.hi.z <= hi.z);
+    }
     Vec3 centre() const { return 0.5 * (lo + hi); }
     Vec3 corner(int i) const {
         return {(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z};

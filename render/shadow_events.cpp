@@ -214,6 +214,7 @@ EventFrame::EventFrame(const ShadowEvent& ev) : vertexEdge(ev.vertexEdge) {
     }
     double len = glm::length(N);
     if (!(len > 0) || !std::isfinite(len)) return;
+    for (int i = 0; i < 3; ++i) kLength[i] = glm::length(k[i]);
     normal = N / len;
     offset = glm::dot(normal, ev.p0);
     valid = true;
@@ -224,32 +225,150 @@ bool EventFrame::inRegion(const double f[3]) const {
     return (f[0] >= 0 && f[1] >= 0 && f[2] >= 0) || (f[0] <= 0 && f[1] <= 0 && f[2] >= 1);
 }
 
+double EventFrame::minS(const Box3& box) const {
+    // s = k2·x + c2 is smallest at the corner picked per axis by the sign of k2.
+    Vec3 x((k[2].x > 0) ? box.lo.x : box.hi.x, (k[2].y > 0) ? box.lo.y : box.hi.y,
+           (k[2].z > 0) ? box.lo.z : box.hi.z);
+    return eval(2, x);
+}
+
 bool EventFrame::touches(const Box3& box, double eps, bool farOnly) const {
     if (!valid || box.empty()) return false;
+    // Linear functions over a box: value at the centre ± the projected half extent.
+    const Vec3 c = box.centre(), h = 0.5 * (box.hi - box.lo);
+    auto range = [&](const Vec3& kk, double cc, double& lo, double& hi) {
+        double m = glm::dot(kk, c) + cc;
+        double r = std::abs(kk.x) * h.x + std::abs(kk.y) * h.y + std::abs(kk.z) * h.z;
+        lo = m - r;
+        hi = m + r;
+    };
     // A face crosses the plane only with vertices strictly on both sides; so must the box.
-    bool anyAbove = false, anyBelow = false;
-    bool allNeg[3] = {true, true, true}, allPos[3] = {true, true, true};
-    bool allBelow1 = true;
-    double tol[3];
-    for (int i = 0; i < 3; ++i) tol[i] = eps * glm::length(k[i]);
-    const double farFrom = farOnly ? 1 + 1e-7 : 1 - tol[2];
-    for (int i = 0; i < 8; ++i) {
-        Vec3 x = box.corner(i);
-        double d = glm::dot(normal, x) - offset;
-        anyAbove = anyAbove || d > eps;
-        anyBelow = anyBelow || d < -eps;
-        for (int j = 0; j < 3; ++j) {
-            double f = eval(j, x);
-            allNeg[j] = allNeg[j] && f < -tol[j];
-            allPos[j] = allPos[j] && f > tol[j];
-        }
-        allBelow1 = allBelow1 && eval(2, x) < farFrom;
-    }
-    if (!anyAbove || !anyBelow) return false;
-    if (vertexEdge) return !(allNeg[0] || allNeg[1] || (farOnly && allBelow1));
-    bool nearOut = farOnly || allNeg[0] || allNeg[1] || allNeg[2];
-    bool farOut = allPos[0] || allPos[1] || allBelow1;
+    double lo, hi;
+    range(normal, -offset, lo, hi);
+    if (!(hi > eps) || !(lo < -eps)) return false;
+    double fLo[3], fHi[3];
+    for (int j = 0; j < 3; ++j) range(k[j], this->c[j], fLo[j], fHi[j]);
+    const double tol0 = eps * kLength[0], tol1 = eps * kLength[1], tol2 = eps * kLength[2];
+    const bool neg0 = fHi[0] < -tol0, neg1 = fHi[1] < -tol1, neg2 = fHi[2] < -tol2;
+    const double farFrom = farOnly ? 1 + 1e-7 : 1 - tol2;
+    const bool below1 = fHi[2] < farFrom;
+    if (vertexEdge) return !(neg0 || neg1 || (farOnly && below1));
+    bool nearOut = farOnly || neg0 || neg1 || neg2;
+    bool farOut = fLo[0] > tol0 || fLo[1] > tol1 || below1;
     return !(nearOut && farOut);
+}
+
+// ---------------------------------------------------------------------------------------------
+// eventBounds
+
+namespace {
+
+/// Sutherland–Hodgman clip of a convex polygon to a box; extends `out` by what remains.
+void extendByClipped(std::vector<Vec3> poly, const Box3& clip, Box3& out,
+                     std::vector<Vec3>* kept = nullptr) {
+    std::vector<Vec3> next;
+    for (int axis = 0; axis < 3 && !poly.empty(); ++axis)
+        for (int side = 0; side < 2 && !poly.empty(); ++side) {
+            // Inside: x[axis] >= lo (side 0) or x[axis] <= hi (side 1).
+            auto dist = [&](const Vec3& p) {
+                return side == 0 ? p[axis] - clip.lo[axis] : clip.hi[axis] - p[axis];
+            };
+            next.clear();
+            for (std::size_t i = 0; i < poly.size(); ++i) {
+                const Vec3& a = poly[i];
+                const Vec3& b = poly[(i + 1) % poly.size()];
+                double da = dist(a), db = dist(b);
+                if (da >= 0) next.push_back(a);
+                if ((da >= 0) != (db >= 0)) next.push_back(a + (da / (da - db)) * (b - a));
+            }
+            poly.swap(next);
+        }
+    for (const Vec3& p : poly) out.extend(p);
+    if (kept) *kept = std::move(poly);
+}
+
+double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
+    Vec3 d = b - a;
+    double dd = glm::dot(d, d);
+    double t = dd > 0 ? std::clamp(glm::dot(p - a, d) / dd, 0.0, 1.0) : 0.0;
+    return glm::length(p - (a + t * d));
+}
+
+/// The event's region as convex polygons (one for VE, two for EV: before and beyond the
+/// vertex), long enough to leave `clip`; false when degenerate.
+bool regionPolygons(const ShadowEvent& ev, const Box3& clip, std::vector<Vec3> (&poly)[2],
+                    int& count) {
+    Vec3 centre = clip.centre();
+    double radius = 0.5 * glm::length(clip.hi - clip.lo);
+    // Far enough along every ray of the event (s = S) every point is outside the clip box's
+    // bounding sphere: S·min|Q(u) − P(u)| > |P − centre| + radius.
+    double minLen = ev.vertexEdge ? distanceToSegment(ev.p0, ev.q0, ev.q1)
+                                  : distanceToSegment(ev.q0, ev.p0, ev.p1);
+    double reach = std::max(glm::length(ev.p0 - centre), glm::length(ev.p1 - centre)) + radius;
+    if (!(minLen > 1e-12 * (reach + radius)) || !std::isfinite(reach)) return false;
+    double S = 1.0 + 1.01 * reach / minLen;
+    if (ev.vertexEdge) {
+        const Vec3& v = ev.p0;
+        poly[0] = {v, v + S * (ev.q0 - v), v + S * (ev.q1 - v)};
+        count = 1;
+    } else {
+        const Vec3 &p0 = ev.p0, &p1 = ev.p1, &w = ev.q0;
+        poly[0] = {p0, p1, w};                                // light edge to vertex
+        poly[1] = {w, p1 + S * (w - p1), p0 + S * (w - p0)};  // beyond the vertex
+        count = 2;
+    }
+    return true;
+}
+
+}  // namespace
+
+bool eventRange(const ShadowEvent& ev, const EventFrame& frame, const Box3& box, double* sMin,
+                double* sMax) {
+    if (!frame.valid || box.empty()) return false;
+    // Pad flat boxes so clipping keeps what lies on them.
+    Box3 padded = box;
+    Vec3 pad(1e-9 * (glm::length(box.hi - box.lo) + glm::length(box.centre())) + 1e-300);
+    padded.lo -= pad;
+    padded.hi += pad;
+    std::vector<Vec3> poly[2];
+    int count = 0;
+    if (!regionPolygons(ev, padded, poly, count)) {
+        *sMin = -HUGE_VAL;
+        *sMax = HUGE_VAL;
+        return true;
+    }
+    Box3 inside;
+    double lo = HUGE_VAL, hi = -HUGE_VAL;
+    for (int i = 0; i < count; ++i) {
+        Box3 part;
+        std::vector<Vec3> kept;
+        extendByClipped(poly[i], padded, part, &kept);
+        for (const Vec3& p : kept) {
+            double s = frame.eval(2, p);
+            lo = std::min(lo, s);
+            hi = std::max(hi, s);
+        }
+        inside.extend(part);
+    }
+    if (inside.empty()) return false;
+    *sMin = lo;
+    *sMax = hi;
+    return true;
+}
+
+Box3 eventBounds(const ShadowEvent& ev, const Box3& clip) {
+    Box3 out;
+    if (clip.empty()) return out;
+    std::vector<Vec3> poly[2];
+    int count = 0;
+    if (!regionPolygons(ev, clip, poly, count)) return clip;
+    for (int i = 0; i < count; ++i) extendByClipped(poly[i], clip, out);
+    double radius = 0.5 * glm::length(clip.hi - clip.lo);
+    if (out.empty()) return out;
+    Vec3 pad(1e-9 * (radius + 1e-300));
+    out.lo -= pad;
+    out.hi += pad;
+    return out;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -335,7 +454,8 @@ void ReceiverTree::build(int slot, int begin, int end) {
 }
 
 void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
-                             std::vector<Crossing>& out, long long* nodesVisited) const {
+                             std::vector<Crossing>& out, long long* nodesVisited, double sLo,
+                             double sHi) const {
     EventFrame frame(event);
     if (!frame.valid || mFaces.empty()) return;
     const EdgeMesh& m = *mMesh;
@@ -343,6 +463,7 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
     Box3 lightBox;
     lightBox.extend(event.p0);
     lightBox.extend(event.p1);
+    const bool windowed = sLo > -HUGE_VAL || sHi < HUGE_VAL;
     long long visited = 0;
     int stack[128];
     int top = 0;
@@ -352,6 +473,14 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
         const Node& node = mNodes[stack[--top]];
         ++visited;
         if (!frame.touches(node.box, eps)) continue;
+        if (windowed) {
+            // Skip boxes whose s range misses the window (s is linear: centre ± extent).
+            Vec3 c = node.box.centre(), h = 0.5 * (node.box.hi - node.box.lo);
+            double m = frame.eval(2, c);
+            double r = std::abs(frame.k[2].x) * h.x + std::abs(frame.k[2].y) * h.y +
+                       std::abs(frame.k[2].z) * h.z;
+            if (m + r < sLo - 1e-9 || m - r >= sHi + 1e-9) continue;
+        }
         if (cullBackFaces) {
             // Every face below faces away from the whole light feature: skip (§6.4).
             double hi = 0, mag = 0;
@@ -438,6 +567,7 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
                 double tm = 0.5 * (ta + tb), fm[3];
                 for (int q = 0; q < 3; ++q) fm[q] = f0[q] + tm * (f1[q] - f0[q]);
                 if (!frame.inRegion(fm)) continue;
+                if (windowed && (fm[2] < sLo || fm[2] >= sHi)) continue;
                 Crossing cr;
                 cr.x0 = x0 + ta * (x1 - x0);
                 cr.x1 = x0 + tb * (x1 - x0);
@@ -510,7 +640,11 @@ void clipEvent(const std::vector<ReceiverCrossings>& receivers, std::vector<Even
         active.erase(
             std::remove_if(active.begin(), active.end(), [&](int i) { return items[i].u1 <= ua; }),
             active.end());
-        if (ub - ua < 1e-12 || active.empty()) continue;
+        if (active.empty()) continue;
+        if (ub - ua < 1e-12) {
+            if (lastItem && lastU == ua) lastU = ub;  // too short to resolve: bridge it
+            continue;
+        }
         double um = 0.5 * (ua + ub), bestS = 1e300;
         const Item* best = nullptr;
         for (int i : active) {

@@ -5,6 +5,7 @@
 //
 // Index: Light · ShadowEvent · findShadowEvents · ReceiverTree · EventPiece, clipping
 
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -78,8 +79,12 @@ public:
     /// Appends the crossings of `event` (in this object's space) with the faces.
     /// `cullBackFaces`: skip faces facing away from the light feature (closed one-sided
     /// meshes only: such faces are never the first surface a light ray meets).
+    /// Crossings are split where s = 1; only pieces whose mid s lies in [sLo, sHi) are kept
+    /// (e.g. [−inf, 1): between light and blocker), and subtrees outside that s range are
+    /// skipped.
     void intersect(const ShadowEvent& event, bool cullBackFaces, std::vector<Crossing>& out,
-                   long long* nodesVisited = nullptr) const;
+                   long long* nodesVisited = nullptr, double sLo = -HUGE_VAL,
+                   double sHi = HUGE_VAL) const;
 
     const EdgeMesh& mesh() const { return *mMesh; }
     const Box3& bounds() const { return mNodes[0].box; }
@@ -104,20 +109,33 @@ private:
 /// the ray parameter; u = G0 / (G0 + G1). VE region: G0, G1 ≥ 0. EV region: G0, G1 ≥ 0 with
 /// s ≥ 0 (between light edge and vertex) or G0, G1 ≤ 0 (beyond the vertex).
 struct EventFrame {
+    EventFrame() = default;
     explicit EventFrame(const ShadowEvent& event);
     bool valid = false;
     bool vertexEdge = true;
     Vec3 normal{0.0};   ///< unit plane normal
     double offset = 0;  ///< normal·x = offset on the plane
     Vec3 k[3];          ///< G0, G1, s: f(x) = k·x + c
-    double c[3];
+    double c[3]{};
+    double kLength[3]{};  ///< |k|
     double eval(int i, const Vec3& x) const { return glm::dot(k[i], x) + c[i]; }
     bool inRegion(const double f[3]) const;
     /// Conservative: false only when no face inside the box can cross the event region (the
     /// box must straddle the plane by more than `eps`). `farOnly`: the part beyond the blocker
     /// (s > 1), where shadow edges lie.
     bool touches(const Box3& box, double eps, bool farOnly = false) const;
+    /// Lower bound of s over a box (s is linear: its minimum over the 8 corners).
+    double minS(const Box3& box) const;
 };
+
+/// Whether the event's region meets `box` (exactly, up to a 1e-9 relative padding of the
+/// box), and then the range [sMin, sMax] of s over the region inside the box.
+bool eventRange(const ShadowEvent& event, const EventFrame& frame, const Box3& box, double* sMin,
+                double* sMax);
+
+/// Axis-aligned bound of an event's region (both parts of an EV event) inside `clip`; empty
+/// when the region misses `clip`. Used to cull receivers and to bound a pair's shadow volume.
+Box3 eventBounds(const ShadowEvent& event, const Box3& clip);
 
 /// A shadow edge found on one receiver along one event (world space).
 struct EventEdge {
