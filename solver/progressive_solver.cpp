@@ -321,10 +321,32 @@ void ProgressiveSolver::shootStochasticBatch() {
     shooters.clear();
     unshot.clear();
     cdf.clear();
+    // All unshot power leaves at once, unless that would take more than maxBatchRays rays:
+    // then the strongest patches go first (progressive refinement's order, batch by batch)
+    // and the rest stays unshot for the next batch, so no step blocks for long.
+    double all = 0;
+    for (std::size_t p = 0; p < patches.size(); ++p)
+        all += std::max(0.0, energyKey(mPatchUnshot[p], patches[p].area));
+    const double raysPerWatt = mOptions.raysPerEmittedPower / std::max(mEmittedEnergy, 1e-300);
+    double floorPower = 0;  // patches with at least this power shoot in this batch
+    if (all * raysPerWatt > mOptions.maxBatchRays) {
+        std::vector<double> powers;
+        for (std::size_t p = 0; p < patches.size(); ++p) {
+            double power = energyKey(mPatchUnshot[p], patches[p].area);
+            if (power > 0) powers.push_back(power);
+        }
+        std::sort(powers.begin(), powers.end(), std::greater<>());
+        double taken = 0;
+        for (double power : powers) {
+            if (taken > 0 && (taken + power) * raysPerWatt > mOptions.maxBatchRays) break;
+            taken += power;
+            floorPower = power;
+        }
+    }
     double total = 0;
     for (std::size_t p = 0; p < patches.size(); ++p) {
         double power = energyKey(mPatchUnshot[p], patches[p].area);
-        if (!(power > 0)) continue;
+        if (!(power > 0) || power < floorPower) continue;
         shooters.push_back(static_cast<int>(p));
         unshot.push_back(mPatchUnshot[p]);
         cdf.push_back(total += power);

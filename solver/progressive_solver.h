@@ -37,8 +37,8 @@ struct SolverOptions {
     /// casts raysPerEmittedPower × Φ / Φ_emitted rays (at least minStochasticRays).
     double raysPerEmittedPower = 4e6;
     int minStochasticRays = 1024;
-    /// A stochastic redistribution batch takes the most important pending shooters up to
-    /// about this many rays; the rest wait for the next batch.
+    /// A stochastic batch (propagation or redistribution) takes the strongest shooters up
+    /// to about this many rays; the rest wait for the next batch.
     double maxBatchRays = 2.5e5;
     /// Rays a redistribution batch casts per watt of importance, relative to the emitted
     /// power as raysPerEmittedPower is; 0 uses raysPerEmittedPower. Redistribution rays are
