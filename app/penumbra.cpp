@@ -468,6 +468,20 @@ int main(int argc, char** argv) {
     benchRedist->add_option("--max-ms", redist.maxMs, "solver time per method");
     benchRedist->add_option("--plot-dir", redist.plotDir, "write error-vs-time plots (PNG) here");
     benchRedist->add_option("--json", redist.jsonOut, "write every sample as JSON");
+    DisplayBenchOptions display;
+    CLI::App* benchDisplay = benchCmd->add_subcommand(
+        "display", "Bala et al. Table 2: display stage times, fps, epi vs cache error");
+    benchDisplay->add_option("--cases", display.cases, "robot-room and/or armadillo-field");
+    benchDisplay->add_option("--scene-dir", display.sceneDir, "folder with the scenes");
+    benchDisplay->add_option("--width", display.width)->check(CLI::Range(8, 8192));
+    benchDisplay->add_option("--height", display.height)->check(CLI::Range(8, 8192));
+    benchDisplay->add_option("--frames", display.frames)->check(CLI::Range(2, 100000));
+    benchDisplay->add_option("--sample-fraction", display.sampleFraction)
+        ->check(CLI::Range(0.0, 1.0));
+    benchDisplay->add_option("--warmup", display.warmup)->check(CLI::Range(0.0, 1.0));
+    benchDisplay->add_option("--plot-dir", display.plotDir,
+                             "write display-cache.png / display-epi.png (same samples) here");
+    benchDisplay->add_option("--json", display.jsonOut, "write every frame as JSON");
 
     try {
         app.parse(argc, argv);
@@ -490,6 +504,7 @@ int main(int argc, char** argv) {
         if (*replayCmd) return runReplayCommand(replay);
         if (*benchSolver) return runSolverBench(bench);
         if (*benchRedist) return runRedistributionBench(redist);
+        if (*benchDisplay) return runDisplayBench(display);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "penumbra: %s\n", e.what());
         return 2;

@@ -482,6 +482,32 @@ def large():
     return scene({"patch_size": 0.5, "element_size": 0.1}, mats, objs, cams)
 
 
+def armadillo_field():
+    """Display benchmark scene (Bala et al. 2003 Table 1 "Dragon" scale): 20 armadillos
+    (52,000 triangles each, 1.04M in all) on a 5 × 4 grid on a floor, four slats casting a
+    shadow pattern, one area lamp. Coarse patches (the solver is not the point here):
+    patch 1.0 m, element 0.5 m; the meshes' triangles are the elements."""
+    W, D, H = 9.0, 8.0, 3.5
+    mats = {
+        "floor": {"reflectance": [0.55, 0.5, 0.45]},
+        "statue": {"reflectance": [0.6, 0.6, 0.62], "two_sided": True},
+        "slat": {"reflectance": [0.4, 0.3, 0.25]},
+        "lamp": lamp_material([150, 140, 120]),
+    }
+    objs = [quad("floor", W, D, "floor", (0, 0, 0))]
+    objs.append(lamp("lamp", 1.2, 1.2, "lamp", 0.0, 0.0, H, gap=0.0, patch_size=2.0))
+    for k, z in enumerate([-0.9, -0.3, 0.3, 0.9]):
+        objs.append(box("slat-%d" % (k + 1), (3.0, 0.05, 0.12), "slat", (0.0, 2.6, z)))
+    for i in range(5):
+        for j in range(4):
+            x = -3.0 + 1.5 * i
+            z = -2.25 + 1.5 * j
+            objs.append(mesh("armadillo-%d-%d" % (i + 1, j + 1), "armadillo", "statue", 1.0, x, z,
+                             rotate_y=180 + 15 * ((i + j) % 3)))
+    cams = {"default": camera((0.0, 4.2, 7.0), (0, 0.5, 0.0), fov=55)}
+    return scene({"patch_size": 1.0, "element_size": 0.5}, mats, objs, cams)
+
+
 BUILDERS = {
     "cornell-box": cornell_box,
     "cube-room": cube_room,
@@ -489,6 +515,7 @@ BUILDERS = {
     "robot-room": robot_room,
     "robot-room-empty": robot_room_empty,
     "large": large,
+    "armadillo-field": armadillo_field,
 }
 
 

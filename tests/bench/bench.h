@@ -33,4 +33,23 @@ struct RedistributionBenchOptions {
 /// without redistribution.
 int runRedistributionBench(const RedistributionBenchOptions& options);
 
+struct DisplayBenchOptions {
+    std::vector<std::string> cases{"robot-room", "armadillo-field"};
+    std::string sceneDir = "scenes";
+    int width = 512;
+    int height = 512;
+    int frames = 30;
+    double sampleFraction = 0.02;  ///< new samples per frame (Bala et al.: 1–3%)
+    double warmup = 0.25;          ///< fraction of the pixels shaded before the first frame
+    double degPerFrame = 0.5;      ///< camera orbit per frame
+    int referenceSamples = 2;      ///< reference supersampling per axis
+    std::string plotDir;  ///< writes display-{cache,epi,reference,edges}.png of the first case
+    std::string jsonOut;
+};
+
+/// `penumbra bench display`: Bala et al. 2003 Table 2 — per-frame stage times, fps, epi and
+/// cache error against the every-pixel reference on the same samples, speedup over shading
+/// every pixel once, silhouette time, shadow-edge update after a move.
+int runDisplayBench(const DisplayBenchOptions& options);
+
 }  // namespace penumbra
