@@ -45,7 +45,7 @@ std::string EdgeFinderStats::toString() const {
     s << "EdgeFinderStats{events " << eventRecomputations << ", pairs " << pairRecomputations
       << ", triples " << tripleRecomputations << ", events found " << eventsFound
       << ", intersected " << eventsIntersected << ", hidden " << eventsHidden
-      << ", receiver queries " << receiverQueries << "}";
+      << ", receiver queries " << receiverQueries << " visiting " << receiverNodes << " nodes}";
     return s.str();
 }
 
@@ -208,33 +208,15 @@ std::vector<WorldEdge> EdgeFinder::findSharpEdges(const Vec3& eye) const {
 // Shadow edges
 
 struct EdgeFinder::Counters {
-    std::atomic<long long> intersected{0}, hidden{0}, queries{0};
+    std::atomic<long long> intersected{0}, hidden{0}, queries{0}, nodes{0};
 };
-
-namespace {
-
-/// True when the union of the intervals [u0, u1] covers [0, 1] (gaps up to 1e-12, the
-/// shortest interval clipEvent resolves).
-bool coversUnitInterval(std::vector<std::pair<double, double>>& iv) {
-    if (iv.empty()) return false;
-    std::sort(iv.begin(), iv.end());
-    double reach = 0;
-    for (const auto& [lo, hi] : iv) {
-        if (lo > reach + 1e-12) return false;
-        reach = std::max(reach, hi);
-        if (reach >= 1 - 1e-12) return true;
-    }
-    return false;
-}
-
-}  // namespace
 
 void EdgeFinder::computeEvents(int lightIndex, int blockerIndex, Pair& pair) const {
     const LightEntry& light = mLights[lightIndex];
     const Object& blocker = mObjects[blockerIndex];
     pair.events.clear();
     findShadowEvents(*blocker.tree, blocker.worldFromObject, blocker.objectFromWorld, light.light,
-                     pair.events);
+                     pair.events, nullptr, !blocker.twoSided);
     pair.lightVersion = light.version;
     pair.blockerVersion = blocker.version;
     pair.frames.clear();
@@ -289,37 +271,23 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     counters.intersected.fetch_add(1, std::memory_order_relaxed);
 
     std::vector<ReceiverCrossings> crossings;
-    std::vector<std::pair<double, double>> cover;
-    long long queries = 0;
-    // Whether crossings found so far lie before s (or at it, `orAt`) at every u in [0, 1].
-    auto coveredBefore = [&](double s, bool orAt) {
-        cover.clear();
-        for (const ReceiverCrossings& rc : crossings)
-            for (const auto& c : rc.crossings) {
-                double sMax = std::max(c.g[0][2], c.g[1][2]);
-                if (sMax < s || (orAt && sMax <= s)) cover.push_back({c.u0, c.u1});
-            }
-        return coversUnitInterval(cover);
-    };
+    EventCoverage coverage;
+    coverage.hideS = kHideS;
+    long long queries = 0, nodes = 0;
     auto query = [&](int r, double sLo, double sHi) {
         const Object& rec = mObjects[r];
         ReceiverCrossings rc;
         rc.receiver = r;
         rc.worldFromObject = &rec.worldFromObject;
         bool cull = rec.tree->mesh().closed() && !rec.twoSided;
-        rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, nullptr, sLo,
-                                sHi);
+        rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, &nodes, sLo,
+                                sHi, &coverage);
         ++queries;
         if (rec.twoSided)
             for (auto& c : rc.crossings) c.front = true;
         if (!rc.crossings.empty()) crossings.push_back(std::move(rc));
     };
-    auto hiddenNow = [&]() {
-        if (crossings.empty() || !coveredBefore(kHideS, true)) return false;
-        counters.queries.fetch_add(queries, std::memory_order_relaxed);
-        counters.hidden.fetch_add(1, std::memory_order_relaxed);
-        return true;
-    };
+    auto hidden = [&]() { return coverage.threshold() <= kHideS; };
     // Between light and blocker (s < 1), the blocker first: surfaces there hide the event
     // (§6.5 clipping); covered at every u, it casts nothing, whatever lies beyond.
     std::stable_sort(order.begin(), order.end(), [&](const Candidate& a, const Candidate& b) {
@@ -327,9 +295,9 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         return ab != bb ? ab : a.sMin < b.sMin;
     });
     for (const Candidate& c : order) {
-        if (c.sMin >= 1) continue;
+        if (hidden()) break;
+        if (c.sMin >= 1 || c.sMin > coverage.threshold() + 1e-12) continue;
         query(c.receiver, -HUGE_VAL, 1.0);
-        if (hiddenNow()) return;
     }
     // Beyond the blocker, front to back: a receiver whose nearest point lies behind surfaces
     // already found at every u cannot show.
@@ -337,12 +305,16 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         return std::max(a.sMin, 1.0) < std::max(b.sMin, 1.0);
     });
     for (const Candidate& c : order) {
+        if (hidden() || std::max(c.sMin, 1.0) > coverage.threshold() + 1e-12) break;
         if (c.sMax < 1) continue;
-        if (!crossings.empty() && coveredBefore(std::max(c.sMin, 1.0), false)) break;
         query(c.receiver, 1.0, HUGE_VAL);
     }
-    if (hiddenNow()) return;
     counters.queries.fetch_add(queries, std::memory_order_relaxed);
+    counters.nodes.fetch_add(nodes, std::memory_order_relaxed);
+    if (hidden()) {
+        counters.hidden.fetch_add(1, std::memory_order_relaxed);
+        return;
+    }
     std::vector<EventEdge> found;
     clipEvent(crossings, found);
     for (const EventEdge& fe : found) {
@@ -466,6 +438,7 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
     mStats.eventsIntersected += counters.intersected.load();
     mStats.eventsHidden += counters.hidden.load();
     mStats.receiverQueries += counters.queries.load();
+    mStats.receiverNodes += counters.nodes.load();
 
     // Remember what the objects were like for the next call.
     mSeenVersion.resize(n);

@@ -47,6 +47,7 @@ struct EdgeFinderStats {
     long long eventsIntersected = 0;     ///< events intersected with receivers (all or some)
     long long eventsHidden = 0;          ///< of those: hidden whole by a surface before them
     long long receiverQueries = 0;       ///< event × receiver-tree intersections
+    long long receiverNodes = 0;         ///< receiver-tree nodes those visited
     std::string toString() const;
 };
 

@@ -181,6 +181,88 @@ EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::ve
         mEdges.push_back(e);
     }
 
+    // Faces OpenMesh could not link (non-manifold vertices) kept their own vertex copies, so
+    // their edges came out as boundary edges although a face lies across them. Pair such an
+    // edge with the one boundary edge running the other way between the same input vertices:
+    // one interior edge with both faces (real silhouettes, a real dihedral angle, a closed mesh
+    // when nothing else is open).
+    {
+        std::unordered_map<std::uint64_t, std::vector<int>> open;
+        auto key = [&](int a, int b) {
+            return (static_cast<std::uint64_t>(mSourceVertex[a]) << 32) |
+                   static_cast<std::uint32_t>(mSourceVertex[b]);
+        };
+        for (int id : mBoundaryEdges) open[key(mEdges[id].v0, mEdges[id].v1)].push_back(id);
+        std::vector<char> removed(mEdges.size(), 0);
+        bool merged = false;
+        for (int id : mBoundaryEdges) {
+            if (removed[id] || mEdges[id].f1 >= 0) continue;
+            const MeshEdge& e = mEdges[id];
+            auto same = open.find(key(e.v0, e.v1));
+            auto back = open.find(key(e.v1, e.v0));
+            if (back == open.end() || back->second.size() != 1 || same->second.size() != 1)
+                continue;
+            int other = back->second[0];
+            if (other == id || removed[other] || mEdges[other].f0 == e.f0) continue;
+            mEdges[id].f1 = mEdges[other].f0;
+            mEdges[id].sharp =
+                glm::dot(mFacePlanes[e.f0].n, mFacePlanes[mEdges[id].f1].n) < cosCutoff;
+            removed[other] = 1;
+            merged = true;
+        }
+        if (merged) {
+            std::vector<MeshEdge> kept;
+            mSharpEdges.clear();
+            mBoundaryEdges.clear();
+            for (std::size_t i = 0; i < mEdges.size(); ++i) {
+                if (removed[i]) continue;
+                int id = static_cast<int>(kept.size());
+                if (mEdges[i].f1 < 0) mBoundaryEdges.push_back(id);
+                if (mEdges[i].sharp) mSharpEdges.push_back(id);
+                kept.push_back(mEdges[i]);
+            }
+            mEdges.swap(kept);
+        }
+    }
+
+    // Sealed: every boundary edge is covered by boundary edges running the other way along
+    // it (cracks of T-junctions where the Discretization split large triangles), so the
+    // surface still bounds a solid. Brute force over boundary edges, done once per mesh.
+    mSealed = mBoundaryEdges.empty();
+    if (!mSealed && mBoundaryEdges.size() <= 4000) {
+        double tol = 1e-9 * glm::length(mBounds.hi - mBounds.lo);
+        std::vector<std::pair<double, double>> cover;
+        mSealed = true;
+        for (int id : mBoundaryEdges) {
+            const Vec3& c = mPositions[mEdges[id].v0];
+            const Vec3& d = mPositions[mEdges[id].v1];
+            Vec3 dir = d - c;
+            double len2 = glm::dot(dir, dir);
+            if (!(len2 > 0)) continue;
+            cover.clear();
+            for (int other : mBoundaryEdges) {
+                const Vec3& a = mPositions[mEdges[other].v0];
+                const Vec3& b = mPositions[mEdges[other].v1];
+                double ta = glm::dot(a - c, dir) / len2, tb = glm::dot(b - c, dir) / len2;
+                if (!(tb < ta)) continue;  // must run the other way
+                if (glm::length(a - (c + ta * dir)) > tol || glm::length(b - (c + tb * dir)) > tol)
+                    continue;  // not on the line
+                cover.push_back({tb, ta});
+            }
+            std::sort(cover.begin(), cover.end());
+            double reach = 0;
+            double step = tol / std::sqrt(len2);
+            for (const auto& [lo, hi] : cover) {
+                if (lo > reach + step) break;
+                reach = std::max(reach, hi);
+            }
+            if (reach < 1 - step) {
+                mSealed = false;
+                break;
+            }
+        }
+    }
+
     // Vertex one-rings.
     mNeighbourStart.reserve(om.n_vertices() + 1);
     mNeighbourStart.push_back(0);
@@ -233,7 +315,7 @@ std::string EdgeMesh::toString() const {
     std::ostringstream s;
     s << "EdgeMesh{" << mPositions.size() << " vertices, " << faceCount() << " faces, "
       << mEdges.size() << " edges, " << mSharpEdges.size() << " sharp, " << mBoundaryEdges.size()
-      << " boundary}";
+      << " boundary" << (mSealed ? ", sealed" : "") << "}";
     return s.str();
 }
 

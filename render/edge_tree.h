@@ -102,6 +102,10 @@ public:
     const Box3& bounds() const { return mBounds; }
     /// No boundary edges: a ray from outside meets a front face before any back face.
     bool closed() const { return mBoundaryEdges.empty(); }
+    /// Closed, or open only along cracks: every boundary edge is covered by boundary edges
+    /// running the opposite way along the same line (T-junctions of split triangles). Such a
+    /// surface still bounds a solid. Checked for up to 4000 boundary edges, else false.
+    bool sealed() const { return mSealed; }
     /// Hash of positions and faces: equal meshes (e.g. two versions of a moved object) share
     /// one tree.
     std::uint64_t contentHash() const { return mHash; }
@@ -120,6 +124,7 @@ private:
     std::vector<int> mSharpEdges, mBoundaryEdges;
     std::vector<int> mNeighbourStart, mNeighbours;
     Box3 mBounds;
+    bool mSealed = false;
     std::uint64_t mHash = 0;
 };
 

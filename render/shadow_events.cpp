@@ -66,10 +66,24 @@ std::string ShadowEvent::toString() const {
 // ---------------------------------------------------------------------------------------------
 // findShadowEvents
 
+bool isConcaveEdge(const EdgeMesh& mesh, int edge) {
+    const MeshEdge& e = mesh.edges()[edge];
+    if (e.f1 < 0) return false;
+    const FacePlane& p0 = mesh.facePlanes()[e.f0];
+    double size = glm::length(mesh.bounds().hi - mesh.bounds().lo);
+    double best = 0;
+    for (int j = mesh.faceStart()[e.f1]; j < mesh.faceStart()[e.f1 + 1]; ++j) {
+        double d = p0.eval(mesh.positions()[mesh.faceVertices()[j]]);
+        if (std::abs(d) > std::abs(best)) best = d;
+    }
+    return best > 1e-9 * size;
+}
+
 void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
                       const Mat4& objectFromWorld, const Light& light,
-                      std::vector<ShadowEvent>& out, EdgeTreeStats* stats) {
+                      std::vector<ShadowEvent>& out, EdgeTreeStats* stats, bool cullHidden) {
     const EdgeMesh& mesh = blocker.mesh();
+    cullHidden = cullHidden && mesh.sealed();
     const auto& P = mesh.positions();
     std::vector<Vec3> L;
     for (const Vec3& p : light.polygon) L.push_back(apply(objectFromWorld, p));
@@ -80,6 +94,7 @@ void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
         // Point light: shadow events are the silhouettes seen from the light (§6.4).
         blocker.findSilhouettes(L[0], edges, stats);
         for (int id : edges) {
+            if (cullHidden && isConcaveEdge(mesh, id)) continue;
             const MeshEdge& e = mesh.edges()[id];
             ShadowEvent ev;
             ev.p0 = ev.p1 = L[0];
@@ -104,6 +119,7 @@ void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
         const Vec3 &a = P[e.v0], &b = P[e.v1];
         vertices.push_back(e.v0);
         vertices.push_back(e.v1);
+        if (cullHidden && isConcaveEdge(mesh, id)) continue;
         // VE events: light vertex v, blocker edge e.
         for (int i = 0; i < n; ++i) {
             if (!mesh.isSilhouette(id, L[i])) continue;  // eq. 1 from v
@@ -455,7 +471,7 @@ void ReceiverTree::build(int slot, int begin, int end) {
 
 void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
                              std::vector<Crossing>& out, long long* nodesVisited, double sLo,
-                             double sHi) const {
+                             double sHi, EventCoverage* coverage) const {
     EventFrame frame(event);
     if (!frame.valid || mFaces.empty()) return;
     const EdgeMesh& m = *mMesh;
@@ -464,6 +480,14 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
     lightBox.extend(event.p0);
     lightBox.extend(event.p1);
     const bool windowed = sLo > -HUGE_VAL || sHi < HUGE_VAL;
+    // s over a box is linear: centre ± projected half extent.
+    auto sRange = [&](const Box3& b) {
+        Vec3 c = b.centre(), h = 0.5 * (b.hi - b.lo);
+        double m = frame.eval(2, c);
+        double r = std::abs(frame.k[2].x) * h.x + std::abs(frame.k[2].y) * h.y +
+                   std::abs(frame.k[2].z) * h.z;
+        return std::make_pair(m - r, m + r);
+    };
     long long visited = 0;
     int stack[128];
     int top = 0;
@@ -472,14 +496,16 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
     while (top > 0) {
         const Node& node = mNodes[stack[--top]];
         ++visited;
+        if (coverage) {
+            double t = coverage->threshold();
+            if (t <= coverage->hideS) break;                   // decided: hidden
+            if (sRange(node.box).first > t + 1e-12) continue;  // behind what is found
+        }
         if (!frame.touches(node.box, eps)) continue;
         if (windowed) {
-            // Skip boxes whose s range misses the window (s is linear: centre ± extent).
-            Vec3 c = node.box.centre(), h = 0.5 * (node.box.hi - node.box.lo);
-            double m = frame.eval(2, c);
-            double r = std::abs(frame.k[2].x) * h.x + std::abs(frame.k[2].y) * h.y +
-                       std::abs(frame.k[2].z) * h.z;
-            if (m + r < sLo - 1e-9 || m - r >= sHi + 1e-9) continue;
+            // Skip boxes whose s range misses the window.
+            auto [lo, hi] = sRange(node.box);
+            if (hi < sLo - 1e-9 || lo >= sHi + 1e-9) continue;
         }
         if (cullBackFaces) {
             // Every face below faces away from the whole light feature: skip (§6.4).
@@ -493,8 +519,12 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
             if (hi - node.dLo < -1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi))) continue;
         }
         if (node.child >= 0) {
-            stack[top++] = node.child;
-            stack[top++] = node.child + 1;
+            int a = node.child, b = node.child + 1;
+            // Nearest first when something may cut the traversal short.
+            if (coverage && sRange(mNodes[b].box).first < sRange(mNodes[a].box).first)
+                std::swap(a, b);
+            stack[top++] = b;
+            stack[top++] = a;
             continue;
         }
         for (int i = node.begin; i < node.end; ++i) {
@@ -590,10 +620,48 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
                 cr.face = f;
                 cr.front = front;
                 out.push_back(cr);
+                if (coverage) coverage->add(cr.u0, cr.u1, std::max(cr.g[0][2], cr.g[1][2]));
             }
         }
     }
     if (nodesVisited) *nodesVisited += visited;
+}
+
+// ---------------------------------------------------------------------------------------------
+// EventCoverage
+
+void EventCoverage::add(double u0, double u1, double sMax) {
+    if (!(u1 - u0 >= 1e-12)) return;
+    mPieces.push_back({u0, u1, sMax});
+    mDirty = true;
+}
+
+double EventCoverage::threshold() const {
+    if (!mDirty) return mThreshold;
+    mDirty = false;
+    // Per elementary interval between piece ends, the smallest sMax of a piece over it; the
+    // threshold is the largest of those (infinite where nothing covers).
+    std::vector<double> breaks = {0.0, 1.0};
+    for (const Piece& p : mPieces) {
+        breaks.push_back(p.u0);
+        breaks.push_back(p.u1);
+    }
+    std::sort(breaks.begin(), breaks.end());
+    breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
+    std::vector<double> best(breaks.size(), HUGE_VAL);
+    for (const Piece& p : mPieces) {
+        auto from = std::lower_bound(breaks.begin(), breaks.end(), p.u0) - breaks.begin();
+        auto to = std::lower_bound(breaks.begin(), breaks.end(), p.u1) - breaks.begin();
+        for (auto i = from; i < to; ++i) best[i] = std::min(best[i], p.sMax);
+    }
+    double t = -HUGE_VAL;
+    for (std::size_t i = 0; i + 1 < breaks.size(); ++i) {
+        if (breaks[i + 1] <= 0 || breaks[i] >= 1 || breaks[i + 1] - breaks[i] < 1e-12) continue;
+        t = std::max(t, best[i]);
+        if (t == HUGE_VAL) break;
+    }
+    mThreshold = t;
+    return t;
 }
 
 // ---------------------------------------------------------------------------------------------

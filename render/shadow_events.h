@@ -56,9 +56,39 @@ struct ShadowEvent {
 /// plane supports the blocker at w; this replaces the appendix's walk along the shadow-volume
 /// boundary and finds a superset that clipping reduces). Umbral when the light and the blocker
 /// lie on the same side of the event plane, penumbral otherwise.
+/// `cullHidden` (sealed blockers only, EdgeMesh::sealed(); lights outside the blocker): skip VE
+/// events at concave (reflex) edges. Rays from the light vertex to such an edge run, just before
+/// it, behind the back-facing face, i.e. inside the solid, so they crossed the blocker's surface on
+/// the way: the blocker hides the whole event from the light and it casts nothing (§6.5 clipping
+/// would find the same, at the cost of intersecting it).
 void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
                       const Mat4& objectFromWorld, const Light& light,
-                      std::vector<ShadowEvent>& out, EdgeTreeStats* stats = nullptr);
+                      std::vector<ShadowEvent>& out, EdgeTreeStats* stats = nullptr,
+                      bool cullHidden = false);
+/// Whether a silhouette edge of a closed mesh is concave (reflex): a vertex of one face lies
+/// strictly in front of the other face's plane.
+bool isConcaveEdge(const EdgeMesh& mesh, int edge);
+
+/// What is known along one event while its receivers are intersected front to back (§6.5
+/// clipping): the u range and largest s of every crossing piece found so far. threshold() is
+/// the smallest T such that pieces with s <= T cover every u in [0, 1] (gaps shorter than
+/// clipEvent resolves, 1e-12, ignored): surfaces all beyond T can never be the nearest, and
+/// with T <= 1 + 1e-7 the event is hidden (casts nothing).
+class EventCoverage {
+public:
+    void add(double u0, double u1, double sMax);
+    double threshold() const;
+    /// Once threshold() <= hideS, intersect() stops: the event's outcome is decided.
+    double hideS = -HUGE_VAL;
+
+private:
+    struct Piece {
+        double u0, u1, sMax;
+    };
+    std::vector<Piece> mPieces;
+    mutable double mThreshold = HUGE_VAL;
+    mutable bool mDirty = false;
+};
 
 /// A bounding-volume hierarchy over an EdgeMesh's faces (object space) whose nodes also bound
 /// the face normals by an interval vector and the plane offsets (§6.4 "shadow edge
@@ -81,10 +111,12 @@ public:
     /// meshes only: such faces are never the first surface a light ray meets).
     /// Crossings are split where s = 1; only pieces whose mid s lies in [sLo, sHi) are kept
     /// (e.g. [−inf, 1): between light and blocker), and subtrees outside that s range are
-    /// skipped.
+    /// skipped. With `coverage`, pieces are added to it, subtrees are visited nearest first
+    /// and skipped when wholly beyond coverage->threshold(), and the traversal stops once the
+    /// threshold reaches coverage->hideS (the crossings are then incomplete).
     void intersect(const ShadowEvent& event, bool cullBackFaces, std::vector<Crossing>& out,
-                   long long* nodesVisited = nullptr, double sLo = -HUGE_VAL,
-                   double sHi = HUGE_VAL) const;
+                   long long* nodesVisited = nullptr, double sLo = -HUGE_VAL, double sHi = HUGE_VAL,
+                   EventCoverage* coverage = nullptr) const;
 
     const EdgeMesh& mesh() const { return *mMesh; }
     const Box3& bounds() const { return mNodes[0].box; }
