@@ -216,7 +216,7 @@ void EdgeFinder::computeEvents(int lightIndex, int blockerIndex, Pair& pair) con
     const Object& blocker = mObjects[blockerIndex];
     pair.events.clear();
     findShadowEvents(*blocker.tree, blocker.worldFromObject, blocker.objectFromWorld, light.light,
-                     pair.events, nullptr, !blocker.twoSided);
+                     pair.events, nullptr, !blocker.twoSided && !mOptions.exhaustiveShadows);
     pair.lightVersion = light.version;
     pair.blockerVersion = blocker.version;
     pair.frames.clear();
@@ -287,6 +287,21 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
             for (auto& c : rc.crossings) c.front = true;
         if (!rc.crossings.empty()) crossings.push_back(std::move(rc));
     };
+    if (mOptions.exhaustiveShadows) {
+        for (const Candidate& c : order) {
+            const Object& rec = mObjects[c.receiver];
+            ReceiverCrossings rc;
+            rc.receiver = c.receiver;
+            rc.worldFromObject = &rec.worldFromObject;
+            bool cull = rec.tree->mesh().closed() && !rec.twoSided;
+            rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, &nodes);
+            ++queries;
+            if (rec.twoSided)
+                for (auto& cr : rc.crossings) cr.front = true;
+            if (!rc.crossings.empty()) crossings.push_back(std::move(rc));
+        }
+        order.clear();
+    }
     auto hidden = [&]() { return coverage.threshold() <= kHideS; };
     // Between light and blocker (s < 1), the blocker first: surfaces there hide the event
     // (§6.5 clipping); covered at every u, it casts nothing, whatever lies beyond.

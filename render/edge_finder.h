@@ -54,6 +54,9 @@ struct EdgeFinderStats {
 struct EdgeFinderOptions {
     double sharpCutoffDeg = 85.0;  ///< §6.2
     int leafSize = 8;              ///< edges per edge-tree leaf
+    /// Reference mode for tests: every receiver whose bounds meet an event is intersected
+    /// whole, and no event is dropped as self-hidden (no front-to-back early outs).
+    bool exhaustiveShadows = false;
 };
 
 class EdgeFinder {

@@ -70,13 +70,15 @@ bool isConcaveEdge(const EdgeMesh& mesh, int edge) {
     const MeshEdge& e = mesh.edges()[edge];
     if (e.f1 < 0) return false;
     const FacePlane& p0 = mesh.facePlanes()[e.f0];
-    double size = glm::length(mesh.bounds().hi - mesh.bounds().lo);
     double best = 0;
     for (int j = mesh.faceStart()[e.f1]; j < mesh.faceStart()[e.f1 + 1]; ++j) {
         double d = p0.eval(mesh.positions()[mesh.faceVertices()[j]]);
         if (std::abs(d) > std::abs(best)) best = d;
     }
-    return best > 1e-9 * size;
+    // Clearly concave (not nearly flat), and not folded back into a knife-thin fin whose
+    // inside the event would cross only within rounding of the edge.
+    double len = glm::length(mesh.positions()[e.v1] - mesh.positions()[e.v0]);
+    return best > 1e-2 * len && glm::dot(p0.n, mesh.facePlanes()[e.f1].n) > -0.5;
 }
 
 void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,

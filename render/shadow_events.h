@@ -65,8 +65,9 @@ void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
                       const Mat4& objectFromWorld, const Light& light,
                       std::vector<ShadowEvent>& out, EdgeTreeStats* stats = nullptr,
                       bool cullHidden = false);
-/// Whether a silhouette edge of a closed mesh is concave (reflex): a vertex of one face lies
-/// strictly in front of the other face's plane.
+/// Whether an edge is clearly concave (reflex): a vertex of one face lies in front of the
+/// other face's plane by more than 1% of the edge length, and the faces are not folded into a
+/// fin (normals more than 120° apart).
 bool isConcaveEdge(const EdgeMesh& mesh, int edge);
 
 /// What is known along one event while its receivers are intersected front to back (§6.5
