@@ -444,6 +444,7 @@ void ReceiverTree::build(int slot, int begin, int end) {
             node.nHi[k] = nHi[k];
         }
         node.c = c;
+        node.h = 0.5 * (box.hi - box.lo);
         node.dLo = dLo;
         node.dHi = dHi;
         node.begin = begin;
@@ -482,32 +483,50 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
     lightBox.extend(event.p0);
     lightBox.extend(event.p1);
     const bool windowed = sLo > -HUGE_VAL || sHi < HUGE_VAL;
-    // s over a box is linear: centre ± projected half extent.
-    auto sRange = [&](const Box3& b) {
-        Vec3 c = b.centre(), h = 0.5 * (b.hi - b.lo);
-        double m = frame.eval(2, c);
-        double r = std::abs(frame.k[2].x) * h.x + std::abs(frame.k[2].y) * h.y +
-                   std::abs(frame.k[2].z) * h.z;
-        return std::make_pair(m - r, m + r);
+    // Linear functions over a node's box: value at the centre ± the projected half extent
+    // (the same bounds as EventFrame::touches, inlined on the precomputed centre and extent).
+    const Vec3 absN = glm::abs(frame.normal), abs0 = glm::abs(frame.k[0]),
+               abs1 = glm::abs(frame.k[1]), abs2 = glm::abs(frame.k[2]);
+    const double tol0 = eps * frame.kLength[0], tol1 = eps * frame.kLength[1],
+                 tol2 = eps * frame.kLength[2];
+    struct Entry {
+        int node;
+        double sMin, sMax;  ///< s over the node's box
+    };
+    auto entryOf = [&](int index) {
+        const Node& n = mNodes[index];
+        double mid = glm::dot(frame.k[2], n.c) + frame.c[2], r = glm::dot(abs2, n.h);
+        return Entry{index, mid - r, mid + r};
     };
     long long visited = 0;
-    int stack[128];
+    Entry stack[128];
     int top = 0;
-    stack[top++] = 0;
+    stack[top++] = entryOf(0);
     std::vector<Vec3> pts;
     while (top > 0) {
-        const Node& node = mNodes[stack[--top]];
+        const Entry entry = stack[--top];
+        const Node& node = mNodes[entry.node];
         ++visited;
         if (coverage) {
             double t = coverage->threshold();
-            if (t <= coverage->hideS) break;                   // decided: hidden
-            if (sRange(node.box).first > t + 1e-12) continue;  // behind what is found
+            if (t <= coverage->hideS) break;           // decided: hidden
+            if (entry.sMin > t + 1e-12) continue;      // behind what is found
         }
-        if (!frame.touches(node.box, eps)) continue;
-        if (windowed) {
-            // Skip boxes whose s range misses the window.
-            auto [lo, hi] = sRange(node.box);
-            if (hi < sLo - 1e-9 || lo >= sHi + 1e-9) continue;
+        if (windowed && (entry.sMax < sLo - 1e-9 || entry.sMin >= sHi + 1e-9)) continue;
+        {
+            // The box must straddle the plane and meet the event's region (EventFrame::touches).
+            double pm = glm::dot(frame.normal, node.c) - frame.offset, pr = glm::dot(absN, node.h);
+            if (!(pm + pr > eps) || !(pm - pr < -eps)) continue;
+            double m0 = glm::dot(frame.k[0], node.c) + frame.c[0], r0 = glm::dot(abs0, node.h);
+            double m1 = glm::dot(frame.k[1], node.c) + frame.c[1], r1 = glm::dot(abs1, node.h);
+            bool neg0 = m0 + r0 < -tol0, neg1 = m1 + r1 < -tol1;
+            if (frame.vertexEdge) {
+                if (neg0 || neg1) continue;
+            } else {
+                bool nearOut = neg0 || neg1 || entry.sMax < -tol2;
+                bool farOut = m0 - r0 > tol0 || m1 - r1 > tol1 || entry.sMax < 1 - tol2;
+                if (nearOut && farOut) continue;
+            }
         }
         if (cullBackFaces) {
             // Every face below faces away from the whole light feature: skip (§6.4).
@@ -521,10 +540,9 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
             if (hi - node.dLo < -1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi))) continue;
         }
         if (node.child >= 0) {
-            int a = node.child, b = node.child + 1;
+            Entry a = entryOf(node.child), b = entryOf(node.child + 1);
             // Nearest first when something may cut the traversal short.
-            if (coverage && sRange(mNodes[b].box).first < sRange(mNodes[a].box).first)
-                std::swap(a, b);
+            if (coverage && b.sMin < a.sMin) std::swap(a, b);
             stack[top++] = b;
             stack[top++] = a;
             continue;

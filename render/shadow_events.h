@@ -126,7 +126,8 @@ private:
     struct Node {
         Box3 box;
         double nLo[3]{}, nHi[3]{};
-        Vec3 c{0.0};
+        Vec3 c{0.0};  ///< box centre
+        Vec3 h{0.0};  ///< box half extent
         double dLo = 0, dHi = 0;
         int begin = 0, end = 0;
         int child = -1;
