@@ -16,6 +16,10 @@ namespace {
 
 Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
+/// Box–event tolerance relative to the box diagonal (reference mode): below ReceiverTree's
+/// face tolerance, so a box rejected here holds no face that would cross.
+constexpr double kTouchEps = 1e-12;
+
 }  // namespace
 
 const char* edgeKindName(EdgeKind kind) {
@@ -262,7 +266,14 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         if (!rec.alive || r == light.light.object) continue;
         if (!pair.boxes[e].overlaps(rec.worldBounds)) continue;
         Candidate c{0, 0, r};
-        if (!eventRange(ev, frame, rec.worldBounds, &c.sMin, &c.sMax)) continue;
+        if (mOptions.exhaustiveShadows) {
+            // Reference: the plain box–event test (EventFrame::touches), no s ranges.
+            double eps = kTouchEps * glm::length(rec.worldBounds.hi - rec.worldBounds.lo);
+            if (!frame.touches(rec.worldBounds, eps)) continue;
+            c.sMax = frame.touches(rec.worldBounds, eps, true) ? HUGE_VAL : 1.0;
+        } else if (!eventRange(ev, frame, rec.worldBounds, &c.sMin, &c.sMax)) {
+            continue;
+        }
         near.push_back(r);
         order.push_back(c);
         live = live || c.sMax > kHideS;
@@ -409,7 +420,10 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
                     double s0, s1;
                     if (std::find(nr.begin(), nr.end(), c.object) != nr.end() ||
                         (pair.boxes[e].overlaps(c.after) &&
-                         eventRange(pair.events[e], pair.frames[e], c.after, &s0, &s1)))
+                         (mOptions.exhaustiveShadows
+                              ? pair.frames[e].touches(
+                                    c.after, kTouchEps * glm::length(c.after.hi - c.after.lo))
+                              : eventRange(pair.events[e], pair.frames[e], c.after, &s0, &s1))))
                         job.dirty.push_back(e);
                 }
             }

@@ -3,6 +3,7 @@
 #include "render/shadow_events.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <unordered_set>
@@ -281,28 +282,34 @@ bool EventFrame::touches(const Box3& box, double eps, bool farOnly) const {
 
 namespace {
 
-/// Sutherland–Hodgman clip of a convex polygon to a box; extends `out` by what remains.
-void extendByClipped(std::vector<Vec3> poly, const Box3& clip, Box3& out,
-                     std::vector<Vec3>* kept = nullptr) {
-    std::vector<Vec3> next;
-    for (int axis = 0; axis < 3 && !poly.empty(); ++axis)
-        for (int side = 0; side < 2 && !poly.empty(); ++side) {
+/// A small convex polygon (a triangle clipped by up to 6 planes has at most 9 vertices).
+struct SmallPolygon {
+    std::array<Vec3, 16> v;
+    int n = 0;
+};
+
+/// Sutherland–Hodgman clip of a convex polygon to a box; extends `out` by what remains and
+/// returns it.
+SmallPolygon clipToBox(const SmallPolygon& input, const Box3& clip, Box3& out) {
+    SmallPolygon poly = input, next;
+    for (int axis = 0; axis < 3 && poly.n > 0; ++axis)
+        for (int side = 0; side < 2 && poly.n > 0; ++side) {
             // Inside: x[axis] >= lo (side 0) or x[axis] <= hi (side 1).
             auto dist = [&](const Vec3& p) {
                 return side == 0 ? p[axis] - clip.lo[axis] : clip.hi[axis] - p[axis];
             };
-            next.clear();
-            for (std::size_t i = 0; i < poly.size(); ++i) {
-                const Vec3& a = poly[i];
-                const Vec3& b = poly[(i + 1) % poly.size()];
+            next.n = 0;
+            for (int i = 0; i < poly.n; ++i) {
+                const Vec3& a = poly.v[i];
+                const Vec3& b = poly.v[(i + 1) % poly.n];
                 double da = dist(a), db = dist(b);
-                if (da >= 0) next.push_back(a);
-                if ((da >= 0) != (db >= 0)) next.push_back(a + (da / (da - db)) * (b - a));
+                if (da >= 0) next.v[next.n++] = a;
+                if ((da >= 0) != (db >= 0)) next.v[next.n++] = a + (da / (da - db)) * (b - a);
             }
-            poly.swap(next);
+            std::swap(poly, next);
         }
-    for (const Vec3& p : poly) out.extend(p);
-    if (kept) *kept = std::move(poly);
+    for (int i = 0; i < poly.n; ++i) out.extend(poly.v[i]);
+    return poly;
 }
 
 double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
@@ -314,8 +321,7 @@ double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
 
 /// The event's region as convex polygons (one for VE, two for EV: before and beyond the
 /// vertex), long enough to leave `clip`; false when degenerate.
-bool regionPolygons(const ShadowEvent& ev, const Box3& clip, std::vector<Vec3> (&poly)[2],
-                    int& count) {
+bool regionPolygons(const ShadowEvent& ev, const Box3& clip, SmallPolygon (&poly)[2], int& count) {
     Vec3 centre = clip.centre();
     double radius = 0.5 * glm::length(clip.hi - clip.lo);
     // Far enough along every ray of the event (s = S) every point is outside the clip box's
@@ -327,12 +333,21 @@ bool regionPolygons(const ShadowEvent& ev, const Box3& clip, std::vector<Vec3> (
     double S = 1.0 + 1.01 * reach / minLen;
     if (ev.vertexEdge) {
         const Vec3& v = ev.p0;
-        poly[0] = {v, v + S * (ev.q0 - v), v + S * (ev.q1 - v)};
+        poly[0].v[0] = v;
+        poly[0].v[1] = v + S * (ev.q0 - v);
+        poly[0].v[2] = v + S * (ev.q1 - v);
+        poly[0].n = 3;
         count = 1;
     } else {
         const Vec3 &p0 = ev.p0, &p1 = ev.p1, &w = ev.q0;
-        poly[0] = {p0, p1, w};                                // light edge to vertex
-        poly[1] = {w, p1 + S * (w - p1), p0 + S * (w - p0)};  // beyond the vertex
+        poly[0].v[0] = p0;  // light edge to vertex
+        poly[0].v[1] = p1;
+        poly[0].v[2] = w;
+        poly[0].n = 3;
+        poly[1].v[0] = w;  // beyond the vertex
+        poly[1].v[1] = p1 + S * (w - p1);
+        poly[1].v[2] = p0 + S * (w - p0);
+        poly[1].n = 3;
         count = 2;
     }
     return true;
@@ -348,7 +363,7 @@ bool eventRange(const ShadowEvent& ev, const EventFrame& frame, const Box3& box,
     Vec3 pad(1e-9 * (glm::length(box.hi - box.lo) + glm::length(box.centre())) + 1e-300);
     padded.lo -= pad;
     padded.hi += pad;
-    std::vector<Vec3> poly[2];
+    SmallPolygon poly[2];
     int count = 0;
     if (!regionPolygons(ev, padded, poly, count)) {
         *sMin = -HUGE_VAL;
@@ -359,10 +374,9 @@ bool eventRange(const ShadowEvent& ev, const EventFrame& frame, const Box3& box,
     double lo = HUGE_VAL, hi = -HUGE_VAL;
     for (int i = 0; i < count; ++i) {
         Box3 part;
-        std::vector<Vec3> kept;
-        extendByClipped(poly[i], padded, part, &kept);
-        for (const Vec3& p : kept) {
-            double s = frame.eval(2, p);
+        SmallPolygon kept = clipToBox(poly[i], padded, part);
+        for (int j = 0; j < kept.n; ++j) {
+            double s = frame.eval(2, kept.v[j]);
             lo = std::min(lo, s);
             hi = std::max(hi, s);
         }
@@ -377,10 +391,10 @@ bool eventRange(const ShadowEvent& ev, const EventFrame& frame, const Box3& box,
 Box3 eventBounds(const ShadowEvent& ev, const Box3& clip) {
     Box3 out;
     if (clip.empty()) return out;
-    std::vector<Vec3> poly[2];
+    SmallPolygon poly[2];
     int count = 0;
     if (!regionPolygons(ev, clip, poly, count)) return clip;
-    for (int i = 0; i < count; ++i) extendByClipped(poly[i], clip, out);
+    for (int i = 0; i < count; ++i) clipToBox(poly[i], clip, out);
     double radius = 0.5 * glm::length(clip.hi - clip.lo);
     if (out.empty()) return out;
     Vec3 pad(1e-9 * (radius + 1e-300));
@@ -509,8 +523,8 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
         ++visited;
         if (coverage) {
             double t = coverage->threshold();
-            if (t <= coverage->hideS) break;           // decided: hidden
-            if (entry.sMin > t + 1e-12) continue;      // behind what is found
+            if (t <= coverage->hideS) break;       // decided: hidden
+            if (entry.sMin > t + 1e-12) continue;  // behind what is found
         }
         if (windowed && (entry.sMax < sLo - 1e-9 || entry.sMin >= sHi + 1e-9)) continue;
         {
@@ -653,22 +667,26 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
 void EventCoverage::add(double u0, double u1, double sMax) {
     if (!(u1 - u0 >= 1e-12)) return;
     mPieces.push_back({u0, u1, sMax});
+    mLength += u1 - u0;
     mDirty = true;
 }
 
 double EventCoverage::threshold() const {
-    if (!mDirty) return mThreshold;
+    // Pieces shorter in total than [0, 1] cannot cover it: skip the sweep.
+    if (!mDirty || mLength < 1 - 1e-9) return mThreshold;
     mDirty = false;
     // Per elementary interval between piece ends, the smallest sMax of a piece over it; the
     // threshold is the largest of those (infinite where nothing covers).
-    std::vector<double> breaks = {0.0, 1.0};
+    std::vector<double>& breaks = mBreaks;
+    breaks.assign({0.0, 1.0});
     for (const Piece& p : mPieces) {
         breaks.push_back(p.u0);
         breaks.push_back(p.u1);
     }
     std::sort(breaks.begin(), breaks.end());
     breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
-    std::vector<double> best(breaks.size(), HUGE_VAL);
+    std::vector<double>& best = mBest;
+    best.assign(breaks.size(), HUGE_VAL);
     for (const Piece& p : mPieces) {
         auto from = std::lower_bound(breaks.begin(), breaks.end(), p.u0) - breaks.begin();
         auto to = std::lower_bound(breaks.begin(), breaks.end(), p.u1) - breaks.begin();

@@ -87,8 +87,10 @@ private:
         double u0, u1, sMax;
     };
     std::vector<Piece> mPieces;
+    double mLength = 0;  ///< total u length of the pieces
     mutable double mThreshold = HUGE_VAL;
     mutable bool mDirty = false;
+    mutable std::vector<double> mBreaks, mBest;  ///< scratch of threshold()
 };
 
 /// A bounding-volume hierarchy over an EdgeMesh's faces (object space) whose nodes also bound
