@@ -228,6 +228,7 @@ void EdgeFinder::computeEvents(int lightIndex, int blockerIndex, Pair& pair) con
     for (const ShadowEvent& ev : pair.events) pair.frames.emplace_back(ev);
     computeEventBoxes(pair);
     pair.near.assign(pair.events.size(), {});
+    pair.decided.assign(pair.events.size(), HUGE_VAL);
     pair.eventEdges.assign(pair.events.size(), {});
 }
 
@@ -245,10 +246,11 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     const LightEntry& light = mLights[lightIndex];
     const ShadowEvent& ev = pair.events[e];
     const EventFrame& frame = pair.frames[e];
-    std::vector<int>& near = pair.near[e];
+    std::vector<NearReceiver>& near = pair.near[e];
     std::vector<WorldEdge>& edges = pair.eventEdges[e];
     near.clear();
     edges.clear();
+    pair.decided[e] = HUGE_VAL;
     if (!frame.valid || pair.boxes[e].empty()) return;
     // clipEvent's rule: no edge where the nearest surface has s <= kHideS.
     constexpr double kHideS = 1 + 1e-7;
@@ -274,7 +276,7 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         } else if (!eventRange(ev, frame, rec.worldBounds, &c.sMin, &c.sMax)) {
             continue;
         }
-        near.push_back(r);
+        near.push_back({r, c.sMin});
         order.push_back(c);
         live = live || c.sMax > kHideS;
     }
@@ -337,6 +339,9 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     }
     counters.queries.fetch_add(queries, std::memory_order_relaxed);
     counters.nodes.fetch_add(nodes, std::memory_order_relaxed);
+    // Surfaces wholly beyond the threshold cannot change what this event casts (§6.5 moving
+    // objects: only receivers in front of it make it stale).
+    if (!mOptions.exhaustiveShadows) pair.decided[e] = coverage.threshold();
     if (hidden()) {
         counters.hidden.fetch_add(1, std::memory_order_relaxed);
         return;
@@ -416,15 +421,22 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
                 if (c.object == light.light.object || c.object == b) continue;
                 if (!pair.bound.overlaps(c.before) && !pair.bound.overlaps(c.after)) continue;
                 for (int e = 0; e < static_cast<int>(pair.events.size()); ++e) {
-                    const auto& nr = pair.near[e];
-                    double s0, s1;
-                    if (std::find(nr.begin(), nr.end(), c.object) != nr.end() ||
-                        (pair.boxes[e].overlaps(c.after) &&
-                         (mOptions.exhaustiveShadows
-                              ? pair.frames[e].touches(
-                                    c.after, kTouchEps * glm::length(c.after.hi - c.after.lo))
-                              : eventRange(pair.events[e], pair.frames[e], c.after, &s0, &s1))))
-                        job.dirty.push_back(e);
+                    // Where it was: it mattered when not wholly beyond the event's threshold.
+                    const double limit = pair.decided[e] + 1e-12;
+                    bool dirty = false;
+                    for (const NearReceiver& nr : pair.near[e])
+                        dirty = dirty || (nr.receiver == c.object && nr.sMin <= limit);
+                    // Where it is: it matters when it meets the event in front of that.
+                    if (!dirty && pair.boxes[e].overlaps(c.after)) {
+                        double s0 = 0, s1 = 0;
+                        if (mOptions.exhaustiveShadows)
+                            dirty = pair.frames[e].touches(
+                                c.after, kTouchEps * glm::length(c.after.hi - c.after.lo));
+                        else
+                            dirty = eventRange(pair.events[e], pair.frames[e], c.after, &s0, &s1) &&
+                                    s0 <= limit;
+                    }
+                    if (dirty) job.dirty.push_back(e);
                 }
             }
             if (!job.dirty.empty()) {
@@ -461,7 +473,7 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
         if (job.events) mStats.eventsFound += static_cast<long long>(job.pair->events.size());
         std::vector<char> involved(n, 0);
         for (int e : job.dirty)
-            for (int r : job.pair->near[e]) involved[r] = 1;
+            for (const NearReceiver& nr : job.pair->near[e]) involved[nr.receiver] = 1;
         for (char c : involved) mStats.tripleRecomputations += c;
     }
     mStats.eventsIntersected += counters.intersected.load();

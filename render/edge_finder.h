@@ -121,6 +121,10 @@ private:
         bool alive = true;
         unsigned version = 1;
     };
+    struct NearReceiver {
+        int receiver;
+        double sMin;
+    };
     /// One (light, blocker) pair's events and, per event, what it casts (§6.5: kept until the
     /// light, the blocker or a receiver near the event moves).
     struct Pair {
@@ -128,9 +132,13 @@ private:
         unsigned lightVersion = 0, blockerVersion = 0;
         std::vector<ShadowEvent> events;
         std::vector<EventFrame> frames;
-        std::vector<Box3> boxes;             ///< per event: its region clipped to mSceneBox
-        Box3 bound;                          ///< union of `boxes`: the shadow-volume bound
-        std::vector<std::vector<int>> near;  ///< per event: receivers whose bounds touch it
+        std::vector<Box3> boxes;  ///< per event: its region clipped to mSceneBox
+        Box3 bound;               ///< union of `boxes`: the shadow-volume bound
+        /// Per event: receivers whose bounds meet it, with the smallest s there.
+        std::vector<std::vector<NearReceiver>> near;
+        /// Per event: the coverage threshold it was decided with (EventCoverage); receivers
+        /// wholly beyond it cannot change what the event casts.
+        std::vector<double> decided;
         std::vector<std::vector<WorldEdge>> eventEdges;  ///< per event: the edges it casts
     };
     struct Counters;
