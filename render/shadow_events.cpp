@@ -284,32 +284,38 @@ namespace {
 
 /// A small convex polygon (a triangle clipped by up to 6 planes has at most 9 vertices).
 struct SmallPolygon {
-    std::array<Vec3, 16> v;
+    Vec3 v[10];
     int n = 0;
 };
 
 /// Sutherland–Hodgman clip of a convex polygon to a box; extends `out` by what remains and
 /// returns it.
 SmallPolygon clipToBox(const SmallPolygon& input, const Box3& clip, Box3& out) {
-    SmallPolygon poly = input, next;
-    for (int axis = 0; axis < 3 && poly.n > 0; ++axis)
-        for (int side = 0; side < 2 && poly.n > 0; ++side) {
+    SmallPolygon buffers[2];
+    buffers[0] = input;
+    int cur = 0;
+    for (int axis = 0; axis < 3 && buffers[cur].n > 0; ++axis)
+        for (int side = 0; side < 2 && buffers[cur].n > 0; ++side) {
+            const SmallPolygon& poly = buffers[cur];
+            SmallPolygon& next = buffers[1 - cur];
             // Inside: x[axis] >= lo (side 0) or x[axis] <= hi (side 1).
-            auto dist = [&](const Vec3& p) {
-                return side == 0 ? p[axis] - clip.lo[axis] : clip.hi[axis] - p[axis];
-            };
+            const double bound = side == 0 ? clip.lo[axis] : clip.hi[axis];
+            const double sign = side == 0 ? 1.0 : -1.0;
             next.n = 0;
+            double da = sign * (poly.v[0][axis] - bound);
             for (int i = 0; i < poly.n; ++i) {
                 const Vec3& a = poly.v[i];
-                const Vec3& b = poly.v[(i + 1) % poly.n];
-                double da = dist(a), db = dist(b);
+                const Vec3& b = poly.v[i + 1 < poly.n ? i + 1 : 0];
+                double db = sign * (b[axis] - bound);
                 if (da >= 0) next.v[next.n++] = a;
                 if ((da >= 0) != (db >= 0)) next.v[next.n++] = a + (da / (da - db)) * (b - a);
+                da = db;
             }
-            std::swap(poly, next);
+            cur = 1 - cur;
         }
-    for (int i = 0; i < poly.n; ++i) out.extend(poly.v[i]);
-    return poly;
+    const SmallPolygon& result = buffers[cur];
+    for (int i = 0; i < result.n; ++i) out.extend(result.v[i]);
+    return result;
 }
 
 double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
@@ -363,6 +369,7 @@ bool eventRange(const ShadowEvent& ev, const EventFrame& frame, const Box3& box,
     Vec3 pad(1e-9 * (glm::length(box.hi - box.lo) + glm::length(box.centre())) + 1e-300);
     padded.lo -= pad;
     padded.hi += pad;
+    if (!frame.touches(padded, 0.0)) return false;  // conservative O(1) test first
     SmallPolygon poly[2];
     int count = 0;
     if (!regionPolygons(ev, padded, poly, count)) {
@@ -522,7 +529,7 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
         const Node& node = mNodes[entry.node];
         ++visited;
         if (coverage) {
-            double t = coverage->threshold();
+            double t = coverage->bound();
             if (t <= coverage->hideS) break;       // decided: hidden
             if (entry.sMin > t + 1e-12) continue;  // behind what is found
         }
@@ -671,10 +678,17 @@ void EventCoverage::add(double u0, double u1, double sMax) {
     mDirty = true;
 }
 
+double EventCoverage::bound() const {
+    if (mDirty && mPieces.size() >= mComputedAt + std::max<std::size_t>(1, mComputedAt / 4))
+        return threshold();
+    return mThreshold;
+}
+
 double EventCoverage::threshold() const {
     // Pieces shorter in total than [0, 1] cannot cover it: skip the sweep.
     if (!mDirty || mLength < 1 - 1e-9) return mThreshold;
     mDirty = false;
+    mComputedAt = mPieces.size();
     // Per elementary interval between piece ends, the smallest sMax of a piece over it; the
     // threshold is the largest of those (infinite where nothing covers).
     std::vector<double>& breaks = mBreaks;

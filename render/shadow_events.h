@@ -79,6 +79,9 @@ class EventCoverage {
 public:
     void add(double u0, double u1, double sMax);
     double threshold() const;
+    /// An upper bound of threshold() that is cheap to call often: recomputed only after the
+    /// pieces grew by a quarter since the last computation (stale values only cull less).
+    double bound() const;
     /// Once threshold() <= hideS, intersect() stops: the event's outcome is decided.
     double hideS = -HUGE_VAL;
 
@@ -90,6 +93,7 @@ private:
     double mLength = 0;  ///< total u length of the pieces
     mutable double mThreshold = HUGE_VAL;
     mutable bool mDirty = false;
+    mutable std::size_t mComputedAt = 0;  ///< piece count at the last computation
     mutable std::vector<double> mBreaks, mBest;  ///< scratch of threshold()
 };
 
