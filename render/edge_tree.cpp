@@ -338,10 +338,12 @@ EdgeTree::EdgeTree(std::shared_ptr<const EdgeMesh> mesh, int leafSize)
         root.dLo = root.dHi = 0;
         return;
     }
-    // Per-edge normal interval vectors.
+    // Per-edge normal interval vectors and midpoints.
     mItems.resize(m.edges().size());
+    mRootSize = glm::length(m.bounds().hi - m.bounds().lo);
     for (int id : order) {
         const MeshEdge& e = m.edges()[id];
+        mItems[id].mid = 0.5 * (m.positions()[e.v0] + m.positions()[e.v1]);
         const Vec3& a = m.facePlanes()[e.f0].n;
         const Vec3& b = m.facePlanes()[e.f1].n;
         for (int k = 0; k < 3; ++k) {
@@ -425,25 +427,42 @@ void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) 
     emit(begin, mid);
     mNodes[slot].stored = stored;
 
-    // Split the rest at the median of the normal axis whose children are smallest combined.
+    // Split the rest at the median of the axis whose children bound eq. 1 most tightly: a
+    // node's interval [N]·(e − c) − [d] is about (normal extent)·|e − c| + 2·(position extent)
+    // wide, so a child costs its normal extent times the root's size (a typical eye distance)
+    // plus twice its position extent. Candidates: the three normal axes (§6.4) and the longest
+    // axis of the edge midpoints (position matters when many separate parts share normals).
     int half = mid + (end - mid) / 2;
     auto sizeOf = [&](int from, int to) {
         double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-        for (int i = from; i < to; ++i)
+        Box3 box;
+        for (int i = from; i < to; ++i) {
             for (int k = 0; k < 3; ++k) {
                 lo[k] = std::min(lo[k], items[order[i]].lo[k]);
                 hi[k] = std::max(hi[k], items[order[i]].hi[k]);
             }
-        return (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]);
+            box.extend(items[order[i]].mid);
+        }
+        double normalSpan = (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]);
+        return normalSpan * mRootSize + glm::length(box.hi - box.lo);
     };
+    Box3 mids;
+    for (int i = mid; i < end; ++i) mids.extend(items[order[i]].mid);
+    Vec3 ext = mids.hi - mids.lo;
+    int posAxis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
     auto partitionOn = [&](int axis) {
-        std::nth_element(
-            order.begin() + mid, order.begin() + half, order.begin() + end,
-            [&](int a, int b) { return items[a].centre(axis) < items[b].centre(axis); });
+        if (axis < 3)
+            std::nth_element(
+                order.begin() + mid, order.begin() + half, order.begin() + end,
+                [&](int a, int b) { return items[a].centre(axis) < items[b].centre(axis); });
+        else
+            std::nth_element(
+                order.begin() + mid, order.begin() + half, order.begin() + end,
+                [&](int a, int b) { return items[a].mid[posAxis] < items[b].mid[posAxis]; });
     };
     int bestAxis = 0;
     double bestCost = 1e300;
-    for (int axis = 0; axis < 3; ++axis) {
+    for (int axis = 0; axis < 4; ++axis) {
         partitionOn(axis);
         double cost = sizeOf(mid, half) + sizeOf(half, end);
         if (cost < bestCost) {
@@ -451,7 +470,7 @@ void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) 
             bestAxis = axis;
         }
     }
-    if (bestAxis != 2) partitionOn(bestAxis);
+    if (bestAxis != 3) partitionOn(bestAxis);
 
     int child = static_cast<int>(mNodes.size());
     mNodes.push_back({});

@@ -136,7 +136,8 @@ struct EdgeTreeStats {
 
 /// Bala et al. §6.4: a tree over an EdgeMesh's interior edges whose nodes bound the normals of
 /// all faces adjacent to their edges by an interval vector. Built top-down, splitting each
-/// node on the normal axis that minimises the children's combined normal extent; an edge
+/// node on the normal axis (or the longest axis of edge positions) that minimises the children's
+/// combined extent (normal extent × mesh size + 2 × position extent); an edge
 /// whose normals span more than half the node's normal range is stored at the node ("sharp
 /// edges higher in the tree"). Boundary edges are kept aside and always reported.
 ///
@@ -187,11 +188,13 @@ private:
     /// An interior edge while the tree is built: the interval vector of its face normals.
     struct BuildItem {
         double lo[3], hi[3];
+        Vec3 mid;  ///< edge midpoint
         double span() const { return (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]); }
         double centre(int k) const { return lo[k] + hi[k]; }
     };
     void buildNode(int slot, std::vector<int>& order, int begin, int end);
     std::vector<BuildItem> mItems;  ///< by edge id, during construction only
+    double mRootSize = 0;           ///< mesh diagonal, during construction only
 
     std::shared_ptr<const EdgeMesh> mMesh;
     int mLeafSize;
