@@ -239,6 +239,67 @@ void EdgeFinder::computeEventBoxes(Pair& pair) const {
         pair.boxes[e] = pair.frames[e].valid ? eventBounds(pair.events[e], mSceneBox) : Box3();
         pair.bound.extend(pair.boxes[e]);
     }
+    pair.boxTree.build(pair.boxes);
+}
+
+// ---------------------------------------------------------------------------------------------
+// BoxTree: a static bounding-volume hierarchy over event boxes
+
+void EdgeFinder::BoxTree::build(const std::vector<Box3>& boxes) {
+    nodes.clear();
+    items.clear();
+    for (int i = 0; i < static_cast<int>(boxes.size()); ++i)
+        if (!boxes[i].empty()) items.push_back(i);
+    if (items.empty()) return;
+    nodes.reserve(2 * items.size() / 4 + 2);
+    // Top-down, median split of the box centres on the longest axis; leaves of up to 8.
+    struct Task {
+        int node, begin, end;
+    };
+    std::vector<Task> stack = {{0, 0, static_cast<int>(items.size())}};
+    nodes.push_back({});
+    while (!stack.empty()) {
+        Task t = stack.back();
+        stack.pop_back();
+        Box3 box, centres;
+        for (int i = t.begin; i < t.end; ++i) {
+            box.extend(boxes[items[i]]);
+            centres.extend(boxes[items[i]].centre());
+        }
+        nodes[t.node] = {box, t.begin, t.end, -1};
+        if (t.end - t.begin <= 8) continue;
+        Vec3 ext = centres.hi - centres.lo;
+        int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
+        int mid = t.begin + (t.end - t.begin) / 2;
+        std::nth_element(items.begin() + t.begin, items.begin() + mid, items.begin() + t.end,
+                         [&](int a, int b) {
+                             return boxes[a].lo[axis] + boxes[a].hi[axis] <
+                                    boxes[b].lo[axis] + boxes[b].hi[axis];
+                         });
+        int child = static_cast<int>(nodes.size());
+        nodes[t.node].child = child;
+        nodes.push_back({});
+        nodes.push_back({});
+        stack.push_back({child, t.begin, mid});
+        stack.push_back({child + 1, mid, t.end});
+    }
+}
+
+void EdgeFinder::BoxTree::query(const Box3& box, std::vector<int>& out) const {
+    if (nodes.empty() || box.empty()) return;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& node = nodes[stack[--top]];
+        if (!node.box.overlaps(box)) continue;
+        if (node.child < 0) {
+            for (int i = node.begin; i < node.end; ++i) out.push_back(items[i]);
+        } else {
+            stack[top++] = node.child;
+            stack[top++] = node.child + 1;
+        }
+    }
 }
 
 void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int e,
@@ -415,12 +476,18 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
                 continue;
             }
             if (sceneGrew) computeEventBoxes(pair);
+            std::vector<int> candidates;
             // A changed receiver matters to the events it touched or now touches.
             Job job{l, b, &pair, false, {}};
             for (const Change& c : changes) {
                 if (c.object == light.light.object || c.object == b) continue;
                 if (!pair.bound.overlaps(c.before) && !pair.bound.overlaps(c.after)) continue;
-                for (int e = 0; e < static_cast<int>(pair.events.size()); ++e) {
+                // Candidates: events whose boxes meet the old or the new bounds (an event that
+                // listed the receiver as near met its old bounds).
+                candidates.clear();
+                pair.boxTree.query(c.before, candidates);
+                pair.boxTree.query(c.after, candidates);
+                for (int e : candidates) {
                     // Where it was: it mattered when not wholly beyond the event's threshold.
                     const double limit = pair.decided[e] + 1e-12;
                     bool dirty = false;

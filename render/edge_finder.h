@@ -1,7 +1,8 @@
 #pragma once
 // The edge finder of Bala, Walter, Greenberg 2003 §6: per frame, silhouettes and sharp edges
 // of every object from the eye; shadow edges of every (light, blocker, receiver) triple, kept
-// and recomputed only when the light, the blocker or an involved receiver moves (§6.5).
+// per event and recomputed only when the light, the blocker or a receiver near the event
+// moves (§6.5).
 // Output: world-space segments tagged with their kind and objects, ready for projection.
 //
 // Index: WorldEdge · EdgeFinderStats · EdgeFinder
@@ -93,8 +94,12 @@ public:
     std::vector<WorldEdge> findSharpEdges() const;
     /// The sharp edges with at least one front-facing adjacent face seen from `eye`.
     std::vector<WorldEdge> findSharpEdges(const Vec3& eye) const;
-    /// Shadow edges of every live light: stale (light, blocker) pairs are recomputed (in
-    /// parallel), the others reused.
+    /// Shadow edges of every live light. Each (light, blocker) pair keeps its events and, per
+    /// event, the edges it casts (§6.5). A moved light or blocker recomputes the pair; a moved,
+    /// added, removed or restored receiver recomputes only the events whose region it met
+    /// before or meets now in front of what decided them (EventCoverage). Events are
+    /// recomputed in parallel (oneTBB); receivers are intersected front to back along each
+    /// event and the traversal stops once the event is decided.
     std::vector<WorldEdge> findShadowEdges();
 
     const EdgeFinderStats& stats() const { return mStats; }
@@ -121,6 +126,20 @@ private:
         bool alive = true;
         unsigned version = 1;
     };
+    /// A static bounding-volume hierarchy over boxes (a pair's event boxes): which events a
+    /// moved receiver's bounds may meet.
+    struct BoxTree {
+        struct Node {
+            Box3 box;
+            int begin = 0, end = 0;
+            int child = -1;
+        };
+        std::vector<Node> nodes;
+        std::vector<int> items;  ///< box indices in tree order (empty boxes left out)
+        void build(const std::vector<Box3>& boxes);
+        /// Appends the indices of boxes overlapping `box`.
+        void query(const Box3& box, std::vector<int>& out) const;
+    };
     struct NearReceiver {
         int receiver;
         double sMin;
@@ -134,6 +153,7 @@ private:
         std::vector<EventFrame> frames;
         std::vector<Box3> boxes;  ///< per event: its region clipped to mSceneBox
         Box3 bound;               ///< union of `boxes`: the shadow-volume bound
+        BoxTree boxTree;          ///< over `boxes`
         /// Per event: receivers whose bounds meet it, with the smallest s there.
         std::vector<std::vector<NearReceiver>> near;
         /// Per event: the coverage threshold it was decided with (EventCoverage); receivers

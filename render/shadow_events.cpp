@@ -1,5 +1,6 @@
-// Index: Light, ShadowEvent · findShadowEvents (point lights, appendix A VE/EV) · EventFrame ·
-//        ReceiverTree (build, intersect) · clipEvent (§6.5)
+// Index: Light, ShadowEvent · findShadowEvents (point lights, appendix A VE/EV, concave
+//        culling) · EventFrame · eventRange, eventBounds · ReceiverTree (build, intersect) ·
+//        EventCoverage · clipEvent (§6.5)
 #include "render/shadow_events.h"
 
 #include <algorithm>

@@ -1,9 +1,11 @@
 #pragma once
 // Shadow events and shadow edges (Bala, Walter, Greenberg 2003 §6.3–6.5 and appendix A):
 // VE/EV events of a blocker's edge tree for point and polygonal lights, a receiver face
-// hierarchy with normal intervals, event–receiver intersection and 1D clipping along events.
+// hierarchy with normal intervals, event–receiver intersection front to back (EventCoverage)
+// and 1D clipping along events.
 //
-// Index: Light · ShadowEvent · findShadowEvents · ReceiverTree · EventPiece, clipping
+// Index: Light · ShadowEvent · findShadowEvents, isConcaveEdge · EventCoverage · ReceiverTree ·
+//        EventFrame, eventRange, eventBounds · EventEdge, clipEvent
 
 #include <cmath>
 #include <memory>
