@@ -416,9 +416,8 @@ int expectSameShadowLines(const std::vector<WorldEdge>& fast, const std::vector<
     EXPECT_LT(onlyA, tiny) << what << ": shadow lines only in the first set";
     EXPECT_LT(onlyB, tiny) << what << ": shadow lines only in the second set";
     std::printf(
-        "[ measure  ] %s: %d groups compared, lengths only in the first set %.3g, only in the "
-        "second "
-        "%.3g\n",
+        "[ measure  ] %s: %d groups compared, lengths only in the first set %.3g, only in "
+        "the second %.3g\n",
         what, compared, onlyA, onlyB);
     return compared;
 }
