@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <OpenMesh/Core/System/omstream.hh>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -360,6 +361,9 @@ int runReplayCommand(ReplayArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    // OpenMesh reports non-manifold faces it cannot link (which the edge finder handles by
+    // giving them their own vertices) on its own error stream; Penumbra reports its errors.
+    omerr().disable();
     CLI::App app{"Penumbra: interactive radiosity lighting editor, command line"};
     app.require_subcommand(1);
     SolveArgs solve;

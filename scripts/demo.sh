@@ -22,6 +22,10 @@ echo "demo: adding the robot to robot-room" >&2
 "$bin" render scenes/robot-room.json --converge 0.01 --width 640 --height 480 \
   --out out/robot-room.png --report out/robot-room-render.json
 
+echo "demo: robot-room through the edge-and-point display (20 frames along an orbit)" >&2
+"$bin" render scenes/robot-room.json --converge 0.01 --mode epi --frames 20 --overlay edges \
+  --width 512 --height 384 --out out/robot-room-epi.png --report out/robot-room-epi.json
+
 echo "demo: cornell-box" >&2
 "$bin" render scenes/cornell-box.json --width 640 --height 480 --out out/cornell-box.png \
   --report out/cornell-box-render.json
