@@ -1,4 +1,4 @@
-// penumbra-editor [SCENE] [--log LOG] [--play LOG] [--screenshot PNG --frames N]
+// penumbra-editor [SCENE] [--log LOG] [--play LOG] [--screenshot PNG --frames N] [--mode NAME]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
 // 2 bad input or no display, with one line on stderr.
 
@@ -27,11 +27,18 @@ int main(int argc, char** argv) {
     app.add_option("--bench-drag", options.benchDrag,
                    "drag this object in a circle for --frames frames and print frame times");
     app.add_flag("--quiet", options.quiet, "no status lines on stderr");
+    std::string mode = "gouraud";
+    app.add_option("--mode", mode,
+                   "viewport mode: gouraud, epi, cache, edges, samples, difference, outofdate")
+        ->check([](const std::string& name) {
+            return penumbra::parseViewMode(name) ? std::string() : "unknown mode '" + name + "'";
+        });
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         return app.exit(e) == 0 ? 0 : 2;
     }
+    options.mode = *penumbra::parseViewMode(mode);
     if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
     try {
         penumbra::EditorApp editor(options);

@@ -103,6 +103,12 @@ EditorApp::EditorApp(EditorOptions options) : mOptions(std::move(options)) {
 
     if (!mPlay.empty() && mRunner) mRunner->setAutoSolve(false);
     if (!mOptions.benchDrag.empty()) mBenchFrame = 0;
+    setViewMode(mOptions.mode);
+}
+
+void EditorApp::setViewMode(ViewMode mode) {
+    mMode = mode;
+    if (mode == ViewMode::Difference && mReferenceRequest == 0) ++mReferenceRequest;
 }
 
 EditorApp::~EditorApp() {
@@ -198,7 +204,10 @@ int EditorApp::run() {
     }
     if (!mOptions.benchDrag.empty()) {
         // Frame-time figures of the drag.
-        std::vector<double> w = mStats.workMs, p = mStats.periodMs;
+        std::vector<double> w = mStats.workMs, p = mStats.periodMs, im = mStats.imageMs;
+        std::sort(im.begin(), im.end());
+        const double imageMedian = im.empty() ? 0 : im[im.size() / 2];
+        const double imageP95 = im.empty() ? 0 : im[im.size() * 95 / 100];
         if (!w.empty()) {
             std::sort(w.begin(), w.end());
             std::sort(p.begin(), p.end());
@@ -207,10 +216,11 @@ int EditorApp::run() {
             std::printf(
                 "{\"frames\":%zu,\"work_ms_median\":%.2f,\"work_ms_p95\":%.2f,"
                 "\"period_ms_median\":%.2f,\"period_ms_p95\":%.2f,\"fps\":%.1f,"
-                "\"viewport_images\":%d,\"viewport_images_per_s\":%.1f}\n",
+                "\"viewport_images\":%d,\"viewport_images_per_s\":%.1f,\"mode\":\"%s\","
+                "\"image_ms_median\":%.2f,\"image_ms_p95\":%.2f}\n",
                 w.size(), w[w.size() / 2], w[w.size() * 95 / 100], p[p.size() / 2],
                 p[p.size() * 95 / 100], 1000.0 * p.size() / sumP, mStats.imagesShown,
-                1000.0 * mStats.imagesShown / sumP);
+                1000.0 * mStats.imagesShown / sumP, toString(mMode), imageMedian, imageP95);
         }
     }
     return status;
@@ -259,6 +269,8 @@ bool EditorApp::frame() {
         request.height = mViewportH;
         request.highlight = mSelection;
         request.interactive = mDrag.active() || glfwGetTime() - mLastInteraction < 0.3;
+        request.mode = mMode;
+        request.referenceRequest = mReferenceRequest;
         mRunner->setView(request);
     }
 
@@ -478,6 +490,15 @@ void EditorApp::drawMenu() {
     }
     if (ImGui::BeginMenu("View")) {
         if (ImGui::MenuItem("Frame selection", "F")) frameSelection();
+        if (ImGui::BeginMenu("Mode")) {
+            for (int m = 0; m < kViewModeCount; ++m) {
+                const ViewMode mode = static_cast<ViewMode>(m);
+                if (ImGui::MenuItem(viewModeLabel(mode), nullptr, mMode == mode)) setViewMode(mode);
+            }
+            ImGui::EndMenu();
+        }
+        if (ImGui::MenuItem("Compute reference", nullptr, false, mMode == ViewMode::Difference))
+            ++mReferenceRequest;
         ImGui::EndMenu();
     }
     ImGui::EndMainMenuBar();
@@ -708,9 +729,18 @@ void EditorApp::drawStatusBar() {
         ms += mStats.workMs[i];
     ms = n ? ms / n : 0;
     std::string text = format("frame %.1f ms (%.0f fps)", ms, io.Framerate);
-    if (mShown)
+    if (mShown) {
         text += format("   view %.0fx%.0f in %.0f ms", mShown->render.radiance.width,
                        mShown->render.radiance.height, mShown->renderMs);
+        text += std::string("   ") + viewModeLabel(mShown->mode);
+        if (usesInteractiveDisplay(mShown->mode))
+            text += format(" (%.0f new samples, %.0f edges)",
+                           static_cast<double>(mShown->display.newSamples),
+                           static_cast<double>(mShown->display.screenEdges));
+        if (mShown->meanDifference >= 0)
+            text += format(" mean |diff| %.4f", mShown->meanDifference);
+        if (!mShown->note.empty()) text += ": " + mShown->note;
+    }
     if (mRunner) {
         const SolverSnapshot s = mRunner->solver();
         text += format("   %.0f shots/s   undo %.0f redo %.0f", s.shotsPerSecond,
@@ -826,6 +856,7 @@ void EditorApp::uploadImage() {
     }
     mShown = img;
     ++mStats.imagesShown;
+    mStats.imageMs.push_back(img->renderMs);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -37,6 +37,7 @@ struct EditorOptions {
     double maxFps = 60;     ///< frame loop cap (Xvfb has no vertical sync)
     std::string benchDrag;  ///< object id: drag it in a circle for `frames` frames, print timings
     bool quiet = false;
+    ViewMode mode = ViewMode::Gouraud;  ///< the viewport's initial display mode (View ▸ Mode)
 };
 
 /// No window could be opened (no DISPLAY, no GL 3.3 core context).
@@ -60,6 +61,7 @@ struct FrameStats {
     std::vector<double> workMs;    ///< per frame
     std::vector<double> periodMs;  ///< per frame, frame start to frame start
     int imagesShown = 0;           ///< viewport images uploaded
+    std::vector<double> imageMs;   ///< per uploaded image: its render time on the render thread
 };
 
 class EditorApp {
@@ -90,6 +92,9 @@ public:
     double gizmoSize(const Vec3& pivot) const;
     bool playing() const { return mPlayNext < mPlay.size(); }
     const FrameStats& frameStats() const { return mStats; }
+    ViewMode viewMode() const { return mMode; }
+    /// Switches the viewport's display mode (View ▸ Mode); difference mode asks for a reference.
+    void setViewMode(ViewMode mode);
     /// Writes the window's back buffer as PNG (call after the frame was drawn).
     void writeScreenshot(const std::string& path);
 
@@ -131,6 +136,8 @@ private:
     std::deque<PointerInput> mScripted;
 
     // Viewport texture.
+    ViewMode mMode = ViewMode::Gouraud;
+    std::uint64_t mReferenceRequest = 0;  ///< ViewRequest::referenceRequest
     unsigned int mTexture = 0;
     int mTextureW = 0, mTextureH = 0;
     std::shared_ptr<const ViewportImage> mShown;

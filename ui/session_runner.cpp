@@ -8,7 +8,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <stdexcept>
+
+#include "render/camera_rays.h"
+#include "solver/discretization.h"
 
 namespace penumbra {
 
@@ -130,6 +134,7 @@ void SessionRunner::setView(const ViewRequest& request) {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         if (request.width == mView.width && request.height == mView.height &&
             request.highlight == mView.highlight && request.interactive == mView.interactive &&
+            request.mode == mView.mode && request.referenceRequest == mView.referenceRequest &&
             sameCamera(request.camera, mView.camera))
             return;
         mView = request;
@@ -197,17 +202,42 @@ bool SessionRunner::solverIteration() {
     if (!commands.empty()) {
         const double a0 = nowSeconds();
         std::unique_lock<std::shared_mutex> lock(mStructure);
+        // The display's asynchronous shader reads the structure: paused while it changes, and
+        // told what changed before it resumes.
+        std::unique_lock<std::mutex> displayLock(mDisplayMutex);
+        std::optional<PointShader::Pause> pause;
+        if (mDisplay) pause.emplace(mDisplay->shader());
         const double a1 = nowSeconds();
+        std::vector<int> changed;
+        bool structural = false;
         for (Queued& q : commands) {
             try {
-                if (q.task)
+                if (q.task) {
                     q.task(*mSession);
-                else
-                    mSession->apply(q.command, q.source);
+                    structural = true;  // a task may change anything
+                } else {
+                    const EditResult r = mSession->apply(q.command, q.source);
+                    changed.insert(changed.end(), r.added.begin(), r.added.end());
+                    changed.insert(changed.end(), r.removed.begin(), r.removed.end());
+                    changed.insert(changed.end(), r.materialChanged.begin(),
+                                   r.materialChanged.end());
+                }
             } catch (const std::exception& e) {
                 report(e.what());
             }
         }
+        if (mDisplay && (!changed.empty() || structural)) {
+            std::sort(changed.begin(), changed.end());
+            changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+            try {
+                mDisplay->notifyChanged(changed, &mSession->solver());
+                mDisplaySolutionStale = false;
+            } catch (const std::exception& e) {
+                report(std::string("display: ") + e.what());
+            }
+        }
+        pause.reset();
+        displayLock.unlock();
         publishDocument();
         publishLight();
         if (std::getenv("PENUMBRA_EDITOR_TRACE"))
@@ -243,6 +273,7 @@ bool SessionRunner::solverIteration() {
         std::fprintf(stderr, "solver: %zu edits, %llu shots in %.1f ms\n", commands.size(),
                      static_cast<unsigned long long>(shots), solverMs);
     publishSolver(solverMs);
+    updateDisplaySolution(true);
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         mApplying = false;
@@ -273,6 +304,7 @@ bool SessionRunner::renderIteration() {
         doc = mDocument;
         dragged = mSolver.selected;
     }
+    if (usesInteractiveDisplay(view.mode)) return renderDisplay(view, light, last);
     const bool need = !last || last->stateSerial != light.serial ||
                       last->viewSerial != view.serial || (last->reduced && !view.interactive);
     if (!need || !light.radiosity) return false;
@@ -300,6 +332,14 @@ bool SessionRunner::renderIteration() {
         img->render =
             renderViewport(mSession->discretization(), mSession->tracer(), *light.radiosity,
                            view.camera, w, h, light.previewVersion, highlight);
+        if (view.mode == ViewMode::OutOfDate && light.pending) {
+            // The pending |ΔB| interpolated like the image, as a red tint.
+            const ViewportRender pending =
+                renderViewport(mSession->discretization(), mSession->tracer(), *light.pending,
+                               view.camera, w, h, light.previewVersion);
+            tintPending(img->render.rgba, pending.radiance, light.pendingScale / M_PI);
+            img->note = "red: pending unshot / redistribution |dB| (full at 5% of mean B)";
+        }
     } catch (const std::exception& e) {
         report(std::string("viewport: ") + e.what());
         return false;
@@ -314,6 +354,107 @@ bool SessionRunner::renderIteration() {
     img->viewSerial = view.serial;
     img->stateSerial = light.serial;
     img->reduced = d > 1;
+    img->mode = view.mode;
+    std::lock_guard<std::mutex> lock(mPublishMutex);
+    mImage = std::move(img);
+    return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The display modes.
+
+void SessionRunner::updateDisplaySolution(bool wait) {
+    if (!mDisplaySolutionStale) return;
+    std::unique_lock<std::mutex> lock(mDisplayMutex, std::defer_lock);
+    if (wait)
+        lock.lock();
+    else if (!lock.try_lock())
+        return;
+    if (!mDisplay) return;
+    try {
+        mDisplay->updateSolution(mSession->solver());
+        mDisplaySolutionStale = false;
+    } catch (const std::exception& e) {
+        report(std::string("display: ") + e.what());
+    }
+}
+
+bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
+                                  const std::shared_ptr<const ViewportImage>& last) {
+    // Frames run continuously (the cache keeps improving), at most one per displayFrameMs.
+    const double now = nowSeconds();
+    if (now - mLastDisplayFrame < mOptions.displayFrameMs * 1e-3) return false;
+    mLastDisplayFrame = now;
+    const int divisor = std::max(1, mOptions.displayDivisor);
+    const int w = std::max(4, view.width / divisor / 4 * 4);
+    const int h = std::max(4, view.height / divisor / 4 * 4);
+    const CameraRays rays(view.camera, w, h);
+    auto img = std::make_shared<ViewportImage>();
+    std::lock_guard<std::mutex> displayLock(mDisplayMutex);
+    try {
+        if (!mDisplay || mDisplay->width() != w || mDisplay->height() != h) {
+            mDisplay.reset();
+            InteractiveDisplayOptions options;
+            options.width = w;
+            options.height = h;
+            options.synchronous = false;
+            mDisplay =
+                std::make_unique<InteractiveDisplay>(mSession->discretization(), mSession->tracer(),
+                                                     interactiveSolverOptions(), options);
+            mDisplay->warmUp(rays);
+            mDisplaySolutionStale = true;  // the solver thread hands it the solution
+            mWake.notify_all();
+        }
+        const double r0 = nowSeconds();
+        img->render.radiance = mDisplay->renderFrame(rays, view.mode != ViewMode::Cache);
+        img->display = mDisplay->lastFrame();
+        img->render.rgba = encodeDisplay(img->render.radiance);
+        if (view.mode == ViewMode::EdgesOverlay) {
+            blendEdges(img->render.rgba, mDisplay->edgeImage());
+        } else if (view.mode == ViewMode::SamplesOverlay) {
+            // This frame's new samples (age 0 after insertion) as dots.
+            std::vector<std::uint8_t> flags(static_cast<std::size_t>(w) * h, 0);
+            for (const ScreenPoint& p : mDisplay->cache().screenPoints()) {
+                const int x = static_cast<int>(p.position.x), y = static_cast<int>(p.position.y);
+                if (p.age == 0 && x >= 0 && y >= 0 && x < w && y < h)
+                    flags[static_cast<std::size_t>(y) * w + x] = 1;
+            }
+            markSamples(img->render.rgba, flags);
+            img->note = std::to_string(img->display.newSamples) + " new samples";
+        } else if (view.mode == ViewMode::Difference) {
+            const int f = std::max(1, mOptions.referenceDivisor);
+            const bool sized = w % f == 0 && h % f == 0;
+            if (view.referenceRequest != mReferenceDone && sized) {
+                const CameraRays low(view.camera, w / f, h / f);
+                mReference = mDisplay->renderReference(low, 2);
+                mReferenceCamera = view.camera;
+                mReferenceDone = view.referenceRequest;
+            }
+            if (mReference.width * f == w && mReference.height * f == h &&
+                sameCamera(mReferenceCamera, view.camera)) {
+                img->render.rgba =
+                    differenceImage(img->render.radiance, mReference, 0.1, &img->meanDifference);
+                img->note = "false colour |epi - reference| sRGB, red at 0.1";
+            } else {
+                img->note = "no reference for this view: Compute reference";
+            }
+        }
+        img->renderMs = (nowSeconds() - r0) * 1e3;
+    } catch (const std::exception& e) {
+        report(std::string("display: ") + e.what());
+        return false;
+    }
+    if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+        std::fprintf(stderr, "display %dx%d %.1f ms %s\n", w, h, img->renderMs,
+                     img->display.toString().c_str());
+    img->camera = view.camera;
+    img->viewSerial = view.serial;
+    img->stateSerial = light.serial;
+    img->mode = view.mode;
+    img->settledFrames = last && last->mode == view.mode && last->viewSerial == view.serial &&
+                                 last->stateSerial == light.serial
+                             ? last->settledFrames + 1
+                             : 0;
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mImage = std::move(img);
     return true;
@@ -358,6 +499,26 @@ void SessionRunner::publishLight() {
     light.radiosity = std::make_shared<const std::vector<Rgb>>(mSession->displayRadiosity());
     light.previewVersion = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
     light.serial = ++mLightSerial;
+    {
+        // Out-of-date overlay: per element the |unshot radiosity| of its patch.
+        const Discretization& disc = mSession->discretization();
+        const ProgressiveSolver& solver = mSession->solver();
+        const auto& b = *light.radiosity;
+        auto pending = std::make_shared<std::vector<Rgb>>(disc.elements().size(), Rgb(0.0));
+        double sum = 0;
+        std::size_t n = 0;
+        for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+            const int patch = disc.elements()[e].patch;
+            if (patch < 0 || !disc.patchAlive(patch)) continue;
+            (*pending)[e] = glm::abs(solver.unshotRadiosity(patch));
+            sum += luminance(b[e]);
+            ++n;
+        }
+        light.pending = std::move(pending);
+        light.pendingScale = n > 0 ? 0.05 * sum / double(n) : 0.0;
+    }
+    mDisplaySolutionStale = true;
+    updateDisplaySolution(false);
     {
         std::lock_guard<std::mutex> lock(mPublishMutex);
         mLight = std::move(light);
@@ -444,7 +605,9 @@ bool SessionRunner::quiescent() const {
     std::lock_guard<std::mutex> lock(mPublishMutex);
     return mSolver.idle && mSolver.selected.empty() && mImage &&
            mImage->viewSerial == view.serial && !mImage->reduced &&
-           mImage->stateSerial == mLight.serial;
+           mImage->stateSerial == mLight.serial &&
+           (!usesInteractiveDisplay(view.mode) ||
+            (mImage->mode == view.mode && mImage->settledFrames >= mOptions.settleFrames));
 }
 
 }  // namespace penumbra

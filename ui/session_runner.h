@@ -12,6 +12,12 @@
 // - structural changes (edits: new object versions, tracer updates) take mStructure
 //   exclusively; rendering and picking take it shared. The frame loop therefore waits for
 //   nothing but, when picking, for an edit being applied.
+// View modes (ui/view_mode.h) other than Gouraud and out-of-date use an InteractiveDisplay
+// (Bala et al. 2003) owned by the render thread, shading asynchronously on its own workers:
+// the render thread renders a frame whenever it can (the cache reprojects on camera moves);
+// the solver thread hands it each published solution (updateSolution, between shots, under
+// mDisplayMutex) and, with the display's shader paused, tells it what an edit changed
+// (notifyChanged) while holding mStructure exclusively.
 // With `threaded` false nothing runs in the background and pump() does one iteration of
 // each (tests, deterministic stepping). Adaptive element subdivision (which rebuilds the
 // tracer inside a shot) must be off: interactiveSolverOptions() has it off.
@@ -31,7 +37,9 @@
 #include <vector>
 
 #include "edit/edit_session.h"
+#include "render/interactive_display.h"
 #include "ui/picking.h"
+#include "ui/view_mode.h"
 #include "ui/viewport_renderer.h"
 
 namespace penumbra {
@@ -47,6 +55,12 @@ struct ViewportImage {
     std::uint64_t stateSerial = 0;  ///< document/lighting state it shows
     bool reduced = false;           ///< rendered at reduced resolution (interaction)
     double renderMs = 0;
+    ViewMode mode = ViewMode::Gouraud;
+    /// Display modes: display frames rendered with this view and lighting (the cache fills).
+    int settledFrames = 0;
+    DisplayFrameStats display;   ///< display modes: the last frame's figures
+    double meanDifference = -1;  ///< difference mode: mean sRGB |epi − reference|, -1 none
+    std::string note;            ///< what the viewport should say about the image
 };
 
 /// Solver figures for the solver panel.
@@ -93,6 +107,9 @@ struct ViewRequest {
     int width = 0, height = 0;
     std::string highlight;     ///< object id outlined, "" for none
     bool interactive = false;  ///< render at reduced resolution (camera moving, dragging)
+    ViewMode mode = ViewMode::Gouraud;
+    /// Difference mode: a new reference is computed whenever this grows.
+    std::uint64_t referenceRequest = 0;
     std::uint64_t serial = 0;  ///< set by setView
 };
 
@@ -105,6 +122,10 @@ struct SessionRunnerOptions {
     double convergeEps = 1e-3;  ///< auto-solve stops at unshotFraction ≤ eps, nothing pending
     double interactiveImageMs = 40;  ///< interactive images: resolution for about this time
     int maxReducedDivisor = 8;       ///< at most width / d × height / d pixels fewer
+    int displayDivisor = 1;          ///< display modes: viewport / d pixels (rounded to 4)
+    double displayFrameMs = 30;      ///< display modes: at least this long between frames
+    int settleFrames = 40;           ///< display modes: frames before quiescent()
+    int referenceDivisor = 4;        ///< difference mode: reference at display / d pixels
 };
 
 class SessionRunner {
@@ -147,12 +168,15 @@ public:
     /// Commands queued and not yet applied.
     std::size_t queued() const;
     /// Nothing queued, no solver work pending, no drag, and the image shows the current
-    /// lighting and the latest view at full resolution.
+    /// lighting and the latest view at full resolution (display modes: for settleFrames).
     bool quiescent() const;
 
 private:
     struct Light {
         std::shared_ptr<const std::vector<Rgb>> radiosity;  ///< displayRadiosity()
+        /// Per element: |unshot radiosity| of its patch (pending shooting/redistribution).
+        std::shared_ptr<const std::vector<Rgb>> pending;
+        double pendingScale = 0;  ///< radiosity luminance that tints fully
         int previewVersion = -1;
         std::uint64_t serial = 0;
     };
@@ -162,6 +186,12 @@ private:
     bool solverIteration();
     /// Renders if the light or the view changed; returns whether it rendered.
     bool renderIteration();
+    /// renderIteration for the display modes (structure held shared).
+    bool renderDisplay(const ViewRequest& view, const Light& light,
+                       const std::shared_ptr<const ViewportImage>& last);
+    /// Hands the solver's solution to the display if one is waiting (solver thread, between
+    /// shots); `wait` false gives up when the render thread holds the display.
+    void updateDisplaySolution(bool wait);
     void publishDocument();
     void publishLight();
     void publishSolver(double solverMs);
@@ -205,6 +235,14 @@ private:
     bool mSolverIdle = false;
     // Render-thread state.
     double mMsPerPixel = 0;  ///< running estimate of the render cost
+    // The display (created by the render thread; every call under mDisplayMutex).
+    std::mutex mDisplayMutex;
+    std::unique_ptr<InteractiveDisplay> mDisplay;
+    std::atomic<bool> mDisplaySolutionStale{false};
+    double mLastDisplayFrame = 0;
+    Image mReference;  ///< difference mode
+    Camera mReferenceCamera;
+    std::uint64_t mReferenceDone = 0;
 
     std::thread mSolverThread, mRenderThread;
 };
