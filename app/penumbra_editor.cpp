@@ -27,6 +27,9 @@ int main(int argc, char** argv) {
     app.add_option("--bench-drag", options.benchDrag,
                    "drag this object in a circle for --frames frames and print frame times");
     app.add_flag("--quiet", options.quiet, "no status lines on stderr");
+    app.add_option("--display-divisor", options.displayDivisor,
+                   "edge-and-point modes render the viewport at 1/N resolution (upscaled)")
+        ->check(CLI::PositiveNumber);
     std::string mode = "gouraud";
     app.add_option("--mode", mode,
                    "viewport mode: gouraud, epi, cache, edges, samples, difference, outofdate")

@@ -130,7 +130,9 @@ void EditorApp::openScene(const std::string& path) {
     auto session = EditSession::open(path, interactiveSolverOptions());
     if (!mOptions.log.empty()) session->openLog(mOptions.log);
     mRunner.reset();
-    mRunner = std::make_unique<SessionRunner>(std::move(session));
+    SessionRunnerOptions runnerOptions;
+    runnerOptions.displayDivisor = std::max(1, mOptions.displayDivisor);
+    mRunner = std::make_unique<SessionRunner>(std::move(session), runnerOptions);
     mRunner->setConvergeEps(mConvergeEps);
     mScenePath = path;
     mSelection.clear();

@@ -38,6 +38,7 @@ struct EditorOptions {
     std::string benchDrag;  ///< object id: drag it in a circle for `frames` frames, print timings
     bool quiet = false;
     ViewMode mode = ViewMode::Gouraud;  ///< the viewport's initial display mode (View ▸ Mode)
+    int displayDivisor = 1;  ///< display modes render viewport / d pixels (SessionRunnerOptions)
 };
 
 /// No window could be opened (no DISPLAY, no GL 3.3 core context).
