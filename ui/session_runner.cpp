@@ -424,7 +424,15 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
         } else if (view.mode == ViewMode::Difference) {
             const int f = std::max(1, mOptions.referenceDivisor);
             const bool sized = w % f == 0 && h % f == 0;
-            if (view.referenceRequest != mReferenceDone && sized) {
+            // The reference shows the display's current solution: wait until the solver is
+            // idle and the display has its last published solution.
+            bool solverIdle;
+            {
+                std::lock_guard<std::mutex> lock(mPublishMutex);
+                solverIdle = mSolver.idle;
+            }
+            const bool waiting = view.referenceRequest != mReferenceDone;
+            if (waiting && sized && solverIdle && !mDisplaySolutionStale) {
                 const CameraRays low(view.camera, w / f, h / f);
                 mReference = mDisplay->renderReference(low, 2);
                 mReferenceCamera = view.camera;
@@ -436,7 +444,8 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                     differenceImage(img->render.radiance, mReference, 0.1, &img->meanDifference);
                 img->note = "false colour |epi - reference| sRGB, red at 0.1";
             } else {
-                img->note = "no reference for this view: Compute reference";
+                img->note = waiting ? "reference waits for the solver to settle"
+                                    : "no reference for this view: View > Compute reference";
             }
         }
         img->renderMs = (nowSeconds() - r0) * 1e3;
