@@ -297,6 +297,15 @@ std::string parseProblem(const std::string& message) {
 // ---------------------------------------------------------------------------------------------
 // Public API.
 
+TransformCommand fullTransformCommand(const std::string& id, const Transform& transform) {
+    TransformCommand c;
+    c.id = id;
+    c.translate = transform.translate;
+    c.rotateDeg = transform.rotateDeg;
+    c.scale = transform.scale;
+    return c;
+}
+
 Transform TransformCommand::appliedTo(const Transform& current) const {
     Transform t = current;
     if (translate) t.translate = *translate;

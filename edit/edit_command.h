@@ -45,6 +45,9 @@ struct TransformCommand {
     Transform appliedTo(const Transform& current) const;
 };
 
+/// A transform edit setting all three keys of `transform` on `id`.
+TransformCommand fullTransformCommand(const std::string& id, const Transform& transform);
+
 /// {"op":"move","id":ID,"by":[dx,dy,dz]}: translate += by (metres).
 struct MoveCommand {
     std::string id;

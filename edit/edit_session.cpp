@@ -19,15 +19,6 @@ namespace {
 
 std::string quoteId(const std::string& id) { return "'" + id + "'"; }
 
-TransformCommand fullTransform(const std::string& id, const Transform& t) {
-    TransformCommand c;
-    c.id = id;
-    c.translate = t.translate;
-    c.rotateDeg = t.rotateDeg;
-    c.scale = t.scale;
-    return c;
-}
-
 MaterialCommand fullMaterial(const std::string& id, const Material& m) {
     MaterialCommand c;
     c.id = id;
@@ -260,8 +251,8 @@ EditSession::Plan EditSession::planTransform(const std::string& id, const Transf
     Plan p;
     // A drag is recorded as one step when the object is unselected.
     if (!dragging)
-        p.record =
-            UndoRecord{fullTransform(id, transform), fullTransform(id, current.transform), -1, -1};
+        p.record = UndoRecord{fullTransformCommand(id, transform),
+                              fullTransformCommand(id, current.transform), -1, -1};
     p.perform = [this, index, transform, dragging] {
         SceneObject& object = mLit->scene().objects[index];
         object.transform = transform;
@@ -372,8 +363,8 @@ EditSession::Plan EditSession::planUnselect(const EditSource& source) {
     const SceneObject& object = scene().objects[index];
     Plan p;
     if (!sameTransform(object.transform, mSelectedFrom))
-        p.record = UndoRecord{fullTransform(object.id, object.transform),
-                              fullTransform(object.id, mSelectedFrom), -1, -1};
+        p.record = UndoRecord{fullTransformCommand(object.id, object.transform),
+                              fullTransformCommand(object.id, mSelectedFrom), -1, -1};
     p.perform = [this] {
         // "When the object is unselected, it is added back into the environment."
         const int v = mVersionOf.at(mSelected);

@@ -12,15 +12,6 @@ bool sameTransform(const Transform& a, const Transform& b) {
 
 }  // namespace
 
-TransformCommand fullTransformCommand(const std::string& id, const Transform& transform) {
-    TransformCommand c;
-    c.id = id;
-    c.translate = transform.translate;
-    c.rotateDeg = transform.rotateDeg;
-    c.scale = transform.scale;
-    return c;
-}
-
 std::vector<EditCommand> DragController::begin(const std::string& id, const Transform& start) {
     if (mActive) throw std::logic_error("DragController::begin: '" + mId + "' is being dragged");
     mActive = true;

@@ -43,7 +43,4 @@ private:
     int mUpdates = 0;
 };
 
-/// A transform edit setting all three keys of `transform` on `id`.
-TransformCommand fullTransformCommand(const std::string& id, const Transform& transform);
-
 }  // namespace penumbra
