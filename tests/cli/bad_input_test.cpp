@@ -14,7 +14,13 @@
 #include <string>
 #include <vector>
 
+#include "cli/cli_support.h"
+
 namespace {
+
+using penumbra::test::readFile;
+using penumbra::test::runShell;
+using penumbra::test::writeFile;
 
 namespace fs = std::filesystem;
 
@@ -112,13 +118,6 @@ std::vector<BadInput> badInputs() {
     };
 }
 
-std::string readFile(const fs::path& path) {
-    std::ifstream file(path, std::ios::binary);
-    std::stringstream text;
-    text << file.rdbuf();
-    return text.str();
-}
-
 /// A temp directory name that concurrent runs (several build trees, ctest -j) do not share.
 fs::path uniqueTempDir(const std::string& name) {
     return fs::temp_directory_path() / ("penumbra_cli_" + name + "_" + std::to_string(::getpid()));
@@ -135,9 +134,8 @@ RunResult runSolve(const fs::path& scene, const fs::path& workDir) {
     const std::string command = std::string("timeout 60 '") + PENUMBRA_EXE + "' solve '" +
                                 scene.string() + "' --max-shots 1 > /dev/null 2> '" +
                                 errPath.string() + "'";
-    const int status = std::system(command.c_str());
     RunResult result;
-    result.exitStatus = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.exitStatus = runShell(command);
     result.stderrText = readFile(errPath);
     return result;
 }

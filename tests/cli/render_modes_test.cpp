@@ -16,19 +16,17 @@
 #include <sstream>
 #include <string>
 
+#include "cli/cli_support.h"
 #include "render/image.h"
 
 namespace {
 
+using penumbra::test::readFile;
+using penumbra::test::runShell;
+using penumbra::test::writeFile;
+
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-std::string readFile(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
 
 struct RunResult {
     int exitStatus = -1;
@@ -56,9 +54,8 @@ protected:
                                     "' render scenes/cornell-box.json --converge 0.05 --width 48 "
                                     "--height 40 " +
                                     args + " 2> '" + err.string() + "'";
-        const int status = std::system(command.c_str());
         RunResult run;
-        run.exitStatus = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        run.exitStatus = runShell(command);
         run.err = readFile(err);
         return run;
     }

@@ -13,21 +13,16 @@
 #include <sstream>
 #include <string>
 
+#include "cli/cli_support.h"
+
 namespace {
+
+using penumbra::test::readFile;
+using penumbra::test::runShell;
+using penumbra::test::writeFile;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-std::string readFile(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-void writeFile(const fs::path& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-}
 
 /// A closed 3 m room with a ceiling lamp and a slab (about 450 elements): fast to solve.
 const char* kRoom = R"({
@@ -96,9 +91,8 @@ protected:
         const fs::path out = mDir / "stdout.txt", err = mDir / "stderr.txt";
         const std::string command = std::string("timeout 120 '") + PENUMBRA_EXE + "' replay " +
                                     args + " > '" + out.string() + "' 2> '" + err.string() + "'";
-        const int status = std::system(command.c_str());
         RunResult run;
-        run.exitStatus = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        run.exitStatus = runShell(command);
         run.out = readFile(out);
         run.err = readFile(err);
         return run;
