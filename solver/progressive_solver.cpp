@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 
 #include "solver/form_factor.h"
 #include "solver/indexed_heap.h"
@@ -145,6 +146,14 @@ void ProgressiveSolver::initialize() {
         mEmittedEnergy += (e.x + e.y + e.z) * patches[p].area;
         mImpl->queue.update(static_cast<int>(p), energyKey(e, patches[p].area));
     }
+}
+
+void ProgressiveSolver::setStrategy(RedistributionStrategy strategy,
+                                    double redistributionThreshold) {
+    if (!(redistributionThreshold >= 0 && redistributionThreshold <= 1))
+        throw std::invalid_argument("redistribution threshold must be in [0, 1]");
+    mOptions.strategy = strategy;
+    mOptions.redistributionThreshold = redistributionThreshold;
 }
 
 double ProgressiveSolver::unshotEnergy() const {

@@ -143,6 +143,10 @@ public:
     Rgb irradianceAt(const Vec3& x, const Vec3& n, int rays = 16) const;
 
     const SolverStats& stats() const { return mStats; }
+    const SolverOptions& options() const { return mOptions; }
+    /// Switches George et al.'s interleaving strategy and strategy one's threshold between
+    /// steps (the editor's solver panel). Pending work is kept; only the order changes.
+    void setStrategy(RedistributionStrategy strategy, double redistributionThreshold);
     const Discretization& discretization() const { return mDisc; }
 
 private:

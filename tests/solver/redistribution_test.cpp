@@ -4,7 +4,9 @@
 // same pair-seeded sample patterns).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <memory>
+#include <stdexcept>
 
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
@@ -256,6 +258,25 @@ TEST(Redistribution, InterleaveStrategyConvergesToTheSameAnswer) {
     reference.solver = std::make_unique<ProgressiveSolver>(*reference.disc, *reference.tracer);
     reference.solver->converge(kEps, 1000000);
     expectMatches(edited, reference, "interleave");
+}
+
+TEST(Redistribution, StrategySwitchedMidEditStillConverges) {
+    Lit edited(makeRoom());  // strategy one
+    edited.solver->converge(kEps, 1000000);
+    edited.add(makeBox("crate", {0.1, -0.55, 0.0}));
+    edited.solver->step(3);
+    EXPECT_THROW(edited.solver->setStrategy(RedistributionStrategy::Interleave, std::nan("")),
+                 std::invalid_argument);
+    edited.solver->setStrategy(RedistributionStrategy::Interleave, 0);
+    EXPECT_EQ(edited.solver->options().strategy, RedistributionStrategy::Interleave);
+    edited.solver->step(3);
+    edited.solver->setStrategy(RedistributionStrategy::RedistributeFirst, 1e-2);
+    edited.solver->converge(kEps, 1000000);
+    Lit reference(makeRoom());
+    reference.addVersion(makeBox("crate", {0.1, -0.55, 0.0}));
+    reference.solver = std::make_unique<ProgressiveSolver>(*reference.disc, *reference.tracer);
+    reference.solver->converge(kEps, 1000000);
+    expectMatches(edited, reference, "strategy-switch");
 }
 
 }  // namespace
