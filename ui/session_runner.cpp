@@ -44,6 +44,8 @@ const ObjectSummary* DocumentSummary::find(const std::string& id) const {
 SessionRunner::SessionRunner(std::unique_ptr<EditSession> session, SessionRunnerOptions options)
     : mSession(std::move(session)), mOptions(options), mEps(options.convergeEps) {
     if (!mSession) throw std::invalid_argument("SessionRunner: no session");
+    mStrategy = mSession->solver().options().strategy;
+    mThreshold = mSession->solver().options().redistributionThreshold;
     publishDocument();
     publishLight();
     publishSolver(0);
@@ -172,6 +174,28 @@ void SessionRunner::setConvergeEps(double eps) {
     mWake.notify_all();
 }
 
+void SessionRunner::setStrategy(RedistributionStrategy strategy, double threshold) {
+    if (!(threshold >= 0 && threshold <= 1))
+        throw std::invalid_argument("redistribution threshold must be in [0, 1]");
+    {
+        std::lock_guard<std::mutex> lock(mQueueMutex);
+        mStrategy = strategy;
+        mThreshold = threshold;
+        mStrategyChanged = true;
+    }
+    mWake.notify_all();
+}
+
+RedistributionStrategy SessionRunner::strategy() const {
+    std::lock_guard<std::mutex> lock(mQueueMutex);
+    return mStrategy;
+}
+
+double SessionRunner::redistributionThreshold() const {
+    std::lock_guard<std::mutex> lock(mQueueMutex);
+    return mThreshold;
+}
+
 Pick SessionRunner::pick(const Camera& camera, int width, int height, double px, double py) {
     std::shared_lock<std::shared_mutex> lock(mStructure);
     return pickObject(mSession->discretization(), mSession->tracer(), camera, width, height, px,
@@ -190,12 +214,24 @@ bool SessionRunner::solverIteration() {
     std::deque<Queued> commands;
     bool solve;
     double eps;
+    std::optional<std::pair<RedistributionStrategy, double>> strategy;
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         commands.swap(mQueue);
         mApplying = !commands.empty();
         solve = mAutoSolve && !mPaused;
         eps = mEps;
+        if (mStrategyChanged) strategy.emplace(mStrategy, mThreshold);
+        mStrategyChanged = false;
+    }
+    // A strategy switch only reorders pending work: applied between shots, no structure lock
+    // (the render thread never reads the solver's options).
+    if (strategy) {
+        try {
+            mSession->solver().setStrategy(strategy->first, strategy->second);
+        } catch (const std::exception& e) {
+            report(std::string("strategy: ") + e.what());
+        }
     }
 
     // Edits (and tasks, in their place) change the structure: exclusively.
@@ -578,6 +614,8 @@ void SessionRunner::publishSolver(double solverMs) {
     s.selected = mSession->selected();
     s.previewVersion = s.selected.empty() ? -1 : solver.previewObject();
     s.solverMsPerIteration = solverMs;
+    s.strategy = solver.options().strategy;
+    s.redistributionThreshold = solver.options().redistributionThreshold;
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mSolver = std::move(s);
 }

@@ -79,6 +79,9 @@ struct SolverSnapshot {
     std::string selected;  ///< EditSession::selected() (the object being dragged)
     int previewVersion = -1;
     double solverMsPerIteration = 0;
+    /// George et al.'s interleaving strategy and threshold the solver uses now (applied).
+    RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
+    double redistributionThreshold = 0;
 };
 
 /// What the UI shows of one document object.
@@ -152,6 +155,15 @@ public:
     /// what its solve/converge lines say).
     void setAutoSolve(bool on);
     void setConvergeEps(double eps);
+    /// Switches George et al.'s interleaving strategy (one: redistribute first down to
+    /// `threshold` × emitted power, two: interleave) and strategy one's threshold. Thread-safe;
+    /// the solver thread applies it between shots (ProgressiveSolver::setStrategy), before the
+    /// next queued edit or shot. Throws std::invalid_argument unless threshold is in [0, 1].
+    void setStrategy(RedistributionStrategy strategy, double threshold);
+    /// The strategy and threshold last requested (setStrategy, or the solver's options at
+    /// construction); SolverSnapshot::strategy says what the solver applied.
+    RedistributionStrategy strategy() const;
+    double redistributionThreshold() const;
 
     /// The object under a pixel (picking.h), against the current structure; waits only for
     /// an edit being applied, never for a shot.
@@ -216,6 +228,9 @@ private:
     bool mPaused = false;
     bool mAutoSolve = true;
     double mEps = 1e-3;
+    RedistributionStrategy mStrategy = RedistributionStrategy::RedistributeFirst;
+    double mThreshold = 0;
+    bool mStrategyChanged = false;  ///< the solver thread has not applied mStrategy yet
     bool mStop = false;
     bool mApplying = false;
 
