@@ -3,6 +3,7 @@
 // 2 bad input or no display, with one line on stderr.
 
 #include <CLI/CLI.hpp>
+#include <OpenMesh/Core/System/omstream.hh>
 #include <exception>
 #include <iostream>
 
@@ -10,6 +11,10 @@
 #include "ui/editor_app.h"
 
 int main(int argc, char** argv) {
+    // OpenMesh reports non-manifold faces it cannot link (which the edge finder handles by
+    // giving them their own vertices) on its own error stream; the editor reports its errors
+    // in the status bar and on stderr (as `penumbra` does).
+    omerr().disable();
     penumbra::EditorOptions options;
     CLI::App app{"Penumbra editor: interactive radiosity lighting"};
     app.add_option("scene", options.scene, "scene file (*.json)");
