@@ -64,7 +64,7 @@ TEST(FileDialog, ListsFoldersFirstThenMatchingFilesSortedWithoutCase) {
     // Hidden files on request; no filter lists every file.
     EXPECT_EQ(
         names(listFolder(tree.path("scenes"), {".json"}, true)),
-        (std::vector<std::string>{".hidden.json", "Alpha/", "logs/", "zeta/", "a.json", "B.JSON"}));
+        (std::vector<std::string>{"Alpha/", "logs/", "zeta/", ".hidden.json", "a.json", "B.JSON"}));
     EXPECT_EQ(names(listFolder(tree.path("scenes"), {})).size(), 6u);
     EXPECT_TRUE(listFolder(tree.path("empty"), {".json"}).empty());
     EXPECT_THROW(listFolder(tree.path("missing"), {}), fs::filesystem_error);
