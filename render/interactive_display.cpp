@@ -391,6 +391,51 @@ std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObj
     return dropped;
 }
 
+std::size_t InteractiveDisplay::invalidateVersion(int version) {
+    if (version < 0 || version >= static_cast<int>(mDisc.objects().size())) return 0;
+    std::size_t dropped = mCache.invalidateObjects({version});
+    const ObjectSurface& s = mDisc.objects()[version];
+    if (s.worldPositions.empty()) return dropped;
+    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+    for (const Vec3& p : s.worldPositions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    return dropped + mCache.invalidateRegion(0.5 * (lo + hi), 0.5 * glm::length(hi - lo));
+}
+
+std::size_t InteractiveDisplay::invalidateElementList(const std::vector<int>& elements) {
+    if (elements.empty()) return 0;
+    return mCache.invalidateElements(std::unordered_set<int>(elements.begin(), elements.end()));
+}
+
+std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility& previewOnly,
+                                           const ProgressiveSolver* solver) {
+    mShader->cancelPending();
+    if (!mOptions.synchronous) (void)mShader->takeResults();
+    const int old = mShader->previewObject();
+    const std::vector<double> before = elementShading();
+    std::size_t dropped = invalidateVersion(old) + invalidateVersion(previewVersion);
+    // The moving shadow: elements whose preview-world direct lighting changed.
+    dropped += invalidateElementList(mShader->setPreview(previewVersion, previewOnly));
+    if (solver) mShader->updateSolution(*solver);
+    dropped += invalidateChangedShading(before);
+    return dropped;
+}
+
+std::size_t InteractiveDisplay::clearPreview(const ProgressiveSolver* solver) {
+    const int old = mShader->previewObject();
+    if (old < 0) return 0;
+    mShader->cancelPending();
+    if (!mOptions.synchronous) (void)mShader->takeResults();
+    const std::vector<double> before = elementShading();
+    std::size_t dropped = invalidateVersion(old);
+    dropped += invalidateElementList(mShader->clearPreview());
+    if (solver) mShader->updateSolution(*solver);
+    dropped += invalidateChangedShading(before);
+    return dropped;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Reference
 

@@ -165,6 +165,21 @@ public:
     /// cached points dropped.
     std::size_t notifyChanged(const std::vector<int>& changedObjects,
                               const ProgressiveSolver* solver = nullptr);
+    /// Drag preview (George et al.'s temporary buffer): shows `previewVersion`, the dead object
+    /// version the solver previews (ProgressiveSolver::previewObject(): the dragged object at
+    /// its current position), lit by the solver's previewRadiosity() and casting its shadows
+    /// (PointShader::setPreview; `previewOnly` a RayTracer subset admitting only it, kept
+    /// alive by the caller until the next setPreview/clearPreview). Drops cached points on the
+    /// previous preview version, in both versions' bounding spheres and on elements whose
+    /// direct lighting the move changed (the moving shadow); takes the solver's solution when
+    /// given. Call like notifyChanged (asynchronous mode: shader paused). Returns the points
+    /// dropped.
+    std::size_t setPreview(int previewVersion, const Visibility& previewOnly = {},
+                           const ProgressiveSolver* solver = nullptr);
+    /// Ends the preview (call before notifyChanged of the unselect). Returns the points dropped.
+    std::size_t clearPreview(const ProgressiveSolver* solver = nullptr);
+    /// The preview version shown, -1 for none.
+    int previewVersion() const { return mShader->previewObject(); }
     /// Milliseconds the last shadow-edge recomputation took (after a change, or the first frame).
     double lastShadowUpdateMs() const { return mLastShadowUpdateMs; }
 
@@ -191,6 +206,10 @@ private:
     /// Drops points on elements whose shading moved from `before` by more than the threshold.
     std::size_t invalidateChangedShading(const std::vector<double>& before);
     void syncLights();
+    /// Drops cached points on `version` and in its bounding sphere.
+    std::size_t invalidateVersion(int version);
+    /// Drops points on `elements` (element indices whose direct lighting changed).
+    std::size_t invalidateElementList(const std::vector<int>& elements);
     std::vector<ShadedPoint> shadeAll(const std::vector<ShadeRequest>& requests) const;
 
     const Discretization& mDisc;

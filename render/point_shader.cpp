@@ -10,6 +10,7 @@
 #include <cstring>
 #include <glm/gtc/constants.hpp>
 #include <sstream>
+#include <stdexcept>
 
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
@@ -144,6 +145,16 @@ struct PointShader::State {
     std::vector<Light> lights;
     std::vector<std::vector<Rgb>> vertexIndirect;  ///< per object, per mesh vertex
     std::vector<Rgb> elementIndirect;              ///< per element
+    // Drag preview.
+    int previewObject = -1;
+    Visibility previewOnly;                  ///< subset admitting only the preview object
+    std::vector<std::uint8_t> previewWorld;  ///< alive objects + the preview (no subset)
+    /// Rays see the scene plus the preview object.
+    Visibility worldVisibility() const {
+        Visibility v;
+        v.world = &previewWorld;
+        return v;
+    }
 };
 
 namespace {
@@ -285,7 +296,10 @@ void PointShader::refreshDirect() {
         for (std::size_t e = r.begin(); e != r.end(); ++e)
             mElementDirect[e] = computeElementDirect(static_cast<int>(e), next->lights);
     });
+    const int preview = next->previewObject;
+    const Visibility previewOnly = next->previewOnly;
     publish(std::move(next));
+    if (preview >= 0) setPreview(preview, previewOnly);
 }
 
 void PointShader::refreshDirect(const std::vector<int>& changedObjects) {
@@ -337,9 +351,136 @@ void PointShader::refreshDirect(const std::vector<int>& changedObjects) {
             if (redo) mElementDirect[e] = computeElementDirect(static_cast<int>(e), lights);
         }
     });
+    const auto st = state();
+    if (st->previewObject >= 0) setPreview(st->previewObject, st->previewOnly);
 }
 
-std::vector<Rgb> PointShader::elementDirect() const { return mElementDirect; }
+std::vector<Rgb> PointShader::elementDirect() const {
+    std::vector<Rgb> out = mElementDirect;
+    for (int e : mPreviewElements)
+        if (e < static_cast<int>(out.size())) out[e] += mPreviewDirectDelta[e];
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Drag preview
+
+Rgb PointShader::computePreviewDirect(int e, int object, const Visibility& world) const {
+    // computeElementDirect in the world with the preview object.
+    const Element& el = mDisc.elements()[e];
+    if (!mDisc.objects()[el.object].alive && el.object != object) return Rgb(0.0);
+    Rgb sum(0.0);
+    for (std::size_t j = 0; j < mDisc.patches().size(); ++j) {
+        const Patch& P = mDisc.patches()[j];
+        if (!mDisc.objects()[P.object].alive) continue;
+        const Rgb& emission = mDisc.patchMaterial(static_cast<int>(j)).emission;
+        if (isZero(emission) || el.patch == static_cast<int>(j)) continue;
+        Vec3 toReceiver = el.centroid - P.centroid;
+        if (glm::dot(toReceiver, P.normal) < -P.radius) continue;
+        if (glm::dot(-toReceiver, el.normal) < -P.radius) continue;
+        PointToPatch ff =
+            formFactorToPatch(mDisc, mTracer, el.centroid, el.normal, static_cast<int>(j),
+                              static_cast<std::uint64_t>(e), mSolverOptions.seed,
+                              mSolverOptions.maxRaysPerPair, world);
+        sum += emission * ff.visible;
+    }
+    return sum;
+}
+
+std::vector<int> PointShader::setPreview(int object, const Visibility& previewOnly) {
+    if (object < 0 || object >= static_cast<int>(mDisc.objects().size()))
+        throw std::invalid_argument("PointShader::setPreview: no object " + std::to_string(object));
+    auto next = std::make_shared<State>(*state());
+    next->previewObject = object;
+    next->previewOnly = previewOnly;
+    next->previewWorld.assign(mDisc.objects().size(), 0);
+    for (std::size_t o = 0; o < mDisc.objects().size(); ++o)
+        next->previewWorld[o] = mDisc.objects()[o].alive ? 1 : 0;
+    next->previewWorld[object] = 1;
+    const Visibility world = next->worldVisibility();
+
+    // The preview's bounding sphere.
+    const auto& ws = mDisc.objects()[object].worldPositions;
+    Vec3 lo = ws.empty() ? Vec3(0.0) : ws[0], hi = lo;
+    for (const Vec3& w : ws) lo = glm::min(lo, w), hi = glm::max(hi, w);
+    const Vec3 centre = 0.5 * (lo + hi);
+    const double radius = 0.5 * glm::length(hi - lo) + 4 * mTracer.epsilon();
+
+    const std::size_t n = mDisc.elements().size();
+    mElementDirect.resize(n, Rgb(0.0));
+    std::vector<Rgb> delta(n, Rgb(0.0));
+    std::vector<std::uint8_t> touched(n, 0);
+    const std::vector<int> emitters = emitterPatches(mDisc);
+    // The object's own elements: H_direct in the preview world. Others: Σ_j E_j·(F_preview −
+    // F_scene), traced in both worlds only for samples that meet the object (formFactorChange),
+    // for elements whose shaft to an emitter patch can meet its bounding sphere.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& r) {
+        for (std::size_t e = r.begin(); e != r.end(); ++e) {
+            const Element& el = mDisc.elements()[e];
+            const int ie = static_cast<int>(e);
+            if (el.object == object) {
+                delta[e] = computePreviewDirect(ie, object, world) - mElementDirect[e];
+                touched[e] = 1;
+                continue;
+            }
+            if (!mDisc.objects()[el.object].alive || ws.empty()) continue;
+            Rgb sum(0.0);
+            bool any = false;
+            for (int j : emitters) {
+                const Patch& P = mDisc.patches()[j];
+                if (el.patch == j) continue;
+                const Vec3 a = el.centroid, d = P.centroid - a;
+                const double dd = glm::dot(d, d);
+                const double t = dd > 0 ? std::clamp(glm::dot(centre - a, d) / dd, 0.0, 1.0) : 0;
+                if (glm::length(centre - (a + t * d)) > radius + P.radius) continue;
+                const Vec3 toReceiver = el.centroid - P.centroid;
+                if (glm::dot(toReceiver, P.normal) < -P.radius) continue;
+                if (glm::dot(-toReceiver, el.normal) < -P.radius) continue;
+                any = true;
+                const Visibility scene;
+                const Visibility changed = previewOnly.subset >= 0 ? previewOnly : world;
+                const PointToPatch ff = formFactorChange(
+                    mDisc, mTracer, el.centroid, el.normal, j, static_cast<std::uint64_t>(e),
+                    mSolverOptions.seed, mSolverOptions.maxRaysPerPair, scene, world, changed);
+                sum += mDisc.patchMaterial(j).emission * ff.visible;
+            }
+            if (any) {
+                delta[e] = sum;
+                touched[e] = 1;
+            }
+        }
+    });
+    // Elements whose preview direct changed: the old preview's and the new one's.
+    std::vector<int> changed;
+    std::vector<Rgb> old(n, Rgb(0.0));
+    for (int e : mPreviewElements)
+        if (e < static_cast<int>(n)) old[e] = mPreviewDirectDelta[e];
+    mPreviewElements.clear();
+    for (std::size_t e = 0; e < n; ++e) {
+        if (touched[e]) mPreviewElements.push_back(static_cast<int>(e));
+        if (delta[e] != old[e]) changed.push_back(static_cast<int>(e));
+    }
+    mPreviewDirectDelta = std::move(delta);
+    publish(std::move(next));
+    return changed;
+}
+
+std::vector<int> PointShader::clearPreview() {
+    std::vector<int> changed;
+    for (int e : mPreviewElements)
+        if (e < static_cast<int>(mPreviewDirectDelta.size()) && !isZero(mPreviewDirectDelta[e]))
+            changed.push_back(e);
+    mPreviewElements.clear();
+    mPreviewDirectDelta.clear();
+    auto next = std::make_shared<State>(*state());
+    next->previewObject = -1;
+    next->previewOnly = Visibility{};
+    next->previewWorld.clear();
+    publish(std::move(next));
+    return changed;
+}
+
+int PointShader::previewObject() const { return state()->previewObject; }
 
 std::vector<Rgb> PointShader::elementIndirect() const { return state()->elementIndirect; }
 
@@ -359,12 +500,33 @@ void PointShader::updateSolution(const ProgressiveSolver& solver) {
         });
     }
     auto next = std::make_shared<State>();
-    next->lights = state()->lights;
+    {
+        const auto st = state();
+        next->lights = st->lights;
+        next->previewObject = st->previewObject;
+        next->previewOnly = st->previewOnly;
+        next->previewWorld = st->previewWorld;
+    }
+    const int preview = next->previewObject;
     next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
     for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementDirect[e];
+    if (preview >= 0 && solver.previewObject() == preview) {
+        // George et al.'s temporary buffer T holds ρ·ΔH (and the preview object's whole ρ·H):
+        // the irradiance shown is H + T/ρ, of which the preview world's H_direct is traced.
+        const std::vector<Rgb>& T = solver.previewRadiosity();
+        for (std::size_t e = 0; e < n && e < T.size(); ++e) {
+            if (isZero(T[e])) continue;
+            const Rgb rho = mDisc.elementMaterial(static_cast<int>(e)).reflectance;
+            for (int c = 0; c < 3; ++c)
+                if (rho[c] > 0) next->elementIndirect[e][c] += T[e][c] / rho[c];
+        }
+    }
+    if (preview >= 0)
+        for (int e : mPreviewElements)
+            if (e < static_cast<int>(n)) next->elementIndirect[e] -= mPreviewDirectDelta[e];
     next->vertexIndirect.resize(mDisc.objects().size());
     tbb::parallel_for(std::size_t(0), mDisc.objects().size(), [&](std::size_t o) {
-        if (mDisc.objects()[o].alive)
+        if (mDisc.objects()[o].alive || static_cast<int>(o) == preview)
             next->vertexIndirect[o] =
                 mDisc.vertexValues(static_cast<int>(o), next->elementIndirect);
     });
@@ -429,9 +591,11 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
             double cx = glm::dot(n, d), cy = -glm::dot(ny, d);
             if (!(r2 > 0) || cx <= 0 || cy <= 0) continue;
             const Vec3 to = y + ny * eps;
-            if (!mTracer.occluded(from, to)) continue;
+            const bool sceneBlocked = mTracer.occluded(from, to);
+            if (!sceneBlocked && !previewBlocks(st, from, to)) continue;
             blocked += cx * cy / (r2 * r2) * invPi;
-            if (mOptions.recordTriples) {
+            // The edge finder knows the scene's objects, not the preview version.
+            if (mOptions.recordTriples && sceneBlocked) {
                 // Who blocked: the first surface along the shadow ray (Bala et al. §6.5).
                 RayTracer::FirstHit b = mTracer.firstHit(from, glm::normalize(to - from));
                 if (b.element >= 0) {
@@ -446,12 +610,29 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
     return total;
 }
 
+RayHit PointShader::traceWith(const State& st, const Vec3& origin, const Vec3& direction) const {
+    if (st.previewObject < 0) return mTracer.intersect(origin, direction);
+    if (st.previewOnly.subset < 0)
+        return mTracer.intersect(origin, direction, 0.0, 1e30, st.worldVisibility());
+    // The scene, then the preview object alone up to the scene's hit.
+    RayHit hit = mTracer.intersect(origin, direction);
+    RayHit preview =
+        mTracer.intersect(origin, direction, 0.0, hit.object >= 0 ? hit.t : 1e30, st.previewOnly);
+    return preview.object >= 0 ? preview : hit;
+}
+
+bool PointShader::previewBlocks(const State& st, const Vec3& from, const Vec3& to) const {
+    if (st.previewObject < 0) return false;
+    return mTracer.occluded(from, to,
+                            st.previewOnly.subset >= 0 ? st.previewOnly : st.worldVisibility());
+}
+
 ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request) const {
     mShaded.fetch_add(1, std::memory_order_relaxed);
     ShadedPoint out;
     out.pixel = request.pixel;
     out.frame = request.frame;
-    const RayHit hit = mTracer.intersect(request.origin, request.direction);
+    const RayHit hit = traceWith(st, request.origin, request.direction);
     if (hit.object < 0 || hit.element < 0) {
         out.position = request.origin + request.direction * kMissDistance;
         out.normal = -request.direction;

@@ -31,12 +31,12 @@
 #include <vector>
 
 #include "solver/progressive_solver.h"
+#include "solver/ray_tracer.h"
 #include "solver/scene.h"
 
 namespace penumbra {
 
 class Discretization;
-class RayTracer;
 
 // ---------------------------------------------------------------------------------------------
 // Requests and results
@@ -138,10 +138,31 @@ public:
     /// picks the new snapshot up at its next batch. `solver` must be over the same
     /// Discretization.
     void updateSolution(const ProgressiveSolver& solver);
-    /// H_direct(e) for every element (W/m²), as used by updateSolution().
+    /// H_direct(e) for every element (W/m²), as used by updateSolution() (with a preview set:
+    /// in the world that includes the preview object).
     std::vector<Rgb> elementDirect() const;
     /// The indirect irradiance snapshot per element (W/m²).
     std::vector<Rgb> elementIndirect() const;
+
+    // -- Drag preview (George et al.'s temporary buffer) -------------------------------------
+
+    /// Shows `object`, a dead object version present in the tracer (ProgressiveSolver::
+    /// previewObject(): the dragged object at its current position), as if it were in the
+    /// scene: primary rays see it and shadow rays are blocked by it. `previewOnly` must admit
+    /// exactly that object (a RayTracer::createSubset visibility, kept alive by the caller while
+    /// the preview is set); without a subset the rays use a Visibility::world filter over
+    /// every version (correct, slower as drag versions pile up). Computes H_direct in the
+    /// preview world for the object's elements and, with formFactorChange, for the elements
+    /// whose shaft to an emitter meets its bounding sphere. From the next updateSolution() on,
+    /// the irradiance is H_e + T_e/ρ_e, T = the solver's previewRadiosity() (when the solver's
+    /// previewObject() is `object`), so H_indirect = H_e + T_e/ρ_e − H_direct,preview(e): the
+    /// per-sample direct light shows the object's shadow, the buffer its reflected light.
+    /// Call while paused (or without workers). Returns the elements whose H_direct changed.
+    std::vector<int> setPreview(int object, const Visibility& previewOnly = {});
+    /// Back to the scene without a preview object (H_direct as before setPreview).
+    std::vector<int> clearPreview();
+    /// The preview object, -1 for none.
+    int previewObject() const;
 
     // -- Synchronous shading -----------------------------------------------------------------
 
@@ -207,6 +228,13 @@ private:
     /// Σ_j E_j·F(e←j) with the solver's pair-seeded form factors.
     Rgb computeElementDirect(int element, const std::vector<Light>& lights) const;
     ShadedPoint shadeWith(const State& state, const ShadeRequest& request) const;
+    /// Nearest hit in the displayed world (the scene plus the preview object).
+    RayHit traceWith(const State& state, const Vec3& origin, const Vec3& direction) const;
+    /// Whether the preview object blocks the segment (false without a preview).
+    bool previewBlocks(const State& state, const Vec3& from, const Vec3& to) const;
+    /// H_direct(e) in the world with the preview object `object` (all emitters, the solver's
+    /// pair-seeded form factors).
+    Rgb computePreviewDirect(int element, int object, const Visibility& world) const;
     Rgb directWith(const State& state, const Vec3& x, const Vec3& n, int receiver,
                    std::uint64_t key) const;
     void recordTriple(const ShadowTriple& t) const;
@@ -221,6 +249,10 @@ private:
     std::shared_ptr<const State> mState;
     std::vector<Rgb> mElementDirect;  ///< H_direct(e); written only while paused/idle
     std::vector<Rgb> mElementH;       ///< the last solver snapshot's H_e
+    /// Preview: H_direct in the preview world minus mElementDirect, nonzero only on the
+    /// elements listed in mPreviewElements; written only while paused/idle.
+    std::vector<Rgb> mPreviewDirectDelta;
+    std::vector<int> mPreviewElements;
 
     // Queues.
     mutable std::mutex mQueueMutex;

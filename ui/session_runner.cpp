@@ -64,6 +64,8 @@ SessionRunner::~SessionRunner() {
     mRenderWake.notify_all();
     if (mSolverThread.joinable()) mSolverThread.join();
     if (mRenderThread.joinable()) mRenderThread.join();
+    // The display's shader workers may use the preview subset until they are joined.
+    mDisplay.reset();
 }
 
 void SessionRunner::runSolver() {
@@ -246,6 +248,7 @@ bool SessionRunner::solverIteration() {
         const double a1 = nowSeconds();
         std::vector<int> changed;
         bool structural = false;
+        bool previewTouched = false;  // a preview version was (re)set: its points are stale
         for (Queued& q : commands) {
             try {
                 if (q.task) {
@@ -257,20 +260,38 @@ bool SessionRunner::solverIteration() {
                     changed.insert(changed.end(), r.removed.begin(), r.removed.end());
                     changed.insert(changed.end(), r.materialChanged.begin(),
                                    r.materialChanged.end());
+                    previewTouched = previewTouched || r.preview >= 0 || r.selection;
                 }
             } catch (const std::exception& e) {
                 report(e.what());
             }
         }
-        if (mDisplay && (!changed.empty() || structural)) {
-            std::sort(changed.begin(), changed.end());
-            changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
-            try {
+        // The drag preview (George et al.'s temporary buffer): the dragged object's current
+        // version, alone in a tracer subset the display's rays test besides the scene.
+        const int preview = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
+        const bool previewMoved = preview != mPreviewVersion || (preview >= 0 && previewTouched);
+        try {
+            // Unselect: the display leaves the preview before it sees the object added back.
+            if (mDisplay && mDisplay->previewVersion() >= 0 && preview < 0)
+                mDisplay->clearPreview();
+            if (mDisplay && (!changed.empty() || structural)) {
+                std::sort(changed.begin(), changed.end());
+                changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
                 mDisplay->notifyChanged(changed, &mSession->solver());
                 mDisplaySolutionStale = false;
-            } catch (const std::exception& e) {
-                report(std::string("display: ") + e.what());
             }
+            if (preview != mPreviewVersion) {
+                mPreviewSubset.reset();
+                if (preview >= 0)
+                    mPreviewSubset = RayTracer::SubsetHandle(mSession->tracer(), {preview});
+                mPreviewVersion = preview;
+            }
+            if (mDisplay && preview >= 0 && (previewMoved || mDisplay->previewVersion() < 0)) {
+                mDisplay->setPreview(preview, mPreviewSubset.visibility(), &mSession->solver());
+                mDisplaySolutionStale = false;
+            }
+        } catch (const std::exception& e) {
+            report(std::string("display: ") + e.what());
         }
         pause.reset();
         displayLock.unlock();
@@ -437,6 +458,10 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
             mDisplay =
                 std::make_unique<InteractiveDisplay>(mSession->discretization(), mSession->tracer(),
                                                      interactiveSolverOptions(), options);
+            // A drag in progress: the preview version and its subset are current (the solver
+            // thread changes them only with the structure held exclusively).
+            if (mPreviewVersion >= 0)
+                mDisplay->setPreview(mPreviewVersion, mPreviewSubset.visibility());
             mDisplay->warmUp(rays);
             mDisplaySolutionStale = true;  // the solver thread hands it the solution
             mWake.notify_all();

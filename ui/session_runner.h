@@ -255,6 +255,10 @@ private:
     std::unique_ptr<InteractiveDisplay> mDisplay;
     std::atomic<bool> mDisplaySolutionStale{false};
     double mLastDisplayFrame = 0;
+    /// The drag preview version (-1 none) and a tracer subset of it alone; written by the
+    /// solver thread with mStructure held exclusively and the display's shader paused.
+    int mPreviewVersion = -1;
+    RayTracer::SubsetHandle mPreviewSubset;
     Image mReference;  ///< difference mode
     Camera mReferenceCamera;
     std::uint64_t mReferenceDone = 0;
