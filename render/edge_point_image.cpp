@@ -138,8 +138,13 @@ double millisecondsSince(std::chrono::steady_clock::time_point start) {
         .count();
 }
 
+/// body(y) for y in [0, height): rows in parallel, or in order when !parallel.
 template <typename F>
-void forRows(int height, F&& body) {
+void forRows(bool parallel, int height, F&& body) {
+    if (!parallel) {
+        for (int y = 0; y < height; ++y) body(y);
+        return;
+    }
     tbb::parallel_for(tbb::blocked_range<int>(0, height, 8), [&](const tbb::blocked_range<int>& r) {
         for (int y = r.begin(); y < r.end(); ++y) body(y);
     });
@@ -147,12 +152,36 @@ void forRows(int height, F&& body) {
 
 bool finite2(const glm::dvec2& p) { return std::isfinite(p.x) && std::isfinite(p.y); }
 
+/// First row of band b of `bands` over `height` rows.
+int bandStart(int height, int bands, int b) {
+    return static_cast<int>(static_cast<long long>(height) * b / bands);
+}
+
+/// The band holding row y (clamped to the image).
+int bandOfRow(int height, int bands, double y) {
+    if (!(y > 0.0)) return 0;  // also NaN
+    if (!(y < height)) return bands - 1;
+    const int row = static_cast<int>(y);
+    int b = static_cast<int>(static_cast<long long>(row) * bands / height);
+    while (b + 1 < bands && row >= bandStart(height, bands, b + 1)) ++b;
+    while (b > 0 && row < bandStart(height, bands, b)) --b;
+    return b;
+}
+
 /// Edge code from the four boundary masks of a cell with n pieces per side (top and bottom
 /// bits along +x, left and right along +y), §4.5 "edge reconstruction": no intersection →
 /// empty; exactly two on different sides → simple; otherwise complex.
+/// Bits set in a byte (a table: without -mpopcnt std::popcount is a library call).
+constexpr std::array<uint8_t, 256> kBitCount = [] {
+    std::array<uint8_t, 256> t{};
+    for (int i = 0; i < 256; ++i) t[i] = static_cast<uint8_t>((i & 1) + t[i / 2]);
+    return t;
+}();
+
 uint16_t codeFromMasks(unsigned top, unsigned right, unsigned bottom, unsigned left, int n) {
-    const int total =
-        std::popcount(top) + std::popcount(right) + std::popcount(bottom) + std::popcount(left);
+    // Masks have at most 8 bits (n ≤ 8).
+    const int total = kBitCount[top & 255] + kBitCount[right & 255] + kBitCount[bottom & 255] +
+                      kBitCount[left & 255];
     if (total == 0) return kEdgeCodeEmpty;
     if (total != 2) return kEdgeCodeComplex;
     int positions[2];
@@ -238,6 +267,9 @@ EdgePointImage::EdgePointImage(int width, int height, EpiOptions options)
     mPrimary.assign(n, glm::vec3(0.0f));
     mNearEdge.assign(padded, 0);
     mWeight.assign(n, 0.0f);
+    mSubMark.assign(n, 0);
+    mSubCode.assign(4 * n, kEdgeCodeComplex);
+    mSubType.assign(4 * n, 0);
     // Build the shared tables outside any timed stage.
     (void)EdgeCodeTables::pixel();
     (void)EdgeCodeTables::subpixel();
@@ -270,28 +302,53 @@ void EdgePointImage::build(const std::vector<ScreenEdge>& edges,
 // ---- Points (§4.3) ------------------------------------------------------------------------
 
 void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
-    std::fill(mSampleColour.begin(), mSampleColour.end(), glm::vec3(0.0f));
-    std::fill(mSampleDepth.begin(), mSampleDepth.end(), std::numeric_limits<double>::infinity());
-    std::fill(mSamplePos.begin(), mSamplePos.end(), 0xFF);
-    // Keep the nearest point that reprojects onto each pixel (§4: "the closest point").
-    for (const ScreenPoint& p : points) {
-        if (!finite2(p.position) || !std::isfinite(p.depth) || !std::isfinite(p.colour.x) ||
-            !std::isfinite(p.colour.y) || !std::isfinite(p.colour.z)) {
-            continue;
+    // Keep the nearest point that reprojects onto each pixel (§4: "the closest point"); of
+    // equal depths the first. Bands of rows take their points in input order, so the result
+    // does not depend on the split.
+    const int bands = mOptions.parallel ? std::min(mHeight, 8) : 1;
+    // Per point its band (0xFF: rejected), computed in parallel; each band then reads one byte
+    // per point instead of the point.
+    mPointBand.resize(points.size());
+    auto classify = [&](size_t i) {
+        const ScreenPoint& p = points[i];
+        uint8_t b = 0xFF;
+        if (finite2(p.position) && std::isfinite(p.depth) && std::isfinite(p.colour.x) &&
+            std::isfinite(p.colour.y) && std::isfinite(p.colour.z) && p.position.x >= 0.0 &&
+            p.position.y >= 0.0 && p.position.x < mWidth && p.position.y < mHeight) {
+            b = static_cast<uint8_t>(bandOfRow(mHeight, bands, p.position.y));
         }
-        if (p.position.x < 0.0 || p.position.y < 0.0 || p.position.x >= mWidth ||
-            p.position.y >= mHeight) {
-            continue;
+        mPointBand[i] = b;
+    };
+    auto band = [&](int b) {
+        const size_t lo = index(0, bandStart(mHeight, bands, b));
+        const size_t hi = index(0, bandStart(mHeight, bands, b + 1));
+        std::fill(mSampleColour.begin() + lo, mSampleColour.begin() + hi, glm::vec3(0.0f));
+        std::fill(mSampleDepth.begin() + lo, mSampleDepth.begin() + hi,
+                  std::numeric_limits<double>::infinity());
+        std::fill(mSamplePos.begin() + lo, mSamplePos.begin() + hi, 0xFF);
+        for (size_t n = 0; n < points.size(); ++n) {
+            if (mPointBand[n] != b) continue;
+            const ScreenPoint& p = points[n];
+            const int x = static_cast<int>(p.position.x);
+            const int y = static_cast<int>(p.position.y);
+            const size_t i = index(x, y);
+            if (!(p.depth < mSampleDepth[i])) continue;
+            const int cx = std::min(3, static_cast<int>((p.position.x - x) * 4.0));
+            const int cy = std::min(3, static_cast<int>((p.position.y - y) * 4.0));
+            mSampleDepth[i] = p.depth;
+            mSampleColour[i] = glm::vec3(p.colour);
+            mSamplePos[i] = static_cast<uint8_t>(cx + 4 * cy);
         }
-        const int x = static_cast<int>(p.position.x);
-        const int y = static_cast<int>(p.position.y);
-        const size_t i = index(x, y);
-        if (!(p.depth < mSampleDepth[i])) continue;
-        const int cx = std::min(3, static_cast<int>((p.position.x - x) * 4.0));
-        const int cy = std::min(3, static_cast<int>((p.position.y - y) * 4.0));
-        mSampleDepth[i] = p.depth;
-        mSampleColour[i] = glm::vec3(p.colour);
-        mSamplePos[i] = static_cast<uint8_t>(cx + 4 * cy);
+    };
+    if (bands == 1) {
+        for (size_t i = 0; i < points.size(); ++i) classify(i);
+        band(0);
+    } else {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 4096),
+                          [&](const tbb::blocked_range<size_t>& r) {
+                              for (size_t i = r.begin(); i != r.end(); ++i) classify(i);
+                          });
+        tbb::parallel_for(0, bands, band);
     }
 }
 
@@ -300,7 +357,7 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
 void EdgePointImage::filterDepth() {
     // A fairly conservative depth per 4×4 block: the maximum point depth plus an offset that
     // grows as the block's point density falls; blocks without points cull nothing.
-    for (int by = 0; by < mBlocksY; ++by) {
+    forRows(mOptions.parallel, mBlocksY, [&](int by) {
         for (int bx = 0; bx < mBlocksX; ++bx) {
             double maxDepth = -std::numeric_limits<double>::infinity();
             int count = 0;
@@ -322,96 +379,154 @@ void EdgePointImage::filterDepth() {
             }
             mBlockDepth[static_cast<size_t>(by) * mBlocksX + bx] = filtered;
         }
-    }
+    });
 }
 
 // ---- Edge rasterization (§4.5) ------------------------------------------------------------
 
 void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
-    std::fill(mHorizontal.begin(), mHorizontal.end(), 0);
-    std::fill(mVertical.begin(), mVertical.end(), 0);
-    std::fill(mHorizontalMid.begin(), mHorizontalMid.end(), 0);
-    std::fill(mVerticalMid.begin(), mVerticalMid.end(), 0);
-    mCulledIntersections = 0;
+    // Rows are split into bands; each band owns the boundary lines of its rows (horizontal
+    // lines y = k/2 with ⌊k/2⌋ in the band, the last band also y = H; vertical crossings in
+    // its rows) and records only their intersections, so bands write disjoint bytes and the
+    // masks and the culled count equal a single band's (the serial reference) exactly.
+    const int bands = mOptions.parallel ? std::min(mHeight, 16) : 1;
+    // Edges binned by the bands their y extent (a row of slack either side) meets.
+    std::vector<std::vector<int>> binned(bands);
+    if (bands > 1) {
+        for (int i = 0; i < static_cast<int>(edges.size()); ++i) {
+            const ScreenEdge& e = edges[i];
+            if (!finite2(e.a) || !finite2(e.b)) continue;
+            const int b0 = bandOfRow(mHeight, bands, std::min(e.a.y, e.b.y) - 1.0);
+            const int b1 = bandOfRow(mHeight, bands, std::max(e.a.y, e.b.y) + 1.0);
+            for (int b = b0; b <= b1; ++b) binned[b].push_back(i);
+        }
+    }
+    std::vector<size_t> culled(bands, 0);
+    auto band = [&](int b) {
+        const int rowLo = bandStart(mHeight, bands, b);
+        const int rowHi = bandStart(mHeight, bands, b + 1);
+        const int W = mWidth;
+        std::fill(mHorizontal.begin() + static_cast<ptrdiff_t>(rowLo) * W,
+                  mHorizontal.begin() + static_cast<ptrdiff_t>(rowHi + (b + 1 == bands)) * W, 0);
+        std::fill(mVertical.begin() + static_cast<ptrdiff_t>(rowLo) * (W + 1),
+                  mVertical.begin() + static_cast<ptrdiff_t>(rowHi) * (W + 1), 0);
+        std::fill(mHorizontalMid.begin() + static_cast<ptrdiff_t>(rowLo) * W,
+                  mHorizontalMid.begin() + static_cast<ptrdiff_t>(rowHi) * W, 0);
+        std::fill(mVerticalMid.begin() + static_cast<ptrdiff_t>(rowLo) * W,
+                  mVerticalMid.begin() + static_cast<ptrdiff_t>(rowHi) * W, 0);
+        const int kLineHi = b + 1 == bands ? 2 * mHeight : 2 * rowHi - 1;  // last line k
+        if (bands == 1) {
+            for (const ScreenEdge& e : edges) rasterizeEdge(e, rowLo, rowHi, kLineHi, culled[b]);
+        } else {
+            for (int i : binned[b]) rasterizeEdge(edges[i], rowLo, rowHi, kLineHi, culled[b]);
+        }
+    };
+    if (bands == 1) {
+        band(0);
+    } else {
+        tbb::parallel_for(0, bands, band);
+    }
+    mCulledIntersections = std::accumulate(culled.begin(), culled.end(), size_t(0));
+}
+
+void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, int kLineHi,
+                                   size_t& culled) {
     const int W = mWidth;
     const int H = mHeight;
+    if (!finite2(e.a) || !finite2(e.b)) return;
+    const glm::dvec2 d = e.b - e.a;
+    if (d.x == 0.0 && d.y == 0.0) return;  // degenerate: crosses nothing
 
-    for (const ScreenEdge& e : edges) {
-        if (!finite2(e.a) || !finite2(e.b)) continue;
-        const glm::dvec2 d = e.b - e.a;
-        if (d.x == 0.0 && d.y == 0.0) continue;  // degenerate: crosses nothing
+    // Perspective-correct depth along the edge: 1/z is affine in screen space.
+    const bool cull = mOptions.cullOccludedEdges && std::isfinite(e.depthA) &&
+                      std::isfinite(e.depthB) && e.depthA > 0.0 && e.depthB > 0.0;
+    const double invA = cull ? 1.0 / e.depthA : 0.0;
+    const double invB = cull ? 1.0 / e.depthB : 0.0;
+    auto occluded = [&](double t, double x, double y) {
+        if (!cull) return false;
+        const double z = 1.0 / (invA + t * (invB - invA));
+        const int bx = std::clamp(static_cast<int>(x) / 4, 0, mBlocksX - 1);
+        const int by = std::clamp(static_cast<int>(y) / 4, 0, mBlocksY - 1);
+        if (z > mBlockDepth[static_cast<size_t>(by) * mBlocksX + bx]) {
+            ++culled;
+            return true;
+        }
+        return false;
+    };
 
-        // Perspective-correct depth along the edge: 1/z is affine in screen space.
-        const bool cull = mOptions.cullOccludedEdges && std::isfinite(e.depthA) &&
-                          std::isfinite(e.depthB) && e.depthA > 0.0 && e.depthB > 0.0;
-        const double invA = cull ? 1.0 / e.depthA : 0.0;
-        const double invB = cull ? 1.0 / e.depthB : 0.0;
-        auto occluded = [&](double t, double x, double y) {
-            if (!cull) return false;
-            const double z = 1.0 / (invA + t * (invB - invA));
-            const int bx = std::clamp(static_cast<int>(x) / 4, 0, mBlocksX - 1);
-            const int by = std::clamp(static_cast<int>(y) / 4, 0, mBlocksY - 1);
-            if (z > mBlockDepth[static_cast<size_t>(by) * mBlocksX + bx]) {
-                ++mCulledIntersections;
-                return true;
-            }
-            return false;
-        };
+    // Ties are broken by a symbolic perturbation of the edge, (x + ε, y + ε') with
+    // ε' ≪ ε: a line y = c is crossed when ymin < c ≤ ymax, a line x = c when
+    // xmin < c ≤ xmax, and a crossing exactly on a piece boundary of a vertical line
+    // moves up when the edge descends to the right. Edges through pixel corners then
+    // give consistent, simple pixels.
 
-        // Ties are broken by a symbolic perturbation of the edge, (x + ε, y + ε') with
-        // ε' ≪ ε: a line y = c is crossed when ymin < c ≤ ymax, a line x = c when
-        // xmin < c ≤ xmax, and a crossing exactly on a piece boundary of a vertical line
-        // moves up when the edge descends to the right. Edges through pixel corners then
-        // give consistent, simple pixels.
-
-        // Horizontal lines y = k/2: even k are pixel boundaries, odd k the half-pixel lines.
-        if (d.y != 0.0) {
-            const double ymin = std::min(e.a.y, e.b.y);
-            const double ymax = std::max(e.a.y, e.b.y);
-            // Clamped in floating point first: huge coordinates must not overflow int.
-            const double kFirst = std::clamp(std::floor(2.0 * ymin) + 1.0, 0.0, 2.0 * H + 1.0);
-            const double kLast = std::clamp(std::floor(2.0 * ymax), -1.0, 2.0 * H);
-            for (int k = static_cast<int>(kFirst); k <= static_cast<int>(kLast); ++k) {
-                const double c = 0.5 * k;
-                const double t = (c - e.a.y) / d.y;
-                const double x = e.a.x + t * d.x;
-                if (!(x >= 0.0 && x < W)) continue;
-                const int q = static_cast<int>(std::floor(x * 8.0));
-                const int i = q >> 3;
-                if (occluded(t, x, std::min(c, H - 0.5))) continue;
-                const uint8_t bit = static_cast<uint8_t>(1u << (q & 7));
-                if ((k & 1) == 0) {
-                    mHorizontal[static_cast<size_t>(k / 2) * W + i] |= bit;
-                } else {
-                    mHorizontalMid[static_cast<size_t>(k / 2) * W + i] |= bit;
-                }
+    // Horizontal lines y = k/2: even k are pixel boundaries, odd k the half-pixel lines.
+    if (d.y != 0.0) {
+        const double ymin = std::min(e.a.y, e.b.y);
+        const double ymax = std::max(e.a.y, e.b.y);
+        // Clamped in floating point first: huge coordinates must not overflow int.
+        const double kFirst = std::clamp(std::floor(2.0 * ymin) + 1.0, 0.0, 2.0 * H + 1.0);
+        const double kLast = std::clamp(std::floor(2.0 * ymax), -1.0, 2.0 * H);
+        // This band's lines only.
+        const int k0 = std::max(static_cast<int>(kFirst), 2 * rowLo);
+        const int k1 = std::min(static_cast<int>(kLast), kLineHi);
+        for (int k = k0; k <= k1; ++k) {
+            const double c = 0.5 * k;
+            const double t = (c - e.a.y) / d.y;
+            const double x = e.a.x + t * d.x;
+            if (!(x >= 0.0 && x < W)) continue;
+            const int q = static_cast<int>(std::floor(x * 8.0));
+            const int i = q >> 3;
+            if (occluded(t, x, std::min(c, H - 0.5))) continue;
+            const uint8_t bit = static_cast<uint8_t>(1u << (q & 7));
+            if ((k & 1) == 0) {
+                mHorizontal[static_cast<size_t>(k / 2) * W + i] |= bit;
+            } else {
+                mHorizontalMid[static_cast<size_t>(k / 2) * W + i] |= bit;
             }
         }
-        // Vertical lines x = k/2.
-        if (d.x != 0.0) {
-            const double xmin = std::min(e.a.x, e.b.x);
-            const double xmax = std::max(e.a.x, e.b.x);
-            const bool descendsRight = d.x * d.y > 0.0;
-            // Clamped in floating point first: huge coordinates must not overflow int.
-            const double kFirst = std::clamp(std::floor(2.0 * xmin) + 1.0, 0.0, 2.0 * W + 1.0);
-            const double kLast = std::clamp(std::floor(2.0 * xmax), -1.0, 2.0 * W);
-            for (int k = static_cast<int>(kFirst); k <= static_cast<int>(kLast); ++k) {
-                const double c = 0.5 * k;
-                const double t = (c - e.a.x) / d.x;
-                const double y = e.a.y + t * d.y;
-                if (!(y >= 0.0 && y <= H)) continue;
-                const double q8 = y * 8.0;
-                int q = static_cast<int>(std::floor(q8));
-                if (descendsRight && q8 == q) --q;
-                if (q < 0 || q >= 8 * H) continue;
-                const int j = q >> 3;
-                if (occluded(t, std::min(c, W - 0.5), y)) continue;
-                const uint8_t bit = static_cast<uint8_t>(1u << (q & 7));
-                if ((k & 1) == 0) {
-                    mVertical[static_cast<size_t>(j) * (W + 1) + k / 2] |= bit;
-                } else {
-                    mVerticalMid[static_cast<size_t>(j) * W + k / 2] |= bit;
-                }
+    }
+    // Vertical lines x = k/2.
+    if (d.x != 0.0) {
+        const double xmin = std::min(e.a.x, e.b.x);
+        const double xmax = std::max(e.a.x, e.b.x);
+        const bool descendsRight = d.x * d.y > 0.0;
+        // Clamped in floating point first: huge coordinates must not overflow int.
+        const double kFirst = std::clamp(std::floor(2.0 * xmin) + 1.0, 0.0, 2.0 * W + 1.0);
+        const double kLast = std::clamp(std::floor(2.0 * xmax), -1.0, 2.0 * W);
+        int k0 = static_cast<int>(kFirst);
+        int k1 = static_cast<int>(kLast);
+        if (d.y != 0.0 && (rowLo > 0 || rowHi < H) && std::abs(d.y) > 1e-9 * std::abs(d.x)) {
+            // Lines whose crossing may lie in the band's rows (a pixel of slack either side;
+            // the row test below is exact).
+            const double xa = e.a.x + (rowLo - 1.0 - e.a.y) / d.y * d.x;
+            const double xb = e.a.x + (rowHi + 1.0 - e.a.y) / d.y * d.x;
+            if (std::isfinite(xa) && std::isfinite(xb)) {
+                const double lo =
+                    std::clamp(std::floor(2.0 * std::min(xa, xb)) - 1.0, -1.0, 2.0 * W + 1.0);
+                const double hi =
+                    std::clamp(std::floor(2.0 * std::max(xa, xb)) + 2.0, -1.0, 2.0 * W + 1.0);
+                k0 = std::max(k0, static_cast<int>(lo));
+                k1 = std::min(k1, static_cast<int>(hi));
+            }
+        }
+        for (int k = k0; k <= k1; ++k) {
+            const double c = 0.5 * k;
+            const double t = (c - e.a.x) / d.x;
+            const double y = e.a.y + t * d.y;
+            if (!(y >= 0.0 && y <= H)) continue;
+            const double q8 = y * 8.0;
+            int q = static_cast<int>(std::floor(q8));
+            if (descendsRight && q8 == q) --q;
+            if (q < 0 || q >= 8 * H) continue;
+            const int j = q >> 3;
+            if (j < rowLo || j >= rowHi) continue;
+            if (occluded(t, std::min(c, W - 0.5), y)) continue;
+            const uint8_t bit = static_cast<uint8_t>(1u << (q & 7));
+            if ((k & 1) == 0) {
+                mVertical[static_cast<size_t>(j) * (W + 1) + k / 2] |= bit;
+            } else {
+                mVerticalMid[static_cast<size_t>(j) * W + k / 2] |= bit;
             }
         }
     }
@@ -421,7 +536,7 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
 
 void EdgePointImage::classifyPixels() {
     const EdgeCodeTables& tables = EdgeCodeTables::pixel();
-    forRows(mHeight, [&](int y) {
+    forRows(mOptions.parallel, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const uint16_t code = codeFromMasks(
@@ -524,7 +639,7 @@ std::array<uint8_t, 25> EdgePointImage::computeReachability(int x, int y) const 
 
 void EdgePointImage::computeReachabilityMap() {
     // Pixels whose 5×5 neighbourhood holds any edge: vertical then horizontal OR.
-    forRows(mHeight, [&](int y) {
+    forRows(mOptions.parallel, mHeight, [&](int y) {
         uint8_t* out = &mNearEdge[paddedIndex(0, y)];
         for (int x = 0; x < mWidth; ++x) out[x] = 0;
         for (int dy = -2; dy <= 2; ++dy) {
@@ -534,7 +649,7 @@ void EdgePointImage::computeReachabilityMap() {
             for (int x = 0; x < mWidth; ++x) out[x] |= row[x] != kEdgeCodeEmpty;
         }
     });
-    forRows(mHeight, [&](int y) {
+    forRows(mOptions.parallel, mHeight, [&](int y) {
         const uint8_t* column = &mNearEdge[paddedIndex(0, y)];
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
@@ -565,7 +680,7 @@ void EdgePointImage::computeReachabilityMap() {
 
 void EdgePointImage::fillPaddedSamples() {
     // (colour, 1) per point on a 2-pixel zero border, so filters run without bounds checks.
-    forRows(mHeight, [&](int y) {
+    forRows(mOptions.parallel, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const size_t p = paddedIndex(x, y);
@@ -581,7 +696,7 @@ void EdgePointImage::interpolatePlain() {
     // 5×5 neighbourhood, ignoring edges, in two 1D passes over the padded points.
     const float g1 = kFilter[1];
     const float g2 = kFilter[2];
-    forRows(mHeight + 4, [&](int py) {
+    forRows(mOptions.parallel, mHeight + 4, [&](int py) {
         const glm::vec4* row = &mPaddedAll[static_cast<size_t>(py) * (mWidth + 4) + 2];
         glm::vec4* out = &mRowSums[static_cast<size_t>(py) * mWidth];
         for (int x = 0; x < mWidth; ++x) {
@@ -592,7 +707,7 @@ void EdgePointImage::interpolatePlain() {
             storeQuad(out[x], sum);
         }
     });
-    forRows(mHeight, [&](int y) {
+    forRows(mOptions.parallel, mHeight, [&](int y) {
         const glm::vec4* r = &mRowSums[static_cast<size_t>(y + 2) * mWidth];
         const ptrdiff_t stride = mWidth;
         for (int x = 0; x < mWidth; ++x) {
@@ -618,7 +733,7 @@ void EdgePointImage::interpolatePrimary(Image& out) {
         offset[k] = static_cast<ptrdiff_t>(dy) * (mWidth + 4) + dx;
         weight[k] = filterWeight(dx, dy);
     }
-    forRows(mHeight, [&](int y) {
+    forRows(mOptions.parallel, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const uint32_t reach = mReach[i];
@@ -652,7 +767,7 @@ void EdgePointImage::interpolatePrimary(Image& out) {
     // sample within 5×5 at all stay black, as in the render cache's interpolation.) Only
     // zero-weight pixels are written and only positive-weight pixels read, so rows can run in
     // parallel.
-    forRows(mHeight, [&](int y) {
+    forRows(mOptions.parallel, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const uint32_t reach = mReach[i];
@@ -682,7 +797,7 @@ void EdgePointImage::interpolatePrimary(Image& out) {
 
 void EdgePointImage::antiAlias(Image& out) const {
     const EdgeCodeTables& tables = EdgeCodeTables::pixel();
-    forRows(mHeight, [&](int y) {
+    forRows(mOptions.parallel, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const uint16_t code = mEdgeCode[i];
@@ -713,7 +828,7 @@ void EdgePointImage::antiAlias(Image& out) const {
 
 // ---- Complex filter (§5.4) ----------------------------------------------------------------
 
-void EdgePointImage::filterComplexPixels(Image& out) const {
+void EdgePointImage::filterComplexPixels(Image& out) {
     const EdgeCodeTables& sub = EdgeCodeTables::subpixel();
     const int W = mWidth;
     const int H = mHeight;
@@ -745,118 +860,146 @@ void EdgePointImage::filterComplexPixels(Image& out) const {
         return (m >> (4 * half)) & 15u;
     };
 
-    tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, complexPixels.size(), 16),
-        [&](const tbb::blocked_range<size_t>& range) {
-            for (size_t n = range.begin(); n < range.end(); ++n) {
-                const int pixel = complexPixels[n];
-                const int x = pixel % W;
-                const int y = pixel / W;
-                const glm::vec3 estimate = mPrimary[pixel];
-                // Subpixel edge codes over the 6×6 subpixels of the 3×3 pixel neighbourhood.
-                std::array<uint16_t, 36> codes;
-                std::array<uint8_t, 36> types;
-                for (int v = 0; v < 6; ++v) {
-                    for (int u = 0; u < 6; ++u) {
-                        const int px = x - 1 + u / 2;
-                        const int py = y - 1 + v / 2;
-                        uint16_t code = kEdgeCodeComplex;
-                        if (px >= 0 && py >= 0 && px < W && py < H) {
-                            const int k2y = 2 * (y - 1) + v;
-                            const int k2x = 2 * (x - 1) + u;
-                            code = codeFromMasks(
-                                horizontalBits(k2y, px, u & 1), verticalBits(k2x + 1, py, v & 1),
-                                horizontalBits(k2y + 1, px, u & 1), verticalBits(k2x, py, v & 1),
-                                kSubpixelPiecesPerSide);
-                        }
-                        codes[v * 6 + u] = code;
-                        types[v * 6 + u] = neighbourType(code, kSubpixelPiecesPerSide);
-                    }
+    // Subpixel edge codes of every pixel in some complex pixel's 3×3 neighbourhood, once
+    // (complex pixels cluster along dense edges, so neighbourhoods overlap): subpixel
+    // (sx, sy) of pixel (px, py) lies between lines 2·px + sx, 2·px + sx + 1 (x) and
+    // 2·py + sy, 2·py + sy + 1 (y) on the half-pixel grid.
+    std::fill(mSubMark.begin(), mSubMark.end(), 0);
+    for (int pixel : complexPixels) {
+        const int x = pixel % W, y = pixel / W;
+        for (int py = std::max(0, y - 1); py <= std::min(H - 1, y + 1); ++py)
+            for (int px = std::max(0, x - 1); px <= std::min(W - 1, x + 1); ++px)
+                mSubMark[index(px, py)] = 1;
+    }
+    forRows(mOptions.parallel, H, [&](int py) {
+        for (int px = 0; px < W; ++px) {
+            const size_t i = index(px, py);
+            if (!mSubMark[i]) continue;
+            for (int sy = 0; sy < 2; ++sy) {
+                for (int sx = 0; sx < 2; ++sx) {
+                    const int k2y = 2 * py + sy;
+                    const int k2x = 2 * px + sx;
+                    const uint16_t code =
+                        codeFromMasks(horizontalBits(k2y, px, sx), verticalBits(k2x + 1, py, sy),
+                                      horizontalBits(k2y + 1, px, sx), verticalBits(k2x, py, sy),
+                                      kSubpixelPiecesPerSide);
+                    mSubCode[4 * i + 2 * sy + sx] = code;
+                    mSubType[4 * i + 2 * sy + sx] = neighbourType(code, kSubpixelPiecesPerSide);
                 }
-                // Union-find over subpixel regions (node = subpixel · 2 + region).
-                std::array<int8_t, 72> parent;
-                std::iota(parent.begin(), parent.end(), 0);
-                auto find = [&](int a) {
-                    while (parent[a] != a) a = parent[a] = parent[parent[a]];
-                    return a;
-                };
-                for (int v = 0; v < 6; ++v) {
-                    for (int u = 0; u < 6; ++u) {
-                        const int a = v * 6 + u;
-                        for (int dir = 0; dir < 2; ++dir) {
-                            const int b =
-                                dir == 0 ? (u + 1 < 6 ? a + 1 : -1) : (v + 1 < 6 ? a + 6 : -1);
-                            if (b < 0) continue;
-                            const uint8_t m = adjacency[dir][types[a] * 8 + types[b]];
-                            for (int bit = 0; bit < 4; ++bit) {
-                                if (!(m & (1 << bit))) continue;
-                                parent[find(a * 2 + (bit >> 1))] =
-                                    static_cast<int8_t>(find(b * 2 + (bit & 1)));
-                            }
-                        }
-                    }
-                }
-                // Samples of the 3×3 pixels placed in their subpixel regions.
-                struct SubSample {
-                    int root, u, v;
-                    glm::vec3 colour;
-                };
-                std::array<SubSample, 9> samples;
-                int sampleCount = 0;
-                for (int py = y - 1; py <= y + 1; ++py) {
-                    for (int px = x - 1; px <= x + 1; ++px) {
-                        if (px < 0 || py < 0 || px >= W || py >= H) continue;
-                        const uint8_t pos = mSamplePos[index(px, py)];
-                        if (pos == 0xFF) continue;
-                        const int sx = pos & 3;
-                        const int sy = pos >> 2;
-                        const int u = 2 * (px - x + 1) + sx / 2;
-                        const int v = 2 * (py - y + 1) + sy / 2;
-                        const uint8_t type = types[v * 6 + u];
-                        if (type == kNeighbourTypeComplex) continue;
-                        int region = 0;
-                        if (type != kNeighbourTypeEmpty) {
-                            const SampleSide side =
-                                sub.side(codes[v * 6 + u], (sx & 1) + 2 * (sy & 1));
-                            if (side == SampleSide::Ambiguous) continue;
-                            region = side == SampleSide::Region1 ? 1 : 0;
-                        }
-                        samples[sampleCount++] = {find((v * 6 + u) * 2 + region), u, v,
-                                                  mSampleColour[index(px, py)]};
-                    }
-                }
-                // Colour each region of the pixel's 4 subpixels from the samples it reaches;
-                // complex or unreached regions keep the estimate.
-                glm::vec3 total(0.0f);
-                for (int v = 2; v < 4; ++v) {
-                    for (int u = 2; u < 4; ++u) {
-                        const int s = v * 6 + u;
-                        const uint8_t type = types[s];
-                        if (type == kNeighbourTypeComplex) {
-                            total += 0.25f * estimate;
-                            continue;
-                        }
-                        const int regions = type == kNeighbourTypeEmpty ? 1 : 2;
-                        for (int r = 0; r < regions; ++r) {
-                            const float area0 = sub.region0Area[codes[s]];
-                            const float area =
-                                regions == 1 ? 1.0f : (r == 0 ? area0 : 1.0f - area0);
-                            const int root = find(s * 2 + r);
-                            glm::vec3 sum(0.0f);
-                            float weight = 0.0f;
-                            for (int k = 0; k < sampleCount; ++k) {
-                                if (samples[k].root != root) continue;
-                                const float w = filterWeight(samples[k].u - u, samples[k].v - v);
-                                sum += w * samples[k].colour;
-                                weight += w;
-                            }
-                            total += 0.25f * area * (weight > 0.0f ? sum / weight : estimate);
-                        }
-                    }
-                }
-                out.at(x, y) = Rgb(total);
             }
-        });
+        }
+    });
+
+    auto filterPixel = [&](int pixel) {
+        const int x = pixel % W;
+        const int y = pixel / W;
+        const glm::vec3 estimate = mPrimary[pixel];
+        // Subpixel edge codes over the 6×6 subpixels of the 3×3 pixel neighbourhood.
+        std::array<uint16_t, 36> codes;
+        std::array<uint8_t, 36> types;
+        for (int v = 0; v < 6; ++v) {
+            for (int u = 0; u < 6; ++u) {
+                const int px = x - 1 + u / 2;
+                const int py = y - 1 + v / 2;
+                uint16_t code = kEdgeCodeComplex;
+                uint8_t type = neighbourType(kEdgeCodeComplex, kSubpixelPiecesPerSide);
+                if (px >= 0 && py >= 0 && px < W && py < H) {
+                    const size_t s = 4 * index(px, py) + 2 * (v & 1) + (u & 1);
+                    code = mSubCode[s];
+                    type = mSubType[s];
+                }
+                codes[v * 6 + u] = code;
+                types[v * 6 + u] = type;
+            }
+        }
+        // Union-find over subpixel regions (node = subpixel · 2 + region).
+        std::array<int8_t, 72> parent;
+        std::iota(parent.begin(), parent.end(), 0);
+        auto find = [&](int a) {
+            while (parent[a] != a) a = parent[a] = parent[parent[a]];
+            return a;
+        };
+        for (int v = 0; v < 6; ++v) {
+            for (int u = 0; u < 6; ++u) {
+                const int a = v * 6 + u;
+                for (int dir = 0; dir < 2; ++dir) {
+                    const int b = dir == 0 ? (u + 1 < 6 ? a + 1 : -1) : (v + 1 < 6 ? a + 6 : -1);
+                    if (b < 0) continue;
+                    for (unsigned m = adjacency[dir][types[a] * 8 + types[b]]; m; m &= m - 1) {
+                        const int bit = std::countr_zero(m);
+                        parent[find(a * 2 + (bit >> 1))] =
+                            static_cast<int8_t>(find(b * 2 + (bit & 1)));
+                    }
+                }
+            }
+        }
+        // Samples of the 3×3 pixels placed in their subpixel regions.
+        struct SubSample {
+            int root, u, v;
+            glm::vec3 colour;
+        };
+        std::array<SubSample, 9> samples;
+        int sampleCount = 0;
+        for (int py = y - 1; py <= y + 1; ++py) {
+            for (int px = x - 1; px <= x + 1; ++px) {
+                if (px < 0 || py < 0 || px >= W || py >= H) continue;
+                const uint8_t pos = mSamplePos[index(px, py)];
+                if (pos == 0xFF) continue;
+                const int sx = pos & 3;
+                const int sy = pos >> 2;
+                const int u = 2 * (px - x + 1) + sx / 2;
+                const int v = 2 * (py - y + 1) + sy / 2;
+                const uint8_t type = types[v * 6 + u];
+                if (type == kNeighbourTypeComplex) continue;
+                int region = 0;
+                if (type != kNeighbourTypeEmpty) {
+                    const SampleSide side = sub.side(codes[v * 6 + u], (sx & 1) + 2 * (sy & 1));
+                    if (side == SampleSide::Ambiguous) continue;
+                    region = side == SampleSide::Region1 ? 1 : 0;
+                }
+                samples[sampleCount++] = {find((v * 6 + u) * 2 + region), u, v,
+                                          mSampleColour[index(px, py)]};
+            }
+        }
+        // Colour each region of the pixel's 4 subpixels from the samples it reaches;
+        // complex or unreached regions keep the estimate.
+        glm::vec3 total(0.0f);
+        for (int v = 2; v < 4; ++v) {
+            for (int u = 2; u < 4; ++u) {
+                const int s = v * 6 + u;
+                const uint8_t type = types[s];
+                if (type == kNeighbourTypeComplex) {
+                    total += 0.25f * estimate;
+                    continue;
+                }
+                const int regions = type == kNeighbourTypeEmpty ? 1 : 2;
+                for (int r = 0; r < regions; ++r) {
+                    const float area0 = sub.region0Area[codes[s]];
+                    const float area = regions == 1 ? 1.0f : (r == 0 ? area0 : 1.0f - area0);
+                    const int root = find(s * 2 + r);
+                    glm::vec3 sum(0.0f);
+                    float weight = 0.0f;
+                    for (int k = 0; k < sampleCount; ++k) {
+                        if (samples[k].root != root) continue;
+                        const float w = filterWeight(samples[k].u - u, samples[k].v - v);
+                        sum += w * samples[k].colour;
+                        weight += w;
+                    }
+                    total += 0.25f * area * (weight > 0.0f ? sum / weight : estimate);
+                }
+            }
+        }
+        out.at(x, y) = Rgb(total);
+    };
+    if (!mOptions.parallel) {
+        for (int pixel : complexPixels) filterPixel(pixel);
+        return;
+    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, complexPixels.size(), 16),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t n = range.begin(); n < range.end(); ++n)
+                              filterPixel(complexPixels[n]);
+                      });
 }
 
 // ---- Reconstruct --------------------------------------------------------------------------
@@ -871,7 +1014,7 @@ Image EdgePointImage::reconstruct(bool useEdges) {
         interpolatePlain();
         mWeight = mPlainWeight;
         std::fill(mReach.begin(), mReach.end(), kAllNeighbours | kAllEmptyFlag);
-        forRows(mHeight, [&](int y) {
+        forRows(mOptions.parallel, mHeight, [&](int y) {
             for (int x = 0; x < mWidth; ++x) out.at(x, y) = Rgb(mPlain[index(x, y)]);
         });
         mTimes.interpolateMs = millisecondsSince(start);

@@ -67,6 +67,9 @@ struct EpiOptions {
     double densitySlack = 0.25;
     bool antiAlias = true;      ///< §5.3 anti-aliasing of simple pixels
     bool complexFilter = true;  ///< §5.4 subpixel filter for complex pixels
+    /// Build and reconstruct on oneTBB (bands and rows); false runs every stage serially, the
+    /// reference the parallel stages must equal bit for bit.
+    bool parallel = true;
     std::string toString() const;
 };
 
@@ -149,13 +152,16 @@ private:
     void placePoints(const std::vector<ScreenPoint>& points);
     void filterDepth();
     void rasterizeEdges(const std::vector<ScreenEdge>& edges);
+    /// The intersections of one edge with the boundary lines owned by rows [rowLo, rowHi)
+    /// (horizontal lines k/2 for k in [2·rowLo, kLineHi]); counts culled intersections.
+    void rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, int kLineHi, size_t& culled);
     void classifyPixels();
     void computeReachabilityMap();
     void fillPaddedSamples();
     void interpolatePlain();
     void interpolatePrimary(Image& out);
     void antiAlias(Image& out) const;
-    void filterComplexPixels(Image& out) const;
+    void filterComplexPixels(Image& out);
     size_t paddedIndex(int x, int y) const {
         return static_cast<size_t>(y + 2) * (mWidth + 4) + (x + 2);
     }
@@ -171,6 +177,7 @@ private:
     std::vector<double> mSampleDepth;  ///< +inf without a point
     std::vector<uint8_t> mSamplePos;   ///< 0..15, 0xFF without a point
     std::vector<uint8_t> mUsable;      ///< see sampleUsable()
+    std::vector<uint8_t> mPointBand;   ///< placePoints() scratch: band of rows per point
     std::vector<float> mBlockDepth;    ///< §4.5 filtered depth per 4×4 block (+inf: none)
     int mBlocksX = 0;
     int mBlocksY = 0;
@@ -198,6 +205,9 @@ private:
     std::vector<glm::vec3> mPrimary;  ///< primary-region colours
     std::vector<uint8_t> mNearEdge;   ///< padded scratch: edges within 5 rows
     std::vector<float> mWeight;       ///< interpolation weight before renormalization
+    std::vector<uint8_t> mSubMark;    ///< §5.4 scratch: pixel next to a complex pixel
+    std::vector<uint16_t> mSubCode;   ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
+    std::vector<uint8_t> mSubType;    ///< §5.4 scratch: their neighbour types
 };
 
 }  // namespace penumbra

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
@@ -106,23 +107,29 @@ const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera)
                                     std::to_string(mWidth) + "x" + std::to_string(mHeight));
     }
     ++mFrame;
+    if (mOptions.parallel)
+        reprojectParallel(camera);
+    else
+        reprojectSerial(camera);
+    return mScreen;
+}
+
+void RenderCache::reprojectSerial(const CameraRays& camera) {
     const std::size_t n = mPoints.size();
     std::vector<glm::dvec2> position(n);
     std::vector<double> depth(n);
     std::vector<int> pixel(n, -1);
 
-    // Project every point to the new camera (parallel; no shared writes).
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            const auto p = camera.projectToPixel(mPoints[i].position);
-            if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
-            position[i] = *p;
-            depth[i] = glm::dot(mPoints[i].position - camera.origin(), camera.forward());
-            const int x = std::min(static_cast<int>(p->x), mWidth - 1);
-            const int y = std::min(static_cast<int>(p->y), mHeight - 1);
-            pixel[i] = y * mWidth + x;
-        }
-    });
+    // Project every point to the new camera.
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto p = camera.projectToPixel(mPoints[i].position);
+        if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
+        position[i] = *p;
+        depth[i] = glm::dot(mPoints[i].position - camera.origin(), camera.forward());
+        const int x = std::min(static_cast<int>(p->x), mWidth - 1);
+        const int y = std::min(static_cast<int>(p->y), mHeight - 1);
+        pixel[i] = y * mWidth + x;
+    }
 
     // Z-buffer: the nearest point per pixel; of near-equal depths the youngest.
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
@@ -146,7 +153,7 @@ const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera)
     // samples could never fill (each would be culled again), so the majority is used instead.
     const std::vector<int> unfiltered = mPixelPoint;
     const int rad = std::max(0, mOptions.depthRadius);
-    tbb::parallel_for(0, mHeight, [&](int y) {
+    for (int y = 0; y < mHeight; ++y) {
         for (int x = 0; x < mWidth; ++x) {
             const int self = unfiltered[y * mWidth + x];
             if (self < 0) continue;
@@ -163,7 +170,7 @@ const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera)
                 }
             if (nearer > 0 && 2 * nearer >= neighbours) mPixelPoint[y * mWidth + x] = -1;
         }
-    });
+    }
 
     // Visible points in pixel order; then every point ages by a frame.
     for (CachePoint& p : mPoints) p.visible = false;
@@ -178,34 +185,196 @@ const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera)
     }
     computePriority();
     for (CachePoint& p : mPoints) ++p.age;
-    return mScreen;
+}
+
+void RenderCache::reprojectParallel(const CameraRays& camera) {
+    // The same rules as reprojectSerial(), reorganized for two cores and for memory traffic:
+    // the points (about 80 bytes each, a few per pixel) are read once; everything after works
+    // on compact per-point and per-pixel arrays.
+    const std::size_t n = mPoints.size();
+    const std::size_t pixels = static_cast<std::size_t>(mWidth) * mHeight;
+    mProjPixel.resize(n);
+    mProjDepth.resize(n);
+    mProjAge.resize(n);
+    mPixelDepth.resize(pixels);
+    mPixelAge.resize(pixels);
+    mLuminance.resize(pixels);
+    mRowCount.resize(static_cast<std::size_t>(mHeight) + 1);
+
+    // One pass over the points: project, remember the age, age by a frame, hide; and the band
+    // of rows each point falls in, for the z-buffer below.
+    const int bands = std::min(mHeight, 8);
+    mProjBand.resize(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            CachePoint& pt = mPoints[i];
+            mProjAge[i] = pt.age;
+            ++pt.age;
+            pt.visible = false;
+            mProjPixel[i] = -1;
+            mProjBand[i] = 0xFF;
+            const auto p = camera.projectToPixel(pt.position);
+            if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
+            mProjDepth[i] = glm::dot(pt.position - camera.origin(), camera.forward());
+            const int x = std::min(static_cast<int>(p->x), mWidth - 1);
+            const int y = std::min(static_cast<int>(p->y), mHeight - 1);
+            mProjPixel[i] = y * mWidth + x;
+            // Band b holds rows [⌊H·b/B⌋, ⌊H·(b+1)/B⌋).
+            int b = static_cast<int>(static_cast<long long>(y) * bands / mHeight);
+            while (b + 1 < bands && y >= static_cast<long long>(mHeight) * (b + 1) / bands) ++b;
+            while (b > 0 && y < static_cast<long long>(mHeight) * b / bands) --b;
+            mProjBand[i] = static_cast<std::uint8_t>(b);
+        }
+    });
+
+    // Z-buffer per band of rows: each band takes its points in index order, as the serial
+    // loop does, so ties resolve identically.
+    tbb::parallel_for(0, bands, [&](int band) {
+        const int lo = static_cast<int>(static_cast<long long>(mHeight) * band / bands) * mWidth;
+        const int hi =
+            static_cast<int>(static_cast<long long>(mHeight) * (band + 1) / bands) * mWidth;
+        std::fill(mPixelPoint.begin() + lo, mPixelPoint.begin() + hi, -1);
+        for (std::size_t i = 0; i < n; ++i) {
+            if (mProjBand[i] != band) continue;
+            const int k = mProjPixel[i];
+            if (k < lo || k >= hi) continue;  // (never: the band holds the row)
+            int& cur = mPixelPoint[k];
+            const double d = mProjDepth[i];
+            if (cur >= 0) {
+                const double dc = mPixelDepth[k];
+                if (!(d < dc * (1 - kSameSurface) ||
+                      (d <= dc * (1 + kSameSurface) && mProjAge[i] < mPixelAge[k])))
+                    continue;
+            }
+            cur = static_cast<int>(i);
+            mPixelDepth[k] = d;
+            mPixelAge[k] = mProjAge[i];
+        }
+    });
+
+    // Depth culling as in reprojectSerial(), on pixel-indexed depths (+inf where no point:
+    // never nearer, and not counted), branch-free for inner pixels of the usual 3×3.
+    mUnfiltered = mPixelPoint;
+    const int rad = std::max(0, mOptions.depthRadius);
+    const double margin = 1 + mOptions.depthMargin;
+    constexpr double kNone = std::numeric_limits<double>::infinity();
+    tbb::parallel_for(0, mHeight, [&](int y) {
+        for (int x = 0; x < mWidth; ++x) {
+            const int k = y * mWidth + x;
+            if (mUnfiltered[k] < 0) mPixelDepth[k] = kNone;
+        }
+    });
+    tbb::parallel_for(0, mHeight, [&](int y) {
+        const bool innerRow = rad == 1 && y > 0 && y + 1 < mHeight;
+        for (int x = 0; x < mWidth; ++x) {
+            const int k = y * mWidth + x;
+            if (mUnfiltered[k] < 0) continue;
+            const double self = mPixelDepth[k];
+            int neighbours = 0, nearer = 0;
+            if (innerRow && x > 0 && x + 1 < mWidth) {
+                const double* up = &mPixelDepth[k - mWidth];
+                const double* mid = &mPixelDepth[k];
+                const double* down = &mPixelDepth[k + mWidth];
+                const double q[8] = {up[-1], up[0],    up[1],   mid[-1],
+                                     mid[1], down[-1], down[0], down[1]};
+                for (double d : q) {
+                    neighbours += d != kNone;
+                    nearer += d * margin < self;
+                }
+            } else {
+                for (int dy = -rad; dy <= rad; ++dy) {
+                    const int yy = y + dy;
+                    if (yy < 0 || yy >= mHeight) continue;
+                    for (int dx = -rad; dx <= rad; ++dx) {
+                        const int xx = x + dx;
+                        if ((dx == 0 && dy == 0) || xx < 0 || xx >= mWidth) continue;
+                        const int q = yy * mWidth + xx;
+                        if (mUnfiltered[q] < 0) continue;
+                        ++neighbours;
+                        nearer += mPixelDepth[q] * margin < self;
+                    }
+                }
+            }
+            if (nearer > 0 && 2 * nearer >= neighbours) mPixelPoint[k] = -1;
+        }
+    });
+
+    // Visible points in pixel order: counts per row, offsets, then rows in parallel.
+    tbb::parallel_for(0, mHeight, [&](int y) {
+        int count = 0;
+        for (int x = 0; x < mWidth; ++x) count += mPixelPoint[y * mWidth + x] >= 0;
+        mRowCount[y + 1] = count;
+    });
+    mRowCount[0] = 0;
+    for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] += mRowCount[y];
+    mScreen.resize(static_cast<std::size_t>(mRowCount[mHeight]));
+    tbb::parallel_for(0, mHeight, [&](int y) {
+        int s = mRowCount[y];
+        for (int x = 0; x < mWidth; ++x) {
+            const int k = y * mWidth + x;
+            const int i = mPixelPoint[k];
+            if (i < 0) {
+                mScreenOfPixel[k] = -1;
+                continue;
+            }
+            CachePoint& pt = mPoints[i];
+            pt.visible = true;
+            mScreenOfPixel[k] = s;
+            // projectToPixel again: the same function of the same position as in the pass
+            // above, so the same value, without storing 16 bytes per point.
+            mScreen[s++] = {*camera.projectToPixel(pt.position), mPixelDepth[k], pt.colour,
+                            mProjAge[i]};
+        }
+    });
+    computePriority();
 }
 
 // ---------------------------------------------------------------------------------------------
 // Priority image and sample requests
 
 void RenderCache::computePriority() {
+    // Luminance per pixel with sentinels where there is no point (1e300 for the minimum,
+    // −1e300 for the maximum: the loop's initial values, so they change nothing).
+    mLuminance.resize(mPriority.size());
+    mLuminanceHi.resize(mPriority.size());
     tbb::parallel_for(0, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const int s = mScreenOfPixel[y * mWidth + x];
+            const double l = s < 0 ? 0.0 : luminance(mScreen[s].colour);
+            mLuminance[y * mWidth + x] = s < 0 ? 1e300 : l;
+            mLuminanceHi[y * mWidth + x] = s < 0 ? -1e300 : l;
+        }
+    });
+    tbb::parallel_for(0, mHeight, [&](int y) {
+        const bool innerRow = y > 0 && y + 1 < mHeight;
+        for (int x = 0; x < mWidth; ++x) {
+            const int k = y * mWidth + x;
+            const int s = mScreenOfPixel[k];
             if (s < 0) {
-                mPriority[y * mWidth + x] = 1.0;  // no point: most wanted
+                mPriority[k] = 1.0;  // no point: most wanted
                 continue;
             }
             // Local luminance contrast over the 3×3 points (Walter et al. 2002).
             double lo = 1e300, hi = -1e300;
-            for (int dy = -1; dy <= 1; ++dy)
-                for (int dx = -1; dx <= 1; ++dx) {
-                    const int xx = x + dx, yy = y + dy;
-                    if (xx < 0 || yy < 0 || xx >= mWidth || yy >= mHeight) continue;
-                    const int q = mScreenOfPixel[yy * mWidth + xx];
-                    if (q < 0) continue;
-                    const double l = luminance(mScreen[q].colour);
-                    lo = std::min(lo, l), hi = std::max(hi, l);
+            if (innerRow && x > 0 && x + 1 < mWidth) {
+                for (int dy = -1; dy <= 1; ++dy) {
+                    const double* l = &mLuminance[k + dy * mWidth];
+                    const double* h = &mLuminanceHi[k + dy * mWidth];
+                    lo = std::min(lo, std::min(l[-1], std::min(l[0], l[1])));
+                    hi = std::max(hi, std::max(h[-1], std::max(h[0], h[1])));
                 }
+            } else {
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int xx = x + dx, yy = y + dy;
+                        if (xx < 0 || yy < 0 || xx >= mWidth || yy >= mHeight) continue;
+                        lo = std::min(lo, mLuminance[yy * mWidth + xx]);
+                        hi = std::max(hi, mLuminanceHi[yy * mWidth + xx]);
+                    }
+            }
             const double contrast = hi > 0 ? (hi - lo) / (hi + lo) : 0.0;
             const double age = mScreen[s].age;
-            mPriority[y * mWidth + x] =
+            mPriority[k] =
                 std::min(0.99, mOptions.ageWeight * age / (age + mOptions.ageScale) +
                                    mOptions.contrastWeight * std::clamp(contrast, 0.0, 1.0));
         }

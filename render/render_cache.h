@@ -62,6 +62,9 @@ struct RenderCacheOptions {
     /// sample may still be in the shader's queue).
     int holdFrames = 2;
     std::uint64_t seed = 1;
+    /// reproject() on oneTBB over pixel bands (z-buffer) and rows (culling, output, priority);
+    /// false runs the plain serial reference. Both give bit-identical results.
+    bool parallel = true;
 };
 
 class RenderCache {
@@ -127,6 +130,12 @@ public:
 private:
     template <class Drop>
     std::size_t dropIf(Drop drop);
+    /// The plain serial reprojection (RenderCacheOptions::parallel false): the reference the
+    /// parallel one must equal bit for bit.
+    void reprojectSerial(const CameraRays& camera);
+    /// The parallel reprojection: one pass over the points (project, age, hide), a z-buffer
+    /// per band of rows, culling on pixel-indexed depths, output rows in parallel.
+    void reprojectParallel(const CameraRays& camera);
     void computePriority();
 
     int mWidth;
@@ -141,6 +150,18 @@ private:
     std::vector<int> mScreenOfPixel;        ///< per pixel index into mScreen, −1 when empty
     std::vector<double> mPriority;          ///< per pixel
     std::vector<std::uint64_t> mRequested;  ///< per pixel, frame + 1 of the last request
+
+    // Scratch of reprojectParallel(), kept between frames.
+    std::vector<int> mProjPixel;          ///< per point: pixel, −1 off screen
+    std::vector<double> mProjDepth;       ///< per point: view depth
+    std::vector<int> mProjAge;            ///< per point: age before this frame's increment
+    std::vector<int> mPixelAge;           ///< per pixel: that age of its z-buffer point
+    std::vector<double> mPixelDepth;      ///< per pixel: depth of its z-buffer point
+    std::vector<int> mUnfiltered;         ///< per pixel: z-buffer point before culling
+    std::vector<std::uint8_t> mProjBand;  ///< per point: band of rows (0xFF off screen)
+    std::vector<double> mLuminance;       ///< per pixel: luminance of its point, 1e300 without
+    std::vector<double> mLuminanceHi;     ///< the same, −1e300 without
+    std::vector<int> mRowCount;           ///< per row: visible points (prefix sums)
 };
 
 }  // namespace penumbra

@@ -95,7 +95,7 @@ private:
     double mLength = 0;  ///< total u length of the pieces
     mutable double mThreshold = HUGE_VAL;
     mutable bool mDirty = false;
-    mutable std::size_t mComputedAt = 0;  ///< piece count at the last computation
+    mutable std::size_t mComputedAt = 0;         ///< piece count at the last computation
     mutable std::vector<double> mBreaks, mBest;  ///< scratch of threshold()
 };
 

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <random>
 #include <set>
 #include <unordered_set>
 #include <vector>
@@ -183,6 +184,62 @@ TEST(RenderCache, PointBehindANearerSurfacesPointsIsDiscarded) {
     plain.insert(points);
     plain.reproject(rays);
     EXPECT_GE(plain.pixelPoints()[10 * 32 + 10], 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Parallel reprojection equals the serial reference
+
+TEST(RenderCache, ParallelReprojectionEqualsSerialBitForBit) {
+    // Two surfaces (a wall and a nearer slab, so culling and near-equal depth ties happen),
+    // several points per pixel of different ages, points behind the camera and off screen, a
+    // full cache (replacement), a moving camera.
+    const int w = 96, h = 67;
+    const CameraRays first(cameraAt(Vec3(0, 1, 3), Vec3(0, 1, 0)), w, h);
+    RenderCacheOptions serialOptions;
+    serialOptions.parallel = false;
+    RenderCache parallel(w, h, 3 * w * h), serial(w, h, 3 * w * h, serialOptions);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    auto batch = [&](const CameraRays& rays, int count) {
+        std::vector<ShadedPoint> out;
+        for (int k = 0; k < count; ++k) {
+            const double px = u(rng) * (w + 20) - 10, py = u(rng) * (h + 20) - 10;
+            const double t = u(rng) < 0.3 ? 2.5 + 0.02 * u(rng) : 5.0 + 0.04 * u(rng);
+            out.push_back(pointOnRay(rays, px, py, u(rng) < 0.02 ? -1.0 : t, t < 3 ? 1 : 0,
+                                     Rgb(u(rng), u(rng), 0.3)));
+        }
+        return out;
+    };
+    std::size_t checkedScreen = 0;
+    for (int frame = 0; frame < 12; ++frame) {
+        const double a = 0.05 * frame;
+        const CameraRays rays(
+            cameraAt(Vec3(0.3 * std::sin(a), 1 + 0.1 * a, 3 - 0.2 * a), Vec3(0.1 * a, 1, 0)), w, h);
+        const std::vector<ShadedPoint> points = batch(frame == 0 ? first : rays, 2 * w * h);
+        parallel.insert(points);
+        serial.insert(points);
+        const auto& sp = parallel.reproject(rays);
+        const auto& ss = serial.reproject(rays);
+        ASSERT_EQ(sp.size(), ss.size()) << "frame " << frame;
+        for (std::size_t k = 0; k < sp.size(); ++k) {
+            ASSERT_TRUE(sp[k].position == ss[k].position && sp[k].depth == ss[k].depth &&
+                        sp[k].colour == ss[k].colour && sp[k].age == ss[k].age)
+                << "frame " << frame << " point " << k << ": " << sp[k].toString() << " vs "
+                << ss[k].toString();
+        }
+        checkedScreen += sp.size();
+        ASSERT_EQ(parallel.pixelPoints(), serial.pixelPoints()) << "frame " << frame;
+        ASSERT_EQ(parallel.priority(), serial.priority()) << "frame " << frame;
+        ASSERT_EQ(parallel.size(), serial.size());
+        for (std::size_t i = 0; i < parallel.size(); ++i) {
+            ASSERT_EQ(parallel.points()[i].age, serial.points()[i].age) << i;
+            ASSERT_EQ(parallel.points()[i].visible, serial.points()[i].visible) << i;
+        }
+        const auto rp = parallel.requestSamples(rays), rs = serial.requestSamples(rays);
+        ASSERT_EQ(rp.size(), rs.size());
+        for (std::size_t k = 0; k < rp.size(); ++k) ASSERT_EQ(rp[k].pixel, rs[k].pixel);
+    }
+    EXPECT_GT(checkedScreen, static_cast<std::size_t>(5 * w * h));
 }
 
 // ---------------------------------------------------------------------------------------------
