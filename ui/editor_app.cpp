@@ -22,6 +22,7 @@
 #include <thread>
 
 #include "edit/input_error.h"
+#include "edit/mesh_io.h"
 #include "render/image.h"
 #include "solver/progressive_solver.h"
 
@@ -145,6 +146,7 @@ void EditorApp::openScene(const std::string& path) {
             lo = glm::min(lo, o.boundsMin), hi = glm::max(hi, o.boundsMax);
         mView.frame(0.5 * (lo + hi), 0.5 * glm::length(hi - lo));
     }
+    refreshMeshLibrary();
     mStatus = "opened " + path;
 }
 
@@ -432,6 +434,79 @@ void EditorApp::frameSelection() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Add: the library of primitives and meshes (ui/mesh_library.h).
+
+void EditorApp::refreshMeshLibrary() {
+    namespace fs = std::filesystem;
+    std::string source = findSourceDir(fs::current_path().string());
+    if (source.empty() && !mScenePath.empty()) source = findSourceDir(mScenePath);
+    mMeshLibrary = listMeshes(meshLibraryRoots(mScenePath, source));
+}
+
+PlacementTarget EditorApp::addTarget() {
+    Vec3 origin = mView.position(), direction = mView.forward();
+    std::optional<Vec3> hit, right, down;
+    if (mRunner && mViewportW > 0 && mViewportH > 0) {
+        const Camera camera = mView.toCamera();
+        const double cx = 0.5 * mViewportW, cy = 0.5 * mViewportH;
+        const double step = std::max(2.0, 0.01 * mViewportH);
+        const Ray ray = pixelRay(camera, mViewportW, mViewportH, cx, cy);
+        origin = ray.origin, direction = ray.direction;
+        const Pick centre = mRunner->pick(camera, mViewportW, mViewportH, cx, cy);
+        if (centre.hit()) {
+            hit = centre.position;
+            // Neighbours on the same object give the surface's plane.
+            const Pick r = mRunner->pick(camera, mViewportW, mViewportH, cx + step, cy);
+            const Pick d = mRunner->pick(camera, mViewportW, mViewportH, cx, cy + step);
+            if (r.hit() && r.id == centre.id) right = r.position;
+            if (d.hit() && d.id == centre.id) down = d.position;
+        }
+    }
+    return placementTarget(origin, direction, hit, right, down, std::max(mView.distance, 0.5));
+}
+
+std::string EditorApp::addFromLibrary(const LibraryEntry& entry) {
+    if (!mRunner || mDrag.active()) return "";
+    const auto doc = mRunner->document();
+    if (!doc) return "";
+    const std::string material = defaultMaterial(doc->materials);
+    const std::string id =
+        uniqueObjectId(entry.type == ShapeType::Mesh ? entry.path : entry.label,
+                       [&](const std::string& name) { return doc->find(name) != nullptr; });
+    const PlacementTarget target = addTarget();
+    if (entry.type != ShapeType::Mesh) {
+        if (material.empty()) {
+            mStatus = "the scene has no material for a new object";
+            return "";
+        }
+        SceneObject o;
+        o.id = id;
+        o.shape = makePrimitive(entry.type, kPrimitiveSize);
+        o.material = material;
+        o.transform = placeInBox(shapeBounds(o.shape), kPrimitiveSize, target);
+        submit(AddCommand{o});
+    } else {
+        // Loaded on the solver thread (a large mesh takes a while), named relative to the
+        // scene file as scene files and logs name meshes.
+        const std::string file = entry.path;
+        const std::string relative = sceneRelativePath(file, mScenePath);
+        mRunner->post([id, file, relative, material, target](EditSession& s) {
+            SceneObject o;
+            o.id = id;
+            o.shape.type = ShapeType::Mesh;
+            o.shape.file = relative;
+            o.shape.mesh = loadMeshFile(file);
+            if (o.shape.mesh.triangleMaterial.empty()) o.material = material;
+            o.transform = placeInBox(shapeBounds(o.shape), kMeshSize, target);
+            s.apply(AddCommand{std::move(o)});
+        });
+    }
+    mSelection = id;
+    mStatus = "added " + id;
+    return id;
+}
+
+// ---------------------------------------------------------------------------------------------
 // Panels.
 
 void EditorApp::drawMenu() {
@@ -468,26 +543,22 @@ void EditorApp::drawMenu() {
         ImGui::EndMenu();
     }
     if (ImGui::BeginMenu("Add")) {
+        // The library (ui/mesh_library.h): primitives, the meshes found next to the scene and
+        // in the repository's scenes/meshes/, or any mesh file.
+        if (ImGui::IsWindowAppearing()) refreshMeshLibrary();
         const auto doc = mRunner ? mRunner->document() : nullptr;
-        const char* names[] = {"box", "sphere", "cylinder", "quad"};
-        const ShapeType types[] = {ShapeType::Box, ShapeType::Sphere, ShapeType::Cylinder,
-                                   ShapeType::Quad};
-        for (int i = 0; i < 4; ++i)
-            if (ImGui::MenuItem(names[i], nullptr, false, doc && !doc->materials.empty())) {
-                SceneObject o;
-                for (int k = 1;; ++k) {
-                    o.id = std::string(names[i]) + "-" + std::to_string(k);
-                    if (!doc->find(o.id)) break;
-                }
-                o.shape.type = types[i];
-                o.shape.size = Vec3(0.4);
-                o.shape.radius = 0.2;
-                o.shape.height = 0.4;
-                o.material = doc->materials.front().name;
-                o.transform.translate = mView.target;
-                submit(AddCommand{o});
-                mSelection = o.id;
-            }
+        const bool canAdd = doc && !doc->materials.empty() && !mDrag.active();
+        for (const LibraryEntry& e : listPrimitives())
+            if (ImGui::MenuItem(e.label.c_str(), nullptr, false, canAdd)) addFromLibrary(e);
+        ImGui::Separator();
+        if (ImGui::BeginMenu("Mesh", canAdd)) {
+            if (mMeshLibrary.empty())
+                ImGui::TextDisabled("no mesh files in meshes/ or scenes/meshes/");
+            for (const LibraryEntry& e : mMeshLibrary)
+                if (ImGui::MenuItem(e.label.c_str())) addFromLibrary(e);
+            ImGui::EndMenu();
+        }
+        if (ImGui::MenuItem("Mesh file...", nullptr, false, canAdd)) mPopup = 5;
         ImGui::EndMenu();
     }
     if (ImGui::BeginMenu("View")) {
@@ -544,13 +615,27 @@ void EditorApp::drawSolverPanel(const SolverSnapshot& s) {
     if (!s.history.empty())
         ImGui::PlotLines("##conv", s.history.data(), static_cast<int>(s.history.size()), 0,
                          "log10 unshot", -5.0f, 0.0f, ImVec2(kPanelWidth - 20, 60));
-    if (ImGui::SliderFloat("threshold", &mConvergeEps, 1e-5f, 1e-1f, "%.0e",
+    if (ImGui::SliderFloat("converge at", &mConvergeEps, 1e-5f, 1e-1f, "%.0e",
                            ImGuiSliderFlags_Logarithmic))
         mRunner->setConvergeEps(mConvergeEps);
-    ImGui::TextDisabled("strategy: %s", interactiveSolverOptions().strategy ==
-                                                RedistributionStrategy::RedistributeFirst
-                                            ? "one (redistribute first)"
-                                            : "two (interleave)");
+    // George et al.'s interleaving of redistribution and shooting: strategy one redistributes
+    // first while the strongest pending redistribution carries more than the threshold ×
+    // emitted power; strategy two always shoots whichever carries more energy.
+    int strategy = mRunner->strategy() == RedistributionStrategy::RedistributeFirst ? 0 : 1;
+    float threshold = static_cast<float>(mRunner->redistributionThreshold());
+    bool strategyChanged = ImGui::RadioButton("one: redistribute first", &strategy, 0);
+    ImGui::SameLine();
+    strategyChanged |= ImGui::RadioButton("two: interleave", &strategy, 1);
+    if (strategy == 0)
+        strategyChanged |= ImGui::SliderFloat("redistribute above", &threshold, 1e-6f, 1e-1f,
+                                              "%.0e", ImGuiSliderFlags_Logarithmic);
+    if (strategyChanged)
+        mRunner->setStrategy(strategy == 0 ? RedistributionStrategy::RedistributeFirst
+                                           : RedistributionStrategy::Interleave,
+                             std::clamp(static_cast<double>(threshold), 0.0, 1.0));
+    if (s.strategy != mRunner->strategy() ||
+        s.redistributionThreshold != mRunner->redistributionThreshold())
+        ImGui::TextDisabled("(switching strategy)");
     if (playing()) {
         ImGui::Text("playing %zu / %zu", mPlayNext, mPlay.size());
         ImGui::SameLine();
@@ -666,54 +751,84 @@ void EditorApp::drawScenePanel(const DocumentSummary& doc) {
 }
 
 void EditorApp::drawPopups() {
-    static const char* titles[] = {"", "Open scene", "Save scene as", "Export", "Play edit log"};
-    if (mPopup > 0 && !ImGui::IsPopupOpen(titles[mPopup])) {
-        ImGui::OpenPopup(titles[mPopup]);
-        std::snprintf(mPathBuffer, sizeof mPathBuffer, "%s",
-                      mPopup == 3 ? "export.gltf" : mScenePath.c_str());
-    }
-    for (int p = 1; p <= 4; ++p) {
-        if (!ImGui::BeginPopupModal(titles[p], nullptr, ImGuiWindowFlags_AlwaysAutoResize))
-            continue;
-        if (p == 3) ImGui::TextUnformatted(".ply .gltf .glb .obj (lit scene) or .png (view)");
-        ImGui::InputText("path", mPathBuffer, sizeof mPathBuffer);
-        const bool ok = ImGui::Button("OK");
-        ImGui::SameLine();
-        const bool cancel = ImGui::Button("Cancel");
-        if (ok) {
-            const std::string path = mPathBuffer;
-            try {
-                if (p == 1) {
-                    openScene(path);
-                } else if (p == 2) {
-                    saveScene(path);
-                    mScenePath = path;
-                } else if (p == 3) {
-                    const std::string ext = std::filesystem::path(path).extension().string();
-                    if (ext == ".png" || ext == ".PNG") {
-                        if (!mShown) throw std::runtime_error("no image yet");
-                        writePng(mShown->render.radiance, path);
-                    } else {
-                        mRunner->post([path](EditSession& s) { s.exportLitScene(path); });
-                    }
-                    mStatus = "exporting " + path;
-                } else {
-                    const std::string base =
-                        std::filesystem::path(mScenePath).parent_path().string();
-                    mPlay = readEditLog(path, base);
-                    mPlayNext = 0;
-                    mOptions.play = path;
-                    mRunner->setAutoSolve(mPlay.empty());
-                }
-            } catch (const std::exception& e) {
-                mStatus = e.what();
+    static const char* titles[] = {"",       "Open scene",    "Save scene as",
+                                   "Export", "Play edit log", "Add mesh file"};
+    if (mPopup > 0 && !mBrowser) {
+        // A file browser for the dialog, starting next to the scene.
+        namespace fs = std::filesystem;
+        const fs::path sceneDir =
+            mScenePath.empty() ? fs::current_path() : fs::path(mScenePath).parent_path();
+        switch (mPopup) {
+            case 1:
+                mBrowser = std::make_unique<FileBrowser>(
+                    FileDialogKind::Open, mScenePath.empty() ? sceneDir.string() : mScenePath,
+                    std::vector<std::string>{".json"});
+                break;
+            case 2:
+                mBrowser = std::make_unique<FileBrowser>(
+                    FileDialogKind::Save, mScenePath, std::vector<std::string>{".json"}, ".json");
+                break;
+            case 3:
+                mBrowser = std::make_unique<FileBrowser>(
+                    FileDialogKind::Save, (sceneDir / "export.gltf").string(),
+                    std::vector<std::string>{".gltf", ".glb", ".ply", ".obj", ".png"}, ".gltf");
+                break;
+            case 4: {
+                const fs::path logs = sceneDir / "logs";
+                mBrowser =
+                    std::make_unique<FileBrowser>(FileDialogKind::Open,
+                                                  !mOptions.play.empty()   ? mOptions.play
+                                                  : fs::is_directory(logs) ? logs.string()
+                                                                           : sceneDir.string(),
+                                                  std::vector<std::string>{".jsonl"});
+                break;
+            }
+            default: {
+                const auto roots = meshLibraryRoots(mScenePath, findSourceDir(sceneDir.string()));
+                mBrowser = std::make_unique<FileBrowser>(
+                    FileDialogKind::Open, roots.empty() ? sceneDir.string() : roots.front(),
+                    std::vector<std::string>{".obj", ".off", ".ply", ".stl", ".gltf", ".glb"});
+                break;
             }
         }
-        if (ok || cancel) {
-            mPopup = 0;
-            ImGui::CloseCurrentPopup();
+        ImGui::OpenPopup(titles[mPopup]);
+    }
+    if (!mBrowser) return;
+    std::string path;
+    const FileDialogResult result = drawFileDialog(titles[mPopup], *mBrowser, &path);
+    if (result == FileDialogResult::Open) return;
+    const int popup = mPopup;
+    mPopup = 0;
+    mBrowser.reset();
+    if (result == FileDialogResult::Cancelled) return;
+    try {
+        if (popup == 1) {
+            openScene(path);
+        } else if (popup == 2) {
+            saveScene(path);
+            mScenePath = path;
+        } else if (popup == 3) {
+            const std::string ext = std::filesystem::path(path).extension().string();
+            if (ext == ".png" || ext == ".PNG") {
+                if (!mShown) throw std::runtime_error("no image yet");
+                writePng(mShown->render.radiance, path);
+            } else {
+                mRunner->post([path](EditSession& s) { s.exportLitScene(path); });
+            }
+            mStatus = "exporting " + path;
+        } else if (popup == 4) {
+            const std::string base = std::filesystem::path(mScenePath).parent_path().string();
+            mPlay = readEditLog(path, base);
+            mPlayNext = 0;
+            mOptions.play = path;
+            mRunner->setAutoSolve(mPlay.empty());
+        } else if (popup == 5) {
+            addFromLibrary(LibraryEntry{std::filesystem::path(path).filename().string(),
+                                        ShapeType::Mesh,
+                                        std::filesystem::canonical(path).string()});
         }
-        ImGui::EndPopup();
+    } catch (const std::exception& e) {
+        mStatus = e.what();
     }
 }
 

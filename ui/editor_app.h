@@ -18,7 +18,9 @@
 
 #include "edit/edit_log.h"
 #include "ui/drag_controller.h"
+#include "ui/file_dialog.h"
 #include "ui/gizmo.h"
+#include "ui/mesh_library.h"
 #include "ui/session_runner.h"
 #include "ui/view_camera.h"
 
@@ -99,6 +101,23 @@ public:
     /// Writes the window's back buffer as PNG (call after the frame was drawn).
     void writeScreenshot(const std::string& path);
 
+    /// The Add menu's meshes (ui/mesh_library.h): the scene's `meshes/` folder and the
+    /// repository's `scenes/meshes/`, rescanned whenever the menu opens or on refreshMeshLibrary.
+    const std::vector<LibraryEntry>& meshLibrary() const { return mMeshLibrary; }
+    void refreshMeshLibrary();
+    /// Where the Add menu puts a new object now: the surface under the viewport's centre
+    /// (picked through Embree, normal from two neighbouring picks on the same object), else
+    /// the view target's distance in front of the camera.
+    PlacementTarget addTarget();
+    /// Adds `entry` as the Add menu does and selects it: a primitive of kPrimitiveSize, or the
+    /// mesh (loaded on the solver thread, its path relative to the scene file, DESIGN.md)
+    /// scaled to fit kMeshSize, placed at addTarget(), with the scene's first non-emissive
+    /// material unless the mesh file has its own. Returns the new object's id ("" without a
+    /// scene or materials); a mesh that fails to load is reported in the status line.
+    std::string addFromLibrary(const LibraryEntry& entry);
+    static constexpr double kPrimitiveSize = 0.4;  ///< metres across
+    static constexpr double kMeshSize = 0.5;       ///< largest bounding-box side, metres
+
 private:
     void openScene(const std::string& path);
     void drawMenu();
@@ -155,8 +174,9 @@ private:
     float mEmissionColour[3] = {1, 1, 1};
     float mEmissionStrength = 0;
     float mConvergeEps = 1e-3f;
-    char mPathBuffer[1024] = {};
-    int mPopup = 0;  ///< 0 none, 1 open, 2 save as, 3 export, 4 play log
+    int mPopup = 0;                         ///< 0 none, 1 open, 2 save as, 3 export, 4 play log
+    std::unique_ptr<FileBrowser> mBrowser;  ///< the open file dialog's state
+    std::vector<LibraryEntry> mMeshLibrary;
     std::string mStatus;
     bool mQuit = false;
 

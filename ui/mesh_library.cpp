@@ -73,6 +73,17 @@ std::vector<std::string> meshLibraryRoots(const std::string& scenePath,
     return roots;
 }
 
+std::string findSourceDir(const std::string& start) {
+    std::error_code ec;
+    fs::path p = fs::absolute(start, ec).lexically_normal();
+    if (ec) return "";
+    while (true) {
+        if (fs::is_directory(p / "scenes" / "meshes", ec)) return p.string();
+        if (p == p.root_path() || !p.has_parent_path()) return "";
+        p = p.parent_path();
+    }
+}
+
 std::vector<LibraryEntry> listMeshes(const std::vector<std::string>& roots,
                                      std::size_t maxEntries) {
     std::vector<LibraryEntry> entries;

@@ -41,6 +41,10 @@ bool isMeshFile(const std::string& path);
 std::vector<std::string> meshLibraryRoots(const std::string& scenePath,
                                           const std::string& sourceDir);
 
+/// The nearest folder at or above `start` (a file or folder) that holds `scenes/meshes/`: the
+/// repository's checkout when the editor runs inside it; "" when there is none.
+std::string findSourceDir(const std::string& start);
+
 /// The mesh files below each root, recursively (symlinked folders are not followed), one entry
 /// per file (the first root that reaches a file names it), sorted by label within each root.
 /// Labels use '/' separators; hidden files and folders ("." prefix) are skipped; unreadable

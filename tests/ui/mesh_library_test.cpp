@@ -97,6 +97,17 @@ TEST(MeshLibrary, ListsMeshFilesRecursivelySortedWithoutHiddenOrDuplicates) {
     EXPECT_EQ(meshLibraryRoots(scene, ""),
               (std::vector<std::string>{fs::canonical(meshes).string()}));
     EXPECT_TRUE(meshLibraryRoots((tree.root / "other/s.json").string(), "").empty());
+
+    // The source folder: the nearest ancestor holding scenes/meshes.
+    tree.touch("repo/scenes/meshes/m.obj");
+    tree.touch("repo/build/tests/x");
+    const fs::path repo = tree.root / "repo";
+    EXPECT_EQ(fs::path(findSourceDir((repo / "build/tests").string())), repo);
+    EXPECT_EQ(fs::path(findSourceDir((repo / "scenes/s.json").string())), repo);
+    EXPECT_EQ(fs::path(findSourceDir(repo.string())), repo);
+    EXPECT_EQ(findSourceDir(other), "");
+    EXPECT_EQ(labels(listMeshes(meshLibraryRoots("", findSourceDir((repo / "build").string())))),
+              (std::vector<std::string>{"m.obj"}));
 }
 
 TEST(MeshLibrary, TheRepositoryMeshesAreListedAndLoad) {
