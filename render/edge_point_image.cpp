@@ -390,16 +390,17 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
     // its rows) and records only their intersections, so bands write disjoint bytes and the
     // masks and the culled count equal a single band's (the serial reference) exactly.
     const int bands = mOptions.parallel ? std::min(mHeight, 16) : 1;
-    // Edges binned by the bands their y extent (a row of slack either side) meets.
-    std::vector<std::vector<int>> binned(bands);
+    // Each edge's y extent, compact, for the bands' quick rejection (NaN for a non-finite
+    // edge: never rejected here, skipped by rasterizeEdge).
+    mEdgeRows.resize(edges.size());
     if (bands > 1) {
-        for (int i = 0; i < static_cast<int>(edges.size()); ++i) {
-            const ScreenEdge& e = edges[i];
-            if (!finite2(e.a) || !finite2(e.b)) continue;
-            const int b0 = bandOfRow(mHeight, bands, std::min(e.a.y, e.b.y) - 1.0);
-            const int b1 = bandOfRow(mHeight, bands, std::max(e.a.y, e.b.y) + 1.0);
-            for (int b = b0; b <= b1; ++b) binned[b].push_back(i);
-        }
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, edges.size(), 2048),
+                          [&](const tbb::blocked_range<size_t>& r) {
+                              for (size_t i = r.begin(); i != r.end(); ++i) {
+                                  const ScreenEdge& e = edges[i];
+                                  mEdgeRows[i] = {std::min(e.a.y, e.b.y), std::max(e.a.y, e.b.y)};
+                              }
+                          });
     }
     std::vector<size_t> culled(bands, 0);
     auto band = [&](int b) {
@@ -417,8 +418,12 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
         const int kLineHi = b + 1 == bands ? 2 * mHeight : 2 * rowHi - 1;  // last line k
         if (bands == 1) {
             for (const ScreenEdge& e : edges) rasterizeEdge(e, rowLo, rowHi, kLineHi, culled[b]);
-        } else {
-            for (int i : binned[b]) rasterizeEdge(edges[i], rowLo, rowHi, kLineHi, culled[b]);
+            return;
+        }
+        for (size_t i = 0; i < edges.size(); ++i) {
+            // The edge's y extent misses the band's rows (a row of slack either side).
+            if (mEdgeRows[i].y < rowLo - 1.0 || mEdgeRows[i].x > rowHi + 1.0) continue;
+            rasterizeEdge(edges[i], rowLo, rowHi, kLineHi, culled[b]);
         }
     };
     if (bands == 1) {
@@ -912,27 +917,52 @@ void EdgePointImage::filterComplexPixels(Image& out) {
                 types[v * 6 + u] = type;
             }
         }
-        // Union-find over subpixel regions (node = subpixel · 2 + region).
-        std::array<int8_t, 72> parent;
-        std::iota(parent.begin(), parent.end(), 0);
-        auto find = [&](int a) {
-            while (parent[a] != a) a = parent[a] = parent[parent[a]];
-            return a;
-        };
+        // Connected subpixel regions (node = subpixel · 2 + region) by bit-parallel flood
+        // fill: edges[dir][ra][rb] has bit a set when region ra of subpixel a meets region rb
+        // of its neighbour to the right (dir 0, a + 1) or below (dir 1, a + 6). Components are
+        // labelled on demand; only the labels' equality matters below.
+        uint64_t edges[2][2][2] = {};
         for (int v = 0; v < 6; ++v) {
             for (int u = 0; u < 6; ++u) {
                 const int a = v * 6 + u;
-                for (int dir = 0; dir < 2; ++dir) {
-                    const int b = dir == 0 ? (u + 1 < 6 ? a + 1 : -1) : (v + 1 < 6 ? a + 6 : -1);
-                    if (b < 0) continue;
-                    for (unsigned m = adjacency[dir][types[a] * 8 + types[b]]; m; m &= m - 1) {
+                if (u + 1 < 6) {
+                    for (unsigned m = adjacency[0][types[a] * 8 + types[a + 1]]; m; m &= m - 1) {
                         const int bit = std::countr_zero(m);
-                        parent[find(a * 2 + (bit >> 1))] =
-                            static_cast<int8_t>(find(b * 2 + (bit & 1)));
+                        edges[0][bit >> 1][bit & 1] |= uint64_t(1) << a;
+                    }
+                }
+                if (v + 1 < 6) {
+                    for (unsigned m = adjacency[1][types[a] * 8 + types[a + 6]]; m; m &= m - 1) {
+                        const int bit = std::countr_zero(m);
+                        edges[1][bit >> 1][bit & 1] |= uint64_t(1) << a;
                     }
                 }
             }
         }
+        std::array<int8_t, 72> label;
+        label.fill(-1);
+        int labels = 0;
+        auto find = [&](int node) -> int {
+            if (label[node] >= 0) return label[node];
+            uint64_t c[2] = {0, 0};
+            c[node & 1] = uint64_t(1) << (node >> 1);
+            for (;;) {
+                const uint64_t c0 = c[0], c1 = c[1];
+                for (int ra = 0; ra < 2; ++ra) {
+                    for (int rb = 0; rb < 2; ++rb) {
+                        c[rb] |= (c[ra] & edges[0][ra][rb]) << 1;
+                        c[ra] |= (c[rb] >> 1) & edges[0][ra][rb];
+                        c[rb] |= (c[ra] & edges[1][ra][rb]) << 6;
+                        c[ra] |= (c[rb] >> 6) & edges[1][ra][rb];
+                    }
+                }
+                if (c[0] == c0 && c[1] == c1) break;
+            }
+            const int8_t id = static_cast<int8_t>(labels++);
+            for (int r = 0; r < 2; ++r)
+                for (uint64_t m = c[r]; m; m &= m - 1) label[std::countr_zero(m) * 2 + r] = id;
+            return id;
+        };
         // Samples of the 3×3 pixels placed in their subpixel regions.
         struct SubSample {
             int root, u, v;

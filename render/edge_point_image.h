@@ -187,6 +187,7 @@ private:
     std::vector<uint8_t> mVertical;       ///< line x = i, y ∈ [j, j+1): H × (W+1)
     std::vector<uint8_t> mHorizontalMid;  ///< line y = j + ½: H × W
     std::vector<uint8_t> mVerticalMid;    ///< line x = i + ½: H × W
+    std::vector<glm::dvec2> mEdgeRows;    ///< rasterizeEdges() scratch: per edge y min, max
 
     // Classification (§4.1–4.2, §5.1).
     std::vector<uint16_t> mEdgeCode;
