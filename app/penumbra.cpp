@@ -472,6 +472,10 @@ int main(int argc, char** argv) {
     benchRedist->add_option("--max-ms", redist.maxMs, "solver time per method");
     benchRedist->add_option("--plot-dir", redist.plotDir, "write error-vs-time plots (PNG) here");
     benchRedist->add_option("--json", redist.jsonOut, "write every sample as JSON");
+    benchRedist->add_option("--reference-cache", redist.referenceCache,
+                            "read the converged references from PATH-<scene>, or write them");
+    benchRedist->add_flag("--split", redist.split,
+                          "print the top-1% error on the added objects and on the rest");
     DisplayBenchOptions display;
     CLI::App* benchDisplay = benchCmd->add_subcommand(
         "display", "Bala et al. Table 2: display stage times, fps, epi vs cache error");

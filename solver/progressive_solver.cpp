@@ -85,6 +85,7 @@ SolverOptions interactiveSolverOptions() {
     o.raysPerEmittedPower = 1e7;
     o.redistributionRaysPerEmittedPower = 2.5e6;
     o.redistributionThreshold = 1e-4;
+    o.gatherRays = 32;
     return o;
 }
 
@@ -102,6 +103,10 @@ struct ChangeEntry {
     std::vector<std::pair<Vec3, double>> spheres;
     /// The changed objects alone in a small ray-tracing scene (RayTracer::createSubset).
     RayTracer::SubsetHandle changed;
+    /// Per patch: its redistribution to the added objects' elements was gathered
+    /// (gatherToAdded); its shots skip those receivers. Empty until the gather.
+    std::vector<std::uint8_t> gathered;
+    bool isGathered(int j) const { return !gathered.empty() && gathered[j]; }
 };
 
 struct ProgressiveSolver::Impl {
@@ -698,6 +703,7 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
     if (afterIsCurrentScene(c, preview)) after.world = nullptr;
     const Visibility changed = c.changed.visibility();
     const double margin = 4 * mTracer.epsilon();
+    const bool gathered = c.isGathered(j);
 
     const auto& elements = mDisc.elements();
     const std::size_t n = elements.size();
@@ -717,6 +723,7 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
                 if (receiverAdded) continue;
                 delta[e] = -irradianceFrom(j, ie, shot, before);
             } else if (receiverAdded) {
+                if (gathered) continue;  // gatherToAdded delivered it
                 delta[e] = irradianceFrom(j, ie, shot, after);
             } else {
                 // Haines–Wallace style shaft: can any changed object meet a segment from
@@ -735,10 +742,85 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
     });
 }
 
+bool ProgressiveSolver::shouldGather(const ChangeEntry& c, double best) const {
+    const double below = mOptions.gatherBelow > 0 ? mOptions.gatherBelow : mOptions.stochasticBelow;
+    return mOptions.gatherRays > 0 && !c.added.empty() && c.gathered.empty() &&
+           best < below * mEmittedEnergy;
+}
+
+void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<Rgb>& delta) {
+    const auto& patches = mDisc.patches();
+    const auto& elements = mDisc.elements();
+    c.gathered.assign(patches.size(), 0);
+    // Emitters keep their shots: a gather would see a small bright light with few rays.
+    for (std::size_t j = 0; j < patches.size(); ++j)
+        if (c.pending.key(static_cast<int>(j)) > 0 &&
+            !mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
+            c.gathered[j] = 1;
+    // Receivers: the elements of the added objects (the previewed one in a preview).
+    std::vector<int> receivers;
+    for (int o : c.added) {
+        if (!mDisc.objects()[o].alive && !(preview && o == mImpl->previewObject)) continue;
+        for (const Patch& P : patches)
+            if (P.object == o)
+                receivers.insert(receivers.end(), P.elements.begin(), P.elements.end());
+    }
+    std::sort(receivers.begin(), receivers.end());
+    delta.assign(elements.size(), Rgb(0.0));
+    Visibility after;
+    after.world = &c.after;
+    if (afterIsCurrentScene(c, preview)) after.world = nullptr;
+    // Stratified cosine directions: nx × ny strata over (φ, sin²θ).
+    const int n = std::max(1, mOptions.gatherRays);
+    int nx = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n))));
+    const int ny = (n + nx - 1) / nx;
+    const double eps = mTracer.epsilon();
+    const std::uint64_t seed = hashPair(hashPair(mOptions.seed, 0x6a7e5ull), mStats.shots);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, receivers.size(), 16), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const int e = receivers[i];
+            const Element& el = elements[e];
+            RayRandom rng{hashPair(seed, static_cast<std::uint64_t>(e))};
+            Vec3 tx, ty;
+            frameAround(el.normal, tx, ty);
+            const Vec3 origin = el.centroid + el.normal * eps;
+            Rgb sum(0.0);
+            for (int k = 0; k < nx * ny; ++k) {
+                const double u = (k % nx + rng.next()) / nx, v = (k / nx + rng.next()) / ny;
+                const double phi = 2 * M_PI * u, rr = std::sqrt(v);
+                const Vec3 dir = rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
+                                 std::sqrt(std::max(0.0, 1 - v)) * el.normal;
+                const RayTracer::FirstHit h = mTracer.firstHit(origin, dir, after);
+                if (h.element < 0 || h.backFace) continue;
+                const int j = elements[h.element].patch;
+                if (j == el.patch || !c.gathered[j]) continue;
+                sum += c.shot[j];
+            }
+            delta[e] = sum / static_cast<double>(nx * ny);
+        }
+    });
+}
+
 bool ProgressiveSolver::shootRedistribution() {
     int k = -1;
     double best = bestRedistribution(&k);
     if (best <= 0 || k < 0) return false;
+    ChangeEntry& weak = mImpl->changes[k];
+    if (shouldGather(weak, best)) {
+        // The added objects' elements gather what the weak shooters would send them: far
+        // less noise than the same rays shot, and the edit's most changed elements.
+        const unsigned long long raysBefore = mTracer.rayCount();
+        auto& delta = mImpl->delta;
+        gatherToAdded(weak, false, delta);
+        for (std::size_t e = 0; e < delta.size(); ++e)
+            if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
+        for (std::size_t e = 0; e < delta.size(); ++e)
+            if (!isZero(delta[e])) updatePriority(mDisc.elements()[e].patch);
+        ++mStats.shots;
+        ++mStats.redistributionShots;
+        mStats.rays += mTracer.rayCount() - raysBefore;
+        return true;
+    }
     if (mOptions.stochasticBelow > 0 && best < mOptions.stochasticBelow * mEmittedEnergy) {
         shootRedistributionBatch(k);
         return true;
@@ -895,7 +977,8 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             };
             if (eb >= 0 && c.before[mDisc.elements()[eb].object] && receives(eb))
                 tr.from = eb, tr.irradianceFrom = -carried / mDisc.elements()[eb].area;
-            if (ea >= 0 && receives(ea))
+            if (ea >= 0 && receives(ea) &&
+                !(c.isGathered(j) && !c.before[mDisc.elements()[ea].object]))
                 tr.to = ea, tr.irradianceTo = carried / mDisc.elements()[ea].area;
         }
     });
@@ -960,8 +1043,14 @@ int ProgressiveSolver::stepPreview(int maxShots) {
         } else {
             int j = c.pending.top();
             if (j < 0 || c.pending.key(j) <= 0) break;
-            c.pending.update(j, 0.0);
-            redistributionDelta(c, j, true, delta);
+            if (shouldGather(c, c.pending.key(j))) {
+                // The weak shooters reach the dragged object in one gather (as in
+                // shootRedistribution); their shots that follow only correct the shadows.
+                gatherToAdded(c, true, delta);
+            } else {
+                c.pending.update(j, 0.0);
+                redistributionDelta(c, j, true, delta);
+            }
         }
         for (std::size_t el = 0; el < delta.size(); ++el)
             if (!isZero(delta[el]))

@@ -44,6 +44,14 @@ struct SolverOptions {
     /// power as raysPerEmittedPower is; 0 uses raysPerEmittedPower. Redistribution rays are
     /// aimed at the changed objects only, so fewer carry the same information.
     double redistributionRaysPerEmittedPower = 0;
+    /// Once an edit's pending redistribution is weak (below stochasticBelow), the added
+    /// objects' own elements gather it instead of receiving shots: this many stratified
+    /// cosine rays per element from its centroid, each returning the shot radiosity of the
+    /// pending patch it hits (Σ_j (B_j − ΔB_j) F_ij(t), F(t−1) = 0). 0: shots only.
+    int gatherRays = 0;
+    /// The gather starts once the edit's strongest pending shooter carries less than this
+    /// fraction of the emitted power; 0 uses stochasticBelow.
+    double gatherBelow = 0;
     RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
     /// Strategy one redistributes first while the most important pending redistribution
     /// carries more than this fraction of the emitted power (0: all of it first).
@@ -178,6 +186,12 @@ private:
     /// Whether entry c's world after the edit is the current scene (no later edit, no
     /// preview): its queries can skip the history filter.
     bool afterIsCurrentScene(const ChangeEntry& c, bool preview) const;
+    /// Entry c's redistribution toward the added objects' elements, gathered
+    /// (SolverOptions::gatherRays) from every shooter still pending, which is then marked
+    /// `gathered` so its later shots skip those receivers. Writes irradiance per element.
+    void gatherToAdded(ChangeEntry& c, bool preview, std::vector<Rgb>& delta);
+    /// Whether entry c, whose strongest pending shooter carries `best` W, gathers next.
+    bool shouldGather(const ChangeEntry& c, double best) const;
     /// Best pending redistribution importance (W), and which edit holds it.
     double bestRedistribution(int* entry) const;
     void subdivideSteepElements();

@@ -26,6 +26,12 @@ struct RedistributionBenchOptions {
     double maxMs = 20000;        ///< solver time per method run
     std::string plotDir;         ///< writes redistribution-<scene>.png there when set
     std::string jsonOut;
+    /// Reads the converged references from here (PATH-<scene>) when present, else writes
+    /// them: repeated runs skip the reference solves.
+    std::string referenceCache;
+    /// Prints, per sample, the top-1% error split between the added objects' elements and
+    /// the others.
+    bool split = false;
 };
 
 /// `penumbra bench redistribution`: George et al. Figures 6 and 7 — error against time after

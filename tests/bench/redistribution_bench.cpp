@@ -108,13 +108,36 @@ struct World {
 /// Steps `solver` and samples the error at geometrically spaced shot counts; the time spent
 /// measuring is not counted.
 std::vector<Sample> run(ProgressiveSolver& solver, const World& w, const std::vector<double>& ref,
-                        const std::vector<int>& top1, double maxMs, double startMs) {
+                        const std::vector<int>& top1, double maxMs, double startMs, bool split) {
     std::vector<Sample> out;
     double ms = startMs;
     std::uint64_t shots = 0, next = 1;
     auto record = [&] {
         auto y = luminances(*w.disc, solver.radiosity());
         out.push_back({ms, shots, eq7(*w.disc, ref, y, {}), eq7(*w.disc, ref, y, top1)});
+        if (split) {
+            std::vector<int> on, off;
+            for (int e : top1)
+                (std::find(w.versions.begin(), w.versions.end(), w.disc->elements()[e].object) !=
+                         w.versions.end()
+                     ? on
+                     : off)
+                    .push_back(e);
+            double num[2] = {0, 0}, den = 0;
+            for (int e : top1) {
+                double a = w.disc->elements()[e].area;
+                den += ref[e] * ref[e] * a;
+            }
+            for (int k = 0; k < 2; ++k)
+                for (int e : k ? off : on) {
+                    double a = w.disc->elements()[e].area;
+                    num[k] += (ref[e] - y[e]) * (ref[e] - y[e]) * a;
+                }
+            std::fprintf(stderr,
+                         "  %.1f ms shots %llu top1 %.4f: added %zu el %.4f, others %zu el %.4f\n",
+                         ms, static_cast<unsigned long long>(shots), out.back().top1, on.size(),
+                         std::sqrt(num[0] / den), off.size(), std::sqrt(num[1] / den));
+        }
     };
     record();
     while (ms < maxMs) {
@@ -203,17 +226,39 @@ int runRedistributionBench(const RedistributionBenchOptions& options) {
         w.tracer = std::make_unique<RayTracer>(*w.disc);
 
         // Converged references before and after, from scratch, on this discretization.
-        SolverOptions refOptions = interactiveSolverOptions();
-        refOptions.raysPerEmittedPower *= 4;
-        ProgressiveSolver before(*w.disc, *w.tracer, refOptions);
-        before.converge(options.referenceEps, 100000000);
-        w.setAdded(true);
-        ProgressiveSolver after(*w.disc, *w.tracer, refOptions);
-        after.converge(options.referenceEps, 100000000);
-        const auto yAfter = luminances(*w.disc, after.radiosity());
-        w.setAdded(false);
-        auto yBefore = luminances(*w.disc, before.radiosity());
-        yBefore.resize(yAfter.size(), 0.0);
+        std::vector<double> yAfter, yBefore;
+        const bool cache = !options.referenceCache.empty();
+        const std::string cachePath = options.referenceCache + "-" + c.name;
+        if (FILE* f = cache ? std::fopen(cachePath.c_str(), "rb") : nullptr) {
+            std::size_t n = 0;
+            if (std::fread(&n, sizeof n, 1, f) == 1) {
+                yAfter.resize(n), yBefore.resize(n);
+                if (std::fread(yAfter.data(), sizeof(double), n, f) != n ||
+                    std::fread(yBefore.data(), sizeof(double), n, f) != n)
+                    yAfter.clear();
+            }
+            std::fclose(f);
+        }
+        if (yAfter.empty()) {
+            SolverOptions refOptions = interactiveSolverOptions();
+            refOptions.raysPerEmittedPower *= 4;
+            ProgressiveSolver before(*w.disc, *w.tracer, refOptions);
+            before.converge(options.referenceEps, 100000000);
+            w.setAdded(true);
+            ProgressiveSolver after(*w.disc, *w.tracer, refOptions);
+            after.converge(options.referenceEps, 100000000);
+            yAfter = luminances(*w.disc, after.radiosity());
+            w.setAdded(false);
+            yBefore = luminances(*w.disc, before.radiosity());
+            yBefore.resize(yAfter.size(), 0.0);
+            if (FILE* f = cache ? std::fopen(cachePath.c_str(), "wb") : nullptr) {
+                std::size_t n = yAfter.size();
+                std::fwrite(&n, sizeof n, 1, f);
+                std::fwrite(yAfter.data(), sizeof(double), n, f);
+                std::fwrite(yBefore.data(), sizeof(double), n, f);
+                std::fclose(f);
+            }
+        }
         // The 1% of alive elements that change most (George et al.'s second error term).
         std::vector<int> order;
         for (std::size_t e = 0; e < yAfter.size(); ++e)
@@ -242,7 +287,7 @@ int runRedistributionBench(const RedistributionBenchOptions& options) {
             else
                 solver->applyChange({{}, w.versions}, method == 0);
             double setupMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-            runs.push_back(run(*solver, w, yAfter, order, options.maxMs, setupMs));
+            runs.push_back(run(*solver, w, yAfter, order, options.maxMs, setupMs, options.split));
         }
         double tb = timeTo(runs[1], 0.10);
         for (int method = 0; method < 3; ++method) {

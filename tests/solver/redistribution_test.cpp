@@ -387,3 +387,61 @@ TEST(Redistribution, StochasticTailsStayCloseToRecomputation) {
 
 }  // namespace
 }  // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+/// Luminance of the irradiance the elements of `object` received, after every pending
+/// redistribution of `lit` was done (strategy one with threshold 0: before any propagation).
+std::vector<double> irradianceAfterRedistribution(Lit& lit, int object) {
+    for (int guard = 0; lit.solver->pendingChanges() > 0 && guard < 100000; ++guard)
+        lit.solver->step(1);
+    EXPECT_EQ(lit.solver->pendingChanges(), 0u);
+    std::vector<double> y;
+    for (const Patch& P : lit.disc->patches())
+        if (P.object == object)
+            for (int e : P.elements) y.push_back(luminance(lit.solver->irradiance()[e]));
+    return y;
+}
+
+/// Worst relative difference over elements brighter than 1% of the maximum of `reference`.
+double worstRelative(const std::vector<double>& value, const std::vector<double>& reference) {
+    double maxY = 0, worst = 0;
+    for (double r : reference) maxY = std::max(maxY, r);
+    for (std::size_t i = 0; i < value.size(); ++i)
+        if (reference[i] > 0.01 * maxY)
+            worst = std::max(worst, std::abs(value[i] - reference[i]) / reference[i]);
+    return worst;
+}
+
+TEST(Redistribution, GatherToAnAddedObjectEqualsDeterministicShots) {
+    // The added box's elements gather the non-emitting shooters' redistribution (cosine rays
+    // returning the shot radiosity of the pending patch they hit); deterministic shots of the
+    // same shooters give Σ_j (B_j − ΔB_j) F_ij(t) from pair-seeded form factors. Before any
+    // propagation the two agree to within the gather's noise, and a one-ray gather does not.
+    SolverOptions shots;  // deterministic, strategy one with threshold 0
+    SolverOptions gather = shots;
+    gather.gatherRays = 4096;
+    gather.gatherBelow = 1.0;  // every non-emitting shooter is gathered
+    Lit reference(makeRoom(), shots), gathered(makeRoom(), gather);
+    reference.solver->converge(1e-6, 1000000);
+    gathered.solver->converge(1e-6, 1000000);
+    const SceneObject box = makeBox("crate", {0.1, -0.55, 0.0}, "white");
+    const int v = reference.add(box);
+    ASSERT_EQ(gathered.add(box), v);
+    const auto yRef = irradianceAfterRedistribution(reference, v);
+    const auto yGather = irradianceAfterRedistribution(gathered, v);
+    ASSERT_EQ(yRef.size(), yGather.size());
+    ASSERT_FALSE(yRef.empty());
+    EXPECT_LE(worstRelative(yGather, yRef), 0.05);
+
+    gather.gatherRays = 1;
+    Lit coarse(makeRoom(), gather);
+    coarse.solver->converge(1e-6, 1000000);
+    ASSERT_EQ(coarse.add(box), v);
+    EXPECT_GT(worstRelative(irradianceAfterRedistribution(coarse, v), yRef), 0.1)
+        << "a one-ray gather should be visibly noisy: is the gather used at all?";
+}
+
+}  // namespace
+}  // namespace penumbra
