@@ -824,8 +824,7 @@ void EditorApp::drawPopups() {
             mRunner->setAutoSolve(mPlay.empty());
         } else if (popup == 5) {
             addFromLibrary(LibraryEntry{std::filesystem::path(path).filename().string(),
-                                        ShapeType::Mesh,
-                                        std::filesystem::canonical(path).string()});
+                                        ShapeType::Mesh, path});
         }
     } catch (const std::exception& e) {
         mStatus = e.what();

@@ -7,6 +7,7 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -61,14 +62,19 @@ std::vector<std::string> meshLibraryRoots(const std::string& scenePath,
     std::vector<fs::path> candidates;
     if (!scenePath.empty()) candidates.push_back(fs::path(scenePath).parent_path() / "meshes");
     if (!sourceDir.empty()) candidates.push_back(fs::path(sourceDir) / "scenes" / "meshes");
-    std::vector<std::string> roots;
+    // Roots keep the caller's spelling (made absolute), so scene-relative paths computed from
+    // them match the scene's; duplicates are found by canonical path.
+    std::vector<std::string> roots, canonicalRoots;
     for (const fs::path& c : candidates) {
         std::error_code ec;
         if (!fs::is_directory(c, ec)) continue;
         const std::string canonical = canonicalOrEmpty(c);
         if (canonical.empty()) continue;
-        if (std::find(roots.begin(), roots.end(), canonical) == roots.end())
-            roots.push_back(canonical);
+        if (std::find(canonicalRoots.begin(), canonicalRoots.end(), canonical) !=
+            canonicalRoots.end())
+            continue;
+        canonicalRoots.push_back(canonical);
+        roots.push_back(fs::absolute(c, ec).lexically_normal().string());
     }
     return roots;
 }
@@ -84,36 +90,57 @@ std::string findSourceDir(const std::string& start) {
     }
 }
 
+constexpr int kMaxDepth = 8;  ///< folder levels below a root that listMeshes enters
+
 std::vector<LibraryEntry> listMeshes(const std::vector<std::string>& roots,
                                      std::size_t maxEntries) {
     std::vector<LibraryEntry> entries;
-    std::set<std::string> seen;  // canonical paths
+    std::set<std::string> seenFiles, seenFolders;  // canonical paths
     for (const std::string& root : roots) {
-        std::vector<LibraryEntry> found;
+        const fs::path rootPath = fs::absolute(root).lexically_normal();
+        if (const std::string c = canonicalOrEmpty(rootPath); !c.empty()) seenFolders.insert(c);
+        // Per file (canonical): the entry with the shortest label under this root.
+        std::map<std::string, LibraryEntry> found;
         std::error_code ec;
-        fs::recursive_directory_iterator it(root, fs::directory_options::skip_permission_denied,
+        fs::recursive_directory_iterator it(rootPath,
+                                            fs::directory_options::skip_permission_denied |
+                                                fs::directory_options::follow_directory_symlink,
                                             ec);
         for (; !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
             const fs::path& p = it->path();
             const std::string name = p.filename().string();
-            // Hidden files and folders.
+            std::error_code typeError;
+            const bool folder = it->is_directory(typeError);
+            // Hidden files and folders; folders seen before (symlink cycles, links to a
+            // folder already listed) and folders too deep.
             if (!name.empty() && name[0] == '.') {
-                if (it->is_directory(ec)) it.disable_recursion_pending();
+                if (folder) it.disable_recursion_pending();
                 continue;
             }
-            std::error_code typeError;
+            if (folder) {
+                const std::string c = canonicalOrEmpty(p);
+                if (c.empty() || !seenFolders.insert(c).second || it.depth() + 1 >= kMaxDepth)
+                    it.disable_recursion_pending();
+                continue;
+            }
             if (!it->is_regular_file(typeError) || !isMeshFile(name)) continue;
             const std::string canonical = canonicalOrEmpty(p);
-            if (canonical.empty() || !seen.insert(canonical).second) continue;
+            if (canonical.empty() || seenFiles.count(canonical)) continue;
             LibraryEntry e;
-            e.label = p.lexically_relative(root).generic_string();
+            e.label = p.lexically_relative(rootPath).generic_string();
             e.type = ShapeType::Mesh;
-            e.path = canonical;
-            found.push_back(std::move(e));
+            e.path = p.lexically_normal().string();
+            auto [at, inserted] = found.emplace(canonical, e);
+            if (!inserted && e.label.size() < at->second.label.size()) at->second = std::move(e);
         }
-        std::sort(found.begin(), found.end(),
+        std::vector<LibraryEntry> sorted;
+        for (auto& [canonical, e] : found) {
+            seenFiles.insert(canonical);
+            sorted.push_back(std::move(e));
+        }
+        std::sort(sorted.begin(), sorted.end(),
                   [](const LibraryEntry& a, const LibraryEntry& b) { return a.label < b.label; });
-        for (LibraryEntry& e : found) {
+        for (LibraryEntry& e : sorted) {
             if (entries.size() >= maxEntries) return entries;
             entries.push_back(std::move(e));
         }
@@ -132,15 +159,11 @@ std::vector<LibraryEntry> listPrimitives() {
 // Scene-relative paths.
 
 std::string sceneRelativePath(const std::string& file, const std::string& scenePath) {
+    // Lexical: a path through a symlinked folder stays as the scene would spell it.
     const fs::path absoluteFile = fs::absolute(file).lexically_normal();
     const fs::path sceneDir = fs::absolute(scenePath).parent_path().lexically_normal();
-    // Resolve symlinks where the paths exist, so both sides are spelled alike.
-    std::error_code ec;
-    const fs::path fileReal = fs::weakly_canonical(absoluteFile, ec);
-    const fs::path dirReal = ec ? sceneDir : fs::weakly_canonical(sceneDir, ec);
-    const fs::path a = ec ? absoluteFile : fileReal, d = ec ? sceneDir : dirReal;
-    const fs::path relative = a.lexically_relative(d);
-    if (relative.empty()) return a.generic_string();
+    const fs::path relative = absoluteFile.lexically_relative(sceneDir);
+    if (relative.empty()) return absoluteFile.generic_string();
     return relative.generic_string();
 }
 

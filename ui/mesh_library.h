@@ -24,7 +24,7 @@ namespace penumbra {
 struct LibraryEntry {
     std::string label;  ///< menu text: "box", or the file's path below its root ("cgal/cow.off")
     ShapeType type = ShapeType::Box;
-    std::string path;  ///< meshes: the file's canonical absolute path; "" for primitives
+    std::string path;  ///< meshes: the file's absolute path below its root; "" for primitives
     std::string toString() const;
 };
 
@@ -36,8 +36,8 @@ struct LibraryEntry {
 bool isMeshFile(const std::string& path);
 
 /// The folders searched for meshes: `<folder of scenePath>/meshes` (when scenePath is not "")
-/// and `<sourceDir>/scenes/meshes` (when sourceDir is not ""), in that order, without
-/// duplicates (compared canonically) and only those that exist.
+/// and `<sourceDir>/scenes/meshes` (when sourceDir is not ""), in that order, absolute but
+/// with symlinks kept, without duplicates (compared canonically) and only those that exist.
 std::vector<std::string> meshLibraryRoots(const std::string& scenePath,
                                           const std::string& sourceDir);
 
@@ -45,8 +45,10 @@ std::vector<std::string> meshLibraryRoots(const std::string& scenePath,
 /// repository's checkout when the editor runs inside it; "" when there is none.
 std::string findSourceDir(const std::string& start);
 
-/// The mesh files below each root, recursively (symlinked folders are not followed), one entry
-/// per file (the first root that reaches a file names it), sorted by label within each root.
+/// The mesh files below each root, recursively (symlinked folders are followed, each folder
+/// entered once, at most 8 levels deep), one entry per file (compared canonically: the first
+/// root that reaches a file names it, with the shortest label there), sorted by label within
+/// each root.
 /// Labels use '/' separators; hidden files and folders ("." prefix) are skipped; unreadable
 /// folders are skipped silently. At most `maxEntries` entries.
 std::vector<LibraryEntry> listMeshes(const std::vector<std::string>& roots,

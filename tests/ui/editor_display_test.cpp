@@ -6,7 +6,11 @@
 //   without DISPLAY it exits 2 with one line;
 // - scripted input drives the real window: a click picks the table top, a drag on the
 //   gizmo's X handle moves it; the edit log gets select, transforms, unselect; the lighting
-//   changes; undo brings the table back.
+//   changes; undo brings the table back;
+// - the Add menu's library: a box and a mesh from scenes/meshes go onto the surface under the
+//   view centre, at the library sizes (world bounds from the solver's discretization), the
+//   box is what the centre pixel then sees, and the logged add names the mesh relative to the
+//   scene file so that the log replays.
 // Regenerate the reference: PENUMBRA_UPDATE_REFERENCE=1 xvfb-run -a ui_editor_display_test
 
 #include <gtest/gtest.h>
@@ -22,6 +26,7 @@
 #include "render/camera_rays.h"
 #include "render/image.h"
 #include "ui/editor_app.h"
+#include "ui/mesh_library.h"
 
 namespace penumbra {
 namespace {
@@ -222,6 +227,88 @@ TEST(EditorDisplay, ScriptedClickAndGizmoDragMoveTheTableAndChangeTheLight) {
     ASSERT_TRUE(runUntil(app, settled, 60));
     EXPECT_EQ(runner.document()->find("table-top")->transform.translate, pivot);
     EXPECT_LT(meanSrgbDifference(before, runner.image()->render.radiance), 0.3 * changed);
+    std::filesystem::remove(log);
+}
+
+/// Checks an added object's world bounds against the placement rule: the box touches the
+/// target's plane from the normal's side (1 mm off) and is centred on the point in the plane.
+void expectPlaced(const ObjectSummary& o, const PlacementTarget& target, const std::string& what) {
+    const Vec3 n = target.normal;
+    double support = 1e300;
+    for (int k = 0; k < 8; ++k) {
+        const Vec3 corner((k & 1) ? o.boundsMax.x : o.boundsMin.x,
+                          (k & 2) ? o.boundsMax.y : o.boundsMin.y,
+                          (k & 4) ? o.boundsMax.z : o.boundsMin.z);
+        support = std::min(support, glm::dot(corner - target.point, n));
+    }
+    EXPECT_NEAR(support, 1e-3, 1e-5) << what << " " << target.toString();
+    const Vec3 c = 0.5 * (o.boundsMin + o.boundsMax) - target.point;
+    EXPECT_NEAR(glm::length(c - glm::dot(c, n) * n), 0.0, 1e-5) << what << " " << target.toString();
+}
+
+TEST(EditorDisplay, AddMenuPutsLibraryShapesAndMeshesOnTheSurfaceUnderTheViewCentre) {
+    const std::string log = tempPath("add.jsonl");
+    std::filesystem::remove(log);
+    EditorOptions options;
+    options.scene = kSource + "/scenes/cube-room.json";
+    options.log = log;
+    options.width = 800;
+    options.height = 500;
+    options.quiet = true;
+    EditorApp app(options);
+    SessionRunner& runner = *app.runner();
+    ASSERT_TRUE(runUntil(
+        app, [&] { return runner.quiescent(); }, 60));
+
+    // A box from the library: kPrimitiveSize across, on what the centre pixel sees.
+    const PlacementTarget boxTarget = app.addTarget();
+    ASSERT_TRUE(boxTarget.onSurface) << boxTarget.toString();
+    const std::string boxId = app.addFromLibrary(listPrimitives().front());
+    EXPECT_EQ(boxId, "box-1");
+    EXPECT_EQ(app.selection(), boxId);
+    ASSERT_TRUE(runUntil(
+        app, [&] { return runner.quiescent() && runner.document()->find(boxId); }, 60));
+    const ObjectSummary box = *runner.document()->find(boxId);
+    EXPECT_EQ(box.shape, ShapeType::Box);
+    const Vec3 boxExtent = box.boundsMax - box.boundsMin;
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(boxExtent[k], EditorApp::kPrimitiveSize, 1e-6);
+    expectPlaced(box, boxTarget, "box");
+    const int w = app.viewportWidth(), h = app.viewportHeight();
+    EXPECT_EQ(runner.pick(app.viewCamera().toCamera(), w, h, 0.5 * w, 0.5 * h).id, boxId)
+        << "the new box should be what the view centre sees";
+
+    // A mesh from scenes/meshes: fitted to kMeshSize, on the box's face under the centre.
+    const auto& library = app.meshLibrary();
+    auto cow = std::find_if(library.begin(), library.end(),
+                            [](const LibraryEntry& e) { return e.label == "cgal/cow.off"; });
+    if (cow == library.end())
+        GTEST_SKIP() << "scenes/meshes/cgal/cow.off missing (scripts/setup.sh)";
+    const PlacementTarget meshTarget = app.addTarget();
+    ASSERT_TRUE(meshTarget.onSurface);
+    const std::string meshId = app.addFromLibrary(*cow);
+    EXPECT_EQ(meshId, "cow-1");
+    ASSERT_TRUE(runUntil(
+        app, [&] { return runner.quiescent() && runner.document()->find(meshId); }, 60));
+    const ObjectSummary mesh = *runner.document()->find(meshId);
+    EXPECT_EQ(mesh.shape, ShapeType::Mesh);
+    EXPECT_EQ(mesh.material, "wall");  // the scene's first non-emissive material
+    const Vec3 e = mesh.boundsMax - mesh.boundsMin;
+    EXPECT_NEAR(std::max({e.x, e.y, e.z}), EditorApp::kMeshSize, 1e-6);
+    expectPlaced(mesh, meshTarget, "mesh");
+
+    // The log: two adds; the mesh's file is relative to the scene and the line replays.
+    std::ifstream in(log);
+    std::vector<std::string> adds;
+    for (std::string line; std::getline(in, line);)
+        if (line.find("\"op\":\"add\"") != std::string::npos) adds.push_back(line);
+    ASSERT_EQ(adds.size(), 2u);
+    const auto json = nlohmann::json::parse(adds[1]);
+    EXPECT_EQ(json["object"]["shape"]["file"], "meshes/cgal/cow.off") << adds[1];
+    const EditCommand replayed = parseEditCommand(adds[1], {log, 2}, nullptr, kSource + "/scenes");
+    const auto& add = std::get<AddCommand>(replayed.op);
+    EXPECT_GT(add.object.shape.mesh.triangles.size(), 1000u);
+    std::printf("box at %s, cow at %s (bounds %.3f x %.3f x %.3f)\n",
+                box.transform.toString().c_str(), mesh.transform.toString().c_str(), e.x, e.y, e.z);
     std::filesystem::remove(log);
 }
 

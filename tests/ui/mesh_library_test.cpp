@@ -91,11 +91,18 @@ TEST(MeshLibrary, ListsMeshFilesRecursivelySortedWithoutHiddenOrDuplicates) {
     EXPECT_EQ(listMeshes({meshes, other}, 2).size(), 2u);
     EXPECT_TRUE(listMeshes({(tree.root / "missing").string()}).empty());
 
+    // A symlinked folder is followed (setups link a mesh collection in); a link cycle ends.
+    fs::create_directory_symlink(tree.root / "other", tree.root / "meshes/linked");
+    fs::create_directory_symlink(tree.root / "meshes", tree.root / "meshes/c/loop");
+    const auto linked = labels(listMeshes({meshes}));
+    EXPECT_EQ(linked, (std::vector<std::string>{"a/z.PLY", "b.obj", "c/d/e.glb", "linked/x.stl"}));
+
     // Roots: the scene's meshes/ folder, existing ones only, without duplicates.
     tree.touch("scene.json");
     const std::string scene = (tree.root / "scene.json").string();
-    EXPECT_EQ(meshLibraryRoots(scene, ""),
-              (std::vector<std::string>{fs::canonical(meshes).string()}));
+    const auto sceneRoots = meshLibraryRoots(scene, "");
+    ASSERT_EQ(sceneRoots.size(), 1u);
+    EXPECT_TRUE(fs::equivalent(sceneRoots[0], meshes));
     EXPECT_TRUE(meshLibraryRoots((tree.root / "other/s.json").string(), "").empty());
 
     // The source folder: the nearest ancestor holding scenes/meshes.
