@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -413,13 +415,22 @@ std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility&
                                            const ProgressiveSolver* solver) {
     mShader->cancelPending();
     if (!mOptions.synchronous) (void)mShader->takeResults();
+    const auto t0 = Clock::now();
     const int old = mShader->previewObject();
     const std::vector<double> before = elementShading();
     std::size_t dropped = invalidateVersion(old) + invalidateVersion(previewVersion);
+    const double t1 = msSince(t0);
     // The moving shadow: elements whose preview-world direct lighting changed.
     dropped += invalidateElementList(mShader->setPreview(previewVersion, previewOnly));
+    const double t2 = msSince(t0);
     if (solver) mShader->updateSolution(*solver);
+    const double t3 = msSince(t0);
     dropped += invalidateChangedShading(before);
+    if (std::getenv("PENUMBRA_DISPLAY_TRACE"))
+        std::fprintf(stderr,
+                     "InteractiveDisplay::setPreview: invalidate %.1f, shader %.1f, solution "
+                     "%.1f, shading %.1f ms\n",
+                     t1, t2 - t1, t3 - t2, msSince(t0) - t3);
     return dropped;
 }
 

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <glm/gtc/constants.hpp>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -365,28 +366,6 @@ std::vector<Rgb> PointShader::elementDirect() const {
 // ---------------------------------------------------------------------------------------------
 // Drag preview
 
-Rgb PointShader::computePreviewDirect(int e, int object, const Visibility& world) const {
-    // computeElementDirect in the world with the preview object.
-    const Element& el = mDisc.elements()[e];
-    if (!mDisc.objects()[el.object].alive && el.object != object) return Rgb(0.0);
-    Rgb sum(0.0);
-    for (std::size_t j = 0; j < mDisc.patches().size(); ++j) {
-        const Patch& P = mDisc.patches()[j];
-        if (!mDisc.objects()[P.object].alive) continue;
-        const Rgb& emission = mDisc.patchMaterial(static_cast<int>(j)).emission;
-        if (isZero(emission) || el.patch == static_cast<int>(j)) continue;
-        Vec3 toReceiver = el.centroid - P.centroid;
-        if (glm::dot(toReceiver, P.normal) < -P.radius) continue;
-        if (glm::dot(-toReceiver, el.normal) < -P.radius) continue;
-        PointToPatch ff =
-            formFactorToPatch(mDisc, mTracer, el.centroid, el.normal, static_cast<int>(j),
-                              static_cast<std::uint64_t>(e), mSolverOptions.seed,
-                              mSolverOptions.maxRaysPerPair, world);
-        sum += emission * ff.visible;
-    }
-    return sum;
-}
-
 std::vector<int> PointShader::setPreview(int object, const Visibility& previewOnly) {
     if (object < 0 || object >= static_cast<int>(mDisc.objects().size()))
         throw std::invalid_argument("PointShader::setPreview: no object " + std::to_string(object));
@@ -397,7 +376,6 @@ std::vector<int> PointShader::setPreview(int object, const Visibility& previewOn
     for (std::size_t o = 0; o < mDisc.objects().size(); ++o)
         next->previewWorld[o] = mDisc.objects()[o].alive ? 1 : 0;
     next->previewWorld[object] = 1;
-    const Visibility world = next->worldVisibility();
 
     // The preview's bounding sphere.
     const auto& ws = mDisc.objects()[object].worldPositions;
@@ -410,44 +388,49 @@ std::vector<int> PointShader::setPreview(int object, const Visibility& previewOn
     mElementDirect.resize(n, Rgb(0.0));
     std::vector<Rgb> delta(n, Rgb(0.0));
     std::vector<std::uint8_t> touched(n, 0);
-    const std::vector<int> emitters = emitterPatches(mDisc);
-    // The object's own elements: H_direct in the preview world. Others: Σ_j E_j·(F_preview −
-    // F_scene), traced in both worlds only for samples that meet the object (formFactorChange),
-    // for elements whose shaft to an emitter patch can meet its bounding sphere.
+    // Lights' bounding spheres, for the shaft test.
+    std::vector<std::pair<Vec3, double>> lightSpheres;
+    for (const Light& L : next->lights) {
+        Vec3 llo(std::numeric_limits<double>::infinity()), lhi(-llo);
+        for (const auto& poly : L.polygons)
+            for (const Vec3& p : poly) llo = glm::min(llo, p), lhi = glm::max(lhi, p);
+        lightSpheres.push_back({0.5 * (llo + lhi), 0.5 * glm::length(lhi - llo)});
+    }
+    // H_direct per element at its centroid with the point shading's light sampling (seeded by
+    // the element): the object's own elements in the preview world; other elements whose shaft
+    // to a light can meet the object's bounding sphere get the change the object makes (only
+    // rays the object blocks are traced twice).
+    const State& st = *next;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& r) {
         for (std::size_t e = r.begin(); e != r.end(); ++e) {
             const Element& el = mDisc.elements()[e];
-            const int ie = static_cast<int>(e);
+            const std::uint64_t key = hashPair(mOptions.seed ^ 0x5EEDull, e);
             if (el.object == object) {
-                delta[e] = computePreviewDirect(ie, object, world) - mElementDirect[e];
+                delta[e] = directWith(st, el.centroid, el.normal, object, key) - mElementDirect[e];
                 touched[e] = 1;
                 continue;
             }
             if (!mDisc.objects()[el.object].alive || ws.empty()) continue;
-            Rgb sum(0.0);
-            bool any = false;
-            for (int j : emitters) {
-                const Patch& P = mDisc.patches()[j];
-                if (el.patch == j) continue;
-                const Vec3 a = el.centroid, d = P.centroid - a;
+            // Only what lies in front of the element can block its shadow rays.
+            if (glm::dot(el.normal, centre - el.centroid) < -radius) continue;
+            // The shaft to a light is a cone from the element's centroid (an element is small
+            // next to the object) to the light's bounding sphere: radius t·r at parameter t.
+            // Conservative test: the sphere can only meet it for t ≤ t* + (R + r)/|d|.
+            bool inShaft = false;
+            for (const auto& [c, rl] : lightSpheres) {
+                const Vec3 a = el.centroid, d = c - a;
                 const double dd = glm::dot(d, d);
-                const double t = dd > 0 ? std::clamp(glm::dot(centre - a, d) / dd, 0.0, 1.0) : 0;
-                if (glm::length(centre - (a + t * d)) > radius + P.radius) continue;
-                const Vec3 toReceiver = el.centroid - P.centroid;
-                if (glm::dot(toReceiver, P.normal) < -P.radius) continue;
-                if (glm::dot(-toReceiver, el.normal) < -P.radius) continue;
-                any = true;
-                const Visibility scene;
-                const Visibility changed = previewOnly.subset >= 0 ? previewOnly : world;
-                const PointToPatch ff = formFactorChange(
-                    mDisc, mTracer, el.centroid, el.normal, j, static_cast<std::uint64_t>(e),
-                    mSolverOptions.seed, mSolverOptions.maxRaysPerPair, scene, world, changed);
-                sum += mDisc.patchMaterial(j).emission * ff.visible;
+                if (!(dd > 0)) continue;
+                const double t = std::clamp(glm::dot(centre - a, d) / dd, 0.0, 1.0);
+                const double tMax = std::min(1.0, t + (radius + rl) / std::sqrt(dd));
+                if (glm::length(centre - (a + t * d)) <= radius + tMax * rl) {
+                    inShaft = true;
+                    break;
+                }
             }
-            if (any) {
-                delta[e] = sum;
-                touched[e] = 1;
-            }
+            if (!inShaft) continue;
+            delta[e] = previewChange(st, el.centroid, el.normal, el.object, key);
+            touched[e] = !isZero(delta[e]);
         }
     });
     // Elements whose preview direct changed: the old preview's and the new one's.
@@ -608,6 +591,43 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
         if (f > 0) total += L.emission * f;
     }
     return total;
+}
+
+Rgb PointShader::previewChange(const State& st, const Vec3& x, const Vec3& n, int receiver,
+                               std::uint64_t key) const {
+    // directWith's samples (same lights, strata and pattern), counting only the rays the
+    // preview object blocks and the scene does not: the change of the blocked part.
+    const double eps = mTracer.epsilon();
+    const double invPi = glm::one_over_pi<double>();
+    const Vec3 from = x + n * eps;
+    Rgb change(0.0);
+    for (std::size_t l = 0; l < st.lights.size(); ++l) {
+        const Light& L = st.lights[l];
+        if (L.planar && L.object == receiver) continue;
+        double fUnoccluded = 0;
+        for (const auto& poly : L.polygons) fUnoccluded += polygonFormFactor(x, n, poly);
+        if (!(fUnoccluded > 0)) continue;
+        int perAxis =
+            static_cast<int>(std::ceil(std::sqrt(fUnoccluded / mOptions.formFactorPerRay)));
+        perAxis = std::clamp(perAxis, 1, std::max(1, mOptions.maxStrataPerAxis));
+        const int rays = perAxis * perAxis;
+        SampleRandom rng{hashPair(key, l)};
+        double blocked = 0;
+        for (int i = 0; i < rays; ++i) {
+            double r0 = rng.next(), r1 = rng.next();
+            Vec3 ny;
+            Vec3 y = L.sample(i, rays, perAxis, r0, r1, ny);
+            Vec3 d = y - x;
+            double r2 = glm::dot(d, d);
+            double cx = glm::dot(n, d), cy = -glm::dot(ny, d);
+            if (!(r2 > 0) || cx <= 0 || cy <= 0) continue;
+            const Vec3 to = y + ny * eps;
+            if (!previewBlocks(st, from, to) || mTracer.occluded(from, to)) continue;
+            blocked += cx * cy / (r2 * r2) * invPi;
+        }
+        change -= L.emission * std::min(blocked * (L.area / rays), fUnoccluded);
+    }
+    return change;
 }
 
 RayHit PointShader::traceWith(const State& st, const Vec3& origin, const Vec3& direction) const {

@@ -151,13 +151,15 @@ public:
     /// scene: primary rays see it and shadow rays are blocked by it. `previewOnly` must admit
     /// exactly that object (a RayTracer::createSubset visibility, kept alive by the caller while
     /// the preview is set); without a subset the rays use a Visibility::world filter over
-    /// every version (correct, slower as drag versions pile up). Computes H_direct in the
-    /// preview world for the object's elements and, with formFactorChange, for the elements
-    /// whose shaft to an emitter meets its bounding sphere. From the next updateSolution() on,
-    /// the irradiance is H_e + T_e/ρ_e, T = the solver's previewRadiosity() (when the solver's
-    /// previewObject() is `object`), so H_indirect = H_e + T_e/ρ_e − H_direct,preview(e): the
-    /// per-sample direct light shows the object's shadow, the buffer its reflected light.
-    /// Call while paused (or without workers). Returns the elements whose H_direct changed.
+    /// every version (correct, slower as drag versions pile up). Estimates H_direct in the
+    /// preview world at element centroids with the point sampling of directIrradiance: for
+    /// the object's elements, and the change the object makes for elements whose shaft to a
+    /// light meets its bounding sphere (rays traced twice only where the object blocks). From the
+    /// next updateSolution() on, the irradiance is H_e + T_e/ρ_e, T = the solver's
+    /// previewRadiosity() (when the solver's previewObject() is `object`), so H_indirect = H_e +
+    /// T_e/ρ_e − H_direct,preview(e): the per-sample direct light shows the object's shadow, the
+    /// buffer its reflected light. Call while paused (or without workers). Returns the elements
+    /// whose H_direct changed.
     std::vector<int> setPreview(int object, const Visibility& previewOnly = {});
     /// Back to the scene without a preview object (H_direct as before setPreview).
     std::vector<int> clearPreview();
@@ -232,11 +234,12 @@ private:
     RayHit traceWith(const State& state, const Vec3& origin, const Vec3& direction) const;
     /// Whether the preview object blocks the segment (false without a preview).
     bool previewBlocks(const State& state, const Vec3& from, const Vec3& to) const;
-    /// H_direct(e) in the world with the preview object `object` (all emitters, the solver's
-    /// pair-seeded form factors).
-    Rgb computePreviewDirect(int element, int object, const Visibility& world) const;
     Rgb directWith(const State& state, const Vec3& x, const Vec3& n, int receiver,
                    std::uint64_t key) const;
+    /// The change of directWith's estimate that the preview object makes (≤ 0: only rays it
+    /// blocks and the scene does not count).
+    Rgb previewChange(const State& state, const Vec3& x, const Vec3& n, int receiver,
+                      std::uint64_t key) const;
     void recordTriple(const ShadowTriple& t) const;
     void workerLoop();
 

@@ -64,8 +64,8 @@ SessionRunner::~SessionRunner() {
     mRenderWake.notify_all();
     if (mSolverThread.joinable()) mSolverThread.join();
     if (mRenderThread.joinable()) mRenderThread.join();
-    // The display's shader workers may use the preview subset until they are joined.
-    mDisplay.reset();
+    // The displays' shader workers may use the preview subset until they are joined.
+    for (DisplaySlot& slot : mSlots) slot.display.reset();
 }
 
 void SessionRunner::runSolver() {
@@ -243,8 +243,9 @@ bool SessionRunner::solverIteration() {
         // The display's asynchronous shader reads the structure: paused while it changes, and
         // told what changed before it resumes.
         std::unique_lock<std::mutex> displayLock(mDisplayMutex);
-        std::optional<PointShader::Pause> pause;
-        if (mDisplay) pause.emplace(mDisplay->shader());
+        std::optional<PointShader::Pause> pauses[2];
+        for (int i = 0; i < 2; ++i)
+            if (mSlots[i].display) pauses[i].emplace(mSlots[i].display->shader());
         const double a1 = nowSeconds();
         std::vector<int> changed;
         bool structural = false;
@@ -270,30 +271,32 @@ bool SessionRunner::solverIteration() {
         // version, alone in a tracer subset the display's rays test besides the scene.
         const int preview = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
         const bool previewMoved = preview != mPreviewVersion || (preview >= 0 && previewTouched);
-        try {
-            // Unselect: the display leaves the preview before it sees the object added back.
-            if (mDisplay && mDisplay->previewVersion() >= 0 && preview < 0)
-                mDisplay->clearPreview();
-            if (mDisplay && (!changed.empty() || structural)) {
-                std::sort(changed.begin(), changed.end());
-                changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
-                mDisplay->notifyChanged(changed, &mSession->solver());
-                mDisplaySolutionStale = false;
+        std::sort(changed.begin(), changed.end());
+        changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+        // Unselect, select: live displays leave the preview before they see the object added
+        // back, and see it removed before they show the preview; then the subset follows.
+        for (int i = 0; i < 2; ++i) {
+            DisplaySlot& slot = mSlots[i];
+            if (!slot.display) continue;
+            if (liveSlot(i) && !slot.behind) {
+                applyDisplayEdits(slot, changed, structural, false);
+            } else if (!changed.empty() || structural || previewTouched) {
+                slot.behind = true;
+                slot.pendingChanged.insert(slot.pendingChanged.end(), changed.begin(),
+                                           changed.end());
+                slot.pendingStructural = slot.pendingStructural || structural;
             }
-            if (preview != mPreviewVersion) {
-                mPreviewSubset.reset();
-                if (preview >= 0)
-                    mPreviewSubset = RayTracer::SubsetHandle(mSession->tracer(), {preview});
-                mPreviewVersion = preview;
-            }
-            if (mDisplay && preview >= 0 && (previewMoved || mDisplay->previewVersion() < 0)) {
-                mDisplay->setPreview(preview, mPreviewSubset.visibility(), &mSession->solver());
-                mDisplaySolutionStale = false;
-            }
-        } catch (const std::exception& e) {
-            report(std::string("display: ") + e.what());
         }
-        pause.reset();
+        if (preview != mPreviewVersion) {
+            mPreviewSubset.reset();
+            if (preview >= 0)
+                mPreviewSubset = RayTracer::SubsetHandle(mSession->tracer(), {preview});
+            mPreviewVersion = preview;
+        }
+        for (int i = 0; i < 2; ++i)
+            if (mSlots[i].display && liveSlot(i) && !mSlots[i].behind)
+                applyDisplayEdits(mSlots[i], {}, false, previewMoved);
+        for (auto& pause : pauses) pause.reset();
         displayLock.unlock();
         publishDocument();
         publishLight();
@@ -420,20 +423,87 @@ bool SessionRunner::renderIteration() {
 // ---------------------------------------------------------------------------------------------
 // The display modes.
 
+void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>& changed,
+                                      bool structural, bool previewMoved) {
+    InteractiveDisplay& d = *slot.display;
+    const int preview = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
+    try {
+        if (!previewMoved) {
+            // The edits themselves (the subset still is the previous preview's).
+            if (d.previewVersion() >= 0 && preview < 0) d.clearPreview();
+            if (!changed.empty() || structural) {
+                const double t0 = nowSeconds();
+                d.notifyChanged(changed, &mSession->solver());
+                slot.solution = mSolutionSerial;
+                if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+                    std::fprintf(stderr, "display %dx%d: notifyChanged %zu in %.1f ms\n", d.width(),
+                                 d.height(), changed.size(), (nowSeconds() - t0) * 1e3);
+            }
+            return;
+        }
+        // After the subset follows mPreviewVersion: the new preview position.
+        if (preview >= 0) {
+            const double t0 = nowSeconds();
+            const std::size_t dropped =
+                d.setPreview(preview, mPreviewSubset.visibility(), &mSession->solver());
+            slot.solution = mSolutionSerial;
+            if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+                std::fprintf(stderr, "display %dx%d: preview %d in %.1f ms, %zu points dropped\n",
+                             d.width(), d.height(), preview, (nowSeconds() - t0) * 1e3, dropped);
+        }
+    } catch (const std::exception& e) {
+        report(std::string("display: ") + e.what());
+    }
+}
+
+void SessionRunner::catchUpDisplay(DisplaySlot& slot) {
+    InteractiveDisplay& d = *slot.display;
+    const double t0 = nowSeconds();
+    PointShader::Pause pause(d.shader());
+    try {
+        // Its preview subset may have been released: leave the preview first.
+        d.clearPreview();
+        std::vector<int>& changed = slot.pendingChanged;
+        std::sort(changed.begin(), changed.end());
+        changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+        if (!changed.empty() || slot.pendingStructural) d.notifyChanged(changed);
+        if (mPreviewVersion >= 0) d.setPreview(mPreviewVersion, mPreviewSubset.visibility());
+        d.updateSolution(mSession->solver());
+        slot.solution = mSolutionSerial;
+    } catch (const std::exception& e) {
+        report(std::string("display: ") + e.what());
+    }
+    if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+        std::fprintf(stderr, "display %dx%d: caught up (%zu changed objects) in %.1f ms\n",
+                     d.width(), d.height(), slot.pendingChanged.size(), (nowSeconds() - t0) * 1e3);
+    slot.pendingChanged.clear();
+    slot.pendingStructural = false;
+    slot.behind = false;
+}
+
 void SessionRunner::updateDisplaySolution(bool wait) {
-    if (!mDisplaySolutionStale) return;
+    if (!mDisplayWork) return;
     std::unique_lock<std::mutex> lock(mDisplayMutex, std::defer_lock);
     if (wait)
         lock.lock();
     else if (!lock.try_lock())
         return;
-    if (!mDisplay) return;
-    try {
-        mDisplay->updateSolution(mSession->solver());
-        mDisplaySolutionStale = false;
-    } catch (const std::exception& e) {
-        report(std::string("display: ") + e.what());
+    bool more = false;
+    for (int i = 0; i < 2; ++i) {
+        DisplaySlot& slot = mSlots[i];
+        if (!slot.display || !liveSlot(i)) continue;
+        if (slot.behind) {
+            catchUpDisplay(slot);
+        } else if (slot.solution != mSolutionSerial) {
+            try {
+                slot.display->updateSolution(mSession->solver());
+                slot.solution = mSolutionSerial;
+            } catch (const std::exception& e) {
+                report(std::string("display: ") + e.what());
+            }
+        }
     }
+    mDisplayWork = more;
 }
 
 bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
@@ -442,40 +512,94 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     const double now = nowSeconds();
     if (now - mLastDisplayFrame < mOptions.displayFrameMs * 1e-3) return false;
     mLastDisplayFrame = now;
-    const int divisor = std::max(1, mOptions.displayDivisor);
-    const int w = std::max(4, view.width / divisor / 4 * 4);
-    const int h = std::max(4, view.height / divisor / 4 * 4);
-    const CameraRays rays(view.camera, w, h);
     auto img = std::make_shared<ViewportImage>();
     std::lock_guard<std::mutex> displayLock(mDisplayMutex);
-    try {
-        if (!mDisplay || mDisplay->width() != w || mDisplay->height() != h) {
-            mDisplay.reset();
+    // Interactive views (camera moves, drags) render a second, smaller display, and the full
+    // one again when the interaction stops; each switch waits until the other display is up
+    // to date (the solver thread catches it up between shots).
+    const bool reduce = mOptions.interactiveDisplayDivisor != 1;
+    const int want = reduce && view.interactive ? 1 : 0;
+    if (want != mWantedSlot) {
+        mWantedSlot = want;
+        if (mSlots[want].display && !mSlots[want].ready()) {
+            mDisplayWork = true;
+            mWake.notify_all();
+        }
+    }
+    DisplaySlot& wanted = mSlots[want];
+    if (wanted.display && (wanted.viewWidth != view.width || wanted.viewHeight != view.height))
+        wanted.display.reset();
+    if (!wanted.display) {
+        int d = std::max(1, mOptions.displayDivisor);
+        if (want == 1) {
+            int r = mOptions.interactiveDisplayDivisor;
+            if (r <= 0) {
+                r = 2;
+                if (mSlots[0].frameMs > 0)
+                    r = static_cast<int>(
+                        std::ceil(std::sqrt(mSlots[0].frameMs / mOptions.interactiveImageMs)));
+                r = std::clamp(r, 2, std::max(2, mOptions.maxReducedDivisor));
+            }
+            d *= r;
+        }
+        const int w = std::max(4, view.width / d / 4 * 4);
+        const int h = std::max(4, view.height / d / 4 * 4);
+        try {
             InteractiveDisplayOptions options;
             options.width = w;
             options.height = h;
             options.synchronous = false;
-            mDisplay =
+            if (want == 1) {
+                // Interaction: shadow edges are not worth their cost (tens of thousands of
+                // them in robot-room, and stale while an object is dragged: the edge finder
+                // does not see the preview); a few more samples per (smaller) frame.
+                options.shadowEdges = false;
+                options.sampleFraction = 0.04;
+            }
+            wanted.display =
                 std::make_unique<InteractiveDisplay>(mSession->discretization(), mSession->tracer(),
                                                      interactiveSolverOptions(), options);
+            wanted.viewWidth = view.width;
+            wanted.viewHeight = view.height;
+            wanted.behind = false;
+            wanted.pendingChanged.clear();
+            wanted.pendingStructural = false;
+            wanted.solution = 0;
+            wanted.frameMs = 0;
             // A drag in progress: the preview version and its subset are current (the solver
             // thread changes them only with the structure held exclusively).
             if (mPreviewVersion >= 0)
-                mDisplay->setPreview(mPreviewVersion, mPreviewSubset.visibility());
-            mDisplay->warmUp(rays);
-            mDisplaySolutionStale = true;  // the solver thread hands it the solution
-            mWake.notify_all();
+                wanted.display->setPreview(mPreviewVersion, mPreviewSubset.visibility());
+            wanted.display->warmUp(CameraRays(view.camera, w, h));
+        } catch (const std::exception& e) {
+            wanted.display.reset();
+            report(std::string("display: ") + e.what());
+            return false;
         }
+        mDisplayWork = true;  // the solver thread hands it the solution
+        mWake.notify_all();
+    }
+    // Switch when the wanted display has the solution and every edit, or when the shown one
+    // is gone.
+    if (mActiveSlot != want && (wanted.ready() || !mSlots[mActiveSlot].display)) {
+        if (mSlots[mActiveSlot].display) mSlots[mActiveSlot].display->shader().cancelPending();
+        mActiveSlot = want;
+    }
+    DisplaySlot& slot = mSlots[mActiveSlot];
+    InteractiveDisplay* display = slot.display.get();
+    const int w = display->width(), h = display->height();
+    const CameraRays rays(view.camera, w, h);
+    try {
         const double r0 = nowSeconds();
-        img->render.radiance = mDisplay->renderFrame(rays, view.mode != ViewMode::Cache);
-        img->display = mDisplay->lastFrame();
+        img->render.radiance = display->renderFrame(rays, view.mode != ViewMode::Cache);
+        img->display = display->lastFrame();
         img->render.rgba = encodeDisplay(img->render.radiance);
         if (view.mode == ViewMode::EdgesOverlay) {
-            blendEdges(img->render.rgba, mDisplay->edgeImage());
+            blendEdges(img->render.rgba, display->edgeImage());
         } else if (view.mode == ViewMode::SamplesOverlay) {
             // This frame's new samples (age 0 after insertion) as dots.
             std::vector<std::uint8_t> flags(static_cast<std::size_t>(w) * h, 0);
-            for (const ScreenPoint& p : mDisplay->cache().screenPoints()) {
+            for (const ScreenPoint& p : display->cache().screenPoints()) {
                 const int x = static_cast<int>(p.position.x), y = static_cast<int>(p.position.y);
                 if (p.age == 0 && x >= 0 && y >= 0 && x < w && y < h)
                     flags[static_cast<std::size_t>(y) * w + x] = 1;
@@ -493,9 +617,10 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                 solverIdle = mSolver.idle;
             }
             const bool waiting = view.referenceRequest != mReferenceDone;
-            if (waiting && sized && solverIdle && !mDisplaySolutionStale) {
+            if (waiting && sized && solverIdle && slot.ready() &&
+                slot.solution == mSolutionSerial) {
                 const CameraRays low(view.camera, w / f, h / f);
-                mReference = mDisplay->renderReference(low, 2);
+                mReference = display->renderReference(low, 2);
                 mReferenceCamera = view.camera;
                 mReferenceDone = view.referenceRequest;
             }
@@ -510,10 +635,12 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
             }
         }
         img->renderMs = (nowSeconds() - r0) * 1e3;
+        slot.frameMs = slot.frameMs > 0 ? 0.7 * slot.frameMs + 0.3 * img->renderMs : img->renderMs;
     } catch (const std::exception& e) {
         report(std::string("display: ") + e.what());
         return false;
     }
+    img->reduced = mActiveSlot == 1;
     if (std::getenv("PENUMBRA_EDITOR_TRACE"))
         std::fprintf(stderr, "display %dx%d %.1f ms %s\n", w, h, img->renderMs,
                      img->display.toString().c_str());
@@ -587,7 +714,8 @@ void SessionRunner::publishLight() {
         light.pending = std::move(pending);
         light.pendingScale = n > 0 ? 0.05 * sum / double(n) : 0.0;
     }
-    mDisplaySolutionStale = true;
+    ++mSolutionSerial;
+    mDisplayWork = true;
     updateDisplaySolution(false);
     {
         std::lock_guard<std::mutex> lock(mPublishMutex);

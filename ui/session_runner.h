@@ -128,7 +128,11 @@ struct SessionRunnerOptions {
     int displayDivisor = 1;          ///< display modes: viewport / d pixels (rounded to 4)
     double displayFrameMs = 30;      ///< display modes: at least this long between frames
     int settleFrames = 40;           ///< display modes: frames before quiescent()
-    int referenceDivisor = 4;        ///< difference mode: reference at display / d pixels
+    /// Display modes while the view is interactive: a second display at viewport /
+    /// (displayDivisor · d) pixels; 0 picks d from the full display's frame time so a frame
+    /// takes about interactiveImageMs (2 ≤ d ≤ maxReducedDivisor); 1 turns it off.
+    int interactiveDisplayDivisor = 0;
+    int referenceDivisor = 4;  ///< difference mode: reference at display / d pixels
 };
 
 class SessionRunner {
@@ -250,10 +254,35 @@ private:
     bool mSolverIdle = false;
     // Render-thread state.
     double mMsPerPixel = 0;  ///< running estimate of the render cost
-    // The display (created by the render thread; every call under mDisplayMutex).
+    // The displays (created by the render thread; every call under mDisplayMutex). Slot 0
+    // renders at displayDivisor; slot 1, while the view is interactive (camera moves, drags),
+    // at a reduced resolution: an InteractiveDisplay's size is fixed, so each keeps its cache.
+    // Only the live slots (the one shown and the one wanted next) take edits as they come; the
+    // other collects them (behind) and the solver thread brings it up to date (catchUpDisplay)
+    // before the render thread switches to it.
+    struct DisplaySlot {
+        std::unique_ptr<InteractiveDisplay> display;
+        int viewWidth = 0, viewHeight = 0;  ///< the viewport size it was made for
+        std::uint64_t solution = 0;         ///< mSolutionSerial it has, 0 none yet
+        bool behind = false;                ///< missed edits (pendingChanged, the preview)
+        std::vector<int> pendingChanged;
+        bool pendingStructural = false;
+        double frameMs = 0;  ///< running estimate of its frame time
+        bool ready() const { return display && !behind && solution != 0; }
+    };
+    /// Tells a live slot's display about edits (solver thread, shader paused).
+    void applyDisplayEdits(DisplaySlot& slot, const std::vector<int>& changed, bool structural,
+                           bool previewMoved);
+    /// Brings a slot that missed edits up to date (solver thread, display mutex held).
+    void catchUpDisplay(DisplaySlot& slot);
+    bool liveSlot(int i) const { return i == mActiveSlot || i == mWantedSlot; }
     std::mutex mDisplayMutex;
-    std::unique_ptr<InteractiveDisplay> mDisplay;
-    std::atomic<bool> mDisplaySolutionStale{false};
+    DisplaySlot mSlots[2];
+    int mActiveSlot = 0;  ///< the slot rendered
+    int mWantedSlot = 0;  ///< the slot the view asks for (1 while interactive)
+    /// Published solutions (publishLight); a slot with an older one needs updateSolution.
+    std::atomic<std::uint64_t> mSolutionSerial{1};
+    std::atomic<bool> mDisplayWork{false};  ///< a live slot waits for the solver thread
     double mLastDisplayFrame = 0;
     /// The drag preview version (-1 none) and a tracer subset of it alone; written by the
     /// solver thread with mStructure held exclusively and the display's shader paused.
