@@ -1,7 +1,7 @@
 // The viewport's display modes in the real editor window (CTest label `display`, under
 // `xvfb-run -a`):
-// - penumbra-editor --mode epi on cube-room, once the lighting is converged and the display has
-//   rendered its settle frames, shows nearly the Gouraud picture (the same radiosity solution
+// - edge-and-point on cube-room, once the lighting is converged and the display has rendered
+//   its settle frames, shows nearly the Gouraud picture (the same radiosity solution
 //   seen through the point shader's direct + indirect shading), and the edges overlay visibly
 //   differs from the plain edge-and-point image;
 // - out-of-date: converged, nothing is tinted; after an add and a few redistribution shots with
@@ -37,76 +37,9 @@ namespace {
 
 const std::string kSource = PENUMBRA_SOURCE_DIR;
 
-std::string tempPath(const std::string& name) {
-    return (std::filesystem::temp_directory_path() /
-            ("penumbra_modes_" + std::to_string(::getpid()) + "_" + name))
-        .string();
-}
-
 int runCommand(const std::string& command) {
     const int status = std::system(command.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-/// Screenshot of cube-room in `mode` (800 × 500 window: a 440 × 456 viewport).
-Image screenshot(const std::string& mode) {
-    const std::string shot = tempPath(mode + ".png");
-    const std::string command = std::string(PENUMBRA_EDITOR_EXE) + " " + kSource +
-                                "/scenes/cube-room.json --mode " + mode + " --screenshot " + shot +
-                                " --frames 10 --width 800 --height 500 --quiet";
-    EXPECT_EQ(runCommand(command), 0) << command;
-    Image image = readPng(shot);
-    std::filesystem::remove(shot);
-    return image;
-}
-
-/// Mean |a − b| (sRGB, [0, 1]) over the viewport: left of the 360-pixel panel, between the menu
-/// bar and the status bar (the status text differs between modes).
-double viewportDifference(const Image& a, const Image& b) {
-    double sum = 0;
-    std::size_t n = 0;
-    for (int y = 24; y < a.height - 28; ++y)
-        for (int x = 0; x < a.width - 364; ++x, ++n)
-            for (int c = 0; c < 3; ++c)
-                sum += std::abs(srgbEncode(a.at(x, y)[c]) - srgbEncode(b.at(x, y)[c]));
-    return sum / (3.0 * n);
-}
-
-/// Fraction of viewport pixels where some channel differs by more than `threshold` (sRGB).
-double changedFraction(const Image& a, const Image& b, double threshold) {
-    std::size_t changed = 0, n = 0;
-    for (int y = 24; y < a.height - 28; ++y)
-        for (int x = 0; x < a.width - 364; ++x, ++n) {
-            double d = 0;
-            for (int c = 0; c < 3; ++c)
-                d = std::max(d, std::abs(srgbEncode(a.at(x, y)[c]) - srgbEncode(b.at(x, y)[c])));
-            changed += d > threshold ? 1 : 0;
-        }
-    return double(changed) / double(n);
-}
-
-TEST(ViewModeDisplay, EdgeAndPointMatchesGouraudAndTheEdgesOverlayDiffers) {
-    const Image gouraud = screenshot("gouraud");
-    const Image epi = screenshot("epi");
-    const Image edges = screenshot("edges");
-    ASSERT_EQ(gouraud.width, 800);
-    ASSERT_EQ(epi.width, gouraud.width);
-    ASSERT_EQ(epi.height, gouraud.height);
-    ASSERT_EQ(edges.width, gouraud.width);
-    const double epiVsGouraud = viewportDifference(epi, gouraud);
-    const double edgesVsEpi = changedFraction(edges, epi, 0.15);
-    // Bound: the two renderers differ in shading (per-pixel point shading with exact direct
-    // light vs per-vertex interpolation) and at silhouettes; measured 0.005 when settled. A mean
-    // sRGB difference of 0.02 is five grey levels in every pixel; an empty, unlit or direct-only
-    // image is far beyond it.
-    EXPECT_LT(epiVsGouraud, 0.02);
-    // The overlay paints the simple/complex pixels along every edge (about 2.5% of the viewport
-    // in cube-room): more than 1% of the pixels change by over 0.15 in some channel.
-    EXPECT_GT(edgesVsEpi, 0.01);
-    std::printf(
-        "viewport mean sRGB |epi - gouraud| %.4f (bound 0.02); pixels changed by the "
-        "edges overlay %.4f (bound > 0.01)\n",
-        epiVsGouraud, edgesVsEpi);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -130,7 +63,7 @@ EditorOptions cubeRoom(ViewMode mode) {
     EditorOptions options;
     options.scene = kSource + "/scenes/cube-room.json";
     options.width = 800;
-    options.height = 500;
+    options.height = 499;  // a 440 × 456 viewport: multiples of 4, as the display renders
     options.quiet = true;
     options.mode = mode;
     return options;
@@ -165,6 +98,62 @@ int rgbaDifference(const std::vector<std::uint8_t>& a, const std::vector<std::ui
     int d = 0;
     for (int c = 0; c < 3; ++c) d = std::max(d, std::abs(int(a[4 * i + c]) - int(b[4 * i + c])));
     return d;
+}
+
+TEST(ViewModeDisplay, EdgeAndPointMatchesGouraudAndTheEdgesOverlayDiffers) {
+    // Converged under the Gouraud view, then the display modes of the same view at half the
+    // viewport's resolution (--display-divisor 2; the viewport, 440 × 456 in an 800 × 499
+    // window, halves to a multiple of 4), compared with the Gouraud image box-filtered 2 × 2.
+    EditorOptions options = cubeRoom(ViewMode::Gouraud);
+    options.displayDivisor = 2;
+    EditorApp app(options);
+    const auto gouraud = settledImage(app, ViewMode::Gouraud, 60);
+    app.setViewMode(ViewMode::EdgeAndPoint);
+    const auto epi = settledImage(app, ViewMode::EdgeAndPoint, 30);
+    app.setViewMode(ViewMode::EdgesOverlay);
+    const auto edges = settledImage(app, ViewMode::EdgesOverlay, 30);
+    ASSERT_TRUE(gouraud && epi && edges);
+    const int w = epi->render.radiance.width, h = epi->render.radiance.height;
+    ASSERT_EQ(gouraud->render.radiance.width, 2 * w);
+    ASSERT_EQ(gouraud->render.radiance.height, 2 * h);
+    ASSERT_EQ(edges->render.radiance.width, w);
+    Image half(w, h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            half.at(x, y) = 0.25 * (gouraud->render.radiance.at(2 * x, 2 * y) +
+                                    gouraud->render.radiance.at(2 * x + 1, 2 * y) +
+                                    gouraud->render.radiance.at(2 * x, 2 * y + 1) +
+                                    gouraud->render.radiance.at(2 * x + 1, 2 * y + 1));
+    const std::vector<std::uint8_t> reference = encodeDisplay(half);
+    const std::size_t n = static_cast<std::size_t>(w) * h;
+    // Mean sRGB |epi − gouraud| over the viewport; pixels the overlay changes by > 0.15.
+    double sum = 0;
+    std::size_t changed = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        for (int c = 0; c < 3; ++c)
+            sum += std::abs(int(epi->render.rgba[4 * i + c]) - int(reference[4 * i + c]));
+        changed += rgbaDifference(edges->render.rgba, epi->render.rgba, i) > 0.15 * 255 ? 1 : 0;
+    }
+    const double epiVsGouraud = sum / (3.0 * 255.0 * double(n));
+    const double edgesVsEpi = double(changed) / double(n);
+    // Bound: the two renderers differ in shading (per-pixel point shading with exact direct
+    // light vs per-vertex interpolation) and at silhouettes; measured 0.005 when settled. A mean
+    // sRGB difference of 0.02 is five grey levels in every pixel; an empty, unlit or direct-only
+    // image is far beyond it.
+    EXPECT_LT(epiVsGouraud, 0.02);
+    // The overlay paints the simple/complex pixels along every edge (about 2.5% of the viewport
+    // in cube-room): more than 1% of the pixels change by over 0.15 in some channel.
+    EXPECT_GT(edgesVsEpi, 0.01);
+    std::printf(
+        "viewport mean sRGB |epi - gouraud| %.4f (bound 0.02); pixels changed by the "
+        "edges overlay %.4f (bound > 0.01)\n",
+        epiVsGouraud, edgesVsEpi);
+}
+
+TEST(ViewModeDisplay, TheCommandLineRejectsAnUnknownMode) {
+    const std::string command = std::string(PENUMBRA_EDITOR_EXE) + " " + kSource +
+                                "/scenes/cube-room.json --mode sepia 2>/dev/null";
+    EXPECT_EQ(runCommand(command), 2) << command;
 }
 
 TEST(ViewModeDisplay, OutOfDateTintsExactlyTheObjectsWithPendingEnergy) {
