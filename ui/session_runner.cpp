@@ -364,7 +364,12 @@ bool SessionRunner::renderIteration() {
         doc = mDocument;
         dragged = mSolver.selected;
     }
-    if (usesInteractiveDisplay(view.mode)) return renderDisplay(view, light, last);
+    int highlight = -1;
+    if (const ObjectSummary* o = doc ? doc->find(view.highlight) : nullptr) highlight = o->version;
+    // The dragged object is seen as its preview version.
+    if (light.previewVersion >= 0 && !dragged.empty() && dragged == view.highlight)
+        highlight = light.previewVersion;
+    if (usesInteractiveDisplay(view.mode)) return renderDisplay(view, light, last, highlight);
     const bool need = !last || last->stateSerial != light.serial ||
                       last->viewSerial != view.serial || (last->reduced && !view.interactive);
     if (!need || !light.radiosity) return false;
@@ -380,11 +385,6 @@ bool SessionRunner::renderIteration() {
         d = std::clamp(d, 1, std::max(1, mOptions.maxReducedDivisor));
     }
     const int w = std::max(1, view.width / d), h = std::max(1, view.height / d);
-    int highlight = -1;
-    if (const ObjectSummary* o = doc ? doc->find(view.highlight) : nullptr) highlight = o->version;
-    // The dragged object is seen as its preview version.
-    if (light.previewVersion >= 0 && !dragged.empty() && dragged == view.highlight)
-        highlight = light.previewVersion;
 
     auto img = std::make_shared<ViewportImage>();
     const double r0 = nowSeconds();
@@ -507,7 +507,7 @@ void SessionRunner::updateDisplaySolution(bool wait) {
 }
 
 bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
-                                  const std::shared_ptr<const ViewportImage>& last) {
+                                  const std::shared_ptr<const ViewportImage>& last, int highlight) {
     // Frames run continuously (the cache keeps improving), at most one per displayFrameMs.
     const double now = nowSeconds();
     if (now - mLastDisplayFrame < mOptions.displayFrameMs * 1e-3) return false;
@@ -634,6 +634,12 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                                     : "no reference for this view: View > Compute reference";
             }
         }
+        // The selection outline, as the Gouraud view draws it (the preview version while
+        // dragged; it is in the display only through the preview subset).
+        if (highlight >= 0 && view.mode != ViewMode::Difference)
+            outlineSelection(mSession->discretization(), mSession->tracer(), view.camera, w, h,
+                             highlight, img->render.rgba, mPreviewVersion,
+                             mPreviewSubset.visibility());
         img->renderMs = (nowSeconds() - r0) * 1e3;
         slot.frameMs = slot.frameMs > 0 ? 0.7 * slot.frameMs + 0.3 * img->renderMs : img->renderMs;
     } catch (const std::exception& e) {

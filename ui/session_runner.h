@@ -204,7 +204,7 @@ private:
     bool renderIteration();
     /// renderIteration for the display modes (structure held shared).
     bool renderDisplay(const ViewRequest& view, const Light& light,
-                       const std::shared_ptr<const ViewportImage>& last);
+                       const std::shared_ptr<const ViewportImage>& last, int highlight);
     /// Hands the solver's solution to the display if one is waiting (solver thread, between
     /// shots); `wait` false gives up when the render thread holds the display.
     void updateDisplaySolution(bool wait);

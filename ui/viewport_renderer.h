@@ -10,12 +10,12 @@
 #include <vector>
 
 #include "render/image.h"
+#include "solver/ray_tracer.h"
 #include "solver/scene.h"
 
 namespace penumbra {
 
 class Discretization;
-class RayTracer;
 
 struct ViewportRender {
     Image radiance;                  ///< linear radiance (W/m²/sr), width × height
@@ -32,5 +32,21 @@ struct ViewportRender {
 ViewportRender renderViewport(const Discretization& disc, const RayTracer& tracer,
                               const std::vector<Rgb>& radiosity, const Camera& camera, int width,
                               int height, int previewVersion = -1, int highlightVersion = -1);
+
+/// Draws the selection outline: pixels of `version` in `objectAt` (per pixel, the version
+/// seen) that border a pixel of anything else get the selection colour in `rgba`.
+void drawSelectionOutline(std::vector<std::uint8_t>& rgba, const std::vector<int>& objectAt,
+                          int width, int height, int version);
+
+/// The selection outline over any width × height image of `camera`'s view (the display
+/// modes' images): primary rays through the pixel centres inside the screen rectangle of the
+/// version's bounding box (the whole image when a corner is behind the eye) find which pixels
+/// show `version`, then drawSelectionOutline. The scene is the alive objects plus
+/// `previewVersion` when ≥ 0, tested through `previewOnly` when it is a RayTracer subset of
+/// it alone (else through a Visibility::world filter). Returns the pixels of `version` found.
+std::size_t outlineSelection(const Discretization& disc, const RayTracer& tracer,
+                             const Camera& camera, int width, int height, int version,
+                             std::vector<std::uint8_t>& rgba, int previewVersion = -1,
+                             const Visibility& previewOnly = {});
 
 }  // namespace penumbra

@@ -1,0 +1,153 @@
+// SessionRunner in the edge-and-point display mode during a drag (no window needed: the
+// display runs on the CPU). While the view is interactive the runner renders a reduced
+// display; the dragged object, which exists only as the solver's preview version, must appear
+// at its new place with the selection outline around it; when the interaction stops the full
+// resolution comes back with the object put back where it was dropped.
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "render/camera_rays.h"
+#include "test_scenes.h"
+#include "ui/session_runner.h"
+
+namespace penumbra {
+namespace {
+
+constexpr int kSize = 96;
+const Vec3 kNewPlace(-0.55, -0.35, -0.35);  // the slab's translation after the drag
+const Vec3 kOldPlace(0.2, -0.8, 0.1);       // makeLitRoom's slab
+
+Camera topCamera() {
+    Camera c;
+    c.position = Vec3(0.0, 1.2, 1.4);
+    c.lookAt = Vec3(-0.2, -1.2, -0.2);
+    c.fovDeg = 75;
+    return c;
+}
+
+ViewRequest view(bool interactive) {
+    ViewRequest v;
+    v.camera = topCamera();
+    v.width = v.height = kSize;
+    v.mode = ViewMode::EdgeAndPoint;
+    v.highlight = "slab";
+    v.interactive = interactive;
+    return v;
+}
+
+/// Pumps until `done` holds for the latest image (at most `seconds`).
+std::shared_ptr<const ViewportImage> pumpUntil(
+    SessionRunner& runner, double seconds, const std::function<bool(const ViewportImage&)>& done) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    std::shared_ptr<const ViewportImage> img;
+    while (std::chrono::steady_clock::now() < end) {
+        runner.pump();
+        img = runner.image();
+        if (img && done(*img)) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return img;
+}
+
+struct Rgba {
+    int r, g, b;
+};
+Rgba pixel(const ViewportImage& img, glm::dvec2 p) {
+    const int w = img.render.radiance.width;
+    const int x = static_cast<int>(p.x), y = static_cast<int>(p.y);
+    const std::uint8_t* q = &img.render.rgba[4 * (static_cast<std::size_t>(y) * w + x)];
+    return {q[0], q[1], q[2]};
+}
+bool isOutline(const std::uint8_t* q) { return q[0] == 255 && q[1] == 150 && q[2] == 20; }
+
+/// Mean pixel position of the outline (x, y), and how many there are.
+std::pair<glm::dvec2, int> outline(const ViewportImage& img) {
+    const int w = img.render.radiance.width, h = img.render.radiance.height;
+    glm::dvec2 sum(0.0);
+    int n = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            if (isOutline(&img.render.rgba[4 * (static_cast<std::size_t>(y) * w + x)]))
+                sum += glm::dvec2(x + 0.5, y + 0.5), ++n;
+    return {n ? sum / double(n) : sum, n};
+}
+
+bool reddish(const Rgba& c) { return c.r > 40 && c.r > 1.3 * c.g + 10; }
+
+TEST(SessionRunnerDrag, EdgeAndPointModeShowsTheDraggedObjectAndItsOutline) {
+    SessionRunnerOptions options;
+    options.threaded = false;
+    options.solveBudgetMs = 20;
+    options.displayFrameMs = 0;
+    options.interactiveDisplayDivisor = 2;
+    options.settleFrames = 10;
+    SessionRunner runner(std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{}),
+                         options);
+    runner.setView(view(false));
+    auto settled = pumpUntil(runner, 20, [&](const ViewportImage&) { return runner.quiescent(); });
+    ASSERT_TRUE(settled);
+    ASSERT_TRUE(runner.quiescent());
+    EXPECT_EQ(settled->render.radiance.width, kSize);
+    EXPECT_FALSE(settled->reduced);
+
+    const CameraRays full(topCamera(), kSize, kSize);
+    const glm::dvec2 oldTop = *full.projectToPixel(kOldPlace + Vec3(0, 0.05, 0));
+    const glm::dvec2 newTop = *full.projectToPixel(kNewPlace + Vec3(0, 0.05, 0));
+    ASSERT_GT(glm::length(oldTop - newTop), 15.0);
+    EXPECT_TRUE(reddish(pixel(*settled, oldTop)));
+    EXPECT_FALSE(reddish(pixel(*settled, newTop)));
+    const auto [before, beforeCount] = outline(*settled);
+    ASSERT_GT(beforeCount, 10);
+    EXPECT_LT(glm::length(before - oldTop), 12.0);
+
+    // The drag: select, move, interactive view.
+    runner.submit(SelectCommand{"slab"});
+    TransformCommand t;
+    t.id = "slab";
+    t.translate = kNewPlace;
+    runner.submitCoalescing(t);
+    runner.setView(view(true));
+    const CameraRays half(topCamera(), kSize / 2, kSize / 2);
+    const glm::dvec2 newTopHalf = *half.projectToPixel(kNewPlace + Vec3(0, 0.05, 0));
+    const glm::dvec2 oldTopHalf = *half.projectToPixel(kOldPlace + Vec3(0, 0.05, 0));
+    int frames = 0;
+    auto dragging = pumpUntil(runner, 20, [&](const ViewportImage& img) {
+        if (!img.reduced) return false;
+        return ++frames > 30 && reddish(pixel(img, newTopHalf));
+    });
+    ASSERT_TRUE(dragging);
+    EXPECT_GE(runner.solver().previewVersion, 0);
+    EXPECT_EQ(runner.solver().selected, "slab");
+    EXPECT_TRUE(dragging->reduced);
+    EXPECT_EQ(dragging->render.radiance.width, kSize / 2);
+    EXPECT_TRUE(reddish(pixel(*dragging, newTopHalf)))
+        << "the dragged slab is not displayed: " << pixel(*dragging, newTopHalf).r << " "
+        << pixel(*dragging, newTopHalf).g << " " << pixel(*dragging, newTopHalf).b;
+    EXPECT_FALSE(reddish(pixel(*dragging, oldTopHalf))) << "the slab still shows where it was";
+    const auto [during, duringCount] = outline(*dragging);
+    EXPECT_GT(duringCount, 5);
+    EXPECT_LT(glm::length(during - newTopHalf), 8.0);
+
+    // Drop it: full resolution again, the slab (alive again) where it was dropped.
+    runner.submit(UnselectCommand{});
+    runner.setView(view(false));
+    auto dropped = pumpUntil(runner, 30, [&](const ViewportImage&) { return runner.quiescent(); });
+    ASSERT_TRUE(dropped);
+    EXPECT_TRUE(runner.quiescent());
+    EXPECT_FALSE(dropped->reduced);
+    EXPECT_EQ(dropped->render.radiance.width, kSize);
+    EXPECT_TRUE(reddish(pixel(*dropped, newTop)))
+        << pixel(*dropped, newTop).r << " " << pixel(*dropped, newTop).g << " "
+        << pixel(*dropped, newTop).b << " settled " << dropped->settledFrames;
+    EXPECT_FALSE(reddish(pixel(*dropped, oldTop)));
+    const auto [after, afterCount] = outline(*dropped);
+    EXPECT_GT(afterCount, 10);
+    EXPECT_LT(glm::length(after - newTop), 12.0);
+    EXPECT_TRUE(runner.takeMessages().empty());
+}
+
+}  // namespace
+}  // namespace penumbra
