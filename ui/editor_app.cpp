@@ -623,12 +623,22 @@ void EditorApp::drawSolverPanel(const SolverSnapshot& s) {
     // emitted power; strategy two always shoots whichever carries more energy.
     int strategy = mRunner->strategy() == RedistributionStrategy::RedistributeFirst ? 0 : 1;
     float threshold = static_cast<float>(mRunner->redistributionThreshold());
-    bool strategyChanged = ImGui::RadioButton("one: redistribute first", &strategy, 0);
+    ImGui::TextUnformatted("strategy");
     ImGui::SameLine();
-    strategyChanged |= ImGui::RadioButton("two: interleave", &strategy, 1);
+    bool strategyChanged = ImGui::RadioButton("one", &strategy, 0);
+    if (ImGui::IsItemHovered())
+        ImGui::SetTooltip(
+            "redistribute first while an edit's pending redistribution carries\n"
+            "more than the threshold x emitted power, then interleave");
+    ImGui::SameLine();
+    strategyChanged |= ImGui::RadioButton("two", &strategy, 1);
+    if (ImGui::IsItemHovered())
+        ImGui::SetTooltip("interleave: always shoot whichever carries more energy");
+    ImGui::SameLine();
+    ImGui::TextDisabled(strategy == 0 ? "(redistribute first)" : "(interleave)");
     if (strategy == 0)
-        strategyChanged |= ImGui::SliderFloat("redistribute above", &threshold, 1e-6f, 1e-1f,
-                                              "%.0e", ImGuiSliderFlags_Logarithmic);
+        strategyChanged |= ImGui::SliderFloat("redistribute >", &threshold, 1e-6f, 1e-1f, "%.0e",
+                                              ImGuiSliderFlags_Logarithmic);
     if (strategyChanged)
         mRunner->setStrategy(strategy == 0 ? RedistributionStrategy::RedistributeFirst
                                            : RedistributionStrategy::Interleave,

@@ -115,6 +115,12 @@ public:
     /// material unless the mesh file has its own. Returns the new object's id ("" without a
     /// scene or materials); a mesh that fails to load is reported in the status line.
     std::string addFromLibrary(const LibraryEntry& entry);
+    /// The file dialogs (File and Add menus).
+    enum class Dialog { None, OpenScene, SaveSceneAs, Export, PlayLog, AddMeshFile };
+    /// Opens a file dialog as its menu item does (drawn from the next frame on).
+    void openDialog(Dialog dialog) { mPopup = static_cast<int>(dialog); }
+    /// The open dialog's browser, or nullptr (for tests).
+    FileBrowser* fileBrowser() { return mBrowser.get(); }
     static constexpr double kPrimitiveSize = 0.4;  ///< metres across
     static constexpr double kMeshSize = 0.5;       ///< largest bounding-box side, metres
 

@@ -10,7 +10,8 @@
 // - the Add menu's library: a box and a mesh from scenes/meshes go onto the surface under the
 //   view centre, at the library sizes (world bounds from the solver's discretization), the
 //   box is what the centre pixel then sees, and the logged add names the mesh relative to the
-//   scene file so that the log replays.
+//   scene file so that the log replays;
+// - File ▸ Open scene opens the file browser in the scene's folder listing its .json files.
 // Regenerate the reference: PENUMBRA_UPDATE_REFERENCE=1 xvfb-run -a ui_editor_display_test
 
 #include <gtest/gtest.h>
@@ -310,6 +311,39 @@ TEST(EditorDisplay, AddMenuPutsLibraryShapesAndMeshesOnTheSurfaceUnderTheViewCen
     std::printf("box at %s, cow at %s (bounds %.3f x %.3f x %.3f)\n",
                 box.transform.toString().c_str(), mesh.transform.toString().c_str(), e.x, e.y, e.z);
     std::filesystem::remove(log);
+}
+
+TEST(EditorDisplay, FileDialogsOpenNextToTheSceneAndListByExtension) {
+    EditorOptions options;
+    options.scene = kSource + "/scenes/cube-room.json";
+    options.width = 800;
+    options.height = 500;
+    options.quiet = true;
+    EditorApp app(options);
+    app.frame();
+    // Open scene: the scene's folder, its .json files, the scene's name in the field.
+    app.openDialog(EditorApp::Dialog::OpenScene);
+    app.frame();
+    FileBrowser* browser = app.fileBrowser();
+    ASSERT_NE(browser, nullptr);
+    EXPECT_TRUE(std::filesystem::equivalent(browser->folder(), kSource + "/scenes"))
+        << browser->toString();
+    EXPECT_EQ(browser->name, "cube-room.json");
+    std::size_t scenes = 0, folders = 0;
+    for (const FileEntry& e : browser->entries()) {
+        if (e.directory) {
+            ++folders;
+            continue;
+        }
+        ++scenes;
+        EXPECT_EQ(std::filesystem::path(e.name).extension(), ".json") << e.toString();
+    }
+    EXPECT_GE(scenes, 3u);
+    EXPECT_GE(folders, 2u);  // logs/, meshes/
+    // The popup is drawn for several frames; a screenshot shows it over the viewport.
+    for (int k = 0; k < 3; ++k) app.frame();
+    ASSERT_NE(app.fileBrowser(), nullptr);
+    if (const char* shot = std::getenv("PENUMBRA_DIALOG_SCREENSHOT")) app.writeScreenshot(shot);
 }
 
 }  // namespace
