@@ -31,13 +31,10 @@ Vec3 polygonNormal(const std::vector<Vec3>& poly) {
     return n;
 }
 
-/// Uniform point in a convex polygon by fan triangle chosen by area.
-Vec3 samplePolygon(const std::vector<Vec3>& poly, double r0, double r1, double r2) {
-    double total = 0;
+/// Uniform point in a convex polygon of area `area` by fan triangle chosen by area.
+Vec3 samplePolygon(const std::vector<Vec3>& poly, double area, double r0, double r1, double r2) {
     const std::size_t fans = poly.size() - 2;
-    for (std::size_t i = 0; i < fans; ++i)
-        total += glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0]));
-    double pick = r0 * total;
+    double pick = r0 * 2 * area;  // the fan's cross-product lengths sum to twice the area
     std::size_t i = 0;
     for (; i + 1 < fans; ++i) {
         double a = glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0]));
@@ -114,8 +111,9 @@ namespace {
 /// The pair-seeded sampling shared by every point-to-patch estimate: exact unoccluded form
 /// factors of the patch's polygons clipped to the receiver's hemisphere, then `rays` samples
 /// stratified over them by form factor, each weighted by the point-to-point kernel relative
-/// to its sampling density. `visit(origin, target)` returns the sample's visibility term
-/// (1 visible, 0 blocked; a difference of two such terms for formFactorChange); the result
+/// to its sampling density. `visit(origin, targets, visible, rays)` writes each sample's
+/// visibility term (1 visible, 0 blocked; a difference of two such terms for
+/// formFactorChange) and counts the rays it traced; the result
 /// is unoccluded × Σ w·visit / Σ w (a ratio estimator, exact when nothing blocks and when
 /// everything does).
 template <class Visit>
@@ -150,34 +148,52 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     if (!(total > 0)) return out;
 
     const int rays = visibilityRayCount(total, maxRays);
+    // Per polygon, once per pair: unit normal and area.
+    thread_local std::vector<Vec3> normals;
+    thread_local std::vector<double> areas;
+    normals.resize(count);
+    areas.resize(count);
+    for (std::size_t k = 0; k < count; ++k) {
+        if (!(f[k] > 0)) continue;
+        const Vec3 nk = polygonNormal(polys[k]);
+        areas[k] = 0.5 * glm::length(nk);
+        normals[k] = nk / (2 * areas[k]);
+    }
     PairRandom rng{hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch))};
     const double eps = tracer.epsilon();
     const Vec3 origin = x + n * eps;
-    double wVisible = 0, wAll = 0;
+    // The pair's samples first (targets and weights), then their visibility in one call.
+    thread_local std::vector<Vec3> targets;
+    thread_local std::vector<double> weights;
+    thread_local std::vector<int> visible;
+    targets.clear();
+    weights.clear();
+    double wAll = 0;
     for (int s = 0; s < rays; ++s) {
         double u = (s + rng.next()) / rays * total;
         std::size_t k = 0;
         while (k + 1 < f.size() && u > f[k]) u -= f[k++];
         double r1 = rng.next(), r2 = rng.next();
-        Vec3 y = samplePolygon(polys[k], std::min(u / std::max(f[k], 1e-300), 1.0), r1, r2);
+        Vec3 y =
+            samplePolygon(polys[k], areas[k], std::min(u / std::max(f[k], 1e-300), 1.0), r1, r2);
         Vec3 d = y - origin;
         double dist = glm::length(d);
         if (!(dist > 0)) continue;
-        Vec3 ny = glm::normalize(polygonNormal(polys[k]));
+        const Vec3& ny = normals[k];
         double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) /
                    (dist * dist * dist * dist);
         // Weight relative to the sampling density (∝ F_k / A_k), so the estimate is unbiased.
-        double area = 0.5 * glm::length(polygonNormal(polys[k]));
-        w *= area / f[k];
+        w *= areas[k] / f[k];
         wAll += w;
         // Leave the source surface along its normal (toward x, which is in front of it), so
         // rays grazing the source plane do not hit the source itself in float precision.
-        int v = visit(origin, y + ny * eps, out.rays);
-        if (v == 1)
-            wVisible += w;
-        else if (v == -1)
-            wVisible -= w;
+        targets.push_back(y + ny * eps);
+        weights.push_back(w);
     }
+    visible.assign(targets.size(), 0);
+    visit(origin, targets, visible, out.rays);
+    double wVisible = 0;
+    for (std::size_t i = 0; i < targets.size(); ++i) wVisible += weights[i] * visible[i];
     out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;
     return out;
 }
@@ -187,27 +203,44 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
 PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
                                const Vec3& n, int patch, std::uint64_t receiverKey,
                                std::uint64_t seed, int maxRays, const Visibility& visibility) {
-    return estimatePointToPatch(disc, tracer, x, n, patch, receiverKey, seed, maxRays,
-                                [&](const Vec3& from, const Vec3& to, int& rays) {
-                                    ++rays;
-                                    return tracer.occluded(from, to, visibility) ? 0 : 1;
-                                });
+    return estimatePointToPatch(
+        disc, tracer, x, n, patch, receiverKey, seed, maxRays,
+        [&](const Vec3& from, const std::vector<Vec3>& to, std::vector<int>& visible, int& rays) {
+            const int count = static_cast<int>(to.size());
+            if (count < 4) {
+                for (int i = 0; i < count; ++i)
+                    visible[i] = tracer.occluded(from, to[i], visibility) ? 0 : 1;
+                rays += count;
+                return;
+            }
+            // The samples of one pair leave one point toward one patch: coherent packets.
+            bool blocked[8];
+            for (int i = 0; i < count; i += 8) {
+                const int m = std::min(8, count - i);
+                tracer.occluded8(from, to.data() + i, m, blocked, visibility);
+                for (int k = 0; k < m; ++k) visible[i + k] = blocked[k] ? 0 : 1;
+            }
+            rays += count;
+        });
 }
 
 PointToPatch formFactorChange(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
                               const Vec3& n, int patch, std::uint64_t receiverKey,
                               std::uint64_t seed, int maxRays, const Visibility& before,
                               const Visibility& after, const Visibility& changed) {
-    return estimatePointToPatch(disc, tracer, x, n, patch, receiverKey, seed, maxRays,
-                                [&](const Vec3& from, const Vec3& to, int& rays) {
-                                    // A sample that misses every changed object has the same
-                                    // visibility in both worlds: its terms cancel exactly.
-                                    ++rays;
-                                    if (!tracer.occluded(from, to, changed)) return 0;
-                                    rays += 2;
-                                    return (tracer.occluded(from, to, after) ? 0 : 1) -
-                                           (tracer.occluded(from, to, before) ? 0 : 1);
-                                });
+    return estimatePointToPatch(
+        disc, tracer, x, n, patch, receiverKey, seed, maxRays,
+        [&](const Vec3& from, const std::vector<Vec3>& to, std::vector<int>& visible, int& rays) {
+            for (std::size_t i = 0; i < to.size(); ++i) {
+                // A sample that misses every changed object has the same visibility in both
+                // worlds: its terms cancel exactly.
+                ++rays;
+                if (!tracer.occluded(from, to[i], changed)) continue;
+                rays += 2;
+                visible[i] = (tracer.occluded(from, to[i], after) ? 0 : 1) -
+                             (tracer.occluded(from, to[i], before) ? 0 : 1);
+            }
+        });
 }
 
 }  // namespace penumbra

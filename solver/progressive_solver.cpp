@@ -124,6 +124,9 @@ struct ProgressiveSolver::Impl {
     std::vector<int> shooters;                 ///< patches shot in the batch
     std::vector<Rgb> shooterUnshot;            ///< their ΔB at the start of the batch
     std::vector<std::pair<int, Rgb>> rayHits;  ///< per ray: receiver element and ΔRad
+    // Patches whose unshot energy changed in the current shot: one heap update each.
+    std::vector<std::uint8_t> touched;
+    std::vector<int> touchedList;
 };
 
 ProgressiveSolver::ProgressiveSolver(Discretization& disc, RayTracer& tracer, SolverOptions options)
@@ -253,6 +256,21 @@ void ProgressiveSolver::receive(int e, const Rgb& dH) {
     mPatchUnshot[el.patch] += dB * (el.area / mDisc.patches()[el.patch].area);
 }
 
+void ProgressiveSolver::touchElement(int e) {
+    const int p = mDisc.elements()[e].patch;
+    auto& touched = mImpl->touched;
+    if (touched.size() <= static_cast<std::size_t>(p)) touched.resize(mDisc.patches().size(), 0);
+    if (!touched[p]) touched[p] = 1, mImpl->touchedList.push_back(p);
+}
+
+void ProgressiveSolver::updateTouchedPriorities() {
+    for (int p : mImpl->touchedList) {
+        updatePriority(p);
+        mImpl->touched[p] = 0;
+    }
+    mImpl->touchedList.clear();
+}
+
 void ProgressiveSolver::updatePriority(int patch) {
     mImpl->queue.update(patch, energyKey(mPatchUnshot[patch], mDisc.patches()[patch].area));
 }
@@ -280,7 +298,8 @@ void ProgressiveSolver::shootPatch(int shooter) {
         if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
     if (mOptions.gradientThreshold > 0) subdivideSteepElements();
     for (std::size_t e = 0; e < mDisc.elements().size(); ++e)
-        if (e >= delta.size() || !isZero(delta[e])) updatePriority(mDisc.elements()[e].patch);
+        if (e >= delta.size() || !isZero(delta[e])) touchElement(static_cast<int>(e));
+    updateTouchedPriorities();
     (void)patches;
     ++mStats.shots;
     mStats.rays += mTracer.rayCount() - raysBefore;
@@ -403,7 +422,8 @@ void ProgressiveSolver::shootStochasticBatch() {
     for (const auto& [e, d] : hits)
         if (e >= 0) receive(e, d);
     for (const auto& [e, d] : hits)
-        if (e >= 0) updatePriority(mDisc.elements()[e].patch);
+        if (e >= 0) touchElement(e);
+    updateTouchedPriorities();
     ++mStats.shots;
     ++mStats.stochasticBatches;
     mStats.rays += mTracer.rayCount() - raysBefore;
@@ -815,7 +835,8 @@ bool ProgressiveSolver::shootRedistribution() {
         for (std::size_t e = 0; e < delta.size(); ++e)
             if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
         for (std::size_t e = 0; e < delta.size(); ++e)
-            if (!isZero(delta[e])) updatePriority(mDisc.elements()[e].patch);
+            if (!isZero(delta[e])) touchElement(static_cast<int>(e));
+        updateTouchedPriorities();
         ++mStats.shots;
         ++mStats.redistributionShots;
         mStats.rays += mTracer.rayCount() - raysBefore;
@@ -836,7 +857,8 @@ bool ProgressiveSolver::shootRedistribution() {
     for (std::size_t e = 0; e < n; ++e)
         if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
     for (std::size_t e = 0; e < n; ++e)
-        if (!isZero(delta[e])) updatePriority(mDisc.elements()[e].patch);
+        if (!isZero(delta[e])) touchElement(static_cast<int>(e));
+    updateTouchedPriorities();
 
     if (c.pending.key(c.pending.top()) <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
     ++mStats.shots;
@@ -988,9 +1010,10 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
         if (tr.to >= 0) receive(tr.to, tr.irradianceTo);
     }
     for (const Transfer& tr : out) {
-        if (tr.from >= 0) updatePriority(mDisc.elements()[tr.from].patch);
-        if (tr.to >= 0) updatePriority(mDisc.elements()[tr.to].patch);
+        if (tr.from >= 0) touchElement(tr.from);
+        if (tr.to >= 0) touchElement(tr.to);
     }
+    updateTouchedPriorities();
     if (c.pending.top() < 0 || c.pending.key(c.pending.top()) <= 0)
         mImpl->changes.erase(mImpl->changes.begin() + k);
     ++mStats.shots;

@@ -171,6 +171,9 @@ private:
     /// Adds irradiance dH to element e (B += ρ dH) and its share to its patch's unshot.
     void receive(int e, const Rgb& dH);
     void updatePriority(int patch);
+    /// Marks the patch of element e for one heap update in updateTouchedPriorities().
+    void touchElement(int e);
+    void updateTouchedPriorities();
     void ensureSizes();
     void recomputeEmitted();
     /// One redistribution shot from the most important pending shooter of the most

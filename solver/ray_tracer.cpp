@@ -104,7 +104,12 @@ struct RayTracer::Impl {
     }
     /// Per object: Embree triangle -> (element face index, fan position).
     std::vector<std::vector<std::pair<int, int>>> triangleFace;
-    mutable tbb::enumerable_thread_specific<unsigned long long> rays{0ull};
+    /// Per-thread ray counters. ets_key_per_instance finds the calling thread's counter
+    /// through a native thread-local key, not a hash-table lookup: a few ns per ray.
+    mutable tbb::enumerable_thread_specific<unsigned long long,
+                                            tbb::cache_aligned_allocator<unsigned long long>,
+                                            tbb::ets_key_per_instance>
+        rays{0ull};
 
     void release() {
         for (Subset& s : subsets)
@@ -268,6 +273,41 @@ bool RayTracer::occluded(const Vec3& from, const Vec3& to, const Visibility& vis
     rtcOccluded1(scene, &ctx.context, &ray);
     ++mImpl->rays.local();
     return ray.tfar < 0.0f;
+}
+
+void RayTracer::occluded8(const Vec3& from, const Vec3* to, int count, bool* blocked,
+                          const Visibility& visibility) const {
+    if (count <= 0) return;
+    if (count > 8) throw std::invalid_argument("RayTracer::occluded8: more than 8 segments");
+    FilterContext ctx;
+    RTCScene scene = mImpl->prepare(ctx, visibility);
+    alignas(32) int valid[8];
+    alignas(32) RTCRay8 ray;
+    for (int i = 0; i < 8; ++i) {
+        Vec3 d = i < count ? to[i] - from : Vec3(0.0);
+        const double len = glm::length(d);
+        valid[i] = i < count && len > 0 ? -1 : 0;
+        if (valid[i]) d /= len;
+        ray.org_x[i] = static_cast<float>(from.x);
+        ray.org_y[i] = static_cast<float>(from.y);
+        ray.org_z[i] = static_cast<float>(from.z);
+        ray.dir_x[i] = static_cast<float>(d.x);
+        ray.dir_y[i] = static_cast<float>(d.y);
+        ray.dir_z[i] = static_cast<float>(d.z);
+        ray.tnear[i] = 0.0f;
+        ray.tfar[i] = valid[i] ? static_cast<float>(len) : 0.0f;
+        ray.time[i] = 0.0f;
+        ray.mask[i] = 0xffffffffu;
+        ray.id[i] = static_cast<unsigned>(i);
+        ray.flags[i] = 0;
+    }
+    rtcOccluded8(valid, scene, &ctx.context, &ray);
+    int traced = 0;
+    for (int i = 0; i < count; ++i) {
+        blocked[i] = valid[i] && ray.tfar[i] < 0.0f;
+        traced += valid[i] ? 1 : 0;
+    }
+    mImpl->rays.local() += static_cast<unsigned long long>(traced);
 }
 
 RayHit RayTracer::intersect(const Vec3& origin, const Vec3& dir, double tNear, double tFar,

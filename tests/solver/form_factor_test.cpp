@@ -453,3 +453,51 @@ TEST(FormFactor, SamplePatternIsKeyedBySeedAndReceiver) {
 
 }  // namespace
 }  // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+TEST(RayTracerPackets, Occluded8AnswersAsSingleRays) {
+    // A packet of segments from one point (the solver's visibility samples of one pair) is
+    // blocked exactly where the single-ray query says so, in the current scene and with an
+    // object ignored.
+    Scene scene = test::makeLitRoom("white");
+    SceneObject box;
+    box.id = "blocker";
+    box.shape.type = ShapeType::Box;
+    box.shape.size = Vec3(0.5);
+    box.material = "white";
+    box.transform.translate = Vec3(0.0, -0.3, 0.0);
+    scene.objects.push_back(box);
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    const auto& el = disc.elements();
+    int blockedCount = 0, total = 0;
+    for (int trial = 0; trial < 256; ++trial) {
+        const Element& a = el[hashPair(7, trial) % el.size()];
+        const Vec3 from = a.centroid + a.normal * 1e-4;
+        Vec3 to[8];
+        const int count = 1 + static_cast<int>(hashPair(8, trial) % 8);
+        for (int i = 0; i < count; ++i) {
+            const Element& b = el[hashPair(trial, i) % el.size()];
+            to[i] = b.centroid + b.normal * 1e-4;
+        }
+        for (const Visibility& v :
+             {Visibility{}, Visibility{static_cast<int>(scene.objects.size()) - 1}}) {
+            bool blocked[8];
+            tracer.occluded8(from, to, count, blocked, v);
+            for (int i = 0; i < count; ++i) {
+                EXPECT_EQ(blocked[i], tracer.occluded(from, to[i], v))
+                    << "trial " << trial << " ray " << i;
+                blockedCount += blocked[i] ? 1 : 0;
+                ++total;
+            }
+        }
+    }
+    // Both answers occur, so the comparison means something.
+    EXPECT_GT(blockedCount, total / 10);
+    EXPECT_LT(blockedCount, total - total / 10);
+}
+
+}  // namespace
+}  // namespace penumbra
