@@ -309,6 +309,11 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
     // Per point its band (0xFF: rejected), computed in parallel; each band then reads one byte
     // per point instead of the point.
     mPointBand.resize(points.size());
+    // Per chunk of points, the range of bands it holds: a band skips chunks without its rows
+    // (the render cache's points come in row order, so each band reads little else).
+    constexpr size_t kChunk = 4096;
+    const size_t chunks = (points.size() + kChunk - 1) / kChunk;
+    mChunkBands.assign(chunks, {0xFF, 0});
     auto classify = [&](size_t i) {
         const ScreenPoint& p = points[i];
         uint8_t b = 0xFF;
@@ -316,6 +321,9 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
             std::isfinite(p.colour.y) && std::isfinite(p.colour.z) && p.position.x >= 0.0 &&
             p.position.y >= 0.0 && p.position.x < mWidth && p.position.y < mHeight) {
             b = static_cast<uint8_t>(bandOfRow(mHeight, bands, p.position.y));
+            auto& range = mChunkBands[i / kChunk];
+            range.first = std::min(range.first, b);
+            range.second = std::max(range.second, b);
         }
         mPointBand[i] = b;
     };
@@ -327,6 +335,13 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
                   std::numeric_limits<double>::infinity());
         std::fill(mSamplePos.begin() + lo, mSamplePos.begin() + hi, 0xFF);
         for (size_t n = 0; n < points.size(); ++n) {
+            if (n % kChunk == 0) {
+                const auto& range = mChunkBands[n / kChunk];
+                if (b < range.first || b > range.second) {
+                    n += kChunk - 1;
+                    continue;
+                }
+            }
             if (mPointBand[n] != b) continue;
             const ScreenPoint& p = points[n];
             const int x = static_cast<int>(p.position.x);
@@ -344,10 +359,10 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
         for (size_t i = 0; i < points.size(); ++i) classify(i);
         band(0);
     } else {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 4096),
-                          [&](const tbb::blocked_range<size_t>& r) {
-                              for (size_t i = r.begin(); i != r.end(); ++i) classify(i);
-                          });
+        tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
+            for (size_t i = c * kChunk; i < std::min(points.size(), (c + 1) * kChunk); ++i)
+                classify(i);
+        });
         tbb::parallel_for(0, bands, band);
     }
 }

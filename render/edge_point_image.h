@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "render/image.h"
@@ -178,7 +179,8 @@ private:
     std::vector<uint8_t> mSamplePos;   ///< 0..15, 0xFF without a point
     std::vector<uint8_t> mUsable;      ///< see sampleUsable()
     std::vector<uint8_t> mPointBand;   ///< placePoints() scratch: band of rows per point
-    std::vector<float> mBlockDepth;    ///< §4.5 filtered depth per 4×4 block (+inf: none)
+    std::vector<std::pair<uint8_t, uint8_t>> mChunkBands;  ///< and per 4096 points their range
+    std::vector<float> mBlockDepth;  ///< §4.5 filtered depth per 4×4 block (+inf: none)
     int mBlocksX = 0;
     int mBlocksY = 0;
 

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -744,6 +745,15 @@ TEST(EdgePointImage, ParallelStagesEqualSerialBitForBit) {
         for (size_t k = 0; k < a.pixels.size(); ++k) diff += a.pixels[k] != b.pixels[k];
         EXPECT_EQ(diff, 0) << "pixels differing, useEdges " << useEdges;
         EXPECT_EQ(parallel.interpolationWeights(), serial.interpolationWeights());
+    }
+    // Points in no particular order (bands then read every chunk of points).
+    std::vector<ScreenPoint> shuffled = points;
+    std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(9));
+    parallel.build(edges, shuffled);
+    serial.build(edges, shuffled);
+    {
+        const Image a = parallel.reconstruct(true), b = serial.reconstruct(true);
+        EXPECT_EQ(a.pixels, b.pixels) << "shuffled points";
     }
     // The band split must not matter either: an image whose height is below the band count.
     EdgePointImage thinParallel(W, 5), thinSerial(W, 5, serialOptions);

@@ -294,7 +294,7 @@ TEST(ShadowEdges, RobotRoomUpdateAfterAMove) {
         "edges %.0f ms, cpu %.0f ms (%zu edges, %s)\n",
         ms(t0, t1), ms(t1, t2), ms(t2, t3), cpuMs(c2, c3), all.size(),
         finder.stats().toString().c_str());
-    for (const char* id : {"robot-body", "bull"}) {
+    for (const char* id : {"robot-body", "bull", "cow", "elephant", "dino"}) {
         int o = scene.findObject(id);
         ASSERT_GE(o, 0);
         Transform t = scene.objects[o].transform;
