@@ -470,9 +470,12 @@ std::string EditorApp::addFromLibrary(const LibraryEntry& entry) {
     const auto doc = mRunner->document();
     if (!doc) return "";
     const std::string material = defaultMaterial(doc->materials);
-    const std::string id =
-        uniqueObjectId(entry.type == ShapeType::Mesh ? entry.path : entry.label,
-                       [&](const std::string& name) { return doc->find(name) != nullptr; });
+    const std::string id = uniqueObjectId(
+        entry.type == ShapeType::Mesh ? entry.path : entry.label, [&](const std::string& name) {
+            // Ids given out but not yet in the document (a queued add) count.
+            return doc->find(name) != nullptr || mIssuedIds.count(name) > 0;
+        });
+    mIssuedIds.insert(id);
     const PlacementTarget target = addTarget();
     if (entry.type != ShapeType::Mesh) {
         if (material.empty()) {

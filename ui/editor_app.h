@@ -12,6 +12,7 @@
 #include <deque>
 #include <memory>
 #include <optional>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -183,6 +184,7 @@ private:
     int mPopup = 0;                         ///< 0 none, 1 open, 2 save as, 3 export, 4 play log
     std::unique_ptr<FileBrowser> mBrowser;  ///< the open file dialog's state
     std::vector<LibraryEntry> mMeshLibrary;
+    std::set<std::string> mIssuedIds;  ///< ids addFromLibrary gave out
     std::string mStatus;
     bool mQuit = false;
 

@@ -288,8 +288,16 @@ TEST(EditorDisplay, AddMenuPutsLibraryShapesAndMeshesOnTheSurfaceUnderTheViewCen
     ASSERT_TRUE(meshTarget.onSurface);
     const std::string meshId = app.addFromLibrary(*cow);
     EXPECT_EQ(meshId, "cow-1");
+    // A second add before the first is in the document gets its own id.
+    const std::string secondBox = app.addFromLibrary(listPrimitives().front());
+    EXPECT_EQ(secondBox, "box-2");
     ASSERT_TRUE(runUntil(
-        app, [&] { return runner.quiescent() && runner.document()->find(meshId); }, 60));
+        app,
+        [&] {
+            return runner.quiescent() && runner.document()->find(meshId) &&
+                   runner.document()->find(secondBox);
+        },
+        60));
     const ObjectSummary mesh = *runner.document()->find(meshId);
     EXPECT_EQ(mesh.shape, ShapeType::Mesh);
     EXPECT_EQ(mesh.material, "wall");  // the scene's first non-emissive material
@@ -302,7 +310,7 @@ TEST(EditorDisplay, AddMenuPutsLibraryShapesAndMeshesOnTheSurfaceUnderTheViewCen
     std::vector<std::string> adds;
     for (std::string line; std::getline(in, line);)
         if (line.find("\"op\":\"add\"") != std::string::npos) adds.push_back(line);
-    ASSERT_EQ(adds.size(), 2u);
+    ASSERT_EQ(adds.size(), 3u);
     const auto json = nlohmann::json::parse(adds[1]);
     EXPECT_EQ(json["object"]["shape"]["file"], "meshes/cgal/cow.off") << adds[1];
     const EditCommand replayed = parseEditCommand(adds[1], {log, 2}, nullptr, kSource + "/scenes");
