@@ -103,6 +103,21 @@ struct ChangeEntry {
     std::vector<std::pair<Vec3, double>> spheres;
     /// The changed objects alone in a small ray-tracing scene (RayTracer::createSubset).
     RayTracer::SubsetHandle changed;
+    /// The worlds before and after the edit as small instance scenes of their own
+    /// (RayTracer::createSubset): their queries need no per-hit history filter.
+    RayTracer::SubsetHandle beforeScene, afterScene;
+    Visibility beforeWorld() const {
+        Visibility v;
+        v.world = &before;
+        v.subset = beforeScene.id();
+        return v;
+    }
+    Visibility afterWorld() const {
+        Visibility v;
+        v.world = &after;
+        v.subset = afterScene.id();
+        return v;
+    }
     /// Per patch: its redistribution to the added objects' elements was gathered
     /// (gatherToAdded); its shots skip those receivers. Empty until the gather.
     std::vector<std::uint8_t> gathered;
@@ -610,6 +625,16 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
     return entry;
 }
 
+void ProgressiveSolver::buildWorldScenes(ChangeEntry& entry) const {
+    std::vector<int> before, after;
+    for (std::size_t o = 0; o < entry.before.size(); ++o) {
+        if (entry.before[o]) before.push_back(static_cast<int>(o));
+        if (entry.after[o]) after.push_back(static_cast<int>(o));
+    }
+    entry.beforeScene = RayTracer::SubsetHandle(mTracer, before);
+    entry.afterScene = RayTracer::SubsetHandle(mTracer, after);
+}
+
 void ProgressiveSolver::applyChange(const SceneChange& change, bool redistribute) {
     ensureSizes();
     clearPreview();
@@ -634,7 +659,10 @@ void ProgressiveSolver::applyChange(const SceneChange& change, bool redistribute
             updatePriority(static_cast<int>(j));
         }
     recomputeEmitted();
-    if (redistribute && entry.totalPending > 0) mImpl->changes.push_back(std::move(entry));
+    if (redistribute && entry.totalPending > 0) {
+        buildWorldScenes(entry);
+        mImpl->changes.push_back(std::move(entry));
+    }
 }
 
 void ProgressiveSolver::recomputeEmitted() {
@@ -708,9 +736,7 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
     const Patch& P = mDisc.patches()[j];
     const bool shooterRemoved =
         std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
-    Visibility before, after;
-    before.world = &c.before;
-    after.world = &c.after;
+    Visibility before = c.beforeWorld(), after = c.afterWorld();
 
     // Receivers: elements present after the edit (and still alive, or the previewed object).
     // Elements of added objects gain F(t) (F(t−1) = 0: they did not exist); others change
@@ -720,7 +746,7 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
     // sphere. Unchanged visibility cancels exactly: F(t) and F(t−1) trace the same
     // pair-seeded rays.
     // The world after the edit is usually the current scene: trace it without a filter.
-    if (afterIsCurrentScene(c, preview)) after.world = nullptr;
+    if (afterIsCurrentScene(c, preview)) after = Visibility{};
     const Visibility changed = c.changed.visibility();
     const double margin = 4 * mTracer.epsilon();
     const bool gathered = c.isGathered(j);
@@ -787,9 +813,8 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
     }
     std::sort(receivers.begin(), receivers.end());
     delta.assign(elements.size(), Rgb(0.0));
-    Visibility after;
-    after.world = &c.after;
-    if (afterIsCurrentScene(c, preview)) after.world = nullptr;
+    Visibility after = c.afterWorld();
+    if (afterIsCurrentScene(c, preview)) after = Visibility{};
     // Stratified cosine directions: nx × ny strata over (φ, sin²θ).
     const int n = std::max(1, mOptions.gatherRays);
     int nx = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n))));
@@ -902,10 +927,8 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
         std::ceil(share * raysPerEmitted), static_cast<double>(mOptions.minStochasticRays), 6.4e7));
     const std::uint64_t batchSeed =
         hashPair(hashPair(mOptions.seed, 0x7ed157ull), mStats.redistributionShots);
-    Visibility before, after;
-    before.world = &c.before;
-    after.world = &c.after;
-    if (afterIsCurrentScene(c, false)) after.world = nullptr;
+    Visibility before = c.beforeWorld(), after = c.afterWorld();
+    if (afterIsCurrentScene(c, false)) after = Visibility{};
     const Visibility changed = c.changed.visibility();
     const bool onlyAdded = c.removed.empty();
     struct Transfer {
@@ -1031,6 +1054,7 @@ void ProgressiveSolver::setPreview(int object) {
     mImpl->previewObject = object;
     mImpl->previewEntry = makeChangeEntry({{}, {object}});
     mImpl->previewEntry.after[object] = 1;
+    buildWorldScenes(mImpl->previewEntry);
     mImpl->previewEmitters.clear();
     for (std::size_t j = 0; j < mDisc.patches().size(); ++j)
         if (mDisc.patches()[j].object == object &&
@@ -1055,8 +1079,7 @@ int ProgressiveSolver::stepPreview(int maxShots) {
             int j = mImpl->previewEmitters.back();
             mImpl->previewEmitters.pop_back();
             const Rgb e = mDisc.patchMaterial(j).emission;
-            Visibility after;
-            after.world = &c.after;
+            const Visibility after = c.afterWorld();
             const std::size_t n = mDisc.elements().size();
             delta.assign(n, Rgb(0.0));
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {

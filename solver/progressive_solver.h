@@ -183,6 +183,8 @@ private:
     void shootRedistributionBatch(int k);
     /// The change-log entry for `change`: worlds, shot snapshot, importance ranking.
     ChangeEntry makeChangeEntry(const SceneChange& change) const;
+    /// Builds entry's before and after worlds as instance scenes (no history filter).
+    void buildWorldScenes(ChangeEntry& entry) const;
     /// Irradiance each element receives when shooter j of entry c redistributes.
     void redistributionDelta(const ChangeEntry& c, int j, bool preview,
                              std::vector<Rgb>& delta) const;
