@@ -1,4 +1,5 @@
 // penumbra-editor [SCENE] [--log LOG] [--play LOG] [--screenshot PNG --frames N] [--mode NAME]
+//                 [--display-divisor N] [--interactive-divisor N]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
 // 2 bad input or no display, with one line on stderr.
 
@@ -35,6 +36,10 @@ int main(int argc, char** argv) {
     app.add_option("--display-divisor", options.displayDivisor,
                    "edge-and-point modes render the viewport at 1/N resolution (upscaled)")
         ->check(CLI::PositiveNumber);
+    app.add_option("--interactive-divisor", options.interactiveDisplayDivisor,
+                   "edge-and-point modes while the view moves or an object is dragged: 0 picks "
+                   "a resolution from the frame time, 1 keeps full resolution, N renders 1/N")
+        ->check(CLI::NonNegativeNumber);
     std::string mode = "gouraud";
     app.add_option("--mode", mode,
                    "viewport mode: gouraud, epi, cache, edges, samples, difference, outofdate")

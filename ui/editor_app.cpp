@@ -133,6 +133,7 @@ void EditorApp::openScene(const std::string& path) {
     mRunner.reset();
     SessionRunnerOptions runnerOptions;
     runnerOptions.displayDivisor = std::max(1, mOptions.displayDivisor);
+    runnerOptions.interactiveDisplayDivisor = std::max(0, mOptions.interactiveDisplayDivisor);
     mRunner = std::make_unique<SessionRunner>(std::move(session), runnerOptions);
     mRunner->setConvergeEps(mConvergeEps);
     mScenePath = path;

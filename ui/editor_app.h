@@ -42,6 +42,9 @@ struct EditorOptions {
     bool quiet = false;
     ViewMode mode = ViewMode::Gouraud;  ///< the viewport's initial display mode (View ▸ Mode)
     int displayDivisor = 1;  ///< display modes render viewport / d pixels (SessionRunnerOptions)
+    /// Display modes while interacting: 0 auto, 1 off, d ≥ 2 fixed (SessionRunnerOptions::
+    /// interactiveDisplayDivisor).
+    int interactiveDisplayDivisor = 0;
 };
 
 /// No window could be opened (no DISPLAY, no GL 3.3 core context).
