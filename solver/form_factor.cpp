@@ -53,14 +53,15 @@ std::uint64_t hashPair(std::uint64_t a, std::uint64_t b) {
 
 namespace {
 
-/// Lambert's contour integral over `polygon` clipped to the hemisphere above (x, n); the
-/// clipped polygon is left in `clipped` (empty when nothing is seen).
+/// Lambert's contour integral over `polygon` (front side toward `pn`) clipped to the
+/// hemisphere above (x, n); the clipped polygon is left in `clipped` (empty when nothing is
+/// seen) and `wasClipped` tells whether the horizon cut it.
 double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon,
-                         std::vector<Vec3>& clipped) {
+                         const Vec3& pn, std::vector<Vec3>& clipped, bool& wasClipped) {
     clipped.clear();
+    wasClipped = false;
     if (polygon.size() < 3) return 0;
     // One-sided: the point must be in front of the polygon.
-    Vec3 pn = polygonNormal(polygon);
     if (glm::dot(x - polygon[0], pn) <= 0) return 0;
 
     // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman).
@@ -71,6 +72,7 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
         double da = glm::dot(a - x, n), db = glm::dot(b - x, n);
         if (da >= 0) clipped.push_back(a);
         if ((da >= 0) != (db >= 0)) clipped.push_back(a + (b - a) * (da / (da - db)));
+        wasClipped = wasClipped || da < 0;
     }
     const std::size_t count = clipped.size();
     if (count < 3) {
@@ -95,7 +97,8 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
 
 double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon) {
     thread_local std::vector<Vec3> clipped;
-    return clippedFormFactor(x, n, polygon, clipped);
+    bool wasClipped = false;
+    return clippedFormFactor(x, n, polygon, polygonNormal(polygon), clipped, wasClipped);
 }
 
 int visibilityRayCount(double fUnoccluded, int maxRays) {
@@ -129,36 +132,36 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     thread_local std::vector<std::vector<Vec3>> polys;
     thread_local std::vector<double> f;
     thread_local std::vector<Vec3> polygon;
+    // Per polygon: unit normal (the plane's, clipping keeps it) and the visible part's area.
+    thread_local std::vector<Vec3> normals;
+    thread_local std::vector<double> areas;
     double total = 0;
     const std::size_t count = P.outline.empty() ? P.elements.size() : 1;
     polys.resize(count);
     f.resize(count);
+    normals.resize(count);
+    areas.resize(count);
     for (std::size_t k = 0; k < count; ++k) {
+        bool wasClipped = false;
         if (P.outline.empty()) {
             const Element& el = disc.elements()[P.elements[k]];
             const auto& pos = disc.objects()[el.object].worldPositions;
             polygon.clear();
             for (int v : el.vertices) polygon.push_back(pos[v]);
-            total += f[k] = clippedFormFactor(x, n, polygon, polys[k]);
+            normals[k] = el.normal;
+            areas[k] = el.area;
+            total += f[k] = clippedFormFactor(x, n, polygon, el.normal, polys[k], wasClipped);
         } else {
-            total += f[k] = clippedFormFactor(x, n, P.outline, polys[k]);
+            normals[k] = P.normal;
+            areas[k] = P.area;
+            total += f[k] = clippedFormFactor(x, n, P.outline, P.normal, polys[k], wasClipped);
         }
+        if (wasClipped && f[k] > 0) areas[k] = 0.5 * glm::length(polygonNormal(polys[k]));
     }
     out.unoccluded = total;
     if (!(total > 0)) return out;
 
     const int rays = visibilityRayCount(total, maxRays);
-    // Per polygon, once per pair: unit normal and area.
-    thread_local std::vector<Vec3> normals;
-    thread_local std::vector<double> areas;
-    normals.resize(count);
-    areas.resize(count);
-    for (std::size_t k = 0; k < count; ++k) {
-        if (!(f[k] > 0)) continue;
-        const Vec3 nk = polygonNormal(polys[k]);
-        areas[k] = 0.5 * glm::length(nk);
-        normals[k] = nk / (2 * areas[k]);
-    }
     PairRandom rng{hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch))};
     const double eps = tracer.epsilon();
     const Vec3 origin = x + n * eps;
