@@ -333,6 +333,14 @@ std::size_t InteractiveDisplay::updateSolution(const ProgressiveSolver& solver) 
     return invalidateChangedShading(before);
 }
 
+std::size_t InteractiveDisplay::updateSolution(const std::vector<Rgb>& irradiance,
+                                               const std::vector<Rgb>* previewRadiosity,
+                                               int previewObject) {
+    const std::vector<double> before = elementShading();
+    mShader->updateSolution(irradiance, previewRadiosity, previewObject);
+    return invalidateChangedShading(before);
+}
+
 void InteractiveDisplay::syncLights() {
     // Which objects emit (from their patches' materials).
     const int objects = static_cast<int>(mDisc.objects().size());

@@ -154,6 +154,10 @@ public:
     /// drops cached points on elements whose shading changed by more than the threshold.
     /// Returns the points dropped.
     std::size_t updateSolution(const ProgressiveSolver& solver);
+    /// The same from copies of the solver's arrays (PointShader::updateSolution overload).
+    std::size_t updateSolution(const std::vector<Rgb>& irradiance,
+                               const std::vector<Rgb>* previewRadiosity = nullptr,
+                               int previewObject = -1);
     /// After an edit changed `changedObjects` (Discretization object versions added, removed,
     /// or with a new material; EditResult's added/removed/materialChanged): drops cached
     /// points on them and in their bounding spheres, brings the edge finder up to date

@@ -471,7 +471,13 @@ std::vector<Rgb> PointShader::elementIndirect() const { return state()->elementI
 // Solution snapshot
 
 void PointShader::updateSolution(const ProgressiveSolver& solver) {
-    const std::vector<Rgb>& H = solver.irradiance();
+    const bool preview = solver.previewObject() >= 0;
+    updateSolution(solver.irradiance(), preview ? &solver.previewRadiosity() : nullptr,
+                   solver.previewObject());
+}
+
+void PointShader::updateSolution(const std::vector<Rgb>& H,
+                                 const std::vector<Rgb>* previewRadiosity, int previewObject) {
     const std::size_t n = std::min(H.size(), mDisc.elements().size());
     if (mElementDirect.size() < n) {
         const std::size_t old = mElementDirect.size();
@@ -493,10 +499,10 @@ void PointShader::updateSolution(const ProgressiveSolver& solver) {
     const int preview = next->previewObject;
     next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
     for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementDirect[e];
-    if (preview >= 0 && solver.previewObject() == preview) {
+    if (preview >= 0 && previewRadiosity && previewObject == preview) {
         // George et al.'s temporary buffer T holds ρ·ΔH (and the preview object's whole ρ·H):
         // the irradiance shown is H + T/ρ, of which the preview world's H_direct is traced.
-        const std::vector<Rgb>& T = solver.previewRadiosity();
+        const std::vector<Rgb>& T = *previewRadiosity;
         for (std::size_t e = 0; e < n && e < T.size(); ++e) {
             if (isZero(T[e])) continue;
             const Rgb rho = mDisc.elementMaterial(static_cast<int>(e)).reflectance;

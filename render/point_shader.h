@@ -138,6 +138,12 @@ public:
     /// picks the new snapshot up at its next batch. `solver` must be over the same
     /// Discretization.
     void updateSolution(const ProgressiveSolver& solver);
+    /// The same from copies: `irradiance` = ProgressiveSolver::irradiance(), and while
+    /// `previewObject` ≥ 0 is the solver's previewObject(), `previewRadiosity` its
+    /// previewRadiosity() (null: none). Lets another thread update the display from a
+    /// published snapshot while the solver keeps shooting.
+    void updateSolution(const std::vector<Rgb>& irradiance,
+                        const std::vector<Rgb>* previewRadiosity = nullptr, int previewObject = -1);
     /// H_direct(e) for every element (W/m²), as used by updateSolution() (with a preview set:
     /// in the world that includes the preview object).
     std::vector<Rgb> elementDirect() const;

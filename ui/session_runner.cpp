@@ -333,7 +333,6 @@ bool SessionRunner::solverIteration() {
         std::fprintf(stderr, "solver: %zu edits, %llu shots in %.1f ms\n", commands.size(),
                      static_cast<unsigned long long>(shots), solverMs);
     publishSolver(solverMs);
-    updateDisplaySolution(true);
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         mApplying = false;
@@ -434,7 +433,7 @@ void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>&
             if (!changed.empty() || structural) {
                 const double t0 = nowSeconds();
                 d.notifyChanged(changed, &mSession->solver());
-                slot.solution = mSolutionSerial;
+                slot.solution = mLightSerial + 1;  // publishLight follows the edits
                 if (std::getenv("PENUMBRA_EDITOR_TRACE"))
                     std::fprintf(stderr, "display %dx%d: notifyChanged %zu in %.1f ms\n", d.width(),
                                  d.height(), changed.size(), (nowSeconds() - t0) * 1e3);
@@ -446,7 +445,7 @@ void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>&
             const double t0 = nowSeconds();
             const std::size_t dropped =
                 d.setPreview(preview, mPreviewSubset.visibility(), &mSession->solver());
-            slot.solution = mSolutionSerial;
+            slot.solution = mLightSerial + 1;  // publishLight follows the edits
             if (std::getenv("PENUMBRA_EDITOR_TRACE"))
                 std::fprintf(stderr, "display %dx%d: preview %d in %.1f ms, %zu points dropped\n",
                              d.width(), d.height(), preview, (nowSeconds() - t0) * 1e3, dropped);
@@ -456,54 +455,34 @@ void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>&
     }
 }
 
-void SessionRunner::catchUpDisplay(DisplaySlot& slot) {
+void SessionRunner::catchUpDisplay(DisplaySlot& slot, const Light& light) {
     InteractiveDisplay& d = *slot.display;
     const double t0 = nowSeconds();
-    PointShader::Pause pause(d.shader());
+    const std::size_t missed = slot.pendingChanged.size();
     try {
-        // Its preview subset may have been released: leave the preview first.
-        d.clearPreview();
-        std::vector<int>& changed = slot.pendingChanged;
-        std::sort(changed.begin(), changed.end());
-        changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
-        if (!changed.empty() || slot.pendingStructural) d.notifyChanged(changed);
-        if (mPreviewVersion >= 0) d.setPreview(mPreviewVersion, mPreviewSubset.visibility());
-        d.updateSolution(mSession->solver());
-        slot.solution = mSolutionSerial;
+        if (slot.behind) {
+            PointShader::Pause pause(d.shader());
+            // Its preview subset may have been released: leave the preview first.
+            d.clearPreview();
+            std::vector<int>& changed = slot.pendingChanged;
+            std::sort(changed.begin(), changed.end());
+            changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+            if (!changed.empty() || slot.pendingStructural) d.notifyChanged(changed);
+            if (mPreviewVersion >= 0) d.setPreview(mPreviewVersion, mPreviewSubset.visibility());
+            slot.pendingChanged.clear();
+            slot.pendingStructural = false;
+            slot.behind = false;
+        }
+        if (light.irradiance && slot.solution != light.serial) {
+            d.updateSolution(*light.irradiance, light.previewBuffer.get(), light.previewVersion);
+            slot.solution = light.serial;
+        }
     } catch (const std::exception& e) {
         report(std::string("display: ") + e.what());
     }
-    if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+    if (missed > 0 && std::getenv("PENUMBRA_EDITOR_TRACE"))
         std::fprintf(stderr, "display %dx%d: caught up (%zu changed objects) in %.1f ms\n",
-                     d.width(), d.height(), slot.pendingChanged.size(), (nowSeconds() - t0) * 1e3);
-    slot.pendingChanged.clear();
-    slot.pendingStructural = false;
-    slot.behind = false;
-}
-
-void SessionRunner::updateDisplaySolution(bool wait) {
-    if (!mDisplayWork) return;
-    std::unique_lock<std::mutex> lock(mDisplayMutex, std::defer_lock);
-    if (wait)
-        lock.lock();
-    else if (!lock.try_lock())
-        return;
-    bool more = false;
-    for (int i = 0; i < 2; ++i) {
-        DisplaySlot& slot = mSlots[i];
-        if (!slot.display || !liveSlot(i)) continue;
-        if (slot.behind) {
-            catchUpDisplay(slot);
-        } else if (slot.solution != mSolutionSerial) {
-            try {
-                slot.display->updateSolution(mSession->solver());
-                slot.solution = mSolutionSerial;
-            } catch (const std::exception& e) {
-                report(std::string("display: ") + e.what());
-            }
-        }
-    }
-    mDisplayWork = more;
+                     d.width(), d.height(), missed, (nowSeconds() - t0) * 1e3);
 }
 
 bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
@@ -519,13 +498,7 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     // to date (the solver thread catches it up between shots).
     const bool reduce = mOptions.interactiveDisplayDivisor != 1;
     const int want = reduce && view.interactive ? 1 : 0;
-    if (want != mWantedSlot) {
-        mWantedSlot = want;
-        if (mSlots[want].display && !mSlots[want].ready()) {
-            mDisplayWork = true;
-            mWake.notify_all();
-        }
-    }
+    mWantedSlot = want;
     DisplaySlot& wanted = mSlots[want];
     if (wanted.display && (wanted.viewWidth != view.width || wanted.viewHeight != view.height))
         wanted.display.reset();
@@ -576,9 +549,10 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
             report(std::string("display: ") + e.what());
             return false;
         }
-        mDisplayWork = true;  // the solver thread hands it the solution
-        mWake.notify_all();
     }
+    // Solutions and missed edits, from the published light (structure held shared).
+    for (int i = 0; i < 2; ++i)
+        if (mSlots[i].display && liveSlot(i)) catchUpDisplay(mSlots[i], light);
     // Switch when the wanted display has the solution and every edit, or when the shown one
     // is gone.
     if (mActiveSlot != want && (wanted.ready() || !mSlots[mActiveSlot].display)) {
@@ -617,8 +591,7 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                 solverIdle = mSolver.idle;
             }
             const bool waiting = view.referenceRequest != mReferenceDone;
-            if (waiting && sized && solverIdle && slot.ready() &&
-                slot.solution == mSolutionSerial) {
+            if (waiting && sized && solverIdle && slot.ready() && slot.solution == light.serial) {
                 const CameraRays low(view.camera, w / f, h / f);
                 mReference = display->renderReference(low, 2);
                 mReferenceCamera = view.camera;
@@ -701,6 +674,10 @@ void SessionRunner::publishLight() {
     Light light;
     light.radiosity = std::make_shared<const std::vector<Rgb>>(mSession->displayRadiosity());
     light.previewVersion = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
+    light.irradiance = std::make_shared<const std::vector<Rgb>>(mSession->solver().irradiance());
+    if (light.previewVersion >= 0)
+        light.previewBuffer =
+            std::make_shared<const std::vector<Rgb>>(mSession->solver().previewRadiosity());
     light.serial = ++mLightSerial;
     {
         // Out-of-date overlay: per element the |unshot radiosity| of its patch.
@@ -720,9 +697,6 @@ void SessionRunner::publishLight() {
         light.pending = std::move(pending);
         light.pendingScale = n > 0 ? 0.05 * sum / double(n) : 0.0;
     }
-    ++mSolutionSerial;
-    mDisplayWork = true;
-    updateDisplaySolution(false);
     {
         std::lock_guard<std::mutex> lock(mPublishMutex);
         mLight = std::move(light);

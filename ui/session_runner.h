@@ -194,6 +194,9 @@ private:
         std::shared_ptr<const std::vector<Rgb>> pending;
         double pendingScale = 0;  ///< radiosity luminance that tints fully
         int previewVersion = -1;
+        /// The display modes' solution: ProgressiveSolver::irradiance() and, while dragging,
+        /// previewRadiosity() (copies: the render thread updates its displays from them).
+        std::shared_ptr<const std::vector<Rgb>> irradiance, previewBuffer;
         std::uint64_t serial = 0;
     };
     void runSolver();
@@ -205,9 +208,6 @@ private:
     /// renderIteration for the display modes (structure held shared).
     bool renderDisplay(const ViewRequest& view, const Light& light,
                        const std::shared_ptr<const ViewportImage>& last, int highlight);
-    /// Hands the solver's solution to the display if one is waiting (solver thread, between
-    /// shots); `wait` false gives up when the render thread holds the display.
-    void updateDisplaySolution(bool wait);
     void publishDocument();
     void publishLight();
     void publishSolver(double solverMs);
@@ -258,12 +258,14 @@ private:
     // renders at displayDivisor; slot 1, while the view is interactive (camera moves, drags),
     // at a reduced resolution: an InteractiveDisplay's size is fixed, so each keeps its cache.
     // Only the live slots (the one shown and the one wanted next) take edits as they come; the
-    // other collects them (behind) and the solver thread brings it up to date (catchUpDisplay)
-    // before the render thread switches to it.
+    // other collects them (behind) and the render thread brings it up to date (catchUpDisplay)
+    // before it switches to it. Solutions reach the displays through the published Light: the
+    // render thread updates them itself, so the solver thread never waits for a frame between
+    // shots (it takes the display mutex only to apply edits).
     struct DisplaySlot {
         std::unique_ptr<InteractiveDisplay> display;
         int viewWidth = 0, viewHeight = 0;  ///< the viewport size it was made for
-        std::uint64_t solution = 0;         ///< mSolutionSerial it has, 0 none yet
+        std::uint64_t solution = 0;         ///< Light::serial of its solution, 0 none yet
         bool behind = false;                ///< missed edits (pendingChanged, the preview)
         std::vector<int> pendingChanged;
         bool pendingStructural = false;
@@ -273,16 +275,14 @@ private:
     /// Tells a live slot's display about edits (solver thread, shader paused).
     void applyDisplayEdits(DisplaySlot& slot, const std::vector<int>& changed, bool structural,
                            bool previewMoved);
-    /// Brings a slot that missed edits up to date (solver thread, display mutex held).
-    void catchUpDisplay(DisplaySlot& slot);
+    /// Brings a slot up to date: missed edits, then `light`'s solution (render thread,
+    /// structure shared, display mutex held).
+    void catchUpDisplay(DisplaySlot& slot, const Light& light);
     bool liveSlot(int i) const { return i == mActiveSlot || i == mWantedSlot; }
     std::mutex mDisplayMutex;
     DisplaySlot mSlots[2];
     int mActiveSlot = 0;  ///< the slot rendered
     int mWantedSlot = 0;  ///< the slot the view asks for (1 while interactive)
-    /// Published solutions (publishLight); a slot with an older one needs updateSolution.
-    std::atomic<std::uint64_t> mSolutionSerial{1};
-    std::atomic<bool> mDisplayWork{false};  ///< a live slot waits for the solver thread
     double mLastDisplayFrame = 0;
     /// The drag preview version (-1 none) and a tracer subset of it alone; written by the
     /// solver thread with mStructure held exclusively and the display's shader paused.
