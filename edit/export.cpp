@@ -150,7 +150,9 @@ std::vector<LitObject> collectLitObjects(const Discretization& disc,
     std::vector<LitObject> lit(surfaces.size());
     for (size_t o = 0; o < surfaces.size(); ++o) {
         lit[o].id = surfaces[o].id;
-        lit[o].twoSided = surfaces[o].twoSided;
+        // A two-sided object's back is explicit geometry (the twin sheet, its own light), so
+        // the material stays single-sided; only an object without twins relies on it.
+        lit[o].twoSided = surfaces[o].twoSided && surfaces[o].faceTwin.empty();
         lit[o].positions = surfaces[o].worldPositions;
         lit[o].normals.assign(lit[o].positions.size(), Vec3(0.0));
         lit[o].radiosity = disc.vertexValues(static_cast<int>(o), elementRadiosity);

@@ -87,9 +87,18 @@ void Discretization::setAlive(int object, bool alive) {
 }
 
 void Discretization::setObjectMaterial(int object, const Material& material) {
-    int m = addMaterial(material);
-    for (Patch& p : mPatches)
-        if (p.object == object) p.material = m;
+    // Which faces have twins is geometry: a two_sided change needs a rebuilt object.
+    const int m = addMaterial(material);
+    int back = -1;
+    for (Patch& p : mPatches) {
+        if (p.object != object) continue;
+        if (!p.elements.empty() && mObjects[object].isBackFace(mElements[p.elements[0]].face)) {
+            if (back < 0) back = addMaterial(backMaterial(material));
+            p.material = back;
+        } else {
+            p.material = m;
+        }
+    }
     mObjects[object].twoSided = material.twoSided;
 }
 
@@ -526,9 +535,91 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         }
         if (convex) P.outline = std::move(ring);
     }
+    addBackSheet(objIdx, firstPatch);
     for (int p = firstPatch; p < static_cast<int>(mPatches.size()); ++p) {
         finishPatch(p);
         mTotalArea += mPatches[p].area;
+    }
+}
+
+Material Discretization::backMaterial(const Material& front) {
+    // The back of a two-sided surface reflects like its front; emission stays front-only.
+    Material back = front;
+    back.emission = Rgb(0.0);
+    if (!front.twoSided) back.reflectance = Rgb(0.0);
+    return back;
+}
+
+void Discretization::addBackSheet(int objIdx, int firstPatch) {
+    // DESIGN.md: a two-sided material reflects on both sides. Its faces get twins on a back
+    // sheet of their own vertices with reversed winding: elements and patches like any other
+    // (normals flipped, no emission), not traced by Embree — RayTracer maps a hit on the back
+    // of a front face to its twin.
+    ObjectSurface& surface = mObjects[objIdx];
+    const int lastPatch = static_cast<int>(mPatches.size());
+    bool any = false;
+    for (int p = firstPatch; p < lastPatch && !any; ++p)
+        any = mMaterials[mPatches[p].material].twoSided;
+    if (!any) return;
+    surface.faceTwin.assign(surface.mesh.n_faces(), -1);
+    surface.firstBackFace = static_cast<int>(surface.mesh.n_faces());
+    std::map<int, VHandle> backVertex;  // front vertex -> its back-sheet copy
+    std::map<int, int> backMaterialOf;
+    for (int p = firstPatch; p < lastPatch; ++p) {
+        const int frontMaterial = mPatches[p].material;
+        if (!mMaterials[frontMaterial].twoSided) continue;
+        auto m = backMaterialOf.find(frontMaterial);
+        if (m == backMaterialOf.end())
+            m = backMaterialOf
+                    .insert({frontMaterial, addMaterial(backMaterial(mMaterials[frontMaterial]))})
+                    .first;
+        Patch back;
+        back.object = objIdx;
+        back.material = m->second;
+        back.outline.assign(mPatches[p].outline.rbegin(), mPatches[p].outline.rend());
+        const int q = static_cast<int>(mPatches.size());
+        const std::vector<int> frontElements = mPatches[p].elements;
+        mPatches.push_back(std::move(back));
+        for (int e : frontElements) {
+            std::vector<VHandle> vs;
+            for (auto it = mElements[e].vertices.rbegin(); it != mElements[e].vertices.rend();
+                 ++it) {
+                auto found = backVertex.find(*it);
+                if (found == backVertex.end()) {
+                    found = backVertex
+                                .insert({*it,
+                                         surface.mesh.add_vertex(surface.mesh.point(VHandle(*it)))})
+                                .first;
+                    surface.worldPositions.push_back(surface.worldPositions[*it]);
+                }
+                vs.push_back(found->second);
+            }
+            FHandle f = surface.mesh.add_face(vs);
+            if (!f.is_valid()) {  // a non-manifold spot: the twin stands alone
+                for (VHandle& v : vs) {
+                    const Vec3 world = surface.worldPositions[v.idx()];
+                    v = surface.mesh.add_vertex(surface.mesh.point(v));
+                    surface.worldPositions.push_back(world);
+                }
+                f = surface.mesh.add_face(vs);
+                if (!f.is_valid()) continue;
+            }
+            Element twin;
+            twin.object = objIdx;
+            twin.face = f.idx();
+            twin.patch = q;
+            for (VHandle v : vs) twin.vertices.push_back(v.idx());
+            const int te = static_cast<int>(mElements.size());
+            mElements.push_back(std::move(twin));
+            finishElement(te);
+            mPatches[q].elements.push_back(te);
+            surface.faceElement.resize(surface.mesh.n_faces(), -1);
+            surface.faceElement[f.idx()] = te;
+            surface.faceTwin.resize(surface.mesh.n_faces(), -1);
+            surface.faceTwin[mElements[e].face] = f.idx();
+            surface.faceTwin[f.idx()] = mElements[e].face;
+        }
+        if (mPatches[q].elements.empty()) mPatches.pop_back();
     }
 }
 

@@ -4,6 +4,7 @@
 // Index: Patch · Element · ObjectSurface · Discretization
 
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -56,6 +57,12 @@ struct ObjectSurface {
     std::vector<Vec3> worldPositions;  ///< per mesh vertex, world space
     Mat4 worldFromObject{1.0};
     bool twoSided = false;
+    /// Two-sided materials: faces from firstBackFace on are the back sheet (twins with
+    /// reversed winding, own vertices; not in the ray tracer's geometry). faceTwin maps each
+    /// face to its twin, -1 without one; empty when the object has no back sheet.
+    int firstBackFace = std::numeric_limits<int>::max();
+    std::vector<int> faceTwin;
+    bool isBackFace(int face) const { return face >= firstBackFace; }
     /// False once removed from the scene: its patches and elements keep their indices (pair
     /// seeds stay valid) and its geometry stays available for redistribution, but it neither
     /// shoots, receives nor blocks in the current scene.
@@ -111,6 +118,11 @@ private:
     int addMaterial(const Material& m);
     void finishElement(int element);
     void finishPatch(int patch);
+    /// Twin elements and patches for the two-sided faces of object objIdx (patches from
+    /// firstPatch on are the object's).
+    void addBackSheet(int objIdx, int firstPatch);
+    /// The back sheet's material for a front material.
+    static Material backMaterial(const Material& front);
 
     std::vector<Patch> mPatches;
     std::vector<Element> mElements;

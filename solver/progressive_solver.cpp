@@ -453,6 +453,8 @@ void ProgressiveSolver::subdivideSteepElements() {
     for (std::size_t e = 0; e < n; ++e) maxY = std::max(maxY, luminance(mElementB[e]));
     for (std::size_t e = 0; e < n; ++e) {
         if (isZero(mImpl->delta[e]) || mImpl->level[e] >= mOptions.maxSubdivisionLevel) continue;
+        // Two-sided faces keep their twins' geometry: not subdivided.
+        if (!mDisc.objects()[mDisc.elements()[e].object].faceTwin.empty()) continue;
         double ye = luminance(mElementB[e]);
         for (int nb : mDisc.elementNeighbours(static_cast<int>(e))) {
             if (mDisc.elements()[nb].patch != mDisc.elements()[e].patch &&

@@ -3,6 +3,7 @@
 #include <embree3/rtcore.h>
 #include <tbb/enumerable_thread_specific.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -203,7 +204,7 @@ void RayTracer::addObject(int o) {
     map.clear();
     for (std::size_t f = 0; f < s.faceElement.size(); ++f) {
         int e = s.faceElement[f];
-        if (e < 0) continue;
+        if (e < 0 || s.isBackFace(static_cast<int>(f))) continue;  // twins are not traced
         const auto& vs = mDisc.elements()[e].vertices;
         for (std::size_t k = 1; k + 1 < vs.size(); ++k)
             map.push_back({static_cast<int>(f), static_cast<int>(k)});
@@ -327,14 +328,21 @@ RayHit RayTracer::intersect(const Vec3& origin, const Vec3& dir, double tNear, d
     hit.element = s.faceElement[face];
     hit.t = rh.ray.tfar;
     hit.position = origin + dir * hit.t;
-    const Element& el = mDisc.elements()[hit.element];
-    hit.geometricNormal = el.normal;
-    hit.backFace = glm::dot(dir, el.normal) > 0;
-    hit.weights.assign(el.vertices.size(), 0.0);
+    hit.backFace = glm::dot(dir, mDisc.elements()[hit.element].normal) > 0;
+    const int nv = static_cast<int>(mDisc.elements()[hit.element].vertices.size());
+    hit.weights.assign(nv, 0.0);
     double u = rh.hit.u, v = rh.hit.v;
     hit.weights[0] += 1.0 - u - v;
     hit.weights[k] += u;
     hit.weights[k + 1] += v;
+    // The back of a two-sided face is its twin, whose vertices run in reverse.
+    const int twin = s.faceTwin.empty() ? -1 : s.faceTwin[face];
+    if (hit.backFace && twin >= 0) {
+        hit.element = s.faceElement[twin];
+        hit.backFace = false;
+        std::reverse(hit.weights.begin(), hit.weights.end());
+    }
+    hit.geometricNormal = mDisc.elements()[hit.element].normal;
     return hit;
 }
 
@@ -349,9 +357,14 @@ RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
     int object = static_cast<int>(rh.hit.instID[0]);
     int face = mImpl->triangleFace[object][rh.hit.primID].first;
-    hit.element = mDisc.objects()[object].faceElement[face];
+    const ObjectSurface& s = mDisc.objects()[object];
+    hit.element = s.faceElement[face];
     hit.backFace = glm::dot(dir, mDisc.elements()[hit.element].normal) > 0;
     hit.t = rh.ray.tfar;
+    if (hit.backFace && !s.faceTwin.empty() && s.faceTwin[face] >= 0) {
+        hit.element = s.faceElement[s.faceTwin[face]];  // the two-sided face's back
+        hit.backFace = false;
+    }
     return hit;
 }
 
