@@ -121,8 +121,8 @@ void EdgeFinder::setObjectAlive(int object, bool alive) {
 void EdgeFinder::syncWith(const Discretization& discretization) {
     const auto& objects = discretization.objects();
     for (int o = static_cast<int>(mObjects.size()); o < static_cast<int>(objects.size()); ++o) {
-        auto mesh = std::make_shared<const EdgeMesh>(
-            EdgeMesh::fromElementMesh(objects[o].mesh, mOptions.sharpCutoffDeg));
+        auto mesh = std::make_shared<const EdgeMesh>(EdgeMesh::fromElementMesh(
+            objects[o].mesh, mOptions.sharpCutoffDeg, objects[o].firstBackFace));
         addObject(mesh, objects[o].worldFromObject, objects[o].twoSided, objects[o].id);
     }
     for (int o = 0; o < static_cast<int>(objects.size()); ++o) setObjectAlive(o, objects[o].alive);
@@ -581,8 +581,8 @@ Light lightForObject(const Discretization& discretization, int object) {
     }
     if (pts.size() < 3) return light;
     Vec3 normal(0.0);
-    for (const Element& e : discretization.elements())
-        if (e.object == object) normal += e.area * e.normal;
+    for (const Element& e : discretization.elements())  // the front: emission is front-only
+        if (e.object == object && !surface.isBackFace(e.face)) normal += e.area * e.normal;
     if (!(glm::length(normal) > 0)) return light;
     normal = glm::normalize(normal);
     Box3 box;

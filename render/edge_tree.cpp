@@ -288,7 +288,7 @@ EdgeMesh EdgeMesh::fromTriMesh(const TriMesh& mesh, double sharpCutoffDeg) {
     return EdgeMesh(mesh.positions, faces, sharpCutoffDeg, false);
 }
 
-EdgeMesh EdgeMesh::fromElementMesh(const ElementMesh& mesh, double sharpCutoffDeg) {
+EdgeMesh EdgeMesh::fromElementMesh(const ElementMesh& mesh, double sharpCutoffDeg, int faceCount) {
     std::vector<Vec3> positions(mesh.n_vertices());
     for (auto vh : mesh.vertices()) {
         const auto& p = mesh.point(vh);
@@ -297,6 +297,7 @@ EdgeMesh EdgeMesh::fromElementMesh(const ElementMesh& mesh, double sharpCutoffDe
     std::vector<std::vector<int>> faces;
     faces.reserve(mesh.n_faces());
     for (auto fh : mesh.faces()) {
+        if (fh.idx() >= faceCount) break;
         std::vector<int> f;
         for (auto vh : mesh.fv_range(fh)) f.push_back(vh.idx());
         faces.push_back(std::move(f));

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -80,7 +81,10 @@ public:
     /// A mesh file's triangles as they are (no welding).
     static EdgeMesh fromTriMesh(const TriMesh& mesh, double sharpCutoffDeg = 85.0);
     /// A Discretization object's element mesh, welded.
-    static EdgeMesh fromElementMesh(const ElementMesh& mesh, double sharpCutoffDeg = 85.0);
+    /// Faces from `faceCount` on are left out (a two-sided object's back sheet: the same
+    /// surface, ObjectSurface::firstBackFace).
+    static EdgeMesh fromElementMesh(const ElementMesh& mesh, double sharpCutoffDeg = 85.0,
+                                    int faceCount = std::numeric_limits<int>::max());
 
     const std::vector<Vec3>& positions() const { return mPositions; }
     /// Index of each vertex in the input positions.

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <vector>
 
+#include "render/gouraud_renderer.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"
@@ -137,6 +138,31 @@ TEST(TwoSided, BackReceivesAndReflectsAsAOneSidedSurfaceTurnedOver) {
         const Rgb b1 = s1.radiosity()[e];
         EXPECT_NEAR(b2.x, b1.x, 1e-6 * b1.x);
     }
+}
+
+TEST(TwoSided, GouraudShowsTheBacksOwnLight) {
+    // Seen from below, between lamp and panel, the two-sided panel's centre pixel shows the
+    // back's radiosity (B/π), the turned-over one-sided panel the same, and a one-sided
+    // panel facing away shows black (its back absorbs).
+    Camera below;
+    below.position = Vec3(0.2, 0.3, 0.9);
+    below.lookAt = Vec3(0.2, 1.0, 0.0);
+    below.up = Vec3(0, 0, -1);
+    auto centre = [&](const Scene& scene) {
+        Discretization disc(scene);
+        RayTracer tracer(disc);
+        ProgressiveSolver solver(disc, tracer);
+        solver.converge(1e-9, 100000);
+        const Image img = renderGouraud(disc, tracer, solver.radiosity(), below, 33, 33, 1);
+        return img.pixels[16 * 33 + 16];
+    };
+    Scene away = panelOverLamp(false);
+    away.objects[1].transform.rotateDeg = Vec3(0.0);
+    const Rgb two = centre(panelOverLamp(true)), turned = centre(panelOverLamp(false));
+    EXPECT_GT(two.x, 0.05);
+    EXPECT_NEAR(two.x, turned.x, 1e-3 * turned.x);
+    EXPECT_NEAR(two.z, turned.z, 1e-3 * turned.z);
+    EXPECT_EQ(centre(away), Rgb(0.0));
 }
 
 }  // namespace
