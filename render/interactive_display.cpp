@@ -425,7 +425,8 @@ std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility&
     if (!mOptions.synchronous) (void)mShader->takeResults();
     const auto t0 = Clock::now();
     const int old = mShader->previewObject();
-    const std::vector<double> before = elementShading();
+    // Without a solver the element shading only changes through H_direct (the element list).
+    const std::vector<double> before = solver ? elementShading() : std::vector<double>{};
     std::size_t dropped = invalidateVersion(old) + invalidateVersion(previewVersion);
     const double t1 = msSince(t0);
     // The moving shadow: elements whose preview-world direct lighting changed.
@@ -433,7 +434,7 @@ std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility&
     const double t2 = msSince(t0);
     if (solver) mShader->updateSolution(*solver);
     const double t3 = msSince(t0);
-    dropped += invalidateChangedShading(before);
+    if (solver) dropped += invalidateChangedShading(before);
     if (std::getenv("PENUMBRA_DISPLAY_TRACE"))
         std::fprintf(stderr,
                      "InteractiveDisplay::setPreview: invalidate %.1f, shader %.1f, solution "

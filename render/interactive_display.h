@@ -176,7 +176,8 @@ public:
     /// alive by the caller until the next setPreview/clearPreview). Drops cached points on the
     /// previous preview version, in both versions' bounding spheres and on elements whose
     /// direct lighting the move changed (the moving shadow); takes the solver's solution when
-    /// given. Call like notifyChanged (asynchronous mode: shader paused). Returns the points
+    /// given (without one, the next updateSolution brings the preview buffer and drops what
+    /// it changed). Call like notifyChanged (asynchronous mode: shader paused). Returns the points
     /// dropped.
     std::size_t setPreview(int previewVersion, const Visibility& previewOnly = {},
                            const ProgressiveSolver* solver = nullptr);

@@ -443,9 +443,8 @@ void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>&
         // After the subset follows mPreviewVersion: the new preview position.
         if (preview >= 0) {
             const double t0 = nowSeconds();
-            const std::size_t dropped =
-                d.setPreview(preview, mPreviewSubset.visibility(), &mSession->solver());
-            slot.solution = mLightSerial + 1;  // publishLight follows the edits
+            const std::size_t dropped = d.setPreview(preview, mPreviewSubset.visibility());
+            // The new position's buffer comes with the light published next (render thread).
             if (std::getenv("PENUMBRA_EDITOR_TRACE"))
                 std::fprintf(stderr, "display %dx%d: preview %d in %.1f ms, %zu points dropped\n",
                              d.width(), d.height(), preview, (nowSeconds() - t0) * 1e3, dropped);
