@@ -170,7 +170,10 @@ struct SurfaceBuilder {
         FHandle f = surface.mesh.add_face(clean);
         if (!f.is_valid()) {
             std::vector<VHandle> copy;
-            for (VHandle v : clean) copy.push_back(surface.mesh.add_vertex(surface.mesh.point(v)));
+            for (VHandle v : clean) {
+                const ElementMesh::Point p = surface.mesh.point(v);  // add_vertex may reallocate
+                copy.push_back(surface.mesh.add_vertex(p));
+            }
             f = surface.mesh.add_face(copy);
             if (!f.is_valid()) return false;
             clean = copy;
@@ -586,11 +589,11 @@ void Discretization::addBackSheet(int objIdx, int firstPatch) {
                  ++it) {
                 auto found = backVertex.find(*it);
                 if (found == backVertex.end()) {
-                    found = backVertex
-                                .insert({*it,
-                                         surface.mesh.add_vertex(surface.mesh.point(VHandle(*it)))})
-                                .first;
-                    surface.worldPositions.push_back(surface.worldPositions[*it]);
+                    // Copies first: add_vertex and push_back may reallocate.
+                    const ElementMesh::Point p = surface.mesh.point(VHandle(*it));
+                    const Vec3 world = surface.worldPositions[*it];
+                    found = backVertex.insert({*it, surface.mesh.add_vertex(p)}).first;
+                    surface.worldPositions.push_back(world);
                 }
                 vs.push_back(found->second);
             }
@@ -598,7 +601,8 @@ void Discretization::addBackSheet(int objIdx, int firstPatch) {
             if (!f.is_valid()) {  // a non-manifold spot: the twin stands alone
                 for (VHandle& v : vs) {
                     const Vec3 world = surface.worldPositions[v.idx()];
-                    v = surface.mesh.add_vertex(surface.mesh.point(v));
+                    const ElementMesh::Point p = surface.mesh.point(v);
+                    v = surface.mesh.add_vertex(p);
                     surface.worldPositions.push_back(world);
                 }
                 f = surface.mesh.add_face(vs);
