@@ -235,8 +235,10 @@ TEST(EdgeMesh, SphereHasNoSharpEdgesAt85Degrees) {
     EXPECT_EQ(cm.sharpEdges().size(), 48u);
 }
 
-TEST(EdgeTree, MillionTriangleSilhouetteTime) {
-    // Measurement, not a pass/fail goal: 20 randomly rotated copies of the armadillo.
+TEST(EdgeTree, ManyArmadillosSilhouettesEqualBruteForce) {
+    // Four randomly rotated copies of the armadillo (≈ 200k triangles): the tree's
+    // silhouettes equal a brute force over every edge. The timings printed are for reading
+    // only; the 1M-triangle figure is `penumbra bench display`'s (armadillo-field).
     std::string path = meshPath("armadillo.off");
     if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " absent";
     TriMesh one = loadMeshFile(path);
@@ -246,7 +248,7 @@ TEST(EdgeTree, MillionTriangleSilhouetteTime) {
     TriMesh many;
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> u(0, 1);
-    for (int copy = 0; copy < 20; ++copy) {
+    for (int copy = 0; copy < 4; ++copy) {
         Transform t;
         t.rotateDeg = Vec3(360 * u(rng), 360 * u(rng), 360 * u(rng));
         t.translate = Vec3((copy % 5) * s, (copy / 5) * s, 0.0);
