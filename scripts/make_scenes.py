@@ -490,7 +490,7 @@ def armadillo_field():
     W, D, H = 9.0, 8.0, 3.5
     mats = {
         "floor": {"reflectance": [0.55, 0.5, 0.45]},
-        "statue": {"reflectance": [0.6, 0.6, 0.62], "two_sided": True},
+        "statue": {"reflectance": [0.6, 0.6, 0.62]},
         "slat": {"reflectance": [0.4, 0.3, 0.25]},
         "lamp": lamp_material([150, 140, 120]),
     }
