@@ -4,7 +4,6 @@
 #include "ui/mesh_library.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -13,17 +12,13 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "ui/file_dialog.h"
+
 namespace penumbra {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return s;
-}
 
 std::string vecText(const Vec3& v) {
     std::ostringstream out;
@@ -52,9 +47,9 @@ std::string LibraryEntry::toString() const {
 // Listing meshes.
 
 bool isMeshFile(const std::string& path) {
-    static const std::set<std::string> kExtensions = {".obj", ".off",  ".ply",
-                                                      ".stl", ".gltf", ".glb"};
-    return kExtensions.count(lower(fs::path(path).extension().string())) > 0;
+    static const std::vector<std::string> kExtensions = {".obj", ".off",  ".ply",
+                                                         ".stl", ".gltf", ".glb"};
+    return matchesExtension(path, kExtensions);
 }
 
 std::vector<std::string> meshLibraryRoots(const std::string& scenePath,
