@@ -547,28 +547,30 @@ Rgb PointShader::indirectIrradiance(int element, const std::vector<double>& weig
     return h;
 }
 
-Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int receiver,
-                            std::uint64_t key) const {
-    const double eps = mTracer.epsilon();
+namespace {
+
+/// The stratified samples of every light seen from (x, n), Bala et al.'s area lights:
+/// `visit(light, from, to, kernel)` for each sample y (kernel = cosθ_x cosθ_y / (π r²)) returns
+/// whether the sample counts as blocked; `done(light, unoccluded F, blocked F)` then gets the
+/// light's totals. Both estimators below share this pattern, so their samples match.
+template <class Lights, class Visit, class Done>
+void forEachLightSample(const Lights& lights, const Vec3& x, const Vec3& n, int receiver,
+                        std::uint64_t key, double eps, double formFactorPerRay,
+                        int maxStrataPerAxis, Visit&& visit, Done&& done) {
     const double invPi = glm::one_over_pi<double>();
     const Vec3 from = x + n * eps;
-    Rgb total(0.0);
-    for (std::size_t l = 0; l < st.lights.size(); ++l) {
-        const Light& L = st.lights[l];
+    for (std::size_t l = 0; l < lights.size(); ++l) {
+        const auto& L = lights[l];
         if (L.planar && L.object == receiver) continue;  // a plane cannot light itself
         // Analytic unoccluded form factor (Lambert's contour formula).
         double fUnoccluded = 0;
         for (const auto& poly : L.polygons) fUnoccluded += polygonFormFactor(x, n, poly);
         if (!(fUnoccluded > 0)) continue;
-
         // Strata by the light's projected solid angle.
-        int perAxis =
-            static_cast<int>(std::ceil(std::sqrt(fUnoccluded / mOptions.formFactorPerRay)));
-        perAxis = std::clamp(perAxis, 1, std::max(1, mOptions.maxStrataPerAxis));
+        int perAxis = static_cast<int>(std::ceil(std::sqrt(fUnoccluded / formFactorPerRay)));
+        perAxis = std::clamp(perAxis, 1, std::max(1, maxStrataPerAxis));
         const int rays = perAxis * perAxis;
-
-        // Unbiased blocked part: (A/N) Σ K(x, y_i)·(1 − V(x, y_i)), K the point-to-point
-        // form factor kernel cosθ_x·cosθ_y / (π r²).
+        // Unbiased blocked part: (A/N) Σ K(x, y_i)·(1 − V(x, y_i)).
         SampleRandom rng{hashPair(key, l)};
         double blocked = 0;
         for (int i = 0; i < rays; ++i) {
@@ -579,10 +581,23 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
             double r2 = glm::dot(d, d);
             double cx = glm::dot(n, d), cy = -glm::dot(ny, d);
             if (!(r2 > 0) || cx <= 0 || cy <= 0) continue;
-            const Vec3 to = y + ny * eps;
+            if (visit(L, from, y + ny * eps)) blocked += cx * cy / (r2 * r2) * invPi;
+        }
+        done(L, fUnoccluded, blocked * (L.area / rays));
+    }
+}
+
+}  // namespace
+
+Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int receiver,
+                            std::uint64_t key) const {
+    Rgb total(0.0);
+    forEachLightSample(
+        st.lights, x, n, receiver, key, mTracer.epsilon(), mOptions.formFactorPerRay,
+        mOptions.maxStrataPerAxis,
+        [&](const Light& L, const Vec3& from, const Vec3& to) {
             const bool sceneBlocked = mTracer.occluded(from, to);
-            if (!sceneBlocked && !previewBlocks(st, from, to)) continue;
-            blocked += cx * cy / (r2 * r2) * invPi;
+            if (!sceneBlocked && !previewBlocks(st, from, to)) return false;
             // The edge finder knows the scene's objects, not the preview version.
             if (mOptions.recordTriples && sceneBlocked) {
                 // Who blocked: the first surface along the shadow ray (Bala et al. §6.5).
@@ -592,10 +607,12 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
                     if (blocker != L.object) recordTriple({L.object, blocker, receiver});
                 }
             }
-        }
-        double f = fUnoccluded - blocked * (L.area / rays);
-        if (f > 0) total += L.emission * f;
-    }
+            return true;
+        },
+        [&](const Light& L, double fUnoccluded, double fBlocked) {
+            double f = fUnoccluded - fBlocked;
+            if (f > 0) total += L.emission * f;
+        });
     return total;
 }
 
@@ -603,36 +620,16 @@ Rgb PointShader::previewChange(const State& st, const Vec3& x, const Vec3& n, in
                                std::uint64_t key) const {
     // directWith's samples (same lights, strata and pattern), counting only the rays the
     // preview object blocks and the scene does not: the change of the blocked part.
-    const double eps = mTracer.epsilon();
-    const double invPi = glm::one_over_pi<double>();
-    const Vec3 from = x + n * eps;
     Rgb change(0.0);
-    for (std::size_t l = 0; l < st.lights.size(); ++l) {
-        const Light& L = st.lights[l];
-        if (L.planar && L.object == receiver) continue;
-        double fUnoccluded = 0;
-        for (const auto& poly : L.polygons) fUnoccluded += polygonFormFactor(x, n, poly);
-        if (!(fUnoccluded > 0)) continue;
-        int perAxis =
-            static_cast<int>(std::ceil(std::sqrt(fUnoccluded / mOptions.formFactorPerRay)));
-        perAxis = std::clamp(perAxis, 1, std::max(1, mOptions.maxStrataPerAxis));
-        const int rays = perAxis * perAxis;
-        SampleRandom rng{hashPair(key, l)};
-        double blocked = 0;
-        for (int i = 0; i < rays; ++i) {
-            double r0 = rng.next(), r1 = rng.next();
-            Vec3 ny;
-            Vec3 y = L.sample(i, rays, perAxis, r0, r1, ny);
-            Vec3 d = y - x;
-            double r2 = glm::dot(d, d);
-            double cx = glm::dot(n, d), cy = -glm::dot(ny, d);
-            if (!(r2 > 0) || cx <= 0 || cy <= 0) continue;
-            const Vec3 to = y + ny * eps;
-            if (!previewBlocks(st, from, to) || mTracer.occluded(from, to)) continue;
-            blocked += cx * cy / (r2 * r2) * invPi;
-        }
-        change -= L.emission * std::min(blocked * (L.area / rays), fUnoccluded);
-    }
+    forEachLightSample(
+        st.lights, x, n, receiver, key, mTracer.epsilon(), mOptions.formFactorPerRay,
+        mOptions.maxStrataPerAxis,
+        [&](const Light&, const Vec3& from, const Vec3& to) {
+            return previewBlocks(st, from, to) && !mTracer.occluded(from, to);
+        },
+        [&](const Light& L, double fUnoccluded, double fBlocked) {
+            change -= L.emission * std::min(fBlocked, fUnoccluded);
+        });
     return change;
 }
 
