@@ -121,7 +121,9 @@ struct ChangeEntry {
     /// Per patch: its redistribution to the added objects' elements was gathered
     /// (gatherToAdded); its shots skip those receivers. Empty until the gather.
     std::vector<std::uint8_t> gathered;
-    bool isGathered(int j) const { return !gathered.empty() && gathered[j]; }
+    bool isGathered(int j) const {
+        return j >= 0 && static_cast<std::size_t>(j) < gathered.size() && gathered[j];
+    }
 };
 
 struct ProgressiveSolver::Impl {
@@ -799,9 +801,11 @@ bool ProgressiveSolver::shouldGather(const ChangeEntry& c, double best) const {
 void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<Rgb>& delta) {
     const auto& patches = mDisc.patches();
     const auto& elements = mDisc.elements();
-    c.gathered.assign(patches.size(), 0);
+    // The entry knows the patches that existed at its edit; later edits append more.
+    const std::size_t np = c.shot.size();
+    c.gathered.assign(np, 0);
     // Emitters keep their shots: a gather would see a small bright light with few rays.
-    for (std::size_t j = 0; j < patches.size(); ++j)
+    for (std::size_t j = 0; j < np; ++j)
         if (c.pending.key(static_cast<int>(j)) > 0 &&
             !mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
             c.gathered[j] = 1;
@@ -840,7 +844,7 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
                 const RayTracer::FirstHit h = mTracer.firstHit(origin, dir, after);
                 if (h.element < 0 || h.backFace) continue;
                 const int j = elements[h.element].patch;
-                if (j == el.patch || !c.gathered[j]) continue;
+                if (j == el.patch || !c.isGathered(j)) continue;
                 sum += c.shot[j];
             }
             delta[e] = sum / static_cast<double>(nx * ny);
