@@ -856,39 +856,30 @@ bool ProgressiveSolver::shootRedistribution() {
     int k = -1;
     double best = bestRedistribution(&k);
     if (best <= 0 || k < 0) return false;
-    ChangeEntry& weak = mImpl->changes[k];
-    if (shouldGather(weak, best)) {
-        // The added objects' elements gather what the weak shooters would send them: far
-        // less noise than the same rays shot, and the edit's most changed elements.
-        const unsigned long long raysBefore = mTracer.rayCount();
-        auto& delta = mImpl->delta;
-        gatherToAdded(weak, false, delta);
-        for (std::size_t e = 0; e < delta.size(); ++e)
-            if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
-        for (std::size_t e = 0; e < delta.size(); ++e)
-            if (!isZero(delta[e])) touchElement(static_cast<int>(e));
-        updateTouchedPriorities();
-        ++mStats.shots;
-        ++mStats.redistributionShots;
-        mStats.rays += mTracer.rayCount() - raysBefore;
-        return true;
-    }
-    if (mOptions.stochasticBelow > 0 && best < mOptions.stochasticBelow * mEmittedEnergy) {
+    ChangeEntry& c = mImpl->changes[k];
+    const bool gather = shouldGather(c, best);
+    if (!gather && mOptions.stochasticBelow > 0 &&
+        best < mOptions.stochasticBelow * mEmittedEnergy) {
         shootRedistributionBatch(k);
         return true;
     }
-    ChangeEntry& c = mImpl->changes[k];
-    const int j = c.pending.top();
-    c.totalPending -= c.pending.key(j);
-    c.pending.update(j, 0.0);
     const unsigned long long raysBefore = mTracer.rayCount();
     auto& delta = mImpl->delta;
-    redistributionDelta(c, j, false, delta);
-    const std::size_t n = delta.size();
-    for (std::size_t e = 0; e < n; ++e)
-        if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
-    for (std::size_t e = 0; e < n; ++e)
-        if (!isZero(delta[e])) touchElement(static_cast<int>(e));
+    if (gather) {
+        // The added objects' elements gather what the weak shooters would send them: far
+        // less noise than the same rays shot, and the edit's most changed elements.
+        gatherToAdded(c, false, delta);
+    } else {
+        const int j = c.pending.top();
+        c.totalPending -= c.pending.key(j);
+        c.pending.update(j, 0.0);
+        redistributionDelta(c, j, false, delta);
+    }
+    for (std::size_t e = 0; e < delta.size(); ++e)
+        if (!isZero(delta[e])) {
+            receive(static_cast<int>(e), delta[e]);
+            touchElement(static_cast<int>(e));
+        }
     updateTouchedPriorities();
 
     if (c.pending.key(c.pending.top()) <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
