@@ -111,4 +111,16 @@ inline Scene makeLitRoom(const std::string& slabMaterial) {
     return scene;
 }
 
+/// Where the drag tests move makeLitRoom's slab (its translation after the drag).
+inline const Vec3 kLitRoomSlabDragTarget{-0.55, -0.35, -0.35};
+
+/// A camera high in makeLitRoom looking down on the floor, the slab and the drag target.
+inline Camera litRoomTopCamera() {
+    Camera c;
+    c.position = Vec3(0.0, 1.2, 1.4);
+    c.lookAt = Vec3(-0.2, -1.2, -0.2);
+    c.fovDeg = 75;
+    return c;
+}
+
 }  // namespace penumbra::test

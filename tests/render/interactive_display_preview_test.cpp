@@ -19,15 +19,7 @@ namespace penumbra {
 namespace {
 
 constexpr int kSize = 80;
-const Vec3 kNewPlace(-0.55, -0.35, -0.35);  // the slab's translation after the drag
-
-Camera topCamera() {
-    Camera c;
-    c.position = Vec3(0.0, 1.2, 1.4);
-    c.lookAt = Vec3(-0.2, -1.2, -0.2);
-    c.fovDeg = 75;
-    return c;
-}
+const Vec3 kNewPlace = test::kLitRoomSlabDragTarget;
 
 InteractiveDisplayOptions displayOptions() {
     InteractiveDisplayOptions o;
@@ -39,7 +31,7 @@ InteractiveDisplayOptions displayOptions() {
 
 /// Warm-up at every pixel, then a few frames so the reconstruction uses settled points.
 Image settle(InteractiveDisplay& display) {
-    const CameraRays rays(topCamera(), kSize, kSize);
+    const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
     display.warmUp(rays, 1.0);
     Image image;
     for (int f = 0; f < 6; ++f) image = display.renderFrame(rays);
@@ -102,7 +94,7 @@ TEST(InteractiveDisplayPreview, DraggedObjectAppearsAtItsNewPlaceLitByThePreview
     const Image expected = settle(refDisplay);
 
     // Which pixels show the slab in the reference, and which its neighbourhood.
-    const CameraRays rays(topCamera(), kSize, kSize);
+    const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
     const int refSlab = reference.objectVersion("slab");
     std::vector<std::uint8_t> slabMask(kSize * kSize, 0);
     int slabPixels = 0;
@@ -167,7 +159,7 @@ TEST(InteractiveDisplayPreview, ShadowFollowsTheDragAndClearPreviewRestoresTheSc
     // The floor point straight under the moved slab (the lamp is above the centre of the
     // room): in its shadow with the preview, lit without.
     const Vec3 under(kNewPlace.x, -1.5, kNewPlace.z);
-    const auto pixel = CameraRays(topCamera(), kSize, kSize).projectToPixel(under);
+    const auto pixel = CameraRays(test::litRoomTopCamera(), kSize, kSize).projectToPixel(under);
     ASSERT_TRUE(pixel.has_value());
     const int px = static_cast<int>(pixel->x), py = static_cast<int>(pixel->y);
 

@@ -27,6 +27,7 @@
 #include "render/camera_rays.h"
 #include "render/image.h"
 #include "ui/editor_app.h"
+#include "ui/editor_test_support.h"
 #include "ui/mesh_library.h"
 
 namespace penumbra {
@@ -130,18 +131,7 @@ TEST(EditorDisplay, WithoutADisplayItExitsTwoWithOneLine) {
     std::filesystem::remove(err);
 }
 
-/// Runs frames until `done` (or the time limit), at most ~200 frames per second.
-template <typename Done>
-bool runUntil(EditorApp& app, Done done, double seconds) {
-    const auto start = std::chrono::steady_clock::now();
-    while (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() <
-           seconds) {
-        app.frame();
-        if (done()) return true;
-        std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    return false;
-}
+using test::runUntil;
 
 double meanLuminance(const Image& image) {
     double sum = 0;

@@ -17,20 +17,12 @@ namespace penumbra {
 namespace {
 
 constexpr int kSize = 96;
-const Vec3 kNewPlace(-0.55, -0.35, -0.35);  // the slab's translation after the drag
-const Vec3 kOldPlace(0.2, -0.8, 0.1);       // makeLitRoom's slab
-
-Camera topCamera() {
-    Camera c;
-    c.position = Vec3(0.0, 1.2, 1.4);
-    c.lookAt = Vec3(-0.2, -1.2, -0.2);
-    c.fovDeg = 75;
-    return c;
-}
+const Vec3 kNewPlace = test::kLitRoomSlabDragTarget;
+const Vec3 kOldPlace(0.2, -0.8, 0.1);  // makeLitRoom's slab
 
 ViewRequest view(bool interactive) {
     ViewRequest v;
-    v.camera = topCamera();
+    v.camera = test::litRoomTopCamera();
     v.width = v.height = kSize;
     v.mode = ViewMode::EdgeAndPoint;
     v.highlight = "slab";
@@ -93,7 +85,7 @@ TEST(SessionRunnerDrag, EdgeAndPointModeShowsTheDraggedObjectAndItsOutline) {
     EXPECT_EQ(settled->render.radiance.width, kSize);
     EXPECT_FALSE(settled->reduced);
 
-    const CameraRays full(topCamera(), kSize, kSize);
+    const CameraRays full(test::litRoomTopCamera(), kSize, kSize);
     const glm::dvec2 oldTop = *full.projectToPixel(kOldPlace + Vec3(0, 0.05, 0));
     const glm::dvec2 newTop = *full.projectToPixel(kNewPlace + Vec3(0, 0.05, 0));
     ASSERT_GT(glm::length(oldTop - newTop), 15.0);
@@ -110,7 +102,7 @@ TEST(SessionRunnerDrag, EdgeAndPointModeShowsTheDraggedObjectAndItsOutline) {
     t.translate = kNewPlace;
     runner.submitCoalescing(t);
     runner.setView(view(true));
-    const CameraRays half(topCamera(), kSize / 2, kSize / 2);
+    const CameraRays half(test::litRoomTopCamera(), kSize / 2, kSize / 2);
     const glm::dvec2 newTopHalf = *half.projectToPixel(kNewPlace + Vec3(0, 0.05, 0));
     const glm::dvec2 oldTopHalf = *half.projectToPixel(kOldPlace + Vec3(0, 0.05, 0));
     int frames = 0;

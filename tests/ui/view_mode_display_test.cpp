@@ -29,6 +29,7 @@
 #include "render/image.h"
 #include "solver/discretization.h"
 #include "ui/editor_app.h"
+#include "ui/editor_test_support.h"
 #include "ui/view_mode.h"
 #include "ui/viewport_renderer.h"
 
@@ -46,18 +47,7 @@ int runCommand(const std::string& command) {
 // In-process: the viewport images themselves (ViewportImage: the display radiance and the rgba
 // with the mode's overlay).
 
-/// Runs frames until `done` (or the time limit).
-template <typename Done>
-bool runUntil(EditorApp& app, Done done, double seconds) {
-    const auto start = std::chrono::steady_clock::now();
-    while (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() <
-           seconds) {
-        app.frame();
-        if (done()) return true;
-        std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    return false;
-}
+using test::runUntil;
 
 EditorOptions cubeRoom(ViewMode mode) {
     EditorOptions options;
