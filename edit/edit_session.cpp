@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <sstream>
 #include <stdexcept>
 
@@ -57,7 +58,9 @@ std::string EditResult::toString() const {
 
 std::unique_ptr<EditSession> EditSession::open(const std::string& path,
                                                const SolverOptions& options) {
-    return std::make_unique<EditSession>(loadScene(path), options, path);
+    auto session = std::make_unique<EditSession>(loadScene(path), options, path);
+    session->mSceneDir = std::filesystem::path(path).parent_path().string();
+    return session;
 }
 
 EditSession::EditSession(Scene scene, const SolverOptions& options, const std::string& sourceName)
@@ -491,7 +494,39 @@ std::vector<Rgb> EditSession::radiosityWithPreview() const {
     return b;
 }
 
-void EditSession::saveScene(const std::string& path) const { penumbra::saveScene(scene(), path); }
+void EditSession::saveScene(const std::string& path) {
+    const std::string dir = std::filesystem::path(path).parent_path().string();
+    // Mesh paths as they must be written at `path`; the document keeps the old ones until the
+    // file is written, so a failed save changes nothing.
+    Scene& doc = mLit->scene();
+    std::vector<std::string> rebased(doc.objects.size());
+    for (std::size_t i = 0; i < doc.objects.size(); ++i) {
+        if (doc.objects[i].shape.type == ShapeType::Mesh)
+            rebased[i] = rebaseMeshPath(doc.objects[i].shape.file, mSceneDir, dir);
+    }
+    auto swapPaths = [&] {
+        for (std::size_t i = 0; i < doc.objects.size(); ++i)
+            std::swap(doc.objects[i].shape.file, rebased[i]);
+    };
+    swapPaths();
+    try {
+        penumbra::saveScene(doc, path);
+    } catch (...) {
+        swapPaths();
+        throw;
+    }
+    // The document now lives at `path`: the history's added objects name meshes from there too.
+    for (std::vector<UndoRecord>* stack : {&mUndo, &mRedo}) {
+        for (UndoRecord& record : *stack) {
+            for (EditCommand* command : {&record.forward, &record.inverse}) {
+                if (auto* add = std::get_if<AddCommand>(&command->op);
+                    add && add->object.shape.type == ShapeType::Mesh)
+                    add->object.shape.file = rebaseMeshPath(add->object.shape.file, mSceneDir, dir);
+            }
+        }
+    }
+    mSceneDir = dir;
+}
 
 void EditSession::exportLitScene(const std::string& path) const {
     // The session's discretization holds dead versions too; export a fresh discretization of

@@ -102,8 +102,14 @@ public:
     /// Element radiosity B plus the preview buffer (what export writes).
     std::vector<Rgb> radiosityWithPreview() const;
 
-    /// Writes the document atomically (saveScene). Throws InputError when it cannot be written.
-    void saveScene(const std::string& path) const;
+    /// Writes the document atomically (saveScene) to `path`, which becomes the document's
+    /// location: relative mesh paths, in the document and in the undo and redo history, are
+    /// rewritten relative to `path`'s folder (rebaseMeshPath), so Save as into another folder
+    /// keeps every mesh. Throws InputError when the file cannot be written, changing nothing.
+    void saveScene(const std::string& path);
+    /// The folder relative mesh paths of the document are relative to: the scene file's
+    /// folder for open(), "" (the working directory) for a session built from a Scene.
+    const std::string& sceneDirectory() const { return mSceneDir; }
     /// Exports the lit document (every document object at its current version, dead versions
     /// left out) as exportLitScene does.
     void exportLitScene(const std::string& path) const;
@@ -154,6 +160,7 @@ private:
 
     std::unique_ptr<LitScene> mLit;
     std::string mSourceName;
+    std::string mSceneDir;  ///< see sceneDirectory()
     std::unordered_map<std::string, int> mVersionOf;
     /// Materials made by material edits: name -> owning object id.
     std::unordered_map<std::string, std::string> mOwnedMaterials;

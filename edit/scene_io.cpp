@@ -722,6 +722,28 @@ std::string formatSceneText(const Json& json) {
     return text + "\n";
 }
 
+std::string rebaseMeshPath(const std::string& file, const std::string& fromDir,
+                           const std::string& toDir) {
+    const std::filesystem::path original(file);
+    if (file.empty() || original.is_absolute()) return file;
+    const std::filesystem::path from = std::filesystem::absolute(fromDir.empty() ? "." : fromDir);
+    const std::filesystem::path to = std::filesystem::absolute(toDir.empty() ? "." : toDir);
+    if (from.lexically_normal() == to.lexically_normal()) return file;
+    // weakly_canonical resolves symbolic links in the existing part of both paths, so the
+    // relative path also holds when the folders are reached through links.
+    const std::filesystem::path target = std::filesystem::weakly_canonical(from / original);
+    const std::filesystem::path relative =
+        target.lexically_relative(std::filesystem::weakly_canonical(to));
+    return relative.empty() ? target.string() : relative.generic_string();
+}
+
+void rebaseMeshPaths(Scene& scene, const std::string& fromDir, const std::string& toDir) {
+    for (SceneObject& object : scene.objects) {
+        if (object.shape.type == ShapeType::Mesh)
+            object.shape.file = rebaseMeshPath(object.shape.file, fromDir, toDir);
+    }
+}
+
 void saveScene(const Scene& scene, const std::string& path) {
     const std::string text = formatSceneText(sceneToJson(scene));
     const std::filesystem::path target(path);

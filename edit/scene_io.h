@@ -76,6 +76,14 @@ std::string formatSceneText(const nlohmann::ordered_json& json);
 /// cannot be written.
 void saveScene(const Scene& scene, const std::string& path);
 
+/// A mesh shape's `file`, written relative to `fromDir`, rewritten relative to `toDir` so it
+/// names the same file (Save as into another folder). Absolute paths and paths into the same
+/// directory come back unchanged; "" for either directory means the working directory.
+std::string rebaseMeshPath(const std::string& file, const std::string& fromDir,
+                           const std::string& toDir);
+/// rebaseMeshPath applied to every mesh shape of `scene`.
+void rebaseMeshPaths(Scene& scene, const std::string& fromDir, const std::string& toDir);
+
 /// "a number", "a string", … for error messages about a JSON value of the wrong type.
 std::string describeType(const nlohmann::ordered_json& value);
 /// A number as error messages print it (shortest round-trip-ish form of operator<<).

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "edit/input_error.h"
+#include "edit/mesh_io.h"
 #include "edit/scene_io.h"
 #include "test_scenes.h"
 
@@ -482,6 +483,65 @@ TEST(EditSession, BadEditsChangeNeitherSceneSolutionNorLog) {
     expectUnchanged(before, captureState(*session, log), "undo with nothing to undo");
     session.reset();
     fs::remove_all(dir);
+}
+
+TEST(EditSession, SaveAsIntoAnotherFolderKeepsEveryMesh) {
+    const fs::path root =
+        fs::temp_directory_path() / ("penumbra_save_as_" + std::to_string(::getpid()));
+    fs::remove_all(root);
+    fs::create_directories(root / "project" / "meshes");
+    fs::create_directories(root / "elsewhere" / "deeper");
+    {
+        std::ofstream off(root / "project" / "meshes" / "tet.off");
+        off << "OFF\n4 4 0\n0 0 0\n0.3 0 0\n0 0.3 0\n0 0 0.3\n"
+               "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+    }
+    auto meshObject = [&](const std::string& id, const Vec3& at) {
+        SceneObject o;
+        o.id = id;
+        o.shape.type = ShapeType::Mesh;
+        o.shape.file = "meshes/tet.off";
+        o.shape.mesh = loadMeshFile((root / "project" / "meshes" / "tet.off").string());
+        o.material = "white";
+        o.transform.translate = at;
+        return o;
+    };
+    Scene scene = makeRoom(false);
+    scene.objects.push_back(meshObject("tet", Vec3(-0.4, -0.9, 0.2)));
+    const std::string original = (root / "project" / "scene.json").string();
+    saveScene(scene, original);
+
+    auto session = EditSession::open(original, SolverOptions{});
+    EXPECT_EQ(session->sceneDirectory(), (root / "project").string());
+    session->apply(AddCommand{meshObject("tet2", Vec3(0.4, -0.9, -0.2))});
+    session->apply(UndoCommand{});  // the add waits on the redo stack
+
+    // A save that cannot be written changes nothing.
+    EXPECT_THROW(session->saveScene((root / "missing" / "scene.json").string()), InputError);
+    EXPECT_EQ(session->sceneDirectory(), (root / "project").string());
+    EXPECT_EQ(session->scene().objects.back().shape.file, "meshes/tet.off");
+
+    const std::string moved = (root / "elsewhere" / "deeper" / "scene.json").string();
+    session->saveScene(moved);
+    EXPECT_EQ(session->sceneDirectory(), (root / "elsewhere" / "deeper").string());
+    Scene reloaded = loadScene(moved);  // throws if a mesh path no longer resolves
+    ASSERT_EQ(reloaded.objects.back().id, "tet");
+    EXPECT_EQ(reloaded.objects.back().shape.file, "../../project/meshes/tet.off");
+    EXPECT_EQ(reloaded.objects.back().shape.mesh.positions.size(), 4u);
+
+    // The history's add names the mesh from the new folder too.
+    session->apply(RedoCommand{});
+    session->saveScene(moved);
+    reloaded = loadScene(moved);
+    ASSERT_EQ(reloaded.objects.back().id, "tet2");
+    EXPECT_EQ(reloaded.objects.back().shape.file, "../../project/meshes/tet.off");
+
+    // And back home: the paths are as first written.
+    session->saveScene(original);
+    reloaded = loadScene(original);
+    EXPECT_EQ(reloaded.objects[reloaded.objects.size() - 2].shape.file, "meshes/tet.off");
+    EXPECT_EQ(reloaded.objects.back().shape.file, "meshes/tet.off");
+    fs::remove_all(root);
 }
 
 }  // namespace
