@@ -259,6 +259,8 @@ EdgePointImage::EdgePointImage(int width, int height, EpiOptions options)
     mPaddedCode.assign(padded, kNeighbourTypeComplex);
     mReach.assign(n, kAllNeighbours | kAllEmptyFlag);
     mSecondaryReach.assign(n, 0);
+    mReachLower.assign(n, 0);
+    mPartnerReach.assign(n, 0);
     mPaddedAll.assign(padded, glm::vec4(0.0f));
     mPaddedUsable.assign(padded, glm::vec4(0.0f));
     mRowSums.assign(static_cast<size_t>(width) * (height + 4), glm::vec4(0.0f));
@@ -267,9 +269,10 @@ EdgePointImage::EdgePointImage(int width, int height, EpiOptions options)
     mPrimary.assign(n, glm::vec3(0.0f));
     mNearEdge.assign(padded, 0);
     mWeight.assign(n, 0.0f);
-    mSubMark.assign(n, 0);
     mSubCode.assign(4 * n, kEdgeCodeComplex);
     mSubType.assign(4 * n, 0);
+    mRowCounts.assign(height, {width, 0, 0});
+    mPixelCounts = {n, 0, 0};
     // Build the shared tables outside any timed stage.
     (void)EdgeCodeTables::pixel();
     (void)EdgeCodeTables::subpixel();
@@ -295,7 +298,6 @@ void EdgePointImage::build(const std::vector<ScreenEdge>& edges,
 
     start = std::chrono::steady_clock::now();
     classifyPixels();
-    fillPaddedSamples();
     mTimes.classifyMs = millisecondsSince(start);
 }
 
@@ -305,6 +307,7 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
     // Keep the nearest point that reprojects onto each pixel (§4: "the closest point"); of
     // equal depths the first. Bands of rows take their points in input order, so the result
     // does not depend on the split.
+    if (mOptions.parallel && placeSortedPoints(points)) return;
     const int bands = mOptions.parallel ? std::min(mHeight, 8) : 1;
     // Per point its band (0xFF: rejected), computed in parallel; each band then reads one byte
     // per point instead of the point.
@@ -365,6 +368,58 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
         });
         tbb::parallel_for(0, bands, band);
     }
+}
+
+bool EdgePointImage::placeSortedPoints(const std::vector<ScreenPoint>& points) {
+    // The render cache hands over at most one point per pixel in pixel order. Then every point
+    // is the nearest of its pixel and placement is a scatter: clear, place chunks of points in
+    // parallel while checking that the accepted points' pixels strictly increase within and
+    // across chunks. Any other input returns false and placePoints() redoes everything (its
+    // bands clear their rows first), so the result is always the general rule's.
+    forRows(true, mHeight, [&](int y) {
+        const size_t lo = index(0, y), hi = lo + mWidth;
+        std::fill(mSampleColour.begin() + lo, mSampleColour.begin() + hi, glm::vec3(0.0f));
+        std::fill(mSampleDepth.begin() + lo, mSampleDepth.begin() + hi,
+                  std::numeric_limits<double>::infinity());
+        std::fill(mSamplePos.begin() + lo, mSamplePos.begin() + hi, 0xFF);
+    });
+    constexpr size_t kChunk = 4096;
+    const size_t chunks = (points.size() + kChunk - 1) / kChunk;
+    mChunkRanges.assign(chunks, ChunkRange{});
+    tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
+        ChunkRange range;
+        for (size_t n = c * kChunk; n < std::min(points.size(), (c + 1) * kChunk); ++n) {
+            const ScreenPoint& p = points[n];
+            if (!(finite2(p.position) && std::isfinite(p.depth) && std::isfinite(p.colour.x) &&
+                  std::isfinite(p.colour.y) && std::isfinite(p.colour.z) && p.position.x >= 0.0 &&
+                  p.position.y >= 0.0 && p.position.x < mWidth && p.position.y < mHeight)) {
+                continue;
+            }
+            const int x = static_cast<int>(p.position.x);
+            const int y = static_cast<int>(p.position.y);
+            const long long i = static_cast<long long>(index(x, y));
+            if (i <= range.last) {
+                range.sorted = false;
+                break;
+            }
+            if (range.first < 0) range.first = i;
+            range.last = i;
+            const int cx = std::min(3, static_cast<int>((p.position.x - x) * 4.0));
+            const int cy = std::min(3, static_cast<int>((p.position.y - y) * 4.0));
+            mSampleDepth[i] = p.depth;
+            mSampleColour[i] = glm::vec3(p.colour);
+            mSamplePos[i] = static_cast<uint8_t>(cx + 4 * cy);
+        }
+        mChunkRanges[c] = range;
+    });
+    long long last = -1;
+    for (const ChunkRange& range : mChunkRanges) {
+        if (!range.sorted) return false;
+        if (range.first < 0) continue;
+        if (range.first <= last) return false;
+        last = range.last;
+    }
+    return true;
 }
 
 // ---- Depth filter (§4.5) ------------------------------------------------------------------
@@ -556,7 +611,11 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
 
 void EdgePointImage::classifyPixels() {
     const EdgeCodeTables& tables = EdgeCodeTables::pixel();
+    // In the same pass: the pixel counts by class per row, and (colour, 1) per point on a
+    // 2-pixel zero border (all points, and the usable ones) so the filters of §5.3 run
+    // without bounds checks.
     forRows(mOptions.parallel, mHeight, [&](int y) {
+        std::array<int, 3> counts{0, 0, 0};
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const uint16_t code = codeFromMasks(
@@ -570,18 +629,29 @@ void EdgePointImage::classifyPixels() {
             bool primaryIs1 = false;
             if (code == kEdgeCodeEmpty) {
                 usable = hasSample;
+                ++counts[0];
             } else if (code != kEdgeCodeComplex) {
                 // §5.1: the region holding the sample is primary, else the larger region.
                 const SampleSide side =
                     hasSample ? tables.side(code, mSamplePos[i]) : SampleSide::Ambiguous;
                 usable = side != SampleSide::Ambiguous;
                 primaryIs1 = usable ? side == SampleSide::Region1 : tables.region0Area[code] < 0.5f;
+                ++counts[1];
+            } else {
+                ++counts[2];
             }
             mUsable[i] = usable ? 1 : 0;
             mNeighbourCode[i] = makeNeighbourCode(code, kEpiPiecesPerSide, primaryIs1);
             mPaddedCode[paddedIndex(x, y)] = mNeighbourCode[i];
+            const size_t p = paddedIndex(x, y);
+            mPaddedAll[p] = hasSample ? glm::vec4(mSampleColour[i], 1.0f) : glm::vec4(0.0f);
+            mPaddedUsable[p] = usable ? mPaddedAll[p] : glm::vec4(0.0f);
         }
+        mRowCounts[y] = counts;
     });
+    mPixelCounts = {0, 0, 0};
+    for (const auto& row : mRowCounts)
+        for (int c = 0; c < 3; ++c) mPixelCounts[c] += row[c];
 }
 
 PixelClass EdgePointImage::pixelClass(int x, int y) const {
@@ -608,13 +678,7 @@ std::array<uint8_t, 4> EdgePointImage::boundaryMasks(int x, int y) const {
             mVertical[static_cast<size_t>(y) * (mWidth + 1) + x]};
 }
 
-size_t EdgePointImage::countPixels(PixelClass c) const {
-    size_t n = 0;
-    for (int y = 0; y < mHeight; ++y) {
-        for (int x = 0; x < mWidth; ++x) n += pixelClass(x, y) == c;
-    }
-    return n;
-}
+size_t EdgePointImage::countPixels(PixelClass c) const { return mPixelCounts[static_cast<int>(c)]; }
 
 std::string EdgePointImage::toString() const {
     std::ostringstream out;
@@ -669,47 +733,152 @@ void EdgePointImage::computeReachabilityMap() {
             for (int x = 0; x < mWidth; ++x) out[x] |= row[x] != kEdgeCodeEmpty;
         }
     });
-    forRows(mOptions.parallel, mHeight, [&](int y) {
+    auto nearEdge = [&](int x, int y) {
         const uint8_t* column = &mNearEdge[paddedIndex(0, y)];
+        return (column[x - 2] | column[x - 1] | column[x] | column[x + 1] | column[x + 2]) != 0;
+    };
+    if (!mOptions.parallel) {
+        // The reference: the full 5×5 propagation for every pixel near an edge.
+        for (int y = 0; y < mHeight; ++y) {
+            for (int x = 0; x < mWidth; ++x) {
+                const size_t i = index(x, y);
+                mSecondaryReach[i] = 0;
+                if (!nearEdge(x, y)) {
+                    mReach[i] = kAllNeighbours | kAllEmptyFlag;
+                    continue;
+                }
+                const std::array<uint8_t, 25> masks = computeReachability(x, y);
+                uint32_t primary = 0;
+                for (int k = 0; k < 24; ++k) {
+                    primary |= static_cast<uint32_t>(masks[kBitCell[k]] & kReachPP) << k;
+                }
+                uint8_t secondary = 0;
+                for (int k = 0; k < 8; ++k) {
+                    secondary |=
+                        static_cast<uint8_t>(((masks[kRingCell[k]] & kReachSP) ? 1u : 0u) << k);
+                }
+                mReach[i] = primary;
+                mSecondaryReach[i] = secondary;
+            }
+        }
+        return;
+    }
+    // §5.2: "since reachability is symmetric ... reachability of pixels on prior scanlines is
+    // reused". Pass 1 propagates only to the current and the next two scanlines (the 14 cells
+    // with dy ≥ 0: monotone paths to them never leave those rows, so 22 lookups instead of
+    // 40). Pass 2 takes the 10 cells on prior scanlines from the pixels there: a ↔ d is
+    // primary-to-primary for a exactly when it is for d, and a's secondary reaches d's
+    // primary exactly when d's primary reaches a's secondary (the hop tables of opposite
+    // directions are transposes and the chaining is relational composition, so the union
+    // over monotone paths is symmetric). Equal bit for bit to the full propagation (the
+    // serial reference above; tested).
+    const std::array<uint8_t, 16384>& hopTable = fusedHopTable();
+    forRows(true, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
-            const bool nearEdge =
-                column[x - 2] | column[x - 1] | column[x] | column[x + 1] | column[x + 2];
             mSecondaryReach[i] = 0;
-            if (!nearEdge) {
-                mReach[i] = kAllNeighbours | kAllEmptyFlag;
+            mPartnerReach[i] = 0;
+            if (!nearEdge(x, y)) {
+                mReachLower[i] = kAllNeighbours | kAllEmptyFlag;
                 continue;
             }
-            const std::array<uint8_t, 25> masks = computeReachability(x, y);
+            // Codes of rows y .. y + 2, columns x − 2 .. x + 2 (outside: complex).
+            uint8_t c[3][5];
+            for (int dy = 0; dy <= 2; ++dy) {
+                const uint8_t* row = &mPaddedCode[paddedIndex(x - 2, y + dy)];
+                for (int k = 0; k < 5; ++k) c[dy][k] = row[k];
+            }
+            const uint8_t centre = c[0][2];
+            if ((centre & 7) == kNeighbourTypeComplex) {
+                mReachLower[i] = 0;
+                continue;
+            }
+            auto hop = [&](NeighbourDirection d, uint8_t via, uint8_t from, uint8_t to) {
+                return hopTable[(static_cast<int>(d) << 12) | (via << 8) | (from << 4) | to];
+            };
+            constexpr NeighbourDirection R = NeighbourDirection::Right;
+            constexpr NeighbourDirection L = NeighbourDirection::Left;
+            constexpr NeighbourDirection D = NeighbourDirection::Down;
+            uint8_t m[3][5];
+            m[0][2] = static_cast<uint8_t>(kReachPP |
+                                           ((centre & 7) != kNeighbourTypeEmpty ? kReachSS : 0));
+            // Row dy = 0: outward along the row.
+            m[0][3] = hop(R, m[0][2], c[0][2], c[0][3]);
+            m[0][4] = hop(R, m[0][3], c[0][3], c[0][4]);
+            m[0][1] = hop(L, m[0][2], c[0][2], c[0][1]);
+            m[0][0] = hop(L, m[0][1], c[0][1], c[0][0]);
+            // Rows dy = 1, 2: from above, and from the column nearer the centre.
+            for (int dy = 1; dy <= 2; ++dy) {
+                m[dy][2] = hop(D, m[dy - 1][2], c[dy - 1][2], c[dy][2]);
+                for (int dx = 3; dx <= 4; ++dx) {
+                    m[dy][dx] =
+                        static_cast<uint8_t>(hop(D, m[dy - 1][dx], c[dy - 1][dx], c[dy][dx]) |
+                                             hop(R, m[dy][dx - 1], c[dy][dx - 1], c[dy][dx]));
+                }
+                for (int dx = 1; dx >= 0; --dx) {
+                    m[dy][dx] =
+                        static_cast<uint8_t>(hop(D, m[dy - 1][dx], c[dy - 1][dx], c[dy][dx]) |
+                                             hop(L, m[dy][dx + 1], c[dy][dx + 1], c[dy][dx]));
+                }
+            }
+            // Bits 10..23 of the 24-bit mask are cells 11..24 (dy ≥ 0 without the centre).
             uint32_t primary = 0;
-            for (int k = 0; k < 24; ++k) {
-                primary |= static_cast<uint32_t>(masks[kBitCell[k]] & kReachPP) << k;
+            for (int k = 10; k < 24; ++k) {
+                const int cell = kBitCell[k];
+                primary |= static_cast<uint32_t>(m[cell / 5 - 2][cell % 5] & kReachPP) << k;
             }
+            // Ring bits 3..7 are cells 11, 13, 16, 17, 18.
             uint8_t secondary = 0;
-            for (int k = 0; k < 8; ++k) {
+            for (int k = 3; k < 8; ++k) {
+                const int cell = kRingCell[k];
                 secondary |=
-                    static_cast<uint8_t>(((masks[kRingCell[k]] & kReachSP) ? 1u : 0u) << k);
+                    static_cast<uint8_t>(((m[cell / 5 - 2][cell % 5] & kReachSP) ? 1u : 0u) << k);
             }
-            mReach[i] = primary;
+            // For the pixels below: this primary reaches their secondary (dx = −1, 0, 1).
+            uint8_t partner = 0;
+            for (int dx = -1; dx <= 1; ++dx) {
+                partner |= static_cast<uint8_t>(((m[1][dx + 2] & kReachPS) ? 1u : 0u) << (dx + 1));
+            }
+            mReachLower[i] = primary;
+            mSecondaryReach[i] = secondary;
+            mPartnerReach[i] = partner;
+        }
+    });
+    forRows(true, mHeight, [&](int y) {
+        for (int x = 0; x < mWidth; ++x) {
+            const size_t i = index(x, y);
+            const uint32_t own = mReachLower[i];
+            mReach[i] = own;
+            if (own & kAllEmptyFlag) continue;
+            if ((mPaddedCode[paddedIndex(x, y)] & 7) == kNeighbourTypeComplex) continue;
+            // Cells with dy < 0 (bits 0..9): the mirrored bit of the pixel there. A pixel far
+            // from every edge reaches all of its (empty) neighbourhood.
+            uint32_t upper = 0;
+            for (int k = 0; k < 10; ++k) {
+                const int dx = kBitCell[k] % 5 - 2;
+                const int dy = kBitCell[k] / 5 - 2;
+                const int px = x + dx;
+                const int py = y + dy;
+                if (px < 0 || py < 0 || px >= mWidth) continue;
+                const uint32_t theirs = mReachLower[index(px, py)];
+                // Their cell (−dx, −dy) is bit 23 − k (the 24 cells mirror through the centre).
+                upper |= ((theirs >> (23 - k)) & 1u) << k;
+            }
+            uint8_t secondary = mSecondaryReach[i];
+            for (int dx = -1; dx <= 1; ++dx) {
+                const int px = x + dx;
+                if (px < 0 || px >= mWidth || y == 0) continue;
+                // Their primary reaches our secondary from cell (−dx, +1).
+                const uint8_t theirs = mPartnerReach[index(px, y - 1)];
+                secondary |= static_cast<uint8_t>(((theirs >> (1 - dx)) & 1u) << (dx + 1));
+            }
+            mReach[i] = own | upper;
             mSecondaryReach[i] = secondary;
         }
     });
 }
 
 // ---- Interpolation (§5.3) -----------------------------------------------------------------
-
-void EdgePointImage::fillPaddedSamples() {
-    // (colour, 1) per point on a 2-pixel zero border, so filters run without bounds checks.
-    forRows(mOptions.parallel, mHeight, [&](int y) {
-        for (int x = 0; x < mWidth; ++x) {
-            const size_t i = index(x, y);
-            const size_t p = paddedIndex(x, y);
-            const bool has = mSamplePos[i] != 0xFF;
-            mPaddedAll[p] = has ? glm::vec4(mSampleColour[i], 1.0f) : glm::vec4(0.0f);
-            mPaddedUsable[p] = mUsable[i] ? mPaddedAll[p] : glm::vec4(0.0f);
-        }
-    });
-}
 
 void EdgePointImage::interpolatePlain() {
     // The render cache's interpolation: the same separable filter over every point of the
@@ -863,10 +1032,18 @@ void EdgePointImage::filterComplexPixels(Image& out) {
         }
         return t;
     }();
-    std::vector<int> complexPixels;
-    for (size_t i = 0; i < mEdgeCode.size(); ++i) {
-        if (mEdgeCode[i] == kEdgeCodeComplex) complexPixels.push_back(static_cast<int>(i));
-    }
+    // The complex pixels in pixel order, rows in parallel at offsets from the per-row counts.
+    std::vector<int>& complexPixels = mComplexPixels;
+    std::vector<size_t> rowStart(static_cast<size_t>(H) + 1, 0);
+    for (int y = 0; y < H; ++y) rowStart[y + 1] = rowStart[y] + mRowCounts[y][2];
+    complexPixels.resize(rowStart[H]);
+    forRows(mOptions.parallel, H, [&](int y) {
+        size_t k = rowStart[y];
+        if (k == rowStart[y + 1]) return;
+        for (int x = 0; x < W; ++x)
+            if (mEdgeCode[index(x, y)] == kEdgeCodeComplex)
+                complexPixels[k++] = static_cast<int>(index(x, y));
+    });
     // 4 bits of a boundary line at twice-pixel coordinate k2 (even: pixel boundary, odd:
     // half-pixel line) over the half of pixel segment `cell` selected by `half`.
     auto horizontalBits = [&](int k2, int column, int half) -> unsigned {
@@ -884,17 +1061,26 @@ void EdgePointImage::filterComplexPixels(Image& out) {
     // (complex pixels cluster along dense edges, so neighbourhoods overlap): subpixel
     // (sx, sy) of pixel (px, py) lies between lines 2·px + sx, 2·px + sx + 1 (x) and
     // 2·py + sy, 2·py + sy + 1 (y) on the half-pixel grid.
-    std::fill(mSubMark.begin(), mSubMark.end(), 0);
-    for (int pixel : complexPixels) {
-        const int x = pixel % W, y = pixel / W;
-        for (int py = std::max(0, y - 1); py <= std::min(H - 1, y + 1); ++py)
-            for (int px = std::max(0, x - 1); px <= std::min(W - 1, x + 1); ++px)
-                mSubMark[index(px, py)] = 1;
-    }
     forRows(mOptions.parallel, H, [&](int py) {
+        const int y0 = std::max(0, py - 1), y1 = std::min(H - 1, py + 1);
+        bool anyComplex = false;
+        for (int y = y0; y <= y1; ++y) anyComplex |= mRowCounts[y][2] > 0;
+        if (!anyComplex) return;
+        // Whether column x of rows y0..y1 holds a complex pixel.
+        auto columnComplex = [&](int x) {
+            if (x < 0 || x >= W) return false;
+            for (int y = y0; y <= y1; ++y)
+                if (mEdgeCode[index(x, y)] == kEdgeCodeComplex) return true;
+            return false;
+        };
+        bool left = false, centre = columnComplex(0);
         for (int px = 0; px < W; ++px) {
+            const bool right = columnComplex(px + 1);
+            const bool marked = left || centre || right;
+            left = centre;
+            centre = right;
+            if (!marked) continue;
             const size_t i = index(px, py);
-            if (!mSubMark[i]) continue;
             for (int sy = 0; sy < 2; ++sy) {
                 for (int sx = 0; sx < 2; ++sx) {
                     const int k2y = 2 * py + sy;

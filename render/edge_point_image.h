@@ -139,11 +139,15 @@ public:
     /// After reconstruct(true): bit k of the 24-bit primary-to-primary mask, k running over
     /// the 5×5 neighbourhood row by row without the centre.
     uint32_t primaryReachability(int x, int y) const { return mReach[index(x, y)] & 0xFFFFFFu; }
+    /// After reconstruct(true): bit k of the 8-bit mask (the 3×3 ring row by row without the
+    /// centre) set when the pixel's secondary region reaches that neighbour's primary region.
+    uint8_t secondaryReachability(int x, int y) const { return mSecondaryReach[index(x, y)]; }
     /// After reconstruct(): per pixel the total filter weight of the samples used, before
     /// renormalization (§5.3 prioritized sampling: low weight → high priority; 0 → none).
     const std::vector<float>& interpolationWeights() const { return mWeight; }
 
-    /// Pixel counts by class and the number of culled intersections of the last build().
+    /// Pixel counts by class (counted by build(), O(1)) and the number of culled
+    /// intersections of the last build().
     size_t countPixels(PixelClass c) const;
     size_t culledIntersections() const { return mCulledIntersections; }
     std::string toString() const;
@@ -151,6 +155,9 @@ public:
 private:
     size_t index(int x, int y) const { return static_cast<size_t>(y) * mWidth + x; }
     void placePoints(const std::vector<ScreenPoint>& points);
+    /// placePoints()' parallel fast path for points in strictly increasing pixel order (the
+    /// render cache's); false, with the point state undefined, for any other input.
+    bool placeSortedPoints(const std::vector<ScreenPoint>& points);
     void filterDepth();
     void rasterizeEdges(const std::vector<ScreenEdge>& edges);
     /// The intersections of one edge with the boundary lines owned by rows [rowLo, rowHi)
@@ -158,7 +165,6 @@ private:
     void rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, int kLineHi, size_t& culled);
     void classifyPixels();
     void computeReachabilityMap();
-    void fillPaddedSamples();
     void interpolatePlain();
     void interpolatePrimary(Image& out);
     void antiAlias(Image& out) const;
@@ -180,7 +186,13 @@ private:
     std::vector<uint8_t> mUsable;      ///< see sampleUsable()
     std::vector<uint8_t> mPointBand;   ///< placePoints() scratch: band of rows per point
     std::vector<std::pair<uint8_t, uint8_t>> mChunkBands;  ///< and per 4096 points their range
-    std::vector<float> mBlockDepth;  ///< §4.5 filtered depth per 4×4 block (+inf: none)
+    /// Per chunk of points: first and last accepted pixel (−1: none), or sorted = false.
+    struct ChunkRange {
+        long long first = -1, last = -1;
+        bool sorted = true;
+    };
+    std::vector<ChunkRange> mChunkRanges;  ///< placeSortedPoints() scratch
+    std::vector<float> mBlockDepth;        ///< §4.5 filtered depth per 4×4 block (+inf: none)
     int mBlocksX = 0;
     int mBlocksY = 0;
 
@@ -195,11 +207,15 @@ private:
     std::vector<uint16_t> mEdgeCode;
     std::vector<uint8_t> mNeighbourCode;
 
-    std::vector<uint8_t> mPaddedCode;  ///< neighbour codes, 2-pixel complex border
+    std::vector<uint8_t> mPaddedCode;            ///< neighbour codes, 2-pixel complex border
+    std::vector<std::array<int, 3>> mRowCounts;  ///< per row: empty, simple, complex pixels
+    std::array<size_t, 3> mPixelCounts{};        ///< their sums (countPixels)
 
     // Reconstruction (§5.2–5.4).
     std::vector<uint32_t> mReach;          ///< 24-bit primary-to-primary masks (+ all-empty flag)
     std::vector<uint8_t> mSecondaryReach;  ///< bit k: secondary reaches 3×3 neighbour k's primary
+    std::vector<uint32_t> mReachLower;     ///< §5.2 reuse scratch: mReach's cells with dy ≥ 0
+    std::vector<uint8_t> mPartnerReach;    ///< and bit dx+1: primary reaches (dx, +1)'s secondary
     std::vector<glm::vec4> mPaddedAll;     ///< (colour, 1) of every point, 2-pixel zero border
     std::vector<glm::vec4> mPaddedUsable;  ///< the same for usable points only
     std::vector<glm::vec4> mRowSums;       ///< horizontal pass of the plain filter
@@ -208,7 +224,7 @@ private:
     std::vector<glm::vec3> mPrimary;  ///< primary-region colours
     std::vector<uint8_t> mNearEdge;   ///< padded scratch: edges within 5 rows
     std::vector<float> mWeight;       ///< interpolation weight before renormalization
-    std::vector<uint8_t> mSubMark;    ///< §5.4 scratch: pixel next to a complex pixel
+    std::vector<int> mComplexPixels;  ///< §5.4 scratch: the complex pixels' indices
     std::vector<uint16_t> mSubCode;   ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
     std::vector<uint8_t> mSubType;    ///< §5.4 scratch: their neighbour types
 };

@@ -386,8 +386,14 @@ std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, 
     if (budget < 0)
         budget =
             static_cast<int>(std::lround(mOptions.sampleFraction * static_cast<double>(pixels)));
+    if (budget <= 0) return {};
+    return mOptions.parallel ? requestSamplesParallel(camera, budget)
+                             : requestSamplesSerial(camera, budget);
+}
+
+std::vector<ShadeRequest> RenderCache::requestSamplesSerial(const CameraRays& camera, int budget) {
+    const std::size_t pixels = mPriority.size();
     std::vector<ShadeRequest> out;
-    if (budget <= 0) return out;
 
     // Effective priority: pixels requested in the last holdFrames frames wait.
     std::vector<double> pr(mPriority);
@@ -432,12 +438,107 @@ std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, 
                               [](const auto& a, const auto& b) { return a.first > b.first; });
             for (std::size_t c = 0; c < take; ++c) {
                 const int k = cand[c].second;
-                const glm::dvec2 p(k % mWidth + rng.next(), k / mWidth + rng.next());
+                // The y jitter is drawn first: the order GCC evaluated the two draws in when
+                // they were the arguments of one constructor (kept so the samples stay put).
+                const double jy = rng.next();
+                const double jx = rng.next();
+                const glm::dvec2 p(k % mWidth + jx, k / mWidth + jy);
                 out.push_back({p, camera.origin(), camera.rayDirection(p.x, p.y), mFrame});
                 mRequested[k] = mFrame + 1;
             }
         }
     }
+    return out;
+}
+
+std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& camera,
+                                                              int budget) {
+    // requestSamplesSerial() reorganized: the effective priorities, tile sums and each tile's
+    // choice run in parallel; only the random stream stays serial, one hash chain drawn up
+    // front into an array at each tile's offset (the order the serial loop consumes it in:
+    // u0, then per tile that gets requests one draw per candidate and two per request).
+    // Bit for bit the serial result (tested).
+    const int T = std::max(1, mOptions.tileSize);
+    const int tilesX = (mWidth + T - 1) / T, tilesY = (mHeight + T - 1) / T;
+    const std::size_t tiles = static_cast<std::size_t>(tilesX) * tilesY;
+    mEffective.resize(mPriority.size());
+    mTileSum.assign(tiles, 0.0);
+    mTileCandidates.assign(tiles, 0);
+    tbb::parallel_for(0, tilesY, [&](int ty) {
+        // Each tile sums its pixels row by row, left to right, as the serial loop does.
+        for (int y = ty * T; y < std::min(mHeight, (ty + 1) * T); ++y) {
+            for (int tx = 0; tx < tilesX; ++tx) {
+                const std::size_t t = static_cast<std::size_t>(ty) * tilesX + tx;
+                double sum = mTileSum[t];
+                int candidates = mTileCandidates[t];
+                for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
+                    const std::size_t k = static_cast<std::size_t>(y) * mWidth + x;
+                    double p = mPriority[k];
+                    if (mRequested[k] > 0 && mFrame + 1 < mRequested[k] + mOptions.holdFrames)
+                        p = 0;
+                    mEffective[k] = p;
+                    sum += p;
+                    candidates += p > 0;
+                }
+                mTileSum[t] = sum;
+                mTileCandidates[t] = candidates;
+            }
+        }
+    });
+    const double total = std::accumulate(mTileSum.begin(), mTileSum.end(), 0.0);
+    if (!(total > 0)) return {};
+    CacheRandom rng{hashPair(mOptions.seed, mFrame)};
+    std::vector<int> tileCount(tiles, 0);
+    {
+        const double u0 = rng.next();
+        std::size_t t = 0;
+        double upTo = mTileSum[0];
+        for (int k = 0; k < budget; ++k) {
+            const double target = (u0 + k) / budget * total;
+            while (t + 1 < tiles && target >= upTo) upTo += mTileSum[++t];
+            ++tileCount[t];
+        }
+    }
+    // Per tile: its offset in the random stream and in the output.
+    std::vector<std::size_t> drawStart(tiles + 1, 0), outStart(tiles + 1, 0);
+    for (std::size_t t = 0; t < tiles; ++t) {
+        const std::size_t want = static_cast<std::size_t>(tileCount[t]);
+        const std::size_t candidates = static_cast<std::size_t>(mTileCandidates[t]);
+        const std::size_t take = std::min(want, candidates);
+        drawStart[t + 1] = drawStart[t] + (want == 0 ? 0 : candidates + 2 * take);
+        outStart[t + 1] = outStart[t] + (want == 0 ? 0 : take);
+    }
+    mDraws.resize(drawStart[tiles]);
+    for (double& d : mDraws) d = rng.next();
+
+    std::vector<ShadeRequest> out(outStart[tiles]);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles, 16), [&](const tbb::blocked_range<
+                                                                         std::size_t>& r) {
+        std::vector<std::pair<double, int>> cand;
+        for (std::size_t t = r.begin(); t != r.end(); ++t) {
+            const int want = tileCount[t];
+            if (want == 0) continue;
+            const int tx = static_cast<int>(t % tilesX), ty = static_cast<int>(t / tilesX);
+            const double* draw = mDraws.data() + drawStart[t];
+            cand.clear();
+            for (int y = ty * T; y < std::min(mHeight, (ty + 1) * T); ++y)
+                for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
+                    const double p = mEffective[y * mWidth + x];
+                    if (p > 0) cand.push_back({p + 1e-9 * *draw++, y * mWidth + x});
+                }
+            const std::size_t take = std::min<std::size_t>(want, cand.size());
+            std::partial_sort(cand.begin(), cand.begin() + take, cand.end(),
+                              [](const auto& a, const auto& b) { return a.first > b.first; });
+            for (std::size_t c = 0; c < take; ++c) {
+                const int k = cand[c].second;
+                const double jy = *draw++;  // y first, as requestSamplesSerial()
+                const double jx = *draw++;
+                const glm::dvec2 p(k % mWidth + jx, k / mWidth + jy);
+                out[outStart[t] + c] = {p, camera.origin(), camera.rayDirection(p.x, p.y), mFrame};
+                mRequested[k] = mFrame + 1;
+            }
+        }
+    });
     return out;
 }
 

@@ -62,8 +62,9 @@ struct RenderCacheOptions {
     /// sample may still be in the shader's queue).
     int holdFrames = 2;
     std::uint64_t seed = 1;
-    /// reproject() on oneTBB over pixel bands (z-buffer) and rows (culling, output, priority);
-    /// false runs the plain serial reference. Both give bit-identical results.
+    /// reproject() on oneTBB over pixel bands (z-buffer) and rows (culling, output, priority),
+    /// requestSamples() over tiles; false runs the plain serial references. Both give
+    /// bit-identical results.
     bool parallel = true;
 };
 
@@ -137,6 +138,10 @@ private:
     /// per band of rows, culling on pixel-indexed depths, output rows in parallel.
     void reprojectParallel(const CameraRays& camera);
     void computePriority();
+    /// requestSamples() for a positive budget: the plain serial reference
+    /// (RenderCacheOptions::parallel false) and the parallel one, equal bit for bit.
+    std::vector<ShadeRequest> requestSamplesSerial(const CameraRays& camera, int budget);
+    std::vector<ShadeRequest> requestSamplesParallel(const CameraRays& camera, int budget);
 
     int mWidth;
     int mHeight;
@@ -162,6 +167,11 @@ private:
     std::vector<double> mLuminance;       ///< per pixel: luminance of its point, 1e300 without
     std::vector<double> mLuminanceHi;     ///< the same, −1e300 without
     std::vector<int> mRowCount;           ///< per row: visible points (prefix sums)
+    // Scratch of requestSamplesParallel().
+    std::vector<double> mEffective;    ///< per pixel: priority, 0 while held back
+    std::vector<double> mTileSum;      ///< per tile: summed effective priority
+    std::vector<int> mTileCandidates;  ///< per tile: pixels with positive effective priority
+    std::vector<double> mDraws;        ///< the frame's random stream after u0
 };
 
 }  // namespace penumbra

@@ -298,22 +298,12 @@ TEST(EdgePointImage, ReachablePrimariesAreConnectedOnAFineGrid) {
     }
 }
 
-// The per-frame reachability map (with its all-empty fast path) equals the full 5×5
-// propagation for every pixel.
-TEST(EdgePointImage, ReachabilityMapMatchesFullPropagation) {
-    const int W = 40, H = 30;
-    std::mt19937 rng(5);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    std::vector<ScreenEdge> edges;
-    for (int k = 0; k < 12; ++k) {
-        edges.push_back(makeEdge({u(rng) * W, u(rng) * H}, {u(rng) * W, u(rng) * H}));
-    }
-    std::vector<ScreenPoint> points;
-    for (int k = 0; k < W * H / 2; ++k)
-        points.push_back(makePoint({u(rng) * W, u(rng) * H}, Rgb(1)));
-    EdgePointImage epi(W, H);
-    epi.build(edges, points);
-    epi.reconstruct(true);
+// The per-frame reachability map (with its all-empty fast path, and in the parallel build the
+// §5.2 reuse of prior scanlines' reachability) equals the full 5×5 propagation for every pixel:
+// primary-to-primary over 5×5 and secondary-to-primary over the 3×3 ring.
+void expectReachabilityMapMatchesFullPropagation(const EdgePointImage& epi) {
+    const int W = epi.width(), H = epi.height();
+    int nearEdge = 0, withSecondary = 0;
     for (int y = 0; y < H; ++y) {
         for (int x = 0; x < W; ++x) {
             const auto full = epi.computeReachability(x, y);
@@ -330,7 +320,36 @@ TEST(EdgePointImage, ReachabilityMapMatchesFullPropagation) {
                 ++bit;
             }
             ASSERT_EQ(epi.primaryReachability(x, y), expected) << x << "," << y;
+            uint8_t secondary = 0;
+            const int ring[8] = {6, 7, 8, 11, 13, 16, 17, 18};
+            for (int k = 0; k < 8; ++k) secondary |= ((full[ring[k]] & kReachSP) ? 1 : 0) << k;
+            ASSERT_EQ(epi.secondaryReachability(x, y), secondary) << x << "," << y;
+            nearEdge += expected != 0xFFFFFFu;
+            withSecondary += secondary != 0;
         }
+    }
+    EXPECT_GT(nearEdge, W * H / 20) << "the scene must have edges";
+    EXPECT_GT(withSecondary, W * H / 50) << "the scene must exercise secondary reachability";
+}
+
+TEST(EdgePointImage, ReachabilityMapMatchesFullPropagation) {
+    const int W = 40, H = 30;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<ScreenEdge> edges;
+    for (int k = 0; k < 12; ++k) {
+        edges.push_back(makeEdge({u(rng) * W, u(rng) * H}, {u(rng) * W, u(rng) * H}));
+    }
+    std::vector<ScreenPoint> points;
+    for (int k = 0; k < W * H / 2; ++k)
+        points.push_back(makePoint({u(rng) * W, u(rng) * H}, Rgb(1)));
+    for (bool parallel : {true, false}) {
+        EpiOptions options;
+        options.parallel = parallel;
+        EdgePointImage epi(W, H, options);
+        epi.build(edges, points);
+        epi.reconstruct(true);
+        expectReachabilityMapMatchesFullPropagation(epi);
     }
 }
 
@@ -746,6 +765,9 @@ TEST(EdgePointImage, ParallelStagesEqualSerialBitForBit) {
         EXPECT_EQ(diff, 0) << "pixels differing, useEdges " << useEdges;
         EXPECT_EQ(parallel.interpolationWeights(), serial.interpolationWeights());
     }
+    // The §5.2 reuse of prior scanlines on the dense scene (complex pixels, image borders).
+    parallel.reconstruct(true);
+    expectReachabilityMapMatchesFullPropagation(parallel);
     // Points in no particular order (bands then read every chunk of points).
     std::vector<ScreenPoint> shuffled = points;
     std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(9));
@@ -761,6 +783,78 @@ TEST(EdgePointImage, ParallelStagesEqualSerialBitForBit) {
     thinSerial.build(edges, points);
     const Image a = thinParallel.reconstruct(true), b = thinSerial.reconstruct(true);
     EXPECT_EQ(a.pixels, b.pixels);
+}
+
+// The render cache's points (one per pixel, in pixel order) take placement's scatter fast
+// path; any order violation, also one straddling two chunks of points, must fall back to the
+// general rule. Each input against the serial reference, pixel by pixel and image by image.
+TEST(EdgePointImage, SortedPointsFastPathEqualsSerial) {
+    const int W = 256, H = 197;
+    std::vector<ScreenEdge> edges;
+    std::vector<ScreenPoint> dense;
+    denseScene(W, H, 7, edges, dense);
+    // One point per pixel in pixel order (the first of each pixel), with a non-finite point
+    // and one outside the image in between (ignored by both paths).
+    std::vector<ScreenPoint> sorted;
+    long long last = -1;
+    for (const ScreenPoint& p : dense) {
+        if (!(p.position.x >= 0 && p.position.y >= 0)) continue;
+        const long long i =
+            static_cast<long long>(p.position.y) * W + static_cast<long long>(p.position.x);
+        if (i <= last) continue;
+        last = i;
+        sorted.push_back(p);
+        if (sorted.size() == 5000) sorted.push_back(makePoint({std::nan(""), 1.0}, Rgb(1.0)));
+        if (sorted.size() == 7000) sorted.push_back(makePoint({W + 1.0, 1.0}, Rgb(1.0)));
+    }
+    ASSERT_GT(sorted.size(), 3u * 4096);
+    // A farther point in the pixel of point 4095 as the first of the second chunk: the first
+    // point must keep the pixel (a scatter would let the later one overwrite it).
+    std::vector<ScreenPoint> straddling = sorted;
+    ScreenPoint farther = straddling[4095];
+    farther.depth *= 2.0;
+    farther.colour = Rgb(0.0, 1.0, 0.0);
+    straddling.insert(straddling.begin() + 4096, farther);
+    // The same inside a chunk.
+    std::vector<ScreenPoint> within = sorted;
+    farther = within[99];
+    farther.depth *= 2.0;
+    farther.colour = Rgb(0.0, 1.0, 0.0);
+    within.insert(within.begin() + 100, farther);
+
+    EpiOptions serialOptions;
+    serialOptions.parallel = false;
+    for (const auto* points : {&sorted, &straddling, &within}) {
+        EdgePointImage parallel(W, H), serial(W, H, serialOptions);
+        // A previous frame's state must not leak into the scatter.
+        parallel.build(edges, dense);
+        parallel.build(edges, *points);
+        serial.build(edges, *points);
+        int differing = 0, withPoint = 0;
+        for (int y = 0; y < H; ++y) {
+            for (int x = 0; x < W; ++x) {
+                differing += !(parallel.samplePosition(x, y) == serial.samplePosition(x, y) &&
+                               parallel.sampleColour(x, y) == serial.sampleColour(x, y) &&
+                               parallel.edgeCode(x, y) == serial.edgeCode(x, y) &&
+                               parallel.neighbourCode(x, y) == serial.neighbourCode(x, y) &&
+                               parallel.sampleUsable(x, y) == serial.sampleUsable(x, y));
+                withPoint += serial.samplePosition(x, y) >= 0;
+            }
+        }
+        EXPECT_EQ(differing, 0);
+        EXPECT_GT(withPoint, W * H / 2);
+        const Image a = parallel.reconstruct(true), b = serial.reconstruct(true);
+        EXPECT_EQ(a.pixels, b.pixels);
+    }
+    // The first point keeps its pixel (so the fallback really ran).
+    for (const auto* points : {&straddling, &within}) {
+        EdgePointImage check(W, H);
+        check.build(edges, *points);
+        const int n = points == &straddling ? 4095 : 99;
+        const glm::dvec2 q = (*points)[n].position;
+        const Rgb kept = check.sampleColour(static_cast<int>(q.x), static_cast<int>(q.y));
+        EXPECT_LT(glm::length(kept - (*points)[n].colour), 1e-6) << kept.y;
+    }
 }
 
 TEST(EdgePointImage, TimingPrintout512) {

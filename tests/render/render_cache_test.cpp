@@ -210,7 +210,7 @@ TEST(RenderCache, ParallelReprojectionEqualsSerialBitForBit) {
         }
         return out;
     };
-    std::size_t checkedScreen = 0;
+    std::size_t checkedScreen = 0, requests = 0;
     for (int frame = 0; frame < 12; ++frame) {
         const double a = 0.05 * frame;
         const CameraRays rays(
@@ -235,10 +235,22 @@ TEST(RenderCache, ParallelReprojectionEqualsSerialBitForBit) {
             ASSERT_EQ(parallel.points()[i].age, serial.points()[i].age) << i;
             ASSERT_EQ(parallel.points()[i].visible, serial.points()[i].visible) << i;
         }
-        const auto rp = parallel.requestSamples(rays), rs = serial.requestSamples(rays);
-        ASSERT_EQ(rp.size(), rs.size());
-        for (std::size_t k = 0; k < rp.size(); ++k) ASSERT_EQ(rp[k].pixel, rs[k].pixel);
+        // Requests (tiles in parallel, one random stream): the default budget, then a second
+        // call in the same frame (held-back pixels) with a budget over the remaining pixels.
+        for (int budget : {-1, frame % 3 == 0 ? 3 * w * h : 97}) {
+            const auto rp = parallel.requestSamples(rays, budget);
+            const auto rs = serial.requestSamples(rays, budget);
+            ASSERT_EQ(rp.size(), rs.size()) << "frame " << frame << " budget " << budget;
+            for (std::size_t k = 0; k < rp.size(); ++k) {
+                ASSERT_TRUE(rp[k].pixel == rs[k].pixel && rp[k].origin == rs[k].origin &&
+                            rp[k].direction == rs[k].direction && rp[k].frame == rs[k].frame)
+                    << "frame " << frame << " request " << k << ": " << rp[k].toString() << " vs "
+                    << rs[k].toString();
+            }
+            requests += rs.size();
+        }
     }
+    EXPECT_GT(requests, static_cast<std::size_t>(w * h));
     EXPECT_GT(checkedScreen, static_cast<std::size_t>(5 * w * h));
 }
 
