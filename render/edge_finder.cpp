@@ -49,14 +49,24 @@ std::string EdgeFinderStats::toString() const {
     s << "EdgeFinderStats{events " << eventRecomputations << ", pairs " << pairRecomputations
       << ", triples " << tripleRecomputations << ", events found " << eventsFound
       << ", intersected " << eventsIntersected << ", hidden " << eventsHidden
-      << ", receiver queries " << receiverQueries << " visiting " << receiverNodes << " nodes}";
+      << ", receiver queries " << receiverQueries << " visiting " << receiverNodes
+      << " nodes, self-hidden " << eventsSelfHidden << ", self reused " << selfReused << '}';
     return s.str();
 }
 
 std::string EdgeFinder::toString() const {
     std::ostringstream s;
+    std::size_t selfHidden = 0, selfKept = 0, crossings = 0;
+    for (const auto& [key, pair] : mPairs)
+        for (std::size_t e = 0; e < pair.selfState.size(); ++e) {
+            selfHidden += pair.selfState[e] == 1;
+            selfKept += pair.selfState[e] == 2;
+            crossings += pair.selfCrossings[e].size();
+        }
     s << "EdgeFinder{" << mObjects.size() << " objects, " << mLights.size() << " lights, "
-      << mTrees.size() << " distinct trees, " << mPairs.size() << " light-blocker pairs}";
+      << mTrees.size() << " distinct trees, " << mPairs.size() << " light-blocker pairs, "
+      << selfHidden << " events hidden by their blocker, " << selfKept << " keeping " << crossings
+      << " self crossings (" << crossings * sizeof(ReceiverTree::Crossing) / 1024 << " KiB)}";
     return s.str();
 }
 
@@ -212,7 +222,8 @@ std::vector<WorldEdge> EdgeFinder::findSharpEdges(const Vec3& eye) const {
 // Shadow edges
 
 struct EdgeFinder::Counters {
-    std::atomic<long long> intersected{0}, hidden{0}, queries{0}, nodes{0};
+    std::atomic<long long> intersected{0}, hidden{0}, queries{0}, nodes{0}, selfHidden{0},
+        selfReused{0};
 };
 
 void EdgeFinder::computeEvents(int lightIndex, int blockerIndex, Pair& pair) const {
@@ -230,6 +241,9 @@ void EdgeFinder::computeEvents(int lightIndex, int blockerIndex, Pair& pair) con
     pair.near.assign(pair.events.size(), {});
     pair.decided.assign(pair.events.size(), HUGE_VAL);
     pair.eventEdges.assign(pair.events.size(), {});
+    pair.selfState.assign(pair.events.size(), 0);
+    pair.selfCrossings.assign(pair.events.size(), {});
+    pair.computedAt.assign(pair.events.size(), 0);
 }
 
 void EdgeFinder::computeEventBoxes(Pair& pair) const {
@@ -309,6 +323,16 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     const EventFrame& frame = pair.frames[e];
     std::vector<NearReceiver>& near = pair.near[e];
     std::vector<WorldEdge>& edges = pair.eventEdges[e];
+    // Receivers unchanged since the last computation meet the event as then: keep those
+    // entries (`near` is in object order).
+    const unsigned computedAt = pair.computedAt[e];
+    pair.computedAt[e] = mGeneration;
+    const bool reuse = computedAt > 0 && !mOptions.exhaustiveShadows;
+    auto changed = [&](int r) { return mChangedAt[r] > computedAt; };
+    std::vector<NearReceiver> kept;
+    if (reuse)
+        for (const NearReceiver& nr : near)
+            if (!changed(nr.receiver)) kept.push_back(nr);
     near.clear();
     edges.clear();
     pair.decided[e] = HUGE_VAL;
@@ -324,7 +348,17 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     std::vector<Candidate> order;
     bool live = false;
     const int n = static_cast<int>(mObjects.size());
+    std::size_t next = 0;  // into `kept`, in object order like the loop
     for (int r = 0; r < n; ++r) {
+        if (reuse && !changed(r)) {
+            if (next < kept.size() && kept[next].receiver == r) {
+                const NearReceiver& nr = kept[next++];
+                near.push_back(nr);
+                order.push_back({nr.sMin, nr.sMax, r});
+                live = live || nr.sMax > kHideS;
+            }
+            continue;
+        }
         const Object& rec = mObjects[r];
         if (!rec.alive || r == light.light.object) continue;
         if (!pair.boxes[e].overlaps(rec.worldBounds)) continue;
@@ -337,7 +371,7 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         } else if (!eventRange(ev, frame, rec.worldBounds, &c.sMin, &c.sMax)) {
             continue;
         }
-        near.push_back({r, c.sMin});
+        near.push_back({r, c.sMin, c.sMax});
         order.push_back(c);
         live = live || c.sMax > kHideS;
     }
@@ -377,8 +411,57 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         order.clear();
     }
     auto hidden = [&]() { return coverage.threshold() <= kHideS; };
-    // Between light and blocker (s < 1), the blocker first: surfaces there hide the event
-    // (§6.5 clipping); covered at every u, it casts nothing, whatever lies beyond.
+    // The blocker first, alone (self-shadowing): between light and blocker (s < 1) its surface
+    // hides the event at every u, or its crossings are kept whole. Either stays true until the
+    // light or the blocker moves, so other receivers' changes reuse it.
+    auto self = std::find_if(order.begin(), order.end(),
+                             [&](const Candidate& c) { return c.receiver == blockerIndex; });
+    if (self != order.end()) {
+        const Object& rec = mObjects[blockerIndex];
+        char& state = pair.selfState[e];
+        std::vector<ReceiverTree::Crossing>& own = pair.selfCrossings[e];
+        if (state == 0) {
+            own.clear();
+            EventCoverage alone;
+            alone.hideS = kHideS;
+            const ShadowEvent local = ev.mapped(rec.objectFromWorld);
+            const bool cull = rec.tree->mesh().closed() && !rec.twoSided;
+            if (self->sMin < 1) {
+                rec.receiver->intersect(local, cull, own, &nodes, -HUGE_VAL, 1.0, &alone);
+                ++queries;
+            }
+            if (alone.threshold() <= kHideS) {
+                state = 1;
+                own.clear();
+                counters.selfHidden.fetch_add(1, std::memory_order_relaxed);
+            } else {
+                if (self->sMax >= 1) {
+                    rec.receiver->intersect(local, cull, own, &nodes, 1.0, HUGE_VAL, &alone);
+                    ++queries;
+                }
+                if (rec.twoSided)
+                    for (auto& c : own) c.front = true;
+                state = 2;
+            }
+            own.shrink_to_fit();
+        } else {
+            counters.selfReused.fetch_add(1, std::memory_order_relaxed);
+        }
+        if (state == 1) {
+            // Hidden whatever else moves: no receiver can make this event stale.
+            pair.decided[e] = -HUGE_VAL;
+            counters.hidden.fetch_add(1, std::memory_order_relaxed);
+            counters.queries.fetch_add(queries, std::memory_order_relaxed);
+            counters.nodes.fetch_add(nodes, std::memory_order_relaxed);
+            return;
+        }
+        for (const auto& c : own) coverage.add(c.u0, c.u1, std::max(c.g[0][2], c.g[1][2]));
+        if (!own.empty()) crossings.push_back({blockerIndex, &rec.worldFromObject, own});
+        order.erase(self);
+    }
+    // Between light and blocker (s < 1), the other receivers nearest first: surfaces there
+    // hide the event (§6.5 clipping); covered at every u, it casts nothing, whatever lies
+    // beyond.
     std::stable_sort(order.begin(), order.end(), [&](const Candidate& a, const Candidate& b) {
         bool ab = a.receiver == blockerIndex, bb = b.receiver == blockerIndex;
         return ab != bb ? ab : a.sMin < b.sMin;
@@ -423,13 +506,66 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     }
 }
 
+void EdgeFinder::findDirtyEvents(int lightIndex, int blockerIndex, const Pair& pair,
+                                 const std::vector<Change>& changes,
+                                 std::vector<int>& dirtyEvents) const {
+    const LightEntry& light = mLights[lightIndex];
+    std::vector<int> candidates;
+    std::vector<char> seen(pair.events.size(), 0), isDirty(pair.events.size(), 0);
+    for (const Change& c : changes) {
+        if (c.object == light.light.object || c.object == blockerIndex) continue;
+        // The new bounds padded beyond eventRange's own padding, for the minS pre-test.
+        Box3 padded = c.after;
+        if (!padded.empty()) {
+            Vec3 pad(4e-9 * (glm::length(padded.hi - padded.lo) + glm::length(padded.centre())) +
+                     1e-300);
+            padded.lo -= pad;
+            padded.hi += pad;
+        }
+        if (!pair.bound.overlaps(c.before) && !pair.bound.overlaps(c.after)) continue;
+        // Candidates: events whose boxes meet the old or the new bounds (an event that listed
+        // the receiver as near met its old bounds).
+        candidates.clear();
+        pair.boxTree.query(c.before, candidates);
+        pair.boxTree.query(c.after, candidates);
+        for (int e : candidates) {
+            if (seen[e]) continue;  // met both bounds, or already dirty
+            seen[e] = 1;
+            // Hidden by its own blocker: nothing else can change that.
+            if (pair.selfState[e] == 1) continue;
+            // Where it was: it mattered when not wholly beyond the event's threshold.
+            const double limit = pair.decided[e] + 1e-12;
+            bool dirty = false;
+            for (const NearReceiver& nr : pair.near[e])
+                dirty = dirty || (nr.receiver == c.object && nr.sMin <= limit);
+            // Where it is: it matters when it meets the event in front of that (s is linear:
+            // frame.minS bounds it below over the box, a cheap test before eventRange's).
+            if (!dirty && pair.boxes[e].overlaps(c.after)) {
+                double s0 = 0, s1 = 0;
+                if (mOptions.exhaustiveShadows)
+                    dirty = pair.frames[e].touches(
+                        c.after, kTouchEps * glm::length(c.after.hi - c.after.lo));
+                else
+                    dirty = pair.frames[e].minS(padded) <= limit &&
+                            eventRange(pair.events[e], pair.frames[e], c.after, &s0, &s1) &&
+                            s0 <= limit;
+            }
+            if (dirty) {
+                dirtyEvents.push_back(e);
+                isDirty[e] = 1;
+            }
+        }
+        // The next change tests every event again, except those already dirty.
+        for (int e : candidates) seen[e] = isDirty[e];
+    }
+    std::sort(dirtyEvents.begin(), dirtyEvents.end());
+}
+
 std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
     const int n = static_cast<int>(mObjects.size());
+    ++mGeneration;
+    mChangedAt.resize(n, 0);
     // Objects changed since the last call: their old and new bounds (§6.5 moving objects).
-    struct Change {
-        int object;
-        Box3 before, after;  ///< empty when not alive then / now
-    };
     std::vector<Change> changes;
     for (int o = 0; o < n; ++o) {
         const Object& obj = mObjects[o];
@@ -439,6 +575,7 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
         if (known && mSeenAlive[o]) c.before = mSeenBounds[o];
         if (obj.alive) c.after = obj.worldBounds;
         changes.push_back(c);
+        mChangedAt[o] = mGeneration;
     }
     // Event regions are clipped to a box around the scene; when it grows, re-clip them.
     Box3 scene;
@@ -459,7 +596,7 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
         bool events;             ///< rebuild the events (then every event is recomputed)
         std::vector<int> dirty;  ///< otherwise: the events to recompute
     };
-    std::vector<Job> jobs;
+    std::vector<Job> jobs, scans;
     for (int l = 0; l < static_cast<int>(mLights.size()); ++l) {
         const LightEntry& light = mLights[l];
         for (int b = 0; b < n; ++b) {
@@ -475,44 +612,17 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
                 jobs.push_back({l, b, &pair, true, {}});
                 continue;
             }
-            if (sceneGrew) computeEventBoxes(pair);
-            std::vector<int> candidates;
-            // A changed receiver matters to the events it touched or now touches.
-            Job job{l, b, &pair, false, {}};
-            for (const Change& c : changes) {
-                if (c.object == light.light.object || c.object == b) continue;
-                if (!pair.bound.overlaps(c.before) && !pair.bound.overlaps(c.after)) continue;
-                // Candidates: events whose boxes meet the old or the new bounds (an event that
-                // listed the receiver as near met its old bounds).
-                candidates.clear();
-                pair.boxTree.query(c.before, candidates);
-                pair.boxTree.query(c.after, candidates);
-                for (int e : candidates) {
-                    // Where it was: it mattered when not wholly beyond the event's threshold.
-                    const double limit = pair.decided[e] + 1e-12;
-                    bool dirty = false;
-                    for (const NearReceiver& nr : pair.near[e])
-                        dirty = dirty || (nr.receiver == c.object && nr.sMin <= limit);
-                    // Where it is: it matters when it meets the event in front of that.
-                    if (!dirty && pair.boxes[e].overlaps(c.after)) {
-                        double s0 = 0, s1 = 0;
-                        if (mOptions.exhaustiveShadows)
-                            dirty = pair.frames[e].touches(
-                                c.after, kTouchEps * glm::length(c.after.hi - c.after.lo));
-                        else
-                            dirty = eventRange(pair.events[e], pair.frames[e], c.after, &s0, &s1) &&
-                                    s0 <= limit;
-                    }
-                    if (dirty) job.dirty.push_back(e);
-                }
-            }
-            if (!job.dirty.empty()) {
-                std::sort(job.dirty.begin(), job.dirty.end());
-                job.dirty.erase(std::unique(job.dirty.begin(), job.dirty.end()), job.dirty.end());
-                jobs.push_back(std::move(job));
-            }
+            if (sceneGrew || !changes.empty()) scans.push_back({l, b, &pair, false, {}});
         }
     }
+    // Valid pairs: which of their events the changes make stale (in parallel).
+    tbb::parallel_for(std::size_t(0), scans.size(), [&](std::size_t i) {
+        Job& job = scans[i];
+        if (sceneGrew) computeEventBoxes(*job.pair);
+        findDirtyEvents(job.light, job.blocker, *job.pair, changes, job.dirty);
+    });
+    for (Job& job : scans)
+        if (!job.dirty.empty()) jobs.push_back(std::move(job));
     // Rebuild events of stale pairs, then recompute every dirty event, all in parallel.
     tbb::parallel_for(std::size_t(0), jobs.size(), [&](std::size_t i) {
         Job& job = jobs[i];
@@ -547,6 +657,8 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
     mStats.eventsHidden += counters.hidden.load();
     mStats.receiverQueries += counters.queries.load();
     mStats.receiverNodes += counters.nodes.load();
+    mStats.eventsSelfHidden += counters.selfHidden.load();
+    mStats.selfReused += counters.selfReused.load();
 
     // Remember what the objects were like for the next call.
     mSeenVersion.resize(n);

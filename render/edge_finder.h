@@ -49,6 +49,11 @@ struct EdgeFinderStats {
     long long eventsHidden = 0;          ///< of those: hidden whole by a surface before them
     long long receiverQueries = 0;       ///< event × receiver-tree intersections
     long long receiverNodes = 0;         ///< receiver-tree nodes those visited
+    /// Events the blocker's own surface hides alone (between light and blocker at every u):
+    /// hidden whatever other receivers do, never recomputed until the pair changes.
+    long long eventsSelfHidden = 0;
+    /// Events recomputed with the blocker's own crossings taken from the pair's cache.
+    long long selfReused = 0;
     std::string toString() const;
 };
 
@@ -99,7 +104,10 @@ public:
     /// added, removed or restored receiver recomputes only the events whose region it met
     /// before or meets now in front of what decided them (EventCoverage). Events are
     /// recomputed in parallel (oneTBB); receivers are intersected front to back along each
-    /// event and the traversal stops once the event is decided.
+    /// event and the traversal stops once the event is decided. The blocker's crossings with
+    /// its own events (self-shadowing) are kept with the pair: an event its blocker hides
+    /// alone is never recomputed for another receiver, and the others reuse the blocker's
+    /// crossings and intersect only the other receivers.
     std::vector<WorldEdge> findShadowEdges();
 
     const EdgeFinderStats& stats() const { return mStats; }
@@ -140,9 +148,11 @@ private:
         /// Appends the indices of boxes overlapping `box`.
         void query(const Box3& box, std::vector<int>& out) const;
     };
+    /// A receiver whose bounds meet an event's region, with the range of s there
+    /// (eventRange).
     struct NearReceiver {
         int receiver;
-        double sMin;
+        double sMin, sMax;
     };
     /// One (light, blocker) pair's events and, per event, what it casts (§6.5: kept until the
     /// light, the blocker or a receiver near the event moves).
@@ -160,13 +170,34 @@ private:
         /// wholly beyond it cannot change what the event casts.
         std::vector<double> decided;
         std::vector<std::vector<WorldEdge>> eventEdges;  ///< per event: the edges it casts
+        /// Per event, the blocker as its own receiver (self-shadowing), which only the light or
+        /// the blocker can change: 0 not computed yet, 1 hidden by the blocker alone, 2 the
+        /// blocker's crossings are in `selfCrossings` (object space; complete for any set of
+        /// other receivers: only the blocker's own coverage cut its traversal short).
+        std::vector<char> selfState;
+        std::vector<std::vector<ReceiverTree::Crossing>> selfCrossings;
+        /// Per event: the findShadowEdges() call (mGeneration) it was last computed in, 0
+        /// never.
+        std::vector<unsigned> computedAt;
     };
     struct Counters;
     /// Rebuilds a pair's events, frames and boxes (not its edges).
     void computeEvents(int light, int blocker, Pair& pair) const;
     void computeEventBoxes(Pair& pair) const;
-    /// Recomputes event `e` of the pair: its near receivers and the edges it casts.
+    /// Recomputes event `e` of the pair: its near receivers and the edges it casts. The near
+    /// receivers of objects unchanged since the event was last computed are taken from then.
     void computeEvent(int light, int blocker, Pair& pair, int e, Counters& counters) const;
+    /// An object changed since the last findShadowEdges(): its old and new bounds (empty
+    /// when not alive then / now).
+    struct Change {
+        int object;
+        Box3 before, after;
+    };
+    /// Appends the events of a valid pair that the changes may affect (§6.5 moving objects):
+    /// those whose region a changed receiver met before in front of what decided them, or
+    /// meets now.
+    void findDirtyEvents(int light, int blocker, const Pair& pair,
+                         const std::vector<Change>& changes, std::vector<int>& dirty) const;
 
     Options mOptions;
     std::vector<Object> mObjects;
@@ -179,7 +210,9 @@ private:
     std::vector<unsigned> mSeenVersion;
     std::vector<char> mSeenAlive;
     std::vector<Box3> mSeenBounds;
-    Box3 mSceneBox;  ///< every object and light; event regions are clipped to it
+    unsigned mGeneration = 0;          ///< findShadowEdges() calls so far
+    std::vector<unsigned> mChangedAt;  ///< per object: the call that last saw it change
+    Box3 mSceneBox;                    ///< every object and light; event regions are clipped to it
     EdgeFinderStats mStats;
 };
 

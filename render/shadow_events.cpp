@@ -700,12 +700,32 @@ double EventCoverage::threshold() const {
     }
     std::sort(breaks.begin(), breaks.end());
     breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
+    // Pieces in ascending sMax paint the intervals they cover that are still unpainted: the
+    // first to reach an interval is its smallest. `mNext[i]` skips painted runs (union–find
+    // with path halving), so each interval is painted once.
     std::vector<double>& best = mBest;
     best.assign(breaks.size(), HUGE_VAL);
+    std::sort(mPieces.begin(), mPieces.end(),
+              [](const Piece& a, const Piece& b) { return a.sMax < b.sMax; });
+    std::vector<int>& next = mNext;
+    next.resize(breaks.size() + 1);
+    for (std::size_t i = 0; i < next.size(); ++i) next[i] = static_cast<int>(i);
+    auto find = [&](int i) {
+        while (next[i] != i) {
+            next[i] = next[next[i]];
+            i = next[i];
+        }
+        return i;
+    };
     for (const Piece& p : mPieces) {
-        auto from = std::lower_bound(breaks.begin(), breaks.end(), p.u0) - breaks.begin();
-        auto to = std::lower_bound(breaks.begin(), breaks.end(), p.u1) - breaks.begin();
-        for (auto i = from; i < to; ++i) best[i] = std::min(best[i], p.sMax);
+        int from =
+            static_cast<int>(std::lower_bound(breaks.begin(), breaks.end(), p.u0) - breaks.begin());
+        int to =
+            static_cast<int>(std::lower_bound(breaks.begin(), breaks.end(), p.u1) - breaks.begin());
+        for (int i = find(from); i < to; i = find(i)) {
+            best[i] = p.sMax;
+            next[i] = i + 1;
+        }
     }
     double t = -HUGE_VAL;
     for (std::size_t i = 0; i + 1 < breaks.size(); ++i) {

@@ -91,12 +91,13 @@ private:
     struct Piece {
         double u0, u1, sMax;
     };
-    std::vector<Piece> mPieces;
-    double mLength = 0;  ///< total u length of the pieces
+    mutable std::vector<Piece> mPieces;  ///< threshold() sorts them by sMax
+    double mLength = 0;                  ///< total u length of the pieces
     mutable double mThreshold = HUGE_VAL;
     mutable bool mDirty = false;
     mutable std::size_t mComputedAt = 0;         ///< piece count at the last computation
     mutable std::vector<double> mBreaks, mBest;  ///< scratch of threshold()
+    mutable std::vector<int> mNext;              ///< scratch of threshold()
 };
 
 /// A bounding-volume hierarchy over an EdgeMesh's faces (object space) whose nodes also bound
