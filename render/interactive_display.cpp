@@ -138,6 +138,17 @@ InteractiveDisplay::InteractiveDisplay(const Discretization& disc, const RayTrac
       mEdges(disc, options.edges),
       mEpi(options.width, options.height, options.epi) {}
 
+InteractiveDisplay::InteractiveDisplay(const InteractiveDisplay& source,
+                                       InteractiveDisplayOptions options)
+    : mDisc(source.mDisc),
+      mOptions(options),
+      mShader(std::make_unique<PointShader>(*source.mShader, shaderOptionsFor(options))),
+      mCache(options.width, options.height, capacityFor(options), cacheOptionsFor(options)),
+      mEdges(source.mEdges),
+      mEpi(options.width, options.height, options.epi),
+      mShadowEdges(source.mShadowEdges),
+      mShadowsStale(source.mShadowsStale) {}
+
 InteractiveDisplay::~InteractiveDisplay() = default;
 
 // ---------------------------------------------------------------------------------------------
@@ -164,8 +175,12 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     DisplayFrameStats st;
     st.usedEdges = useEdges;
 
-    // Take the points the asynchronous workers finished.
+    // A finished estimate of the drag preview's direct light (backgroundPreview): drop the
+    // points on elements whose H_direct changed (the moving shadow, a moved lamp's light).
     auto t = Clock::now();
+    if (mShader->previewObject() >= 0 || mShader->directUpdatePending())
+        invalidateElementList(mShader->takeDirectUpdate());
+    // Take the points the asynchronous workers finished.
     if (!mOptions.synchronous) {
         std::vector<ShadedPoint> done = mShader->takeResults();
         mCache.insert(done);
@@ -362,6 +377,12 @@ void InteractiveDisplay::syncLights() {
     }
 }
 
+void InteractiveDisplay::syncEdges() {
+    mEdges.syncWith(mDisc);
+    const int preview = mShader->previewObject();
+    if (preview >= 0 && preview < mEdges.objectCount()) mEdges.setObjectAlive(preview, true);
+}
+
 std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObjects,
                                               const ProgressiveSolver* solver) {
     // Work from before the edit is stale.
@@ -389,7 +410,7 @@ std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObj
     }
 
     // Edge finder: new object versions, alive flags, lights; shadows recomputed next frame.
-    mEdges.syncWith(mDisc);
+    syncEdges();
     syncLights();
     mShadowsStale = true;
 
@@ -427,11 +448,20 @@ std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility&
     const int old = mShader->previewObject();
     // Without a solver the element shading only changes through H_direct (the element list).
     const std::vector<double> before = solver ? elementShading() : std::vector<double>{};
-    std::size_t dropped = invalidateVersion(old) + invalidateVersion(previewVersion);
+    // A drag's first preview is its origin where it was (beginDrag): nothing moved.
+    const bool atOrigin = old < 0 && previewVersion == mShader->dragOrigin();
+    std::size_t dropped = atOrigin ? 0 : invalidateVersion(old) + invalidateVersion(previewVersion);
     const double t1 = msSince(t0);
-    // The moving shadow: elements whose preview-world direct lighting changed.
+    // The moving shadow: elements whose preview-world direct lighting changed (with
+    // backgroundPreview: none yet, renderFrame drops them when the estimate is done).
     dropped += invalidateElementList(mShader->setPreview(previewVersion, previewOnly));
     const double t2 = msSince(t0);
+    // Its silhouettes (object-space queries: the version reuses the object's edge tree) and,
+    // when on, the shadows it casts now.
+    syncEdges();
+    mShadowsStale = true;
+    // A lamp moved: the edge finder's light follows it.
+    syncLights();
     if (solver) mShader->updateSolution(*solver);
     const double t3 = msSince(t0);
     if (solver) dropped += invalidateChangedShading(before);
@@ -451,7 +481,50 @@ std::size_t InteractiveDisplay::clearPreview(const ProgressiveSolver* solver) {
     const std::vector<double> before = elementShading();
     std::size_t dropped = invalidateVersion(old);
     dropped += invalidateElementList(mShader->clearPreview());
+    syncEdges();
+    mShadowsStale = true;
     if (solver) mShader->updateSolution(*solver);
+    dropped += invalidateChangedShading(before);
+    return dropped;
+}
+
+void InteractiveDisplay::beginDrag(int origin, const Visibility& originOnly) {
+    mShader->cancelPending();
+    mShader->beginDrag(origin, originOnly);
+}
+
+std::size_t InteractiveDisplay::endDrag(int added, const ProgressiveSolver* solver) {
+    mShader->cancelPending();
+    if (!mOptions.synchronous) (void)mShader->takeResults();
+    const std::vector<double> before = elementShading();
+    const int old = mShader->previewObject();
+    std::size_t dropped = invalidateVersion(added);
+    if (old != added) dropped += invalidateVersion(old);
+    dropped += invalidateElementList(mShader->endDrag(added));
+    syncEdges();
+    syncLights();
+    mShadowsStale = true;
+    if (solver) mShader->updateSolution(*solver);
+    dropped += invalidateChangedShading(before);
+    return dropped;
+}
+
+std::size_t InteractiveDisplay::catchUpFrom(const InteractiveDisplay& source,
+                                            const std::vector<int>& changedObjects) {
+    if (&source.mDisc != &mDisc)
+        throw std::invalid_argument("InteractiveDisplay::catchUpFrom: another Discretization");
+    mShader->cancelPending();
+    if (!mOptions.synchronous) (void)mShader->takeResults();
+    const std::vector<double> before = elementShading();
+    std::unordered_set<int> objects(changedObjects.begin(), changedObjects.end());
+    std::size_t dropped = mCache.invalidateObjects(objects);
+    for (int o : changedObjects) dropped += invalidateVersion(o);
+    dropped += invalidateVersion(mShader->previewObject());
+    dropped += invalidateVersion(source.mShader->previewObject());
+    mShader->copyDirectFrom(*source.mShader);
+    syncEdges();
+    syncLights();
+    mShadowsStale = true;
     dropped += invalidateChangedShading(before);
     return dropped;
 }

@@ -121,6 +121,11 @@ public:
     /// updateSolution(). Throws std::invalid_argument for a non-positive size.
     InteractiveDisplay(const Discretization& disc, const RayTracer& tracer,
                        const SolverOptions& solverOptions, InteractiveDisplayOptions options = {});
+    /// A display of another size (`options`) over `source`'s scene that takes its edge finder,
+    /// lights, H_direct, solution snapshot and preview (PointShader::copyDirectFrom) instead
+    /// of building them: milliseconds instead of seconds. `source` must not change meanwhile
+    /// (same thread; its shader's workers may run). Empty cache.
+    InteractiveDisplay(const InteractiveDisplay& source, InteractiveDisplayOptions options);
     ~InteractiveDisplay();
     InteractiveDisplay(const InteractiveDisplay&) = delete;
     InteractiveDisplay& operator=(const InteractiveDisplay&) = delete;
@@ -183,6 +188,30 @@ public:
                            const ProgressiveSolver* solver = nullptr);
     /// Ends the preview (call before notifyChanged of the unselect). Returns the points dropped.
     std::size_t clearPreview(const ProgressiveSolver* solver = nullptr);
+    /// George et al.'s select, instead of notifyChanged({origin}) and a preview computed from
+    /// scratch: `origin` was just removed from the scene and is previewed where it was, so
+    /// nothing shown changes (no point dropped, no direct light recomputed); later previews
+    /// are estimated relative to it (PointShader::beginDrag). Call like notifyChanged, then
+    /// setPreview.
+    void beginDrag(int origin, const Visibility& originOnly = {});
+    /// George et al.'s unselect after beginDrag, instead of clearPreview and
+    /// notifyChanged({added}): `added` (the preview version) is alive in the scene again; the
+    /// last change becomes part of H_direct (PointShader::endDrag), points on it and on the
+    /// elements whose direct light changed are dropped. Returns the points dropped.
+    std::size_t endDrag(int added, const ProgressiveSolver* solver = nullptr);
+    /// The origin of the drag in progress, -1 for none.
+    int dragOrigin() const { return mShader->dragOrigin(); }
+    /// The preview version whose background estimate is queued or running (its subset must
+    /// stay alive meanwhile), -1 for none (PointShader::directJobPreview).
+    int directJobPreview() const { return mShader->directJobPreview(); }
+    /// Brings this display up to date with `source` (another display over the same scene that
+    /// saw every edit) after this one missed edits that changed `changedObjects`: drops points
+    /// on them, in their bounds and on both displays' preview versions, follows the edge finder
+    /// (syncWith), takes the source's direct light, solution and preview
+    /// (PointShader::copyDirectFrom: nothing recomputed) and drops points whose element
+    /// shading changed. Call with both shaders paused. Returns the points dropped.
+    std::size_t catchUpFrom(const InteractiveDisplay& source,
+                            const std::vector<int>& changedObjects);
     /// The preview version shown, -1 for none.
     int previewVersion() const { return mShader->previewObject(); }
     /// Milliseconds the last shadow-edge recomputation took (after a change, or the first frame).
@@ -211,6 +240,9 @@ private:
     /// Drops points on elements whose shading moved from `before` by more than the threshold.
     std::size_t invalidateChangedShading(const std::vector<double>& before);
     void syncLights();
+    /// The edge finder follows the Discretization's versions and alive flags; the preview
+    /// version counts as alive (its silhouettes, and shadows when they are on).
+    void syncEdges();
     /// Drops cached points on `version` and in its bounding sphere.
     std::size_t invalidateVersion(int version);
     /// Drops points on `elements` (element indices whose direct lighting changed).

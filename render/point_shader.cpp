@@ -13,6 +13,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#ifdef __linux__
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/ray_tracer.h"
@@ -183,6 +189,16 @@ PointShader::PointShader(const Discretization& disc, const RayTracer& tracer,
     for (int t = 0; t < mOptions.threads; ++t) mWorkers.emplace_back([this] { workerLoop(); });
 }
 
+PointShader::PointShader(const PointShader& source, PointShaderOptions options)
+    : mDisc(source.mDisc),
+      mTracer(source.mTracer),
+      mSolverOptions(source.mSolverOptions),
+      mOptions(options) {
+    mState = source.state();
+    copyDirectFrom(source);
+    for (int t = 0; t < mOptions.threads; ++t) mWorkers.emplace_back([this] { workerLoop(); });
+}
+
 PointShader::~PointShader() {
     {
         std::lock_guard lock(mQueueMutex);
@@ -223,72 +239,88 @@ Rgb PointShader::computeElementDirect(int e, const std::vector<Light>& /*lights*
     return sum;
 }
 
-void PointShader::refreshDirect() {
-    // Lights: merge the patches of a planar emitter object into their convex outline when
-    // they tile it exactly (quads, boxes' faces are separate objects' patches only when
-    // coplanar), otherwise one light per patch.
-    auto next = std::make_shared<State>(*state());
-    next->lights.clear();
-    const std::vector<int> emitters = emitterPatches(mDisc);
-    std::vector<std::vector<int>> byObject(mDisc.objects().size());
-    for (int p : emitters) byObject[mDisc.patches()[p].object].push_back(p);
-    for (std::size_t o = 0; o < byObject.size(); ++o) {
-        const auto& ps = byObject[o];
-        if (ps.empty()) continue;
-        bool mergeable = true;
-        const Patch& first = mDisc.patches()[ps[0]];
-        const Rgb e0 = mDisc.patchMaterial(ps[0]).emission;
-        double areaSum = 0;
-        for (int p : ps) {
-            const Patch& P = mDisc.patches()[p];
-            areaSum += P.area;
-            if (P.outline.empty() || mDisc.patchMaterial(p).emission != e0 ||
-                glm::dot(P.normal, first.normal) < 1 - 1e-9)
-                mergeable = false;
-        }
-        if (mergeable && ps.size() > 1) {
-            // Project every outline vertex to the plane; hull; accept when it tiles exactly.
-            Vec3 n = glm::normalize(first.normal);
-            Vec3 u =
-                glm::normalize(glm::cross(std::abs(n.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0), n));
-            Vec3 v = glm::cross(n, u);
-            const Vec3 origin = first.outline[0];
-            std::vector<Vec3> points;
-            std::vector<glm::dvec2> flat;
-            for (int p : ps)
-                for (const Vec3& q : mDisc.patches()[p].outline) {
-                    if (std::abs(glm::dot(q - origin, n)) > 1e-9 * (1 + glm::length(q - origin)))
-                        mergeable = false;
-                    points.push_back(q);
-                    flat.push_back({glm::dot(q - origin, u), glm::dot(q - origin, v)});
-                }
-            std::vector<int> hull = convexHull2d(flat);
-            std::vector<Vec3> polygon;
-            for (int i : hull) polygon.push_back(points[i]);
-            double hullArea = 0.5 * glm::length(newellNormal(polygon));
-            if (mergeable && std::abs(hullArea - areaSum) <= 1e-6 * areaSum) {
-                Light light;
-                light.object = static_cast<int>(o);
-                light.emission = e0;
-                light.polygons.push_back(polygon);
-                light.finish();
-                next->lights.push_back(std::move(light));
-                continue;
+std::vector<PointShader::Light> PointShader::lightsOf(int o) const {
+    // Merge the patches of a planar emitter object into their convex outline when they tile
+    // it exactly (quads, boxes' faces are separate objects' patches only when coplanar),
+    // otherwise one light per patch.
+    std::vector<Light> out;
+    std::vector<int> ps;
+    for (std::size_t p = 0; p < mDisc.patches().size(); ++p)
+        if (mDisc.patches()[p].object == o && mDisc.patchMaterial(static_cast<int>(p)).isEmitter())
+            ps.push_back(static_cast<int>(p));
+    if (ps.empty()) return out;
+    bool mergeable = true;
+    const Patch& first = mDisc.patches()[ps[0]];
+    const Rgb e0 = mDisc.patchMaterial(ps[0]).emission;
+    double areaSum = 0;
+    for (int p : ps) {
+        const Patch& P = mDisc.patches()[p];
+        areaSum += P.area;
+        if (P.outline.empty() || mDisc.patchMaterial(p).emission != e0 ||
+            glm::dot(P.normal, first.normal) < 1 - 1e-9)
+            mergeable = false;
+    }
+    if (mergeable && ps.size() > 1) {
+        // Project every outline vertex to the plane; hull; accept when it tiles exactly.
+        Vec3 n = glm::normalize(first.normal);
+        Vec3 u = glm::normalize(glm::cross(std::abs(n.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0), n));
+        Vec3 v = glm::cross(n, u);
+        const Vec3 origin = first.outline[0];
+        std::vector<Vec3> points;
+        std::vector<glm::dvec2> flat;
+        for (int p : ps)
+            for (const Vec3& q : mDisc.patches()[p].outline) {
+                if (std::abs(glm::dot(q - origin, n)) > 1e-9 * (1 + glm::length(q - origin)))
+                    mergeable = false;
+                points.push_back(q);
+                flat.push_back({glm::dot(q - origin, u), glm::dot(q - origin, v)});
             }
-        }
-        for (int p : ps) {
+        std::vector<int> hull = convexHull2d(flat);
+        std::vector<Vec3> polygon;
+        for (int i : hull) polygon.push_back(points[i]);
+        double hullArea = 0.5 * glm::length(newellNormal(polygon));
+        if (mergeable && std::abs(hullArea - areaSum) <= 1e-6 * areaSum) {
             Light light;
-            light.object = static_cast<int>(o);
-            light.emission = mDisc.patchMaterial(p).emission;
-            const Patch& P = mDisc.patches()[p];
-            if (!P.outline.empty())
-                light.polygons.push_back(P.outline);
-            else
-                for (int e : P.elements) light.polygons.push_back(mDisc.elementPolygon(e));
+            light.object = o;
+            light.emission = e0;
+            light.polygons.push_back(polygon);
             light.finish();
-            if (light.area > 0) next->lights.push_back(std::move(light));
+            out.push_back(std::move(light));
+            return out;
         }
     }
+    for (int p : ps) {
+        Light light;
+        light.object = o;
+        light.emission = mDisc.patchMaterial(p).emission;
+        const Patch& P = mDisc.patches()[p];
+        if (!P.outline.empty())
+            light.polygons.push_back(P.outline);
+        else
+            for (int e : P.elements) light.polygons.push_back(mDisc.elementPolygon(e));
+        light.finish();
+        if (light.area > 0) out.push_back(std::move(light));
+    }
+    return out;
+}
+
+std::vector<PointShader::Light> PointShader::aliveLights() const {
+    std::vector<char> emits(mDisc.objects().size(), 0);
+    for (int p : emitterPatches(mDisc)) emits[mDisc.patches()[p].object] = 1;
+    std::vector<Light> out;
+    for (std::size_t o = 0; o < emits.size(); ++o)
+        if (emits[o])
+            for (Light& l : lightsOf(static_cast<int>(o))) out.push_back(std::move(l));
+    return out;
+}
+
+void PointShader::refreshDirect() {
+    // Every H_direct is recomputed in the scene as it is: a drag's origin is no longer in it.
+    mDragOrigin = -1;
+    mOriginOnly = Visibility{};
+    dropDirectJob();
+    auto next = std::make_shared<State>(*state());
+    next->lights = aliveLights();
 
     // H_direct(e) for every element, in parallel.
     const std::size_t n = mDisc.elements().size();
@@ -303,7 +335,12 @@ void PointShader::refreshDirect() {
     if (preview >= 0) setPreview(preview, previewOnly);
 }
 
-void PointShader::refreshDirect(const std::vector<int>& changedObjects) {
+void PointShader::refreshDirect(const std::vector<int>& changedObjectList) {
+    // A drag's origin leaves H_direct here too (its shaft elements are recomputed without it).
+    std::vector<int> changedObjects = changedObjectList;
+    if (mDragOrigin >= 0) changedObjects.push_back(mDragOrigin);
+    mDragOrigin = -1;
+    mOriginOnly = Visibility{};
     // A changed emitter changes the lights themselves: recompute everything.
     for (int o : changedObjects)
         for (const Patch& P : mDisc.patches())
@@ -366,89 +403,277 @@ std::vector<Rgb> PointShader::elementDirect() const {
 // ---------------------------------------------------------------------------------------------
 // Drag preview
 
+namespace {
+
+struct BoundingSphere {
+    Vec3 centre{0.0};
+    double radius = -1;  ///< < 0: none
+};
+
+BoundingSphere objectSphere(const Discretization& disc, int object, double pad) {
+    BoundingSphere s;
+    if (object < 0 || object >= static_cast<int>(disc.objects().size())) return s;
+    const auto& ws = disc.objects()[object].worldPositions;
+    if (ws.empty()) return s;
+    Vec3 lo = ws[0], hi = ws[0];
+    for (const Vec3& w : ws) lo = glm::min(lo, w), hi = glm::max(hi, w);
+    s.centre = 0.5 * (lo + hi);
+    s.radius = 0.5 * glm::length(hi - lo) + pad;
+    return s;
+}
+
+bool admitsSomething(const Visibility& v) { return v.subset >= 0 || v.world != nullptr; }
+
+}  // namespace
+
+/// One estimate of the preview's H_direct change, per element (George et al.'s temporary
+/// buffer for the direct light the point shading traces per sample): on the preview object's
+/// elements its H_direct in the preview world, elsewhere the change relative to H_direct(e)
+/// (mElementDirect): − what the preview blocks, + what the drag origin blocked, + the
+/// preview's own light, − the origin's. Computed in chunks (inline or on the workers).
+struct PointShader::DirectJob {
+    std::shared_ptr<const State> state;
+    int preview = -1, origin = -1;
+    int ignore = -1;  ///< version left out of the scene's rays (endDrag: the added preview)
+    Visibility previewOnly, originOnly;
+    std::vector<std::uint8_t> previewWorld, originWorld;  ///< filters when there is no subset
+    std::vector<Light> others;  ///< lights of neither the preview nor the origin
+    std::vector<Light> previewLights, originLights;
+    std::vector<std::pair<Vec3, double>> lightSpheres;  ///< of `others`
+    BoundingSphere previewSphere, originSphere;
+    std::size_t elements = 0, chunkSize = 256, chunks = 0;
+    /// The preview is the drag's origin where it started: nothing changed.
+    bool atOrigin = false;
+    std::vector<Rgb> value;
+    std::vector<std::uint8_t> kind;  ///< 0 nothing, 1 own element (value = H_direct), 2 change
+    // Workers (under mQueueMutex): chunks handed out and finished.
+    std::size_t nextChunk = 0, doneChunks = 0;
+    bool complete() const { return doneChunks == chunks; }
+};
+
+std::shared_ptr<PointShader::DirectJob> PointShader::makeDirectJob(int ignore) const {
+    auto job = std::make_shared<DirectJob>();
+    job->state = state();
+    const State& st = *job->state;
+    job->preview = st.previewObject;
+    job->origin = mDragOrigin;
+    job->ignore = ignore;
+    const std::size_t objects = mDisc.objects().size();
+    if (job->preview >= 0) {
+        job->previewOnly = st.previewOnly;
+        if (!admitsSomething(job->previewOnly)) {
+            job->previewWorld.assign(objects, 0);
+            job->previewWorld[job->preview] = 1;
+        }
+        job->previewLights = lightsOf(job->preview);
+        job->previewSphere = objectSphere(mDisc, job->preview, 4 * mTracer.epsilon());
+    }
+    if (job->origin >= 0 && job->origin != job->preview) {
+        job->originOnly = mOriginOnly;
+        if (!admitsSomething(job->originOnly)) {
+            job->originWorld.assign(objects, 0);
+            job->originWorld[job->origin] = 1;
+        }
+        job->originLights = lightsOf(job->origin);
+        job->originSphere = objectSphere(mDisc, job->origin, 4 * mTracer.epsilon());
+    } else {
+        // The preview where the drag started: nothing changes.
+        job->atOrigin = job->origin >= 0;
+        job->origin = -1;
+    }
+    for (const Light& L : st.lights)
+        if (L.object != job->preview && L.object != mDragOrigin) job->others.push_back(L);
+    for (const Light& L : job->others) {
+        Vec3 llo(std::numeric_limits<double>::infinity()), lhi(-llo);
+        for (const auto& poly : L.polygons)
+            for (const Vec3& p : poly) llo = glm::min(llo, p), lhi = glm::max(lhi, p);
+        job->lightSpheres.push_back({0.5 * (llo + lhi), 0.5 * glm::length(lhi - llo)});
+    }
+    job->elements = mDisc.elements().size();
+    job->chunkSize = static_cast<std::size_t>(std::max(16, mOptions.directChunk));
+    job->chunks = (job->elements + job->chunkSize - 1) / job->chunkSize;
+    job->value.assign(job->elements, Rgb(0.0));
+    job->kind.assign(job->elements, 0);
+    // The filters' pointers into the job (it does not move: shared_ptr).
+    if (!job->previewWorld.empty()) job->previewOnly.world = &job->previewWorld;
+    if (!job->originWorld.empty()) job->originOnly.world = &job->originWorld;
+    return job;
+}
+
+void PointShader::runDirectChunk(DirectJob& job, std::size_t chunk) const {
+    if (job.atOrigin) return;
+    const std::size_t begin = chunk * job.chunkSize;
+    const std::size_t end = std::min(job.elements, begin + job.chunkSize);
+    const State& st = *job.state;
+    const bool moved = job.origin >= 0;  // the origin's terms cancel the preview's at its place
+    // Whether `sphere` can block the shaft from the element to a light of `others`: a cone from
+    // the centroid (an element is small next to an object) to the light's bounding sphere,
+    // radius t·r at parameter t; conservative: only for t ≤ t* + (R + r)/|d|.
+    auto inShaft = [&](const Element& el, const BoundingSphere& s) {
+        if (s.radius < 0) return false;
+        if (glm::dot(el.normal, s.centre - el.centroid) < -s.radius) return false;
+        for (const auto& [c, rl] : job.lightSpheres) {
+            const Vec3 a = el.centroid, d = c - a;
+            const double dd = glm::dot(d, d);
+            if (!(dd > 0)) continue;
+            const double t = std::clamp(glm::dot(s.centre - a, d) / dd, 0.0, 1.0);
+            const double tMax = std::min(1.0, t + (s.radius + rl) / std::sqrt(dd));
+            if (glm::length(s.centre - (a + t * d)) <= s.radius + tMax * rl) return true;
+        }
+        return false;
+    };
+    for (std::size_t e = begin; e < end; ++e) {
+        const Element& el = mDisc.elements()[e];
+        const std::uint64_t key = hashPair(mOptions.seed ^ 0x5EEDull, e);
+        if (el.object == job.preview) {
+            job.value[e] = directWith(st, el.centroid, el.normal, job.preview, key);
+            job.kind[e] = 1;
+            continue;
+        }
+        if (el.object == job.ignore) continue;
+        if (!mDisc.objects()[el.object].alive) continue;
+        Rgb change(0.0);
+        if (job.preview >= 0 && inShaft(el, job.previewSphere))
+            change += blockedChange(job.others, job.previewOnly, job.ignore, el.centroid, el.normal,
+                                    el.object, key);
+        if (moved && inShaft(el, job.originSphere))
+            change -= blockedChange(job.others, job.originOnly, job.ignore, el.centroid, el.normal,
+                                    el.object, key);
+        if (!job.previewLights.empty())
+            change += emittedBy(job.previewLights, job.previewOnly, job.ignore, el.centroid,
+                                el.normal, el.object, key);
+        if (moved && !job.originLights.empty())
+            change -= emittedBy(job.originLights, job.originOnly, job.ignore, el.centroid,
+                                el.normal, el.object, key);
+        if (!isZero(change)) {
+            job.value[e] = change;
+            job.kind[e] = 2;
+        }
+    }
+}
+
+std::vector<int> PointShader::applyDirectJob(const DirectJob& job) {
+    const std::size_t n = mDisc.elements().size();
+    mElementDirect.resize(n, Rgb(0.0));
+    std::vector<Rgb> delta(n, Rgb(0.0));
+    std::vector<int> touched;
+    for (std::size_t e = 0; e < job.elements && e < n; ++e) {
+        if (job.kind[e] == 0) continue;
+        delta[e] = job.kind[e] == 1 ? job.value[e] - mElementDirect[e] : job.value[e];
+        touched.push_back(static_cast<int>(e));
+    }
+    // Elements whose preview direct changed: the old estimate's and the new one's.
+    std::vector<int> changed;
+    std::vector<std::uint8_t> seen(n, 0);
+    auto consider = [&](int e, const Rgb& old) {
+        if (e >= static_cast<int>(n) || seen[e]) return;
+        seen[e] = 1;
+        if (delta[e] != old) changed.push_back(e);
+    };
+    for (int e : mPreviewElements)
+        consider(e, e < static_cast<int>(mPreviewDirectDelta.size()) ? mPreviewDirectDelta[e]
+                                                                     : Rgb(0.0));
+    for (int e : touched) consider(e, Rgb(0.0));
+    std::sort(changed.begin(), changed.end());
+    mPreviewElements = std::move(touched);
+    mPreviewDirectDelta = std::move(delta);
+    return changed;
+}
+
+void PointShader::dropDirectJob() {
+    std::lock_guard lock(mQueueMutex);
+    mJob.reset();
+    mJobWanted = false;
+}
+
+void PointShader::queueDirectJob() {
+    {
+        std::lock_guard lock(mQueueMutex);
+        if (mJob) {
+            mJobWanted = true;
+            return;
+        }
+    }
+    auto job = makeDirectJob(-1);
+    {
+        std::lock_guard lock(mQueueMutex);
+        mJob = std::move(job);
+        mJobWanted = false;
+    }
+    mWake.notify_all();
+}
+
 std::vector<int> PointShader::setPreview(int object, const Visibility& previewOnly) {
     if (object < 0 || object >= static_cast<int>(mDisc.objects().size()))
         throw std::invalid_argument("PointShader::setPreview: no object " + std::to_string(object));
     auto next = std::make_shared<State>(*state());
+    const int old = next->previewObject;
     next->previewObject = object;
     next->previewOnly = previewOnly;
     next->previewWorld.assign(mDisc.objects().size(), 0);
     for (std::size_t o = 0; o < mDisc.objects().size(); ++o)
         next->previewWorld[o] = mDisc.objects()[o].alive ? 1 : 0;
     next->previewWorld[object] = 1;
+    // The preview's light replaces the previous preview's and the drag origin's (a dragged
+    // lamp lights the scene from where it is now).
+    std::vector<Light> lights;
+    for (Light& L : next->lights)
+        if (L.object != old && L.object != mDragOrigin && L.object != object)
+            lights.push_back(std::move(L));
+    for (Light& L : lightsOf(object)) lights.push_back(std::move(L));
+    next->lights = std::move(lights);
+    mElementDirect.resize(mDisc.elements().size(), Rgb(0.0));
+    publish(std::move(next));
 
-    // The preview's bounding sphere.
-    const auto& ws = mDisc.objects()[object].worldPositions;
-    Vec3 lo = ws.empty() ? Vec3(0.0) : ws[0], hi = lo;
-    for (const Vec3& w : ws) lo = glm::min(lo, w), hi = glm::max(hi, w);
-    const Vec3 centre = 0.5 * (lo + hi);
-    const double radius = 0.5 * glm::length(hi - lo) + 4 * mTracer.epsilon();
-
-    const std::size_t n = mDisc.elements().size();
-    mElementDirect.resize(n, Rgb(0.0));
-    std::vector<Rgb> delta(n, Rgb(0.0));
-    std::vector<std::uint8_t> touched(n, 0);
-    // Lights' bounding spheres, for the shaft test.
-    std::vector<std::pair<Vec3, double>> lightSpheres;
-    for (const Light& L : next->lights) {
-        Vec3 llo(std::numeric_limits<double>::infinity()), lhi(-llo);
-        for (const auto& poly : L.polygons)
-            for (const Vec3& p : poly) llo = glm::min(llo, p), lhi = glm::max(lhi, p);
-        lightSpheres.push_back({0.5 * (llo + lhi), 0.5 * glm::length(lhi - llo)});
-    }
     // H_direct per element at its centroid with the point shading's light sampling (seeded by
     // the element): the object's own elements in the preview world; other elements whose shaft
-    // to a light can meet the object's bounding sphere get the change the object makes (only
-    // rays the object blocks are traced twice).
-    const State& st = *next;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& r) {
-        for (std::size_t e = r.begin(); e != r.end(); ++e) {
-            const Element& el = mDisc.elements()[e];
-            const std::uint64_t key = hashPair(mOptions.seed ^ 0x5EEDull, e);
-            if (el.object == object) {
-                delta[e] = directWith(st, el.centroid, el.normal, object, key) - mElementDirect[e];
-                touched[e] = 1;
-                continue;
-            }
-            if (!mDisc.objects()[el.object].alive || ws.empty()) continue;
-            // Only what lies in front of the element can block its shadow rays.
-            if (glm::dot(el.normal, centre - el.centroid) < -radius) continue;
-            // The shaft to a light is a cone from the element's centroid (an element is small
-            // next to the object) to the light's bounding sphere: radius t·r at parameter t.
-            // Conservative test: the sphere can only meet it for t ≤ t* + (R + r)/|d|.
-            bool inShaft = false;
-            for (const auto& [c, rl] : lightSpheres) {
-                const Vec3 a = el.centroid, d = c - a;
-                const double dd = glm::dot(d, d);
-                if (!(dd > 0)) continue;
-                const double t = std::clamp(glm::dot(centre - a, d) / dd, 0.0, 1.0);
-                const double tMax = std::min(1.0, t + (radius + rl) / std::sqrt(dd));
-                if (glm::length(centre - (a + t * d)) <= radius + tMax * rl) {
-                    inShaft = true;
-                    break;
-                }
-            }
-            if (!inShaft) continue;
-            delta[e] = previewChange(st, el.centroid, el.normal, el.object, key);
-            touched[e] = !isZero(delta[e]);
-        }
-    });
-    // Elements whose preview direct changed: the old preview's and the new one's.
-    std::vector<int> changed;
-    std::vector<Rgb> old(n, Rgb(0.0));
-    for (int e : mPreviewElements)
-        if (e < static_cast<int>(n)) old[e] = mPreviewDirectDelta[e];
-    mPreviewElements.clear();
-    for (std::size_t e = 0; e < n; ++e) {
-        if (touched[e]) mPreviewElements.push_back(static_cast<int>(e));
-        if (delta[e] != old[e]) changed.push_back(static_cast<int>(e));
+    // to a light can meet the object's (or the drag origin's) bounding sphere get the change
+    // (only rays the object blocks are traced twice); every element the change of a moved
+    // lamp's light.
+    if (mOptions.backgroundPreview && !mWorkers.empty()) {
+        queueDirectJob();
+        return {};
     }
-    mPreviewDirectDelta = std::move(delta);
-    publish(std::move(next));
+    dropDirectJob();
+    auto job = makeDirectJob(-1);
+    tbb::parallel_for(std::size_t(0), job->chunks, [&](std::size_t c) { runDirectChunk(*job, c); });
+    return applyDirectJob(*job);
+}
+
+std::vector<int> PointShader::takeDirectUpdate() {
+    std::shared_ptr<DirectJob> done;
+    bool wanted = false;
+    {
+        std::lock_guard lock(mQueueMutex);
+        if (mJob && mJob->complete()) {
+            done = std::move(mJob);
+            mJob.reset();
+        }
+        wanted = !mJob && mJobWanted;
+    }
+    std::vector<int> changed;
+    if (done && done->state->previewObject == state()->previewObject) {
+        changed = applyDirectJob(*done);
+        if (mHasSolution) rebuildIndirect();
+    } else if (done) {
+        wanted = true;  // the preview ended or changed object: estimate again
+    }
+    if (wanted && state()->previewObject >= 0) queueDirectJob();
     return changed;
 }
 
+int PointShader::directJobPreview() const {
+    std::lock_guard lock(mQueueMutex);
+    return mJob ? mJob->preview : -1;
+}
+
+bool PointShader::directUpdatePending() const {
+    std::lock_guard lock(mQueueMutex);
+    return mJob != nullptr || mJobWanted;
+}
+
 std::vector<int> PointShader::clearPreview() {
+    dropDirectJob();
     std::vector<int> changed;
     for (int e : mPreviewElements)
         if (e < static_cast<int>(mPreviewDirectDelta.size()) && !isZero(mPreviewDirectDelta[e]))
@@ -456,11 +681,98 @@ std::vector<int> PointShader::clearPreview() {
     mPreviewElements.clear();
     mPreviewDirectDelta.clear();
     auto next = std::make_shared<State>(*state());
+    const int old = next->previewObject;
     next->previewObject = -1;
     next->previewOnly = Visibility{};
     next->previewWorld.clear();
+    if (old >= 0 && !lightsOf(old).empty()) next->lights = aliveLights();
     publish(std::move(next));
+    if (mDragOrigin >= 0) {
+        // H_direct still had the origin in place: take it out now.
+        const int origin = mDragOrigin;
+        mDragOrigin = -1;
+        mOriginOnly = Visibility{};
+        const std::vector<Rgb> before = mElementDirect;
+        refreshDirect(std::vector<int>{origin});
+        for (std::size_t e = 0; e < mElementDirect.size(); ++e)
+            if (e >= before.size() || before[e] != mElementDirect[e])
+                changed.push_back(static_cast<int>(e));
+        std::sort(changed.begin(), changed.end());
+        changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+    }
+    if (mHasSolution) rebuildIndirect();
     return changed;
+}
+
+void PointShader::beginDrag(int origin, const Visibility& originOnly) {
+    if (origin < 0 || origin >= static_cast<int>(mDisc.objects().size()))
+        throw std::invalid_argument("PointShader::beginDrag: no object " + std::to_string(origin));
+    dropDirectJob();
+    mDragOrigin = origin;
+    mOriginOnly = originOnly;
+}
+
+std::vector<int> PointShader::endDrag(int added) {
+    if (added < 0 || added >= static_cast<int>(mDisc.objects().size()))
+        throw std::invalid_argument("PointShader::endDrag: no object " + std::to_string(added));
+    dropDirectJob();
+    // The final change, with `added` in the preview slot and out of the scene's rays.
+    {
+        auto next = std::make_shared<State>(*state());
+        if (next->previewObject != added) {
+            next->previewObject = added;
+            next->previewWorld.assign(mDisc.objects().size(), 0);
+            for (std::size_t o = 0; o < mDisc.objects().size(); ++o)
+                next->previewWorld[o] = mDisc.objects()[o].alive ? 1 : 0;
+            next->previewWorld[added] = 1;
+            publish(std::move(next));
+        }
+    }
+    auto job = makeDirectJob(added);
+    tbb::parallel_for(std::size_t(0), job->chunks, [&](std::size_t c) { runDirectChunk(*job, c); });
+    const std::size_t n = mDisc.elements().size();
+    mElementDirect.resize(n, Rgb(0.0));
+    std::vector<int> changed;
+    for (int e : mPreviewElements)
+        if (e < static_cast<int>(n) && e < static_cast<int>(mPreviewDirectDelta.size()) &&
+            !isZero(mPreviewDirectDelta[e]))
+            changed.push_back(e);
+    for (std::size_t e = 0; e < job->elements && e < n; ++e) {
+        if (job->kind[e] == 0) continue;
+        mElementDirect[e] = job->kind[e] == 1 ? job->value[e] : mElementDirect[e] + job->value[e];
+        changed.push_back(static_cast<int>(e));
+    }
+    std::sort(changed.begin(), changed.end());
+    changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+    mPreviewElements.clear();
+    mPreviewDirectDelta.clear();
+    mDragOrigin = -1;
+    mOriginOnly = Visibility{};
+    auto next = std::make_shared<State>(*state());
+    next->previewObject = -1;
+    next->previewOnly = Visibility{};
+    next->previewWorld.clear();
+    next->lights = aliveLights();
+    publish(std::move(next));
+    if (mHasSolution) rebuildIndirect();
+    return changed;
+}
+
+void PointShader::copyDirectFrom(const PointShader& source) {
+    if (&source.mDisc != &mDisc)
+        throw std::invalid_argument("PointShader::copyDirectFrom: another Discretization");
+    dropDirectJob();
+    mElementDirect = source.mElementDirect;
+    mElementH = source.mElementH;
+    mLastPreviewRadiosity = source.mLastPreviewRadiosity;
+    mLastPreviewObject = source.mLastPreviewObject;
+    mHasSolution = source.mHasSolution;
+    mPreviewDirectDelta = source.mPreviewDirectDelta;
+    mPreviewElements = source.mPreviewElements;
+    mDragOrigin = source.mDragOrigin;
+    mOriginOnly = source.mOriginOnly;
+    publish(source.state());
+    if (source.directUpdatePending()) queueDirectJob();
 }
 
 int PointShader::previewObject() const { return state()->previewObject; }
@@ -478,6 +790,18 @@ void PointShader::updateSolution(const ProgressiveSolver& solver) {
 
 void PointShader::updateSolution(const std::vector<Rgb>& H,
                                  const std::vector<Rgb>* previewRadiosity, int previewObject) {
+    mElementH = H;
+    if (previewRadiosity)
+        mLastPreviewRadiosity = *previewRadiosity;
+    else
+        mLastPreviewRadiosity.clear();
+    mLastPreviewObject = previewRadiosity ? previewObject : -1;
+    mHasSolution = true;
+    rebuildIndirect();
+}
+
+void PointShader::rebuildIndirect() {
+    const std::vector<Rgb>& H = mElementH;
     const std::size_t n = std::min(H.size(), mDisc.elements().size());
     if (mElementDirect.size() < n) {
         const std::size_t old = mElementDirect.size();
@@ -499,10 +823,10 @@ void PointShader::updateSolution(const std::vector<Rgb>& H,
     const int preview = next->previewObject;
     next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
     for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementDirect[e];
-    if (preview >= 0 && previewRadiosity && previewObject == preview) {
+    if (preview >= 0 && !mLastPreviewRadiosity.empty() && mLastPreviewObject == preview) {
         // George et al.'s temporary buffer T holds ρ·ΔH (and the preview object's whole ρ·H):
         // the irradiance shown is H + T/ρ, of which the preview world's H_direct is traced.
-        const std::vector<Rgb>& T = *previewRadiosity;
+        const std::vector<Rgb>& T = mLastPreviewRadiosity;
         for (std::size_t e = 0; e < n && e < T.size(); ++e) {
             if (isZero(T[e])) continue;
             const Rgb rho = mDisc.elementMaterial(static_cast<int>(e)).reflectance;
@@ -512,7 +836,8 @@ void PointShader::updateSolution(const std::vector<Rgb>& H,
     }
     if (preview >= 0)
         for (int e : mPreviewElements)
-            if (e < static_cast<int>(n)) next->elementIndirect[e] -= mPreviewDirectDelta[e];
+            if (e < static_cast<int>(n) && e < static_cast<int>(mPreviewDirectDelta.size()))
+                next->elementIndirect[e] -= mPreviewDirectDelta[e];
     next->vertexIndirect.resize(mDisc.objects().size());
     tbb::parallel_for(std::size_t(0), mDisc.objects().size(), [&](std::size_t o) {
         if (mDisc.objects()[o].alive || static_cast<int>(o) == preview)
@@ -616,21 +941,42 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
     return total;
 }
 
-Rgb PointShader::previewChange(const State& st, const Vec3& x, const Vec3& n, int receiver,
+Rgb PointShader::blockedChange(const std::vector<Light>& lights, const Visibility& blocker,
+                               int ignore, const Vec3& x, const Vec3& n, int receiver,
                                std::uint64_t key) const {
-    // directWith's samples (same lights, strata and pattern), counting only the rays the
-    // preview object blocks and the scene does not: the change of the blocked part.
+    // directWith's samples (same strata and pattern for the same lights), counting only the
+    // rays `blocker` blocks and the scene does not: the change of the blocked part.
     Rgb change(0.0);
+    const Visibility scene(ignore);
     forEachLightSample(
-        st.lights, x, n, receiver, key, mTracer.epsilon(), mOptions.formFactorPerRay,
+        lights, x, n, receiver, key, mTracer.epsilon(), mOptions.formFactorPerRay,
         mOptions.maxStrataPerAxis,
         [&](const Light&, const Vec3& from, const Vec3& to) {
-            return previewBlocks(st, from, to) && !mTracer.occluded(from, to);
+            return mTracer.occluded(from, to, blocker) && !mTracer.occluded(from, to, scene);
         },
         [&](const Light& L, double fUnoccluded, double fBlocked) {
             change -= L.emission * std::min(fBlocked, fUnoccluded);
         });
     return change;
+}
+
+Rgb PointShader::emittedBy(const std::vector<Light>& lights, const Visibility& extra, int ignore,
+                           const Vec3& x, const Vec3& n, int receiver, std::uint64_t key) const {
+    Rgb total(0.0);
+    const Visibility scene(ignore);
+    const bool blocks = admitsSomething(extra);
+    forEachLightSample(
+        lights, x, n, receiver, key, mTracer.epsilon(), mOptions.formFactorPerRay,
+        mOptions.maxStrataPerAxis,
+        [&](const Light&, const Vec3& from, const Vec3& to) {
+            return mTracer.occluded(from, to, scene) ||
+                   (blocks && mTracer.occluded(from, to, extra));
+        },
+        [&](const Light& L, double fUnoccluded, double fBlocked) {
+            const double f = fUnoccluded - fBlocked;
+            if (f > 0) total += L.emission * f;
+        });
+    return total;
 }
 
 RayHit PointShader::traceWith(const State& st, const Vec3& origin, const Vec3& direction) const {
@@ -693,25 +1039,48 @@ ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request)
 // Workers
 
 void PointShader::workerLoop() {
+#ifdef __linux__
+    if (mOptions.workerNice > 0)
+        (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)),
+                          getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid))) +
+                              mOptions.workerNice);
+#endif
     std::vector<ShadeRequest> batch;
     std::vector<ShadedPoint> done;
+    bool jobTurn = true;  // alternate H_direct chunks and shading batches
     for (;;) {
+        std::shared_ptr<DirectJob> job;
+        std::size_t chunk = 0;
         {
             std::unique_lock lock(mQueueMutex);
-            mWake.wait(lock, [&] { return mStop || (mPauseCount == 0 && !mRequests.empty()); });
+            auto jobReady = [&] { return mJob && mJob->nextChunk < mJob->chunks; };
+            mWake.wait(lock, [&] {
+                return mStop || (mPauseCount == 0 && (!mRequests.empty() || jobReady()));
+            });
             if (mStop) return;
             batch.clear();
-            while (!mRequests.empty() && static_cast<int>(batch.size()) < mOptions.batchSize) {
-                batch.push_back(mRequests.front());
-                mRequests.pop_front();
+            if (jobReady() && (jobTurn || mRequests.empty())) {
+                job = mJob;
+                chunk = job->nextChunk++;
+            } else {
+                while (!mRequests.empty() && static_cast<int>(batch.size()) < mOptions.batchSize) {
+                    batch.push_back(mRequests.front());
+                    mRequests.pop_front();
+                }
+                mBusy += batch.size();
             }
-            mBusy += batch.size();
+            jobTurn = !jobTurn;
             ++mActiveWorkers;
         }
-        auto st = state();
-        done.clear();
-        for (const ShadeRequest& r : batch) done.push_back(shadeWith(*st, r));
-        {
+        if (job) {
+            runDirectChunk(*job, chunk);
+            std::lock_guard lock(mQueueMutex);
+            ++job->doneChunks;
+            --mActiveWorkers;
+        } else {
+            auto st = state();
+            done.clear();
+            for (const ShadeRequest& r : batch) done.push_back(shadeWith(*st, r));
             std::lock_guard lock(mQueueMutex);
             mResults.insert(mResults.end(), done.begin(), done.end());
             mBusy -= batch.size();

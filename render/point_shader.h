@@ -100,6 +100,14 @@ struct PointShaderOptions {
     int threads = 2;     ///< worker threads for asynchronous shading
     int batchSize = 64;  ///< requests a worker takes at a time
     bool recordTriples = true;
+    /// With workers (threads > 0): setPreview() does not estimate the preview's H_direct
+    /// change before returning but queues it to the workers in chunks of `directChunk`
+    /// elements, interleaved with shading batches; takeDirectUpdate() applies it when done.
+    bool backgroundPreview = false;
+    int directChunk = 256;
+    /// Linux nice increment of the worker threads (0: as the creating thread): an interactive
+    /// program keeps its UI thread ahead of the shading.
+    int workerNice = 0;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -118,6 +126,10 @@ public:
     /// updateSolution() is called the indirect part is zero (direct lighting only).
     PointShader(const Discretization& disc, const RayTracer& tracer,
                 const SolverOptions& solverOptions, PointShaderOptions options = {});
+    /// A shader over `source`'s Discretization and RayTracer that takes its lights, H_direct,
+    /// solution snapshot and preview (copyDirectFrom) instead of computing them. `source`
+    /// must not change meanwhile (same thread, or paused).
+    PointShader(const PointShader& source, PointShaderOptions options);
     ~PointShader();  ///< stops and joins the workers
     PointShader(const PointShader&) = delete;
     PointShader& operator=(const PointShader&) = delete;
@@ -167,10 +179,44 @@ public:
     /// buffer its reflected light. Call while paused (or without workers). Returns the elements
     /// whose H_direct changed.
     std::vector<int> setPreview(int object, const Visibility& previewOnly = {});
-    /// Back to the scene without a preview object (H_direct as before setPreview).
+    /// Back to the scene without a preview object (H_direct as before setPreview). During a
+    /// drag (beginDrag) the origin's removal is then recomputed (refreshDirect({origin})).
     std::vector<int> clearPreview();
     /// The preview object, -1 for none.
     int previewObject() const;
+
+    /// Starts a drag (George et al.'s select): `origin`, the object version just removed from
+    /// the scene, is previewed where it was, so nothing shown changes and H_direct(e) is not
+    /// recomputed: it keeps the light with `origin` in place. Every later preview's change is
+    /// estimated relative to it: the light `origin` blocked comes back and the preview's is
+    /// taken away; for an emitting object its light moves (the lights of `origin` give way to
+    /// the preview's, for the per-sample direct light and H_direct(e) alike). `originOnly`
+    /// admits exactly `origin` (a RayTracer subset kept alive by the caller until endDrag or
+    /// clearPreview), or is empty (a world filter). Call while paused, before setPreview.
+    void beginDrag(int origin, const Visibility& originOnly = {});
+    /// Ends a drag started with beginDrag (George et al.'s unselect): `added`, the preview
+    /// version, is now alive in the scene. The change it and the origin make becomes part of
+    /// H_direct(e) (estimated now, synchronously, with the preview's light sampling; no
+    /// recomputation of the rest) and the preview ends. Returns the elements whose H_direct
+    /// changed. Call while paused; the preview subset must still be alive.
+    std::vector<int> endDrag(int added);
+    /// The origin of the drag in progress (beginDrag), -1 for none.
+    int dragOrigin() const { return mDragOrigin; }
+    /// backgroundPreview: when the workers have finished a queued H_direct estimate, applies
+    /// it (the indirect snapshot is rebuilt from the last solution) and starts the estimate of
+    /// a newer preview if one was set meanwhile; returns the elements whose H_direct changed
+    /// (empty when nothing finished). Call from the thread that calls setPreview/updateSolution.
+    std::vector<int> takeDirectUpdate();
+    /// An H_direct estimate is queued, being computed or waits for takeDirectUpdate().
+    bool directUpdatePending() const;
+    /// The preview object of the estimate the workers have (queued, running or done, not yet
+    /// taken), -1 for none: its `previewOnly` subset must stay alive until then, also after a
+    /// newer setPreview (which lets the running estimate finish rather than restart it).
+    int directJobPreview() const;
+    /// Takes `source`'s lights, H_direct, solution snapshot, preview and drag (same
+    /// Discretization; `source` paused or on this thread); queues its own estimate when the
+    /// source's is pending. Call while paused.
+    void copyDirectFrom(const PointShader& source);
 
     // -- Synchronous shading -----------------------------------------------------------------
 
@@ -231,6 +277,7 @@ public:
 private:
     struct Light;
     struct State;
+    struct DirectJob;
     std::shared_ptr<const State> state() const;
     void publish(std::shared_ptr<const State> state);
     /// Σ_j E_j·F(e←j) with the solver's pair-seeded form factors.
@@ -242,10 +289,29 @@ private:
     bool previewBlocks(const State& state, const Vec3& from, const Vec3& to) const;
     Rgb directWith(const State& state, const Vec3& x, const Vec3& n, int receiver,
                    std::uint64_t key) const;
-    /// The change of directWith's estimate that the preview object makes (≤ 0: only rays it
-    /// blocks and the scene does not count).
-    Rgb previewChange(const State& state, const Vec3& x, const Vec3& n, int receiver,
-                      std::uint64_t key) const;
+    /// The change of the direct estimate over `lights` that the objects `blocker` admits make
+    /// (≤ 0: only rays they block and the scene, less `ignore`, does not count).
+    Rgb blockedChange(const std::vector<Light>& lights, const Visibility& blocker, int ignore,
+                      const Vec3& x, const Vec3& n, int receiver, std::uint64_t key) const;
+    /// Direct irradiance from `lights` with the scene (less `ignore`) and `extra` blocking.
+    Rgb emittedBy(const std::vector<Light>& lights, const Visibility& extra, int ignore,
+                  const Vec3& x, const Vec3& n, int receiver, std::uint64_t key) const;
+    /// The area lights of one object's emitting patches (alive or not), [] when it emits not.
+    std::vector<Light> lightsOf(int object) const;
+    /// Lights of every alive emitting object.
+    std::vector<Light> aliveLights() const;
+    /// The preview's H_direct estimate for the current state (relative to the drag origin),
+    /// the scene's `ignore` version left out of the scene's rays.
+    std::shared_ptr<DirectJob> makeDirectJob(int ignore) const;
+    void runDirectChunk(DirectJob& job, std::size_t chunk) const;
+    /// Applies a finished estimate; returns the elements whose H_direct changed.
+    std::vector<int> applyDirectJob(const DirectJob& job);
+    /// Queues makeDirectJob(-1) to the workers, or marks it wanted while one runs.
+    void queueDirectJob();
+    /// Drops the queued estimate (call while paused).
+    void dropDirectJob();
+    /// The indirect snapshot from mElementH and the stored preview buffer.
+    void rebuildIndirect();
     void recordTriple(const ShadowTriple& t) const;
     void workerLoop();
 
@@ -256,8 +322,14 @@ private:
 
     mutable std::mutex mStateMutex;
     std::shared_ptr<const State> mState;
-    std::vector<Rgb> mElementDirect;  ///< H_direct(e); written only while paused/idle
-    std::vector<Rgb> mElementH;       ///< the last solver snapshot's H_e
+    std::vector<Rgb> mElementDirect;         ///< H_direct(e); written only while paused/idle
+    std::vector<Rgb> mElementH;              ///< the last solver snapshot's H_e
+    std::vector<Rgb> mLastPreviewRadiosity;  ///< its preview buffer (empty: none)
+    int mLastPreviewObject = -1;
+    bool mHasSolution = false;
+    /// Drag (beginDrag): the origin H_direct still includes, and a subset admitting it.
+    int mDragOrigin = -1;
+    Visibility mOriginOnly;
     /// Preview: H_direct in the preview world minus mElementDirect, nonzero only on the
     /// elements listed in mPreviewElements; written only while paused/idle.
     std::vector<Rgb> mPreviewDirectDelta;
@@ -273,6 +345,10 @@ private:
     int mPauseCount = 0;
     int mActiveWorkers = 0;
     bool mStop = false;
+    /// backgroundPreview: the H_direct estimate in progress (chunks handed out under
+    /// mQueueMutex), and whether a newer preview wants one after it.
+    std::shared_ptr<DirectJob> mJob;
+    bool mJobWanted = false;
     std::vector<std::thread> mWorkers;
 
     // Triples.

@@ -222,10 +222,12 @@ int EditorApp::run() {
                 "{\"frames\":%zu,\"work_ms_median\":%.2f,\"work_ms_p95\":%.2f,"
                 "\"period_ms_median\":%.2f,\"period_ms_p95\":%.2f,\"fps\":%.1f,"
                 "\"viewport_images\":%d,\"viewport_images_per_s\":%.1f,\"mode\":\"%s\","
-                "\"image_ms_median\":%.2f,\"image_ms_p95\":%.2f}\n",
+                "\"image_ms_median\":%.2f,\"image_ms_p95\":%.2f,"
+                "\"drag_start_frames\":%d,\"drag_start_ms\":%.0f}\n",
                 w.size(), w[w.size() / 2], w[w.size() * 95 / 100], p[p.size() / 2],
                 p[p.size() * 95 / 100], 1000.0 * p.size() / sumP, mStats.imagesShown,
-                1000.0 * mStats.imagesShown / sumP, toString(mMode), imageMedian, imageP95);
+                1000.0 * mStats.imagesShown / sumP, toString(mMode), imageMedian, imageP95,
+                mStats.dragStartFrames, mStats.dragStartMs);
         }
     }
     return status;
@@ -986,6 +988,11 @@ void EditorApp::uploadImage() {
     }
     mShown = img;
     ++mStats.imagesShown;
+    if (mBenchFrame > 0 && mStats.dragStartFrames < 0 && img->previewVersion >= 0 &&
+        img->previewVersion != mBenchOrigin) {
+        mStats.dragStartFrames = mBenchFrame;
+        mStats.dragStartMs = (glfwGetTime() - mBenchStart) * 1e3;
+    }
     mStats.imageMs.push_back(img->renderMs);
 }
 
@@ -1030,6 +1037,8 @@ void EditorApp::stepBenchmark() {
         mSelection = o->id;
         for (const EditCommand& c : mDrag.begin(o->id, o->transform)) submit(c);
         mStats = FrameStats{};
+        mBenchOrigin = o->version;
+        mBenchStart = glfwGetTime();
     }
     ++mBenchFrame;
     Transform t = mDrag.start();

@@ -69,6 +69,10 @@ struct FrameStats {
     std::vector<double> periodMs;  ///< per frame, frame start to frame start
     int imagesShown = 0;           ///< viewport images uploaded
     std::vector<double> imageMs;   ///< per uploaded image: its render time on the render thread
+    /// Drag benchmark: frames and ms from the select to the first image that shows the object
+    /// moved (a preview version other than the selected one), -1 if none came.
+    int dragStartFrames = -1;
+    double dragStartMs = -1;
 };
 
 class EditorApp {
@@ -198,6 +202,8 @@ private:
     bool mCaptureNow = false;
     double mCaptureWaitStart = -1;
     int mBenchFrame = -1;
+    int mBenchOrigin = -1;   ///< the dragged object's version at the select
+    double mBenchStart = 0;  ///< glfwGetTime() at the select
 };
 
 }  // namespace penumbra

@@ -11,6 +11,12 @@
 #include <optional>
 #include <stdexcept>
 
+#ifdef __linux__
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
 #include "render/camera_rays.h"
 #include "solver/discretization.h"
 
@@ -21,6 +27,19 @@ namespace {
 double nowSeconds() {
     using namespace std::chrono;
     return duration<double>(steady_clock::now().time_since_epoch()).count();
+}
+
+/// Lowers the calling thread's scheduling priority (Linux nice increment): the solver, render
+/// and shading threads yield the cores to the UI thread, so frames keep their rate on a loaded
+/// machine while the lighting images follow.
+void lowerThreadPriority(int nice) {
+#ifdef __linux__
+    if (nice <= 0) return;
+    const auto tid = static_cast<id_t>(syscall(SYS_gettid));
+    (void)setpriority(PRIO_PROCESS, tid, getpriority(PRIO_PROCESS, tid) + nice);
+#else
+    (void)nice;
+#endif
 }
 
 bool sameCamera(const Camera& a, const Camera& b) {
@@ -69,6 +88,7 @@ SessionRunner::~SessionRunner() {
 }
 
 void SessionRunner::runSolver() {
+    lowerThreadPriority(mOptions.backgroundNice);
     for (;;) {
         const bool worked = solverIteration();
         std::unique_lock<std::mutex> lock(mQueueMutex);
@@ -79,6 +99,7 @@ void SessionRunner::runSolver() {
 }
 
 void SessionRunner::runRender() {
+    lowerThreadPriority(mOptions.backgroundNice);
     for (;;) {
         const bool rendered = renderIteration();
         std::unique_lock<std::mutex> lock(mQueueMutex);
@@ -250,6 +271,9 @@ bool SessionRunner::solverIteration() {
         std::vector<int> changed;
         bool structural = false;
         bool previewTouched = false;  // a preview version was (re)set: its points are stale
+        // George et al.'s select and unselect, when alone with the drag positions in this batch:
+        // the displays start (beginDrag) and end (endDrag) the drag without recomputing.
+        int selectOrigin = -1, unselectAdded = -1, selections = 0;
         for (Queued& q : commands) {
             try {
                 if (q.task) {
@@ -262,6 +286,13 @@ bool SessionRunner::solverIteration() {
                     changed.insert(changed.end(), r.materialChanged.begin(),
                                    r.materialChanged.end());
                     previewTouched = previewTouched || r.preview >= 0 || r.selection;
+                    if (r.selection) {
+                        ++selections;
+                        if (r.preview >= 0 && r.removed.size() == 1 && r.removed[0] == r.preview)
+                            selectOrigin = r.preview;
+                        else if (r.preview < 0 && r.added.size() == 1)
+                            unselectAdded = r.added[0];
+                    }
                 }
             } catch (const std::exception& e) {
                 report(e.what());
@@ -273,13 +304,18 @@ bool SessionRunner::solverIteration() {
         const bool previewMoved = preview != mPreviewVersion || (preview >= 0 && previewTouched);
         std::sort(changed.begin(), changed.end());
         changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+        if (selections != 1 || structural ||
+            changed != std::vector<int>{selectOrigin >= 0 ? selectOrigin : unselectAdded})
+            selectOrigin = unselectAdded = -1;
+        if (selectOrigin >= 0)
+            mOriginSubset = RayTracer::SubsetHandle(mSession->tracer(), {selectOrigin});
         // Unselect, select: live displays leave the preview before they see the object added
         // back, and see it removed before they show the preview; then the subset follows.
         for (int i = 0; i < 2; ++i) {
             DisplaySlot& slot = mSlots[i];
             if (!slot.display) continue;
             if (liveSlot(i) && !slot.behind) {
-                applyDisplayEdits(slot, changed, structural, false);
+                applyDisplayEdits(slot, changed, structural, false, selectOrigin, unselectAdded);
             } else if (!changed.empty() || structural || previewTouched) {
                 slot.behind = true;
                 slot.pendingChanged.insert(slot.pendingChanged.end(), changed.begin(),
@@ -288,6 +324,10 @@ bool SessionRunner::solverIteration() {
             }
         }
         if (preview != mPreviewVersion) {
+            // A display's background estimate may still trace the previous preview's subset:
+            // kept until no estimate uses it.
+            if (mPreviewVersion >= 0)
+                mOldSubsets.emplace_back(mPreviewVersion, std::move(mPreviewSubset));
             mPreviewSubset.reset();
             if (preview >= 0)
                 mPreviewSubset = RayTracer::SubsetHandle(mSession->tracer(), {preview});
@@ -296,8 +336,28 @@ bool SessionRunner::solverIteration() {
         for (int i = 0; i < 2; ++i)
             if (mSlots[i].display && liveSlot(i) && !mSlots[i].behind)
                 applyDisplayEdits(mSlots[i], {}, false, previewMoved);
+        for (std::size_t k = 0; k < mOldSubsets.size();) {
+            bool used = false;
+            for (const DisplaySlot& slot : mSlots)
+                used = used ||
+                       (slot.display && slot.display->directJobPreview() == mOldSubsets[k].first);
+            if (used) {
+                ++k;
+            } else {
+                mOldSubsets.erase(mOldSubsets.begin() + static_cast<std::ptrdiff_t>(k));
+            }
+        }
+        // The drag's origin subset lives while a display may still use it.
+        if (preview < 0) {
+            bool used = false;
+            for (const DisplaySlot& slot : mSlots)
+                used = used || (slot.display && slot.display->dragOrigin() >= 0);
+            if (!used) mOriginSubset.reset();
+        }
         for (auto& pause : pauses) pause.reset();
         displayLock.unlock();
+        // The snapshots only read what this thread alone writes: outside the exclusive section.
+        lock.unlock();
         publishDocument();
         publishLight();
         if (std::getenv("PENUMBRA_EDITOR_TRACE"))
@@ -414,6 +474,7 @@ bool SessionRunner::renderIteration() {
     img->stateSerial = light.serial;
     img->reduced = d > 1;
     img->mode = view.mode;
+    img->previewVersion = light.previewVersion;
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mImage = std::move(img);
     return true;
@@ -423,13 +484,31 @@ bool SessionRunner::renderIteration() {
 // The display modes.
 
 void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>& changed,
-                                      bool structural, bool previewMoved) {
+                                      bool structural, bool previewMoved, int selectOrigin,
+                                      int unselectAdded) {
     InteractiveDisplay& d = *slot.display;
     const int preview = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
     try {
         if (!previewMoved) {
+            // Unselect of a drag the display follows: the preview's last change joins the
+            // direct light (nothing recomputed, the preview subset is still alive).
+            if (unselectAdded >= 0 && d.dragOrigin() >= 0 && d.previewVersion() == unselectAdded) {
+                const double t0 = nowSeconds();
+                const std::size_t dropped = d.endDrag(unselectAdded);
+                slot.solution = mLightSerial + 1;  // publishLight follows the edits
+                if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+                    std::fprintf(stderr, "display %dx%d: endDrag %d in %.1f ms, %zu dropped\n",
+                                 d.width(), d.height(), unselectAdded, (nowSeconds() - t0) * 1e3,
+                                 dropped);
+                return;
+            }
             // The edits themselves (the subset still is the previous preview's).
             if (d.previewVersion() >= 0 && preview < 0) d.clearPreview();
+            // Select: the object is previewed where it was removed; nothing shown changes.
+            if (selectOrigin >= 0 && d.previewVersion() < 0) {
+                d.beginDrag(selectOrigin, mOriginSubset.visibility());
+                return;
+            }
             if (!changed.empty() || structural) {
                 const double t0 = nowSeconds();
                 d.notifyChanged(changed, &mSession->solver());
@@ -459,7 +538,20 @@ void SessionRunner::catchUpDisplay(DisplaySlot& slot, const Light& light) {
     const double t0 = nowSeconds();
     const std::size_t missed = slot.pendingChanged.size();
     try {
-        if (slot.behind) {
+        DisplaySlot& other = mSlots[&slot == &mSlots[0] ? 1 : 0];
+        if (slot.behind && other.display && !other.behind && other.solution != 0) {
+            // Take the other display's state: it saw every edit (nothing recomputed).
+            PointShader::Pause pause(d.shader());
+            PointShader::Pause otherPause(other.display->shader());
+            std::vector<int>& changed = slot.pendingChanged;
+            std::sort(changed.begin(), changed.end());
+            changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+            d.catchUpFrom(*other.display, changed);
+            slot.solution = other.solution;
+            slot.pendingChanged.clear();
+            slot.pendingStructural = false;
+            slot.behind = false;
+        } else if (slot.behind) {
             PointShader::Pause pause(d.shader());
             // Its preview subset may have been released: leave the preview first.
             d.clearPreview();
@@ -498,12 +590,21 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     const bool reduce = mOptions.interactiveDisplayDivisor != 1;
     const int want = reduce && view.interactive ? 1 : 0;
     mWantedSlot = want;
-    DisplaySlot& wanted = mSlots[want];
-    if (wanted.display && (wanted.viewWidth != view.width || wanted.viewHeight != view.height))
-        wanted.display.reset();
-    if (!wanted.display) {
+    for (DisplaySlot& slot : mSlots)
+        if (slot.display && (slot.viewWidth != view.width || slot.viewHeight != view.height))
+            slot.display.reset();
+    // The reduced display is made ahead of time, from the full one once it has its solution
+    // and a few frames (its frame time sets the reduction): a drag starts on it at once.
+    const bool early = reduce && want == 0 && !mSlots[1].display && mSlots[0].display &&
+                       mSlots[0].ready() && mActiveSlot == 0 && mSlots[0].frames >= 4;
+    for (int make : {want, early ? 1 : -1}) {
+        if (make < 0) continue;
+        DisplaySlot& wanted = mSlots[make];
+        if (wanted.display) continue;
+        DisplaySlot& source = mSlots[1 - make];
+        const bool copy = source.display && !source.behind && source.solution != 0;
         int d = std::max(1, mOptions.displayDivisor);
-        if (want == 1) {
+        if (make == 1) {
             int r = mOptions.interactiveDisplayDivisor;
             if (r <= 0) {
                 r = 2;
@@ -521,34 +622,52 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
             options.width = w;
             options.height = h;
             options.synchronous = false;
-            if (want == 1) {
+            // Drag positions: the preview's direct light is estimated on the shader's workers,
+            // not in the edit's exclusive section.
+            options.shader.backgroundPreview = true;
+            options.shader.workerNice = mOptions.backgroundNice;
+            if (make == 1) {
                 // Interaction: shadow edges are not worth their cost (tens of thousands of
                 // them in robot-room, and stale while an object is dragged: the edge finder
                 // does not see the preview); a few more samples per (smaller) frame.
                 options.shadowEdges = false;
                 options.sampleFraction = 0.04;
             }
-            wanted.display =
-                std::make_unique<InteractiveDisplay>(mSession->discretization(), mSession->tracer(),
-                                                     interactiveSolverOptions(), options);
+            const double t0 = nowSeconds();
+            if (copy) {
+                // Copies the other display's edge finder, lights, direct light, solution and
+                // preview (milliseconds; built from scratch it takes seconds in robot-room).
+                PointShader::Pause pause(source.display->shader());
+                wanted.display = std::make_unique<InteractiveDisplay>(*source.display, options);
+                wanted.solution = source.solution;
+            } else {
+                wanted.display = std::make_unique<InteractiveDisplay>(
+                    mSession->discretization(), mSession->tracer(), interactiveSolverOptions(),
+                    options);
+                wanted.solution = 0;
+                // A drag in progress: the preview version and its subset are current (the
+                // solver thread changes them only with the structure held exclusively).
+                if (mPreviewVersion >= 0)
+                    wanted.display->setPreview(mPreviewVersion, mPreviewSubset.visibility());
+            }
             wanted.viewWidth = view.width;
             wanted.viewHeight = view.height;
             wanted.behind = false;
             wanted.pendingChanged.clear();
             wanted.pendingStructural = false;
-            wanted.solution = 0;
             wanted.frameMs = 0;
-            // A drag in progress: the preview version and its subset are current (the solver
-            // thread changes them only with the structure held exclusively).
-            if (mPreviewVersion >= 0)
-                wanted.display->setPreview(mPreviewVersion, mPreviewSubset.visibility());
+            wanted.frames = 0;
             wanted.display->warmUp(CameraRays(view.camera, w, h));
+            if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+                std::fprintf(stderr, "display %dx%d: made (%s) in %.1f ms\n", w, h,
+                             copy ? "copy" : "built", (nowSeconds() - t0) * 1e3);
         } catch (const std::exception& e) {
             wanted.display.reset();
             report(std::string("display: ") + e.what());
             return false;
         }
     }
+    DisplaySlot& wanted = mSlots[want];
     // Solutions and missed edits, from the published light (structure held shared).
     for (int i = 0; i < 2; ++i)
         if (mSlots[i].display && liveSlot(i)) catchUpDisplay(mSlots[i], light);
@@ -614,6 +733,7 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                              mPreviewSubset.visibility());
         img->renderMs = (nowSeconds() - r0) * 1e3;
         slot.frameMs = slot.frameMs > 0 ? 0.7 * slot.frameMs + 0.3 * img->renderMs : img->renderMs;
+        ++slot.frames;
     } catch (const std::exception& e) {
         report(std::string("display: ") + e.what());
         return false;
@@ -626,6 +746,7 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     img->viewSerial = view.serial;
     img->stateSerial = light.serial;
     img->mode = view.mode;
+    img->previewVersion = display->previewVersion();
     img->settledFrames = last && last->mode == view.mode && last->viewSerial == view.serial &&
                                  last->stateSerial == light.serial
                              ? last->settledFrames + 1

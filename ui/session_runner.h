@@ -56,6 +56,8 @@ struct ViewportImage {
     bool reduced = false;           ///< rendered at reduced resolution (interaction)
     double renderMs = 0;
     ViewMode mode = ViewMode::Gouraud;
+    /// The drag preview version it shows (the dragged object's position), -1 none.
+    int previewVersion = -1;
     /// Display modes: display frames rendered with this view and lighting (the cache fills).
     int settledFrames = 0;
     DisplayFrameStats display;   ///< display modes: the last frame's figures
@@ -133,6 +135,9 @@ struct SessionRunnerOptions {
     /// takes about interactiveImageMs (2 ≤ d ≤ maxReducedDivisor); 1 turns it off.
     int interactiveDisplayDivisor = 0;
     int referenceDivisor = 4;  ///< difference mode: reference at display / d pixels
+    /// Linux nice increment of the solver, render and display-shading threads (threaded
+    /// runners): the UI thread keeps its frame rate on a busy machine. 0 leaves them as is.
+    int backgroundNice = 5;
 };
 
 class SessionRunner {
@@ -270,11 +275,14 @@ private:
         std::vector<int> pendingChanged;
         bool pendingStructural = false;
         double frameMs = 0;  ///< running estimate of its frame time
+        int frames = 0;      ///< frames rendered
         bool ready() const { return display && !behind && solution != 0; }
     };
     /// Tells a live slot's display about edits (solver thread, shader paused).
+    /// `selectOrigin` ≥ 0: the batch was a select of that version (beginDrag instead of
+    /// notifyChanged); `unselectAdded` ≥ 0: an unselect adding it back (endDrag).
     void applyDisplayEdits(DisplaySlot& slot, const std::vector<int>& changed, bool structural,
-                           bool previewMoved);
+                           bool previewMoved, int selectOrigin = -1, int unselectAdded = -1);
     /// Brings a slot up to date: missed edits, then `light`'s solution (render thread,
     /// structure shared, display mutex held).
     void catchUpDisplay(DisplaySlot& slot, const Light& light);
@@ -288,6 +296,11 @@ private:
     /// solver thread with mStructure held exclusively and the display's shader paused.
     int mPreviewVersion = -1;
     RayTracer::SubsetHandle mPreviewSubset;
+    /// Previous previews' subsets a display's background estimate still traces
+    /// (InteractiveDisplay::directJobPreview), released at a later edit.
+    std::vector<std::pair<int, RayTracer::SubsetHandle>> mOldSubsets;
+    /// The drag's origin (the version selected) alone, for the displays' drag estimates.
+    RayTracer::SubsetHandle mOriginSubset;
     Image mReference;  ///< difference mode
     Camera mReferenceCamera;
     std::uint64_t mReferenceDone = 0;
