@@ -40,9 +40,10 @@ int main(int argc, char** argv) {
                    "edge-and-point modes while the view moves or an object is dragged: 0 picks "
                    "a resolution from the frame time, 1 keeps full resolution, N renders 1/N")
         ->check(CLI::NonNegativeNumber);
-    std::string mode = "gouraud";
+    std::string mode = "epi";
     app.add_option("--mode", mode,
-                   "viewport mode: gouraud, epi, cache, edges, samples, difference, outofdate")
+                   "viewport mode: epi (default), gouraud, cache, edges, samples, difference, "
+                   "outofdate")
         ->check([](const std::string& name) {
             return penumbra::parseViewMode(name) ? std::string() : "unknown mode '" + name + "'";
         });

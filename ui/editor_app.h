@@ -40,7 +40,9 @@ struct EditorOptions {
     double maxFps = 60;     ///< frame loop cap (Xvfb has no vertical sync)
     std::string benchDrag;  ///< object id: drag it in a circle for `frames` frames, print timings
     bool quiet = false;
-    ViewMode mode = ViewMode::Gouraud;  ///< the viewport's initial display mode (View ▸ Mode)
+    /// The viewport's initial display mode (View ▸ Mode). Edge-and-point by default; the
+    /// viewport shows Gouraud until the display has been built (seconds in large scenes).
+    ViewMode mode = ViewMode::EdgeAndPoint;
     int displayDivisor = 1;  ///< display modes render viewport / d pixels (SessionRunnerOptions)
     /// Display modes while interacting: 0 auto, 1 off, d ≥ 2 fixed (SessionRunnerOptions::
     /// interactiveDisplayDivisor).
@@ -170,7 +172,7 @@ private:
     std::deque<PointerInput> mScripted;
 
     // Viewport texture.
-    ViewMode mMode = ViewMode::Gouraud;
+    ViewMode mMode = ViewMode::EdgeAndPoint;
     std::uint64_t mReferenceRequest = 0;  ///< ViewRequest::referenceRequest
     unsigned int mTexture = 0;
     int mTextureW = 0, mTextureH = 0;

@@ -42,6 +42,9 @@ void lowerThreadPriority(int nice) {
 #endif
 }
 
+/// While the first display is built: at most one Gouraud image of new lighting per this long.
+constexpr double kLoadingImageMs = 250;
+
 bool sameCamera(const Camera& a, const Camera& b) {
     return a.position == b.position && a.lookAt == b.lookAt && a.up == b.up && a.fovDeg == b.fovDeg;
 }
@@ -83,6 +86,8 @@ SessionRunner::~SessionRunner() {
     mRenderWake.notify_all();
     if (mSolverThread.joinable()) mSolverThread.join();
     if (mRenderThread.joinable()) mRenderThread.join();
+    // A display being built holds the structure: wait for it.
+    if (mBuild.valid()) mBuild.wait();
     // The displays' shader workers may use the preview subset until they are joined.
     for (DisplaySlot& slot : mSlots) slot.display.reset();
 }
@@ -354,6 +359,7 @@ bool SessionRunner::solverIteration() {
                 used = used || (slot.display && slot.display->dragOrigin() >= 0);
             if (!used) mOriginSubset.reset();
         }
+        ++mEditBatches;
         for (auto& pause : pauses) pause.reset();
         displayLock.unlock();
         // The snapshots only read what this thread alone writes: outside the exclusive section.
@@ -428,10 +434,23 @@ bool SessionRunner::renderIteration() {
     // The dragged object is seen as its preview version.
     if (light.previewVersion >= 0 && !dragged.empty() && dragged == view.highlight)
         highlight = light.previewVersion;
-    if (usesInteractiveDisplay(view.mode)) return renderDisplay(view, light, last, highlight);
+    // The display modes show Gouraud until their display lands (built in the background).
+    bool loading = false;
+    if (usesInteractiveDisplay(view.mode)) {
+        if (displayLanded(view)) return renderDisplay(view, light, last, highlight);
+        loading = true;
+    }
     const bool need = !last || last->stateSerial != light.serial ||
-                      last->viewSerial != view.serial || (last->reduced && !view.interactive);
+                      last->viewSerial != view.serial || (last->reduced && !view.interactive) ||
+                      (!loading && last->mode != view.mode);
     if (!need || !light.radiosity) return false;
+    // While the display is built, new lighting is shown at most every loadingImageMs (the
+    // cores go to the build); view changes at once.
+    if (loading && last && last->viewSerial == view.serial &&
+        !(last->reduced && !view.interactive) &&
+        nowSeconds() - mLastLoadingImage < kLoadingImageMs * 1e-3)
+        return false;
+    if (loading) mLastLoadingImage = nowSeconds();
 
     // Interactive images: a resolution that renders in about interactiveImageMs.
     int d = 1;
@@ -473,7 +492,9 @@ bool SessionRunner::renderIteration() {
     img->viewSerial = view.serial;
     img->stateSerial = light.serial;
     img->reduced = d > 1;
-    img->mode = view.mode;
+    img->mode = loading ? ViewMode::Gouraud : view.mode;
+    if (loading)
+        img->note = std::string(viewModeLabel(view.mode)) + " display loading: Gouraud meanwhile";
     img->previewVersion = light.previewVersion;
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mImage = std::move(img);
@@ -576,6 +597,92 @@ void SessionRunner::catchUpDisplay(DisplaySlot& slot, const Light& light) {
                      d.width(), d.height(), missed, (nowSeconds() - t0) * 1e3);
 }
 
+InteractiveDisplayOptions SessionRunner::displayOptions(int slot, const ViewRequest& view) const {
+    int d = std::max(1, mOptions.displayDivisor);
+    if (slot == 1) {
+        int r = mOptions.interactiveDisplayDivisor;
+        if (r <= 0) {
+            r = 2;
+            if (mSlots[0].frameMs > 0)
+                r = static_cast<int>(
+                    std::ceil(std::sqrt(mSlots[0].frameMs / mOptions.interactiveImageMs)));
+            r = std::clamp(r, 2, std::max(2, mOptions.maxReducedDivisor));
+        }
+        d *= r;
+    }
+    InteractiveDisplayOptions options;
+    options.width = std::max(4, view.width / d / 4 * 4);
+    options.height = std::max(4, view.height / d / 4 * 4);
+    options.synchronous = false;
+    // Drag positions: the preview's direct light is estimated on the shader's workers, not in
+    // the edit's exclusive section.
+    options.shader.backgroundPreview = true;
+    options.shader.workerNice = mOptions.threaded ? mOptions.backgroundNice : 0;
+    if (slot == 1) {
+        // Interaction: shadow edges are not worth their cost (tens of thousands of them in
+        // robot-room, recomputed at every drag position); a few more samples per (smaller)
+        // frame.
+        options.shadowEdges = false;
+        options.sampleFraction = 0.04;
+    }
+    return options;
+}
+
+bool SessionRunner::displayLanded(const ViewRequest& view) {
+    std::lock_guard<std::mutex> displayLock(mDisplayMutex);
+    if (mSlots[0].display || mSlots[1].display) return true;
+    if (!mOptions.threaded) return true;  // renderDisplay builds it in place
+    if (!mBuild.valid()) {
+        // The first display takes seconds to build (edge trees, every element's direct light):
+        // on a thread of its own, with the structure held shared, the Gouraud view meanwhile.
+        const InteractiveDisplayOptions options = displayOptions(0, view);
+        const Camera camera = view.camera;
+        const int viewWidth = view.width, viewHeight = view.height;
+        // Not niced: the user waits for it.
+        mBuild = std::async(std::launch::async, [this, options, camera, viewWidth, viewHeight] {
+            BuiltDisplay built;
+            std::shared_lock<std::shared_mutex> structure(mStructure);
+            const double t0 = nowSeconds();
+            built.edits = mEditBatches;
+            built.viewWidth = viewWidth;
+            built.viewHeight = viewHeight;
+            try {
+                built.display = std::make_unique<InteractiveDisplay>(
+                    mSession->discretization(), mSession->tracer(), interactiveSolverOptions(),
+                    options);
+                if (mPreviewVersion >= 0)
+                    built.display->setPreview(mPreviewVersion, mPreviewSubset.visibility());
+                built.display->warmUp(CameraRays(camera, options.width, options.height));
+            } catch (const std::exception& e) {
+                built.display.reset();
+                report(std::string("display: ") + e.what());
+            }
+            if (std::getenv("PENUMBRA_EDITOR_TRACE"))
+                std::fprintf(stderr, "display %dx%d: built in the background in %.1f ms\n",
+                             options.width, options.height, (nowSeconds() - t0) * 1e3);
+            return built;
+        });
+        return false;
+    }
+    if (mBuild.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
+    BuiltDisplay built = mBuild.get();
+    // Edits since it started, or another viewport size: build again.
+    if (!built.display || built.edits != mEditBatches || built.viewWidth != view.width ||
+        built.viewHeight != view.height)
+        return false;
+    DisplaySlot& slot = mSlots[0];
+    slot.display = std::move(built.display);
+    slot.viewWidth = view.width;
+    slot.viewHeight = view.height;
+    slot.behind = false;
+    slot.pendingChanged.clear();
+    slot.pendingStructural = false;
+    slot.solution = 0;
+    slot.frameMs = 0;
+    slot.frames = 0;
+    return true;
+}
+
 bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                                   const std::shared_ptr<const ViewportImage>& last, int highlight) {
     // Frames run continuously (the cache keeps improving), at most one per displayFrameMs.
@@ -603,36 +710,9 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
         if (wanted.display) continue;
         DisplaySlot& source = mSlots[1 - make];
         const bool copy = source.display && !source.behind && source.solution != 0;
-        int d = std::max(1, mOptions.displayDivisor);
-        if (make == 1) {
-            int r = mOptions.interactiveDisplayDivisor;
-            if (r <= 0) {
-                r = 2;
-                if (mSlots[0].frameMs > 0)
-                    r = static_cast<int>(
-                        std::ceil(std::sqrt(mSlots[0].frameMs / mOptions.interactiveImageMs)));
-                r = std::clamp(r, 2, std::max(2, mOptions.maxReducedDivisor));
-            }
-            d *= r;
-        }
-        const int w = std::max(4, view.width / d / 4 * 4);
-        const int h = std::max(4, view.height / d / 4 * 4);
         try {
-            InteractiveDisplayOptions options;
-            options.width = w;
-            options.height = h;
-            options.synchronous = false;
-            // Drag positions: the preview's direct light is estimated on the shader's workers,
-            // not in the edit's exclusive section.
-            options.shader.backgroundPreview = true;
-            options.shader.workerNice = mOptions.backgroundNice;
-            if (make == 1) {
-                // Interaction: shadow edges are not worth their cost (tens of thousands of
-                // them in robot-room, and stale while an object is dragged: the edge finder
-                // does not see the preview); a few more samples per (smaller) frame.
-                options.shadowEdges = false;
-                options.sampleFraction = 0.04;
-            }
+            const InteractiveDisplayOptions options = displayOptions(make, view);
+            const int w = options.width, h = options.height;
             const double t0 = nowSeconds();
             if (copy) {
                 // Copies the other display's edge finder, lights, direct light, solution and

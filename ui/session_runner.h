@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <shared_mutex>
@@ -210,6 +211,11 @@ private:
     bool solverIteration();
     /// Renders if the light or the view changed; returns whether it rendered.
     bool renderIteration();
+    /// Whether a display exists for the display modes; starts building the first one in the
+    /// background (threaded runners) and installs it when done (structure held shared).
+    bool displayLanded(const ViewRequest& view);
+    /// The options of display slot 0 (full) or 1 (reduced) for `view`.
+    InteractiveDisplayOptions displayOptions(int slot, const ViewRequest& view) const;
     /// renderIteration for the display modes (structure held shared).
     bool renderDisplay(const ViewRequest& view, const Light& light,
                        const std::shared_ptr<const ViewportImage>& last, int highlight);
@@ -258,7 +264,8 @@ private:
     std::vector<float> mHistory;
     bool mSolverIdle = false;
     // Render-thread state.
-    double mMsPerPixel = 0;  ///< running estimate of the render cost
+    double mMsPerPixel = 0;        ///< running estimate of the render cost
+    double mLastLoadingImage = 0;  ///< the last Gouraud image while the display is built
     // The displays (created by the render thread; every call under mDisplayMutex). Slot 0
     // renders at displayDivisor; slot 1, while the view is interactive (camera moves, drags),
     // at a reduced resolution: an InteractiveDisplay's size is fixed, so each keeps its cache.
@@ -289,8 +296,16 @@ private:
     bool liveSlot(int i) const { return i == mActiveSlot || i == mWantedSlot; }
     std::mutex mDisplayMutex;
     DisplaySlot mSlots[2];
-    int mActiveSlot = 0;  ///< the slot rendered
-    int mWantedSlot = 0;  ///< the slot the view asks for (1 while interactive)
+    /// The first display, built on a thread of its own (displayLanded).
+    struct BuiltDisplay {
+        std::unique_ptr<InteractiveDisplay> display;
+        std::uint64_t edits = 0;  ///< mEditBatches when it was built
+        int viewWidth = 0, viewHeight = 0;
+    };
+    std::future<BuiltDisplay> mBuild;
+    std::uint64_t mEditBatches = 0;  ///< edit batches applied (written under mStructure exclusive)
+    int mActiveSlot = 0;             ///< the slot rendered
+    int mWantedSlot = 0;             ///< the slot the view asks for (1 while interactive)
     double mLastDisplayFrame = 0;
     /// The drag preview version (-1 none) and a tracer subset of it alone; written by the
     /// solver thread with mStructure held exclusively and the display's shader paused.

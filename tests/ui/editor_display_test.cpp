@@ -83,7 +83,7 @@ TEST(EditorDisplay, PlaysALogAndMatchesTheReferenceScreenshot) {
     const std::string command = std::string(PENUMBRA_EDITOR_EXE) + " " + kSource +
                                 "/scenes/cube-room.json --play " + kSource +
                                 "/scenes/logs/cube-room-add-cube.jsonl --screenshot " + shot +
-                                " --frames 10 --quiet";
+                                " --frames 10 --quiet --mode gouraud";
     ASSERT_EQ(runCommand(command), 0) << command;
     const Image got = readPng(shot);
     EXPECT_EQ(got.width, 1280);
@@ -108,7 +108,8 @@ TEST(EditorDisplay, PlaysALogAndMatchesTheReferenceScreenshot) {
     // The comparison can fail: the scene before the log (no cube) is measurably different.
     const std::string before = tempPath("before.png");
     ASSERT_EQ(runCommand(std::string(PENUMBRA_EDITOR_EXE) + " " + kSource +
-                         "/scenes/cube-room.json --screenshot " + before + " --frames 5 --quiet"),
+                         "/scenes/cube-room.json --screenshot " + before +
+                         " --frames 5 --quiet --mode gouraud"),
               0);
     const double withoutCube = maxViewportBlockDifference(readPng(before), reference);
     EXPECT_GT(withoutCube, 0.05) << "the comparison must see the played edit";
@@ -143,6 +144,7 @@ TEST(EditorDisplay, ScriptedClickAndGizmoDragMoveTheTableAndChangeTheLight) {
     const std::string log = tempPath("drag.jsonl");
     std::filesystem::remove(log);
     EditorOptions options;
+    options.mode = ViewMode::Gouraud;  // what these checks were written for
     options.scene = kSource + "/scenes/cube-room.json";
     options.log = log;
     options.quiet = true;
@@ -241,6 +243,7 @@ TEST(EditorDisplay, AddMenuPutsLibraryShapesAndMeshesOnTheSurfaceUnderTheViewCen
     const std::string log = tempPath("add.jsonl");
     std::filesystem::remove(log);
     EditorOptions options;
+    options.mode = ViewMode::Gouraud;  // what these checks were written for
     options.scene = kSource + "/scenes/cube-room.json";
     options.log = log;
     options.width = 800;
@@ -313,6 +316,7 @@ TEST(EditorDisplay, AddMenuPutsLibraryShapesAndMeshesOnTheSurfaceUnderTheViewCen
 
 TEST(EditorDisplay, FileDialogsOpenNextToTheSceneAndListByExtension) {
     EditorOptions options;
+    options.mode = ViewMode::Gouraud;  // what these checks were written for
     options.scene = kSource + "/scenes/cube-room.json";
     options.width = 800;
     options.height = 500;
