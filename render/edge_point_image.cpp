@@ -1057,6 +1057,12 @@ void EdgePointImage::filterComplexPixels(Image& out) {
         return (m >> (4 * half)) & 15u;
     };
 
+    static const std::array<uint8_t, kEdgeCodeCount> subpixelType = [] {
+        std::array<uint8_t, kEdgeCodeCount> t{};
+        for (int code = 0; code < kEdgeCodeCount; ++code)
+            t[code] = neighbourType(static_cast<uint16_t>(code), kSubpixelPiecesPerSide);
+        return t;
+    }();
     // Subpixel edge codes of every pixel in some complex pixel's 3×3 neighbourhood, once
     // (complex pixels cluster along dense edges, so neighbourhoods overlap): subpixel
     // (sx, sy) of pixel (px, py) lies between lines 2·px + sx, 2·px + sx + 1 (x) and
@@ -1090,7 +1096,7 @@ void EdgePointImage::filterComplexPixels(Image& out) {
                                       horizontalBits(k2y + 1, px, sx), verticalBits(k2x, py, sy),
                                       kSubpixelPiecesPerSide);
                     mSubCode[4 * i + 2 * sy + sx] = code;
-                    mSubType[4 * i + 2 * sy + sx] = neighbourType(code, kSubpixelPiecesPerSide);
+                    mSubType[4 * i + 2 * sy + sx] = subpixelType[code];
                 }
             }
         }
@@ -1108,7 +1114,7 @@ void EdgePointImage::filterComplexPixels(Image& out) {
                 const int px = x - 1 + u / 2;
                 const int py = y - 1 + v / 2;
                 uint16_t code = kEdgeCodeComplex;
-                uint8_t type = neighbourType(kEdgeCodeComplex, kSubpixelPiecesPerSide);
+                uint8_t type = kNeighbourTypeComplex;
                 if (px >= 0 && py >= 0 && px < W && py < H) {
                     const size_t s = 4 * index(px, py) + 2 * (v & 1) + (u & 1);
                     code = mSubCode[s];
@@ -1140,8 +1146,12 @@ void EdgePointImage::filterComplexPixels(Image& out) {
                 }
             }
         }
+        // Only the components of the pixel's own 4 subpixels' regions are needed: they are
+        // flood-filled (at most 8, usually 2–4), and a sample counts for a region when its node
+        // lies in the region's component.
         std::array<int8_t, 72> label;
         label.fill(-1);
+        std::array<std::array<uint64_t, 2>, 8> component;
         int labels = 0;
         auto find = [&](int node) -> int {
             if (label[node] >= 0) return label[node];
@@ -1160,13 +1170,15 @@ void EdgePointImage::filterComplexPixels(Image& out) {
                 if (c[0] == c0 && c[1] == c1) break;
             }
             const int8_t id = static_cast<int8_t>(labels++);
+            component[id] = {c[0], c[1]};
             for (int r = 0; r < 2; ++r)
                 for (uint64_t m = c[r]; m; m &= m - 1) label[std::countr_zero(m) * 2 + r] = id;
             return id;
         };
-        // Samples of the 3×3 pixels placed in their subpixel regions.
+        // Samples of the 3×3 pixels placed in their subpixel regions (node = subpixel · 2 +
+        // region).
         struct SubSample {
-            int root, u, v;
+            int node, u, v;
             glm::vec3 colour;
         };
         std::array<SubSample, 9> samples;
@@ -1188,7 +1200,7 @@ void EdgePointImage::filterComplexPixels(Image& out) {
                     if (side == SampleSide::Ambiguous) continue;
                     region = side == SampleSide::Region1 ? 1 : 0;
                 }
-                samples[sampleCount++] = {find((v * 6 + u) * 2 + region), u, v,
+                samples[sampleCount++] = {(v * 6 + u) * 2 + region, u, v,
                                           mSampleColour[index(px, py)]};
             }
         }
@@ -1207,11 +1219,12 @@ void EdgePointImage::filterComplexPixels(Image& out) {
                 for (int r = 0; r < regions; ++r) {
                     const float area0 = sub.region0Area[codes[s]];
                     const float area = regions == 1 ? 1.0f : (r == 0 ? area0 : 1.0f - area0);
-                    const int root = find(s * 2 + r);
+                    const std::array<uint64_t, 2>& reached = component[find(s * 2 + r)];
                     glm::vec3 sum(0.0f);
                     float weight = 0.0f;
                     for (int k = 0; k < sampleCount; ++k) {
-                        if (samples[k].root != root) continue;
+                        const int node = samples[k].node;
+                        if (!((reached[node & 1] >> (node >> 1)) & 1)) continue;
                         const float w = filterWeight(samples[k].u - u, samples[k].v - v);
                         sum += w * samples[k].colour;
                         weight += w;

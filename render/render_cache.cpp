@@ -5,6 +5,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <cmath>
@@ -48,6 +49,10 @@ RenderCache::RenderCache(int width, int height, std::size_t capacity, RenderCach
     mScreenOfPixel.assign(pixels, -1);
     mPriority.assign(pixels, 1.0);
     mRequested.assign(pixels, 0);
+}
+
+RenderCache::~RenderCache() {
+    if (mStreamTask) mStreamTask->wait();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -106,12 +111,35 @@ const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera)
                                     std::to_string(camera.height()) + " differs from the cache's " +
                                     std::to_string(mWidth) + "x" + std::to_string(mHeight));
     }
+    if (mStreamTask) mStreamTask->wait();
     ++mFrame;
-    if (mOptions.parallel)
+    if (mOptions.parallel) {
         reprojectParallel(camera);
-    else
+        startRandomStream();
+    } else {
         reprojectSerial(camera);
+    }
     return mScreen;
+}
+
+void RenderCache::startRandomStream() {
+    // The frame's request stream is one serial hash chain (about 2 ms for a 512×512 frame's
+    // 270k draws). It depends only on the seed and the frame, so a oneTBB task draws it while
+    // the display finds edges (serial) and builds the EPI; requestSamplesParallel() waits for
+    // it and extends it if its budget needs more. Enough for every pixel being a candidate and
+    // the default budget.
+    const std::size_t pixels = static_cast<std::size_t>(mWidth) * mHeight;
+    const long budget = std::lround(mOptions.sampleFraction * static_cast<double>(pixels));
+    const std::size_t length = 1 + pixels + 2 * static_cast<std::size_t>(std::max(0L, budget));
+    if (!mStreamTask) mStreamTask = std::make_unique<tbb::task_group>();
+    mStreamFrame = mFrame;
+    mStream.resize(length);
+    const std::uint64_t seed = hashPair(mOptions.seed, mFrame);
+    mStreamTask->run([this, seed] {
+        CacheRandom rng{seed};
+        for (double& d : mStream) d = rng.next();
+        mStreamState = rng.state;
+    });
 }
 
 void RenderCache::reprojectSerial(const CameraRays& camera) {
@@ -196,9 +224,12 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
     mProjPixel.resize(n);
     mProjDepth.resize(n);
     mProjAge.resize(n);
+    mProjPosition.resize(n);
     mPixelDepth.resize(pixels);
     mPixelAge.resize(pixels);
+    mPixelPosition.resize(pixels);
     mLuminance.resize(pixels);
+    mLuminanceHi.resize(pixels);
     mRowCount.resize(static_cast<std::size_t>(mHeight) + 1);
 
     // One pass over the points: project, remember the age, age by a frame, hide; and the band
@@ -215,6 +246,7 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
             mProjBand[i] = 0xFF;
             const auto p = camera.projectToPixel(pt.position);
             if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
+            mProjPosition[i] = *p;
             mProjDepth[i] = glm::dot(pt.position - camera.origin(), camera.forward());
             const int x = std::min(static_cast<int>(p->x), mWidth - 1);
             const int y = std::min(static_cast<int>(p->y), mHeight - 1);
@@ -249,18 +281,20 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
             cur = static_cast<int>(i);
             mPixelDepth[k] = d;
             mPixelAge[k] = mProjAge[i];
+            mPixelPosition[k] = mProjPosition[i];
         }
     });
 
     // Depth culling as in reprojectSerial(), on pixel-indexed depths (+inf where no point:
     // never nearer, and not counted), branch-free for inner pixels of the usual 3×3.
-    mUnfiltered = mPixelPoint;
     const int rad = std::max(0, mOptions.depthRadius);
     const double margin = 1 + mOptions.depthMargin;
     constexpr double kNone = std::numeric_limits<double>::infinity();
+    mUnfiltered.resize(pixels);
     tbb::parallel_for(0, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const int k = y * mWidth + x;
+            mUnfiltered[k] = mPixelPoint[k];
             if (mUnfiltered[k] < 0) mPixelDepth[k] = kNone;
         }
     });
@@ -315,36 +349,42 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
             const int i = mPixelPoint[k];
             if (i < 0) {
                 mScreenOfPixel[k] = -1;
+                mLuminance[k] = 1e300;
+                mLuminanceHi[k] = -1e300;
                 continue;
             }
             CachePoint& pt = mPoints[i];
             pt.visible = true;
             mScreenOfPixel[k] = s;
-            // projectToPixel again: the same function of the same position as in the pass
-            // above, so the same value, without storing 16 bytes per point.
-            mScreen[s++] = {*camera.projectToPixel(pt.position), mPixelDepth[k], pt.colour,
-                            mProjAge[i]};
+            // Position, depth and age from the pixel's z-buffer entry (read in order; only the
+            // point's colour and flag are a random access).
+            mScreen[s++] = {mPixelPosition[k], mPixelDepth[k], pt.colour, mPixelAge[k]};
+            // computePriority()'s luminance, while the colour is at hand.
+            const double l = luminance(pt.colour);
+            mLuminance[k] = l;
+            mLuminanceHi[k] = l;
         }
     });
-    computePriority();
+    computePriority(true);
 }
 
 // ---------------------------------------------------------------------------------------------
 // Priority image and sample requests
 
-void RenderCache::computePriority() {
+void RenderCache::computePriority(bool luminanceDone) {
     // Luminance per pixel with sentinels where there is no point (1e300 for the minimum,
     // −1e300 for the maximum: the loop's initial values, so they change nothing).
     mLuminance.resize(mPriority.size());
     mLuminanceHi.resize(mPriority.size());
-    tbb::parallel_for(0, mHeight, [&](int y) {
-        for (int x = 0; x < mWidth; ++x) {
-            const int s = mScreenOfPixel[y * mWidth + x];
-            const double l = s < 0 ? 0.0 : luminance(mScreen[s].colour);
-            mLuminance[y * mWidth + x] = s < 0 ? 1e300 : l;
-            mLuminanceHi[y * mWidth + x] = s < 0 ? -1e300 : l;
-        }
-    });
+    if (!luminanceDone)
+        tbb::parallel_for(0, mHeight, [&](int y) {
+            for (int x = 0; x < mWidth; ++x) {
+                const int s = mScreenOfPixel[y * mWidth + x];
+                const double l = s < 0 ? 0.0 : luminance(mScreen[s].colour);
+                mLuminance[y * mWidth + x] = s < 0 ? 1e300 : l;
+                mLuminanceHi[y * mWidth + x] = s < 0 ? -1e300 : l;
+            }
+        });
     tbb::parallel_for(0, mHeight, [&](int y) {
         const bool innerRow = y > 0 && y + 1 < mHeight;
         for (int x = 0; x < mWidth; ++x) {
@@ -455,8 +495,9 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
                                                               int budget) {
     // requestSamplesSerial() reorganized: the effective priorities, tile sums and each tile's
     // choice run in parallel; only the random stream stays serial, one hash chain drawn up
-    // front into an array at each tile's offset (the order the serial loop consumes it in:
-    // u0, then per tile that gets requests one draw per candidate and two per request).
+    // front (startRandomStream()) and read at each tile's offset (the order the serial loop
+    // consumes it in: u0, then per tile that gets requests one draw per candidate and two per
+    // request).
     // Bit for bit the serial result (tested).
     const int T = std::max(1, mOptions.tileSize);
     const int tilesX = (mWidth + T - 1) / T, tilesY = (mHeight + T - 1) / T;
@@ -487,10 +528,14 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
     });
     const double total = std::accumulate(mTileSum.begin(), mTileSum.end(), 0.0);
     if (!(total > 0)) return {};
-    CacheRandom rng{hashPair(mOptions.seed, mFrame)};
+    if (mStreamTask) mStreamTask->wait();
+    if (!mStreamTask || mStreamFrame != mFrame) {
+        startRandomStream();  // no parallel reproject() this frame
+        mStreamTask->wait();
+    }
     std::vector<int> tileCount(tiles, 0);
     {
-        const double u0 = rng.next();
+        const double u0 = mStream[0];
         std::size_t t = 0;
         double upTo = mTileSum[0];
         for (int k = 0; k < budget; ++k) {
@@ -508,8 +553,15 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
         drawStart[t + 1] = drawStart[t] + (want == 0 ? 0 : candidates + 2 * take);
         outStart[t + 1] = outStart[t] + (want == 0 ? 0 : take);
     }
-    mDraws.resize(drawStart[tiles]);
-    for (double& d : mDraws) d = rng.next();
+    // The draws after u0: the precomputed stream, extended when this budget needs more.
+    if (mStream.size() < 1 + drawStart[tiles]) {
+        CacheRandom rng{mStreamState};
+        std::size_t k = mStream.size();
+        mStream.resize(1 + drawStart[tiles]);
+        for (; k < mStream.size(); ++k) mStream[k] = rng.next();
+        mStreamState = rng.state;
+    }
+    const double* draws = mStream.data() + 1;
 
     std::vector<ShadeRequest> out(outStart[tiles]);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles, 16), [&](const tbb::blocked_range<
@@ -519,7 +571,7 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
             const int want = tileCount[t];
             if (want == 0) continue;
             const int tx = static_cast<int>(t % tilesX), ty = static_cast<int>(t / tilesX);
-            const double* draw = mDraws.data() + drawStart[t];
+            const double* draw = draws + drawStart[t];
             cand.clear();
             for (int y = ty * T; y < std::min(mHeight, (ty + 1) * T); ++y)
                 for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {

@@ -11,8 +11,11 @@
 // camera (the visible points feed the EPI), requestSamples() for the shader, and optionally
 // interpolatedImage() for a plain (edge-unaware) reconstruction.
 
+#include <tbb/task_group.h>
+
 #include <cstdint>
 #include <glm/glm.hpp>
+#include <memory>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -73,6 +76,10 @@ public:
     /// An image raster of width × height pixels and room for `capacity` points (Walter et al.
     /// use a few times the pixel count). Throws std::invalid_argument for non-positive sizes.
     RenderCache(int width, int height, std::size_t capacity, RenderCacheOptions options = {});
+    /// Waits for the frame's random stream (see startRandomStream()).
+    ~RenderCache();
+    RenderCache(const RenderCache&) = delete;
+    RenderCache& operator=(const RenderCache&) = delete;
 
     // -- Points ----------------------------------------------------------------------------
 
@@ -137,7 +144,9 @@ private:
     /// The parallel reprojection: one pass over the points (project, age, hide), a z-buffer
     /// per band of rows, culling on pixel-indexed depths, output rows in parallel.
     void reprojectParallel(const CameraRays& camera);
-    void computePriority();
+    /// The priority image from the visible points; luminanceDone when reprojectParallel()
+    /// already filled mLuminance and mLuminanceHi.
+    void computePriority(bool luminanceDone = false);
     /// requestSamples() for a positive budget: the plain serial reference
     /// (RenderCacheOptions::parallel false) and the parallel one, equal bit for bit.
     std::vector<ShadeRequest> requestSamplesSerial(const CameraRays& camera, int budget);
@@ -157,21 +166,29 @@ private:
     std::vector<std::uint64_t> mRequested;  ///< per pixel, frame + 1 of the last request
 
     // Scratch of reprojectParallel(), kept between frames.
-    std::vector<int> mProjPixel;          ///< per point: pixel, −1 off screen
-    std::vector<double> mProjDepth;       ///< per point: view depth
-    std::vector<int> mProjAge;            ///< per point: age before this frame's increment
-    std::vector<int> mPixelAge;           ///< per pixel: that age of its z-buffer point
-    std::vector<double> mPixelDepth;      ///< per pixel: depth of its z-buffer point
-    std::vector<int> mUnfiltered;         ///< per pixel: z-buffer point before culling
-    std::vector<std::uint8_t> mProjBand;  ///< per point: band of rows (0xFF off screen)
-    std::vector<double> mLuminance;       ///< per pixel: luminance of its point, 1e300 without
-    std::vector<double> mLuminanceHi;     ///< the same, −1e300 without
-    std::vector<int> mRowCount;           ///< per row: visible points (prefix sums)
+    std::vector<int> mProjPixel;             ///< per point: pixel, −1 off screen
+    std::vector<double> mProjDepth;          ///< per point: view depth
+    std::vector<int> mProjAge;               ///< per point: age before this frame's increment
+    std::vector<glm::dvec2> mProjPosition;   ///< per point: projectToPixel (when on screen)
+    std::vector<int> mPixelAge;              ///< per pixel: that age of its z-buffer point
+    std::vector<double> mPixelDepth;         ///< per pixel: depth of its z-buffer point
+    std::vector<glm::dvec2> mPixelPosition;  ///< per pixel: position of its z-buffer point
+    std::vector<int> mUnfiltered;            ///< per pixel: z-buffer point before culling
+    std::vector<std::uint8_t> mProjBand;     ///< per point: band of rows (0xFF off screen)
+    std::vector<double> mLuminance;          ///< per pixel: luminance of its point, 1e300 without
+    std::vector<double> mLuminanceHi;        ///< the same, −1e300 without
+    std::vector<int> mRowCount;              ///< per row: visible points (prefix sums)
     // Scratch of requestSamplesParallel().
     std::vector<double> mEffective;    ///< per pixel: priority, 0 while held back
     std::vector<double> mTileSum;      ///< per tile: summed effective priority
     std::vector<int> mTileCandidates;  ///< per tile: pixels with positive effective priority
-    std::vector<double> mDraws;        ///< the frame's random stream after u0
+    // The frame's random stream for requestSamplesParallel(), drawn by a task started at the
+    // end of reproject().
+    void startRandomStream();
+    std::unique_ptr<tbb::task_group> mStreamTask;
+    std::vector<double> mStream;     ///< the draws in order, u0 first
+    std::uint64_t mStreamFrame = 0;  ///< the frame it belongs to
+    std::uint64_t mStreamState = 0;  ///< the generator's state after its last draw
 };
 
 }  // namespace penumbra
