@@ -174,6 +174,17 @@ private:
     /// Marks the patch of element e for one heap update in updateTouchedPriorities().
     void touchElement(int e);
     void updateTouchedPriorities();
+    /// One element's share of a stochastic batch: irradiance for `element` of `patch`
+    /// (element -1: nothing).
+    struct Received {
+        int element = -1;
+        int patch = -1;
+        Rgb irradiance{0.0};
+    };
+    /// receive() and touchElement() for every entry in list order, then the heap updates;
+    /// parallel over blocks of patches with every sum in list order (bit-identical to the
+    /// serial loop, independent of the thread count).
+    void receiveAll(const std::vector<Received>& list);
     void ensureSizes();
     void recomputeEmitted();
     /// One redistribution shot from the most important pending shooter of the most

@@ -169,6 +169,21 @@ int runSolverBench(const BenchOptions& options) {
                 }
                 st.SetItemsProcessed(st.iterations());
             });
+        // The stochastic shots' query: the closest hit along a ray from a surface point.
+        std::vector<Vec3> dirs(segs.from.size());
+        for (std::size_t i = 0; i < dirs.size(); ++i) {
+            const Vec3 d = segs.to[i] - segs.from[i];
+            dirs[i] = glm::length(d) > 0 ? glm::normalize(d) : Vec3(0, 0, 1);
+        }
+        benchmark::RegisterBenchmark(
+            ("firstHit1/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
+                std::size_t i = 0;
+                for (auto _ : st) {
+                    benchmark::DoNotOptimize(lit->tracer().firstHit(segs.from[i], dirs[i]));
+                    i = (i + 1) & 0xffff;
+                }
+                st.SetItemsProcessed(st.iterations());
+            });
         benchmark::RegisterBenchmark(
             ("formFactorToPatch/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
                 std::size_t i = 0;
