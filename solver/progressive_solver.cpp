@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -161,6 +162,8 @@ struct ProgressiveSolver::Impl {
     // Patches whose unshot energy changed in the current shot: one heap update each.
     std::vector<std::uint8_t> touched;
     std::vector<int> touchedList;
+    // Deterministic propagation shots so far and their rays (shootsStochastically).
+    std::uint64_t deterministicShots = 0, deterministicRays = 0;
 };
 
 ProgressiveSolver::ProgressiveSolver(Discretization& disc, RayTracer& tracer, SolverOptions options)
@@ -236,8 +239,7 @@ int ProgressiveSolver::step(int maxShots) {
         }
         if (redistribute) {
             shootRedistribution();
-        } else if (mOptions.stochasticBelow > 0 &&
-                   propagation < mOptions.stochasticBelow * mEmittedEnergy) {
+        } else if (shootsStochastically(propagation)) {
             shootStochasticBatch();
         } else {
             shootPatch(p);
@@ -246,6 +248,21 @@ int ProgressiveSolver::step(int maxShots) {
     mStats.seconds +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return done;
+}
+
+bool ProgressiveSolver::shootsStochastically(double propagation) const {
+    if (!(mOptions.stochasticBelow > 0) || !(mEmittedEnergy > 0) ||
+        propagation >= mOptions.stochasticBelow * mEmittedEnergy)
+        return false;
+    // Below the threshold, the stochastic batch takes over once it moves power for fewer rays
+    // than a deterministic shot: a shot of power Φ costs about the mean ray count of the
+    // deterministic shots so far, a batch raysPerEmittedPower × Φ / Φ_emitted rays. Small
+    // scenes (few receivers) keep shooting deterministically a little longer; ray counts
+    // follow from the geometry only, so the choice does not depend on the thread count.
+    if (mImpl->deterministicShots == 0) return true;
+    const double meanRays = static_cast<double>(mImpl->deterministicRays) /
+                            static_cast<double>(mImpl->deterministicShots);
+    return propagation / mEmittedEnergy * mOptions.raysPerEmittedPower < meanRays;
 }
 
 std::uint64_t ProgressiveSolver::converge(double eps, std::uint64_t maxShots,
@@ -359,9 +376,12 @@ void ProgressiveSolver::shootPatch(int shooter) {
     const std::size_t n = mDisc.elements().size();
     auto& delta = mImpl->delta;
     delta.assign(n, Rgb(0.0));
+    std::atomic<std::uint64_t> rays{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+        int traced = 0;
         for (std::size_t e = range.begin(); e != range.end(); ++e)
-            delta[e] = irradianceFrom(shooter, static_cast<int>(e), dB);
+            delta[e] = irradianceFrom(shooter, static_cast<int>(e), dB, {}, &traced);
+        rays += static_cast<std::uint64_t>(traced);
     });
 
     // Apply in element order, so results do not depend on the thread count.
@@ -374,10 +394,12 @@ void ProgressiveSolver::shootPatch(int shooter) {
     (void)patches;
     ++mStats.shots;
     mStats.rays += mTracer.rayCount() - raysBefore;
+    ++mImpl->deterministicShots;
+    mImpl->deterministicRays += rays;  // this shot's own, whatever else shares the tracer
 }
 
 Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
-                                      const Visibility& visibility) const {
+                                      const Visibility& visibility, int* rays) const {
     const Patch& P = mDisc.patches()[shooter];
     const Element& el = mDisc.elements()[e];
     if (el.patch == shooter) return Rgb(0.0);
@@ -392,6 +414,7 @@ Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
     PointToPatch ff = formFactorToPatch(mDisc, mTracer, el.centroid, el.normal, shooter,
                                         static_cast<std::uint64_t>(e), mOptions.seed,
                                         mOptions.maxRaysPerPair, visibility);
+    if (rays) *rays += ff.rays;
     return dB * ff.visible;
 }
 
@@ -489,15 +512,14 @@ void ProgressiveSolver::shootStochasticBatch() {
             Vec3 dir = cosineDirection(nz, rng);
             RayTracer::FirstHit hit = mTracer.firstHit(origin + nz * eps, dir);
             if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
-            const Element& rec = mDisc.elements()[hit.element];
-            if (rec.patch == shooters[k]) continue;
-            hits[r] = {hit.element, rec.patch, carriedPerRay[k] / rec.area};  // irradiance
+            if (hit.patch == shooters[k]) continue;
+            hits[r] = {hit.element, hit.patch, carriedPerRay[k] / hit.area};  // irradiance
         }
     });
     receiveAll(hits);
-    updateTouchedPriorities();
     ++mStats.shots;
     ++mStats.stochasticBatches;
+    mStats.stochasticRays += rays;
     mStats.rays += mTracer.rayCount() - raysBefore;
 }
 

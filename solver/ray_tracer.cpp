@@ -110,8 +110,10 @@ struct RayTracer::Impl {
     /// element -> normal cost three cache misses per ray).
     struct TriangleHit {
         int element;      ///< the front element
+        int patch;        ///< its patch
         int twin;         ///< the element on the back of a two-sided face, or -1
         float normal[3];  ///< the element's world-space unit normal
+        double area;      ///< the element's area
     };
     std::vector<std::vector<TriangleHit>> triangleHit;
     /// Per-thread ray counters. ets_key_per_instance finds the calling thread's counter
@@ -236,9 +238,11 @@ void RayTracer::addObject(int o) {
         const int twin = s.faceTwin.empty() ? -1 : s.faceTwin[face];
         const Element& el = mDisc.elements()[s.faceElement[face]];
         hits[t] = {s.faceElement[face],
+                   el.patch,
                    twin >= 0 ? s.faceElement[twin] : -1,
                    {static_cast<float>(el.normal.x), static_cast<float>(el.normal.y),
-                    static_cast<float>(el.normal.z)}};
+                    static_cast<float>(el.normal.z)},
+                   el.area};
     }
     rtcCommitGeometry(geom);
     rtcAttachGeometry(scene, geom);
@@ -379,10 +383,15 @@ RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
     const Impl::TriangleHit& t = mImpl->triangleHit[rh.hit.instID[0]][rh.hit.primID];
     hit.element = t.element;
+    hit.patch = t.patch;
+    hit.area = t.area;
     hit.backFace = dir.x * t.normal[0] + dir.y * t.normal[1] + dir.z * t.normal[2] > 0;
     hit.t = rh.ray.tfar;
     if (hit.backFace && t.twin >= 0) {
-        hit.element = t.twin;  // the two-sided face's back
+        const Element& back = mDisc.elements()[t.twin];  // the two-sided face's back
+        hit.element = t.twin;
+        hit.patch = back.patch;
+        hit.area = back.area;
         hit.backFace = false;
     }
     return hit;
