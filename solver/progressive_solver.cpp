@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -26,28 +27,41 @@ double energyKey(const Rgb& unshot, double area) {
 
 bool isZero(const Rgb& c) { return c.x == 0 && c.y == 0 && c.z == 0; }
 
-/// Deterministic uniform numbers in [0, 1) for one stochastic ray.
+/// Deterministic uniform numbers in [0, 1) for one stochastic ray: SplitMix64 (Steele,
+/// Lea, Flood 2014), a Weyl sequence through a 64-bit mixer, seeded per ray by hashPair so
+/// a ray's numbers do not depend on which thread traces it.
 struct RayRandom {
     std::uint64_t state;
     double next() {
-        state = hashPair(state, 0x9e3779b97f4a7c15ull);
-        return static_cast<double>(state >> 11) * 0x1.0p-53;
+        std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+        return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
     }
 };
 
-/// An orthonormal frame (tx, ty) completing unit vector z.
+/// An orthonormal frame (tx, ty) completing unit vector z, without a square root or a branch
+/// on the axes (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
 void frameAround(const Vec3& z, Vec3& tx, Vec3& ty) {
-    tx = glm::normalize(glm::cross(std::abs(z.x) > 0.5 ? Vec3(0, 1, 0) : Vec3(1, 0, 0), z));
-    ty = glm::cross(z, tx);
+    const double sign = std::copysign(1.0, z.z);
+    const double a = -1.0 / (sign + z.z);
+    const double b = z.x * z.y * a;
+    tx = Vec3(1.0 + sign * z.x * z.x * a, sign * b, -sign * z.x);
+    ty = Vec3(b, sign + z.y * z.y * a, -z.y);
 }
 
-/// A cosine-distributed direction about unit normal n (Malley's method).
+/// A cosine-distributed direction about unit normal n (Malley's method: a uniform point of
+/// the unit disk, by rejection from its square, lifted to the hemisphere).
 Vec3 cosineDirection(const Vec3& n, RayRandom& rng) {
-    double phi = 2 * M_PI * rng.next(), rr = std::sqrt(rng.next());
+    double a, b, r2;
+    do {
+        a = 2 * rng.next() - 1;
+        b = 2 * rng.next() - 1;
+        r2 = a * a + b * b;
+    } while (r2 > 1);
     Vec3 tx, ty;
     frameAround(n, tx, ty);
-    return rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
-           std::sqrt(std::max(0.0, 1 - rr * rr)) * n;
+    return a * tx + b * ty + std::sqrt(std::max(0.0, 1 - r2)) * n;
 }
 
 /// A uniform point of a patch: an element by area, then a point of its fan triangles.
@@ -137,13 +151,19 @@ struct ProgressiveSolver::Impl {
     std::vector<Rgb> delta;  ///< per element, radiosity received in the current shot
     std::vector<int> level;  ///< per element, subdivision depth
     // Scratch for stochastic batches.
-    std::vector<double> patchCdf;              ///< power CDF over the shooters
-    std::vector<int> shooters;                 ///< patches shot in the batch
-    std::vector<Rgb> shooterUnshot;            ///< their ΔB at the start of the batch
-    std::vector<std::pair<int, Rgb>> rayHits;  ///< per ray: receiver element and ΔRad
+    std::vector<double> patchCdf;    ///< power CDF over the shooters
+    std::vector<int> shooters;       ///< patches shot in the batch
+    std::vector<Rgb> shooterUnshot;  ///< their ΔB at the start of the batch
+    std::vector<Received> rayHits;   ///< per ray: receiver element and its irradiance
+    std::vector<Rgb> carriedPerRay;  ///< per shooter: what one of its rays carries
+    // receiveAll's scratch: entries bucketed by block of patches, in list order.
+    std::vector<int> blockStart, bucketed;
+    std::vector<std::vector<int>> blockTouched;
     // Patches whose unshot energy changed in the current shot: one heap update each.
     std::vector<std::uint8_t> touched;
     std::vector<int> touchedList;
+    // Deterministic propagation shots so far and their rays (shootsStochastically).
+    std::uint64_t deterministicShots = 0, deterministicRays = 0;
 };
 
 ProgressiveSolver::ProgressiveSolver(Discretization& disc, RayTracer& tracer, SolverOptions options)
@@ -219,8 +239,7 @@ int ProgressiveSolver::step(int maxShots) {
         }
         if (redistribute) {
             shootRedistribution();
-        } else if (mOptions.stochasticBelow > 0 &&
-                   propagation < mOptions.stochasticBelow * mEmittedEnergy) {
+        } else if (shootsStochastically(propagation)) {
             shootStochasticBatch();
         } else {
             shootPatch(p);
@@ -229,6 +248,21 @@ int ProgressiveSolver::step(int maxShots) {
     mStats.seconds +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return done;
+}
+
+bool ProgressiveSolver::shootsStochastically(double propagation) const {
+    if (!(mOptions.stochasticBelow > 0) || !(mEmittedEnergy > 0) ||
+        propagation >= mOptions.stochasticBelow * mEmittedEnergy)
+        return false;
+    // Below the threshold, the stochastic batch takes over once it moves power for fewer rays
+    // than a deterministic shot: a shot of power Φ costs about the mean ray count of the
+    // deterministic shots so far, a batch raysPerEmittedPower × Φ / Φ_emitted rays. Small
+    // scenes (few receivers) keep shooting deterministically a little longer; ray counts
+    // follow from the geometry only, so the choice does not depend on the thread count.
+    if (mImpl->deterministicShots == 0) return true;
+    const double meanRays = static_cast<double>(mImpl->deterministicRays) /
+                            static_cast<double>(mImpl->deterministicShots);
+    return propagation / mEmittedEnergy * mOptions.raysPerEmittedPower < meanRays;
 }
 
 std::uint64_t ProgressiveSolver::converge(double eps, std::uint64_t maxShots,
@@ -288,6 +322,43 @@ void ProgressiveSolver::updateTouchedPriorities() {
     mImpl->touchedList.clear();
 }
 
+void ProgressiveSolver::receiveAll(const std::vector<Received>& list) {
+    // Bucket the entries by block of patches, keeping list order within each block; every
+    // element and patch belongs to one block, so blocks apply in parallel while each sum
+    // runs in list order, exactly as a serial loop over the list would.
+    const std::size_t np = mDisc.patches().size();
+    const std::size_t blocks = std::min<std::size_t>(64, std::max<std::size_t>(np, 1));
+    auto blockOf = [&](int patch) { return static_cast<std::size_t>(patch) * blocks / np; };
+    auto& start = mImpl->blockStart;
+    auto& bucketed = mImpl->bucketed;
+    start.assign(blocks + 1, 0);
+    for (const Received& r : list)
+        if (r.element >= 0) ++start[blockOf(r.patch) + 1];
+    for (std::size_t b = 0; b < blocks; ++b) start[b + 1] += start[b];
+    bucketed.resize(start[blocks]);
+    {
+        std::vector<int> next(start.begin(), start.end() - 1);
+        for (std::size_t i = 0; i < list.size(); ++i)
+            if (list[i].element >= 0)
+                bucketed[next[blockOf(list[i].patch)]++] = static_cast<int>(i);
+    }
+    auto& touched = mImpl->touched;
+    if (touched.size() < np) touched.resize(np, 0);
+    auto& blockTouched = mImpl->blockTouched;
+    blockTouched.resize(blocks);
+    tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t b) {
+        blockTouched[b].clear();
+        for (int i = start[b]; i < start[b + 1]; ++i) {
+            const Received& r = list[bucketed[i]];
+            receive(r.element, r.irradiance);
+            if (!touched[r.patch]) touched[r.patch] = 1, blockTouched[b].push_back(r.patch);
+        }
+    });
+    for (const std::vector<int>& t : blockTouched)
+        mImpl->touchedList.insert(mImpl->touchedList.end(), t.begin(), t.end());
+    updateTouchedPriorities();
+}
+
 void ProgressiveSolver::updatePriority(int patch) {
     mImpl->queue.update(patch, energyKey(mPatchUnshot[patch], mDisc.patches()[patch].area));
 }
@@ -305,9 +376,12 @@ void ProgressiveSolver::shootPatch(int shooter) {
     const std::size_t n = mDisc.elements().size();
     auto& delta = mImpl->delta;
     delta.assign(n, Rgb(0.0));
+    std::atomic<std::uint64_t> rays{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+        int traced = 0;
         for (std::size_t e = range.begin(); e != range.end(); ++e)
-            delta[e] = irradianceFrom(shooter, static_cast<int>(e), dB);
+            delta[e] = irradianceFrom(shooter, static_cast<int>(e), dB, {}, &traced);
+        rays += static_cast<std::uint64_t>(traced);
     });
 
     // Apply in element order, so results do not depend on the thread count.
@@ -320,10 +394,12 @@ void ProgressiveSolver::shootPatch(int shooter) {
     (void)patches;
     ++mStats.shots;
     mStats.rays += mTracer.rayCount() - raysBefore;
+    ++mImpl->deterministicShots;
+    mImpl->deterministicRays += rays;  // this shot's own, whatever else shares the tracer
 }
 
 Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
-                                      const Visibility& visibility) const {
+                                      const Visibility& visibility, int* rays) const {
     const Patch& P = mDisc.patches()[shooter];
     const Element& el = mDisc.elements()[e];
     if (el.patch == shooter) return Rgb(0.0);
@@ -338,6 +414,7 @@ Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
     PointToPatch ff = formFactorToPatch(mDisc, mTracer, el.centroid, el.normal, shooter,
                                         static_cast<std::uint64_t>(e), mOptions.seed,
                                         mOptions.maxRaysPerPair, visibility);
+    if (rays) *rays += ff.rays;
     return dB * ff.visible;
 }
 
@@ -411,10 +488,19 @@ void ProgressiveSolver::shootStochasticBatch() {
     const std::uint64_t batchSeed =
         hashPair(hashPair(mOptions.seed, 0x5707c4a57ull), mStats.stochasticBatches);
     auto& hits = mImpl->rayHits;
-    hits.assign(rays, {-1, Rgb(0.0)});
+    hits.resize(rays);
+    // A ray of shooter k carries power total/rays, in the colour of its ΔB.
+    auto& carriedPerRay = mImpl->carriedPerRay;
+    carriedPerRay.resize(shooters.size());
+    for (std::size_t k = 0; k < shooters.size(); ++k) {
+        const double area = patches[shooters[k]].area;
+        carriedPerRay[k] =
+            unshot[k] * (area * total / (static_cast<double>(rays) * energyKey(unshot[k], area)));
+    }
     const double eps = mTracer.epsilon();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
+            hits[r].element = -1;
             RayRandom rng{hashPair(batchSeed, r)};
             // The shooter, by power; a uniform point of it; a cosine-distributed direction.
             double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
@@ -426,23 +512,14 @@ void ProgressiveSolver::shootStochasticBatch() {
             Vec3 dir = cosineDirection(nz, rng);
             RayTracer::FirstHit hit = mTracer.firstHit(origin + nz * eps, dir);
             if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
-            const Element& rec = mDisc.elements()[hit.element];
-            if (rec.patch == shooters[k]) continue;
-            // This ray carries power total/rays, in the colour of its shooter's ΔB.
-            const Rgb carried =
-                unshot[k] *
-                (P.area * total / (static_cast<double>(rays) * energyKey(unshot[k], P.area)));
-            hits[r] = {hit.element, carried / rec.area};  // irradiance
+            if (hit.patch == shooters[k]) continue;
+            hits[r] = {hit.element, hit.patch, carriedPerRay[k] / hit.area};  // irradiance
         }
     });
-    // Accumulate in ray order: independent of the thread count.
-    for (const auto& [e, d] : hits)
-        if (e >= 0) receive(e, d);
-    for (const auto& [e, d] : hits)
-        if (e >= 0) touchElement(e);
-    updateTouchedPriorities();
+    receiveAll(hits);
     ++mStats.shots;
     ++mStats.stochasticBatches;
+    mStats.stochasticRays += rays;
     mStats.rays += mTracer.rayCount() - raysBefore;
 }
 
@@ -928,11 +1005,10 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     if (afterIsCurrentScene(c, false)) after = Visibility{};
     const Visibility changed = c.changed.visibility();
     const bool onlyAdded = c.removed.empty();
-    struct Transfer {
-        int from = -1, to = -1;
-        Rgb irradianceFrom{0.0}, irradianceTo{0.0};
-    };
-    std::vector<Transfer> out(rays);
+    // Per ray: what leaves the element it reached before the edit (2r) and what reaches the
+    // element it reaches after (2r + 1).
+    auto& out = mImpl->rayHits;
+    out.assign(2 * rays, Received{});
     const double eps = mTracer.epsilon();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
@@ -1012,28 +1088,23 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             int eb = hb.element >= 0 && !hb.backFace ? hb.element : -1;
             int ea = ha.element >= 0 && !ha.backFace ? ha.element : -1;
             if (eb == ea) continue;
-            Transfer& tr = out[r];
             auto receives = [&](int e) {
                 int o = mDisc.elements()[e].object;
                 return mDisc.objects()[o].alive && c.after[o] && mDisc.elements()[e].patch != j;
             };
-            if (eb >= 0 && c.before[mDisc.elements()[eb].object] && receives(eb))
-                tr.from = eb, tr.irradianceFrom = -carried / mDisc.elements()[eb].area;
+            if (eb >= 0 && c.before[mDisc.elements()[eb].object] && receives(eb)) {
+                const Element& el = mDisc.elements()[eb];
+                out[2 * r] = {eb, el.patch, -carried / el.area};
+            }
             if (ea >= 0 && receives(ea) &&
-                !(c.isGathered(j) && !c.before[mDisc.elements()[ea].object]))
-                tr.to = ea, tr.irradianceTo = carried / mDisc.elements()[ea].area;
+                !(c.isGathered(j) && !c.before[mDisc.elements()[ea].object])) {
+                const Element& el = mDisc.elements()[ea];
+                out[2 * r + 1] = {ea, el.patch, carried / el.area};
+            }
         }
     });
     // Apply in ray order: independent of the thread count.
-    for (const Transfer& tr : out) {
-        if (tr.from >= 0) receive(tr.from, tr.irradianceFrom);
-        if (tr.to >= 0) receive(tr.to, tr.irradianceTo);
-    }
-    for (const Transfer& tr : out) {
-        if (tr.from >= 0) touchElement(tr.from);
-        if (tr.to >= 0) touchElement(tr.to);
-    }
-    updateTouchedPriorities();
+    receiveAll(out);
     if (c.pending.top() < 0 || c.pending.key(c.pending.top()) <= 0)
         mImpl->changes.erase(mImpl->changes.begin() + k);
     ++mStats.shots;

@@ -68,7 +68,10 @@ struct SolverStats {
     std::uint64_t rays = 0;
     double seconds = 0;
     std::uint64_t subdivisions = 0;
-    std::uint64_t stochasticBatches = 0;    ///< each counts as one shot in `shots`
+    std::uint64_t stochasticBatches = 0;  ///< each counts as one shot in `shots`
+    /// Rays of the propagation batches (closest-hit queries; the rest of `rays` are
+    /// mostly occlusion queries), also counted in `rays`.
+    std::uint64_t stochasticRays = 0;
     std::uint64_t redistributionShots = 0;  ///< also counted in `shots`
 };
 
@@ -163,7 +166,9 @@ private:
     void initialize();
     /// Irradiance element `e` receives when `shooter` shoots radiosity dB, with F evaluated
     /// under `visibility`.
-    Rgb irradianceFrom(int shooter, int e, const Rgb& dB, const Visibility& visibility = {}) const;
+    /// `rays`, when given, is increased by the rays traced.
+    Rgb irradianceFrom(int shooter, int e, const Rgb& dB, const Visibility& visibility = {},
+                       int* rays = nullptr) const;
     /// dB · (F(after) − F(before)) for element e and `shooter`, tracing both worlds only for
     /// samples that meet an object `changed` admits (formFactorChange).
     Rgb irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,
@@ -174,6 +179,20 @@ private:
     /// Marks the patch of element e for one heap update in updateTouchedPriorities().
     void touchElement(int e);
     void updateTouchedPriorities();
+    /// One element's share of a stochastic batch: irradiance for `element` of `patch`
+    /// (element -1: nothing).
+    struct Received {
+        int element = -1;
+        int patch = -1;
+        Rgb irradiance{0.0};
+    };
+    /// receive() and touchElement() for every entry in list order, then the heap updates;
+    /// parallel over blocks of patches with every sum in list order (bit-identical to the
+    /// serial loop, independent of the thread count).
+    void receiveAll(const std::vector<Received>& list);
+    /// Whether the next propagation shot (strongest shooter carrying `propagation` W) is a
+    /// stochastic batch rather than a deterministic shot.
+    bool shootsStochastically(double propagation) const;
     void ensureSizes();
     void recomputeEmitted();
     /// One redistribution shot from the most important pending shooter of the most

@@ -105,6 +105,17 @@ struct RayTracer::Impl {
     }
     /// Per object: Embree triangle -> (element face index, fan position).
     std::vector<std::vector<std::pair<int, int>>> triangleFace;
+    /// Per object, per Embree triangle: everything firstHit needs, in one cache line (the
+    /// stochastic shots' hits land anywhere in large scenes; chasing triangle -> face ->
+    /// element -> normal cost three cache misses per ray).
+    struct TriangleHit {
+        int element;      ///< the front element
+        int patch;        ///< its patch
+        int twin;         ///< the element on the back of a two-sided face, or -1
+        float normal[3];  ///< the element's world-space unit normal
+        double area;      ///< the element's area
+    };
+    std::vector<std::vector<TriangleHit>> triangleHit;
     /// Per-thread ray counters. ets_key_per_instance finds the calling thread's counter
     /// through a native thread-local key, not a hash-table lookup: a few ns per ray.
     mutable tbb::enumerable_thread_specific<unsigned long long,
@@ -141,6 +152,7 @@ void RayTracer::rebuild() {
     Impl& im = *mImpl;
     im.release();
     im.triangleFace.clear();
+    im.triangleHit.clear();
     im.top = rtcNewScene(im.device);
     im.history = rtcNewScene(im.device);
     rtcSetSceneFlags(im.top, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
@@ -184,6 +196,7 @@ void RayTracer::addObject(int o) {
     Impl& im = *mImpl;
     const ObjectSurface& s = mDisc.objects()[o];
     if (static_cast<int>(im.triangleFace.size()) <= o) im.triangleFace.resize(o + 1);
+    if (static_cast<int>(im.triangleHit.size()) <= o) im.triangleHit.resize(o + 1);
     if (static_cast<int>(im.objectScenes.size()) <= o) im.objectScenes.resize(o + 1, nullptr);
     RTCScene scene = rtcNewScene(im.device);
     // Robust traversal: rays through a shared edge or vertex of two triangles hit one of them
@@ -217,6 +230,19 @@ void RayTracer::addObject(int o) {
         tris[3 * t + 0] = vs[0];
         tris[3 * t + 1] = vs[k];
         tris[3 * t + 2] = vs[k + 1];
+    }
+    auto& hits = im.triangleHit[o];
+    hits.resize(map.size());
+    for (std::size_t t = 0; t < map.size(); ++t) {
+        const int face = map[t].first;
+        const int twin = s.faceTwin.empty() ? -1 : s.faceTwin[face];
+        const Element& el = mDisc.elements()[s.faceElement[face]];
+        hits[t] = {s.faceElement[face],
+                   el.patch,
+                   twin >= 0 ? s.faceElement[twin] : -1,
+                   {static_cast<float>(el.normal.x), static_cast<float>(el.normal.y),
+                    static_cast<float>(el.normal.z)},
+                   el.area};
     }
     rtcCommitGeometry(geom);
     rtcAttachGeometry(scene, geom);
@@ -355,14 +381,17 @@ RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
     ++mImpl->rays.local();
     FirstHit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
-    int object = static_cast<int>(rh.hit.instID[0]);
-    int face = mImpl->triangleFace[object][rh.hit.primID].first;
-    const ObjectSurface& s = mDisc.objects()[object];
-    hit.element = s.faceElement[face];
-    hit.backFace = glm::dot(dir, mDisc.elements()[hit.element].normal) > 0;
+    const Impl::TriangleHit& t = mImpl->triangleHit[rh.hit.instID[0]][rh.hit.primID];
+    hit.element = t.element;
+    hit.patch = t.patch;
+    hit.area = t.area;
+    hit.backFace = dir.x * t.normal[0] + dir.y * t.normal[1] + dir.z * t.normal[2] > 0;
     hit.t = rh.ray.tfar;
-    if (hit.backFace && !s.faceTwin.empty() && s.faceTwin[face] >= 0) {
-        hit.element = s.faceElement[s.faceTwin[face]];  // the two-sided face's back
+    if (hit.backFace && t.twin >= 0) {
+        const Element& back = mDisc.elements()[t.twin];  // the two-sided face's back
+        hit.element = t.twin;
+        hit.patch = back.patch;
+        hit.area = back.area;
         hit.backFace = false;
     }
     return hit;

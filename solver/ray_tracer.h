@@ -115,7 +115,9 @@ public:
     struct FirstHit {
         int element = -1;
         bool backFace = false;
-        float t = 0;  ///< ray parameter of the hit (unit direction: distance)
+        float t = 0;      ///< ray parameter of the hit (unit direction: distance)
+        int patch = -1;   ///< the element's patch and area, from the tracer's own table
+        double area = 0;  ///< (the element's record is a cache miss in large scenes)
     };
     FirstHit firstHit(const Vec3& origin, const Vec3& dir, const Visibility& visibility = {}) const;
 

@@ -66,6 +66,27 @@ double rawOcclusionRate(const RayTracer& tracer, const Segments& s) {
     return static_cast<double>(s.from.size()) / secondsSince(start);
 }
 
+/// Closest-hit rays per second over all worker threads, from the same points along the same
+/// directions (the stochastic batches' query).
+double rawHitRate(const RayTracer& tracer, const Segments& s) {
+    std::vector<Vec3> dirs(s.from.size());
+    for (std::size_t i = 0; i < dirs.size(); ++i) {
+        const Vec3 d = s.to[i] - s.from[i];
+        dirs[i] = glm::length(d) > 0 ? glm::normalize(d) : Vec3(0, 0, 1);
+    }
+    auto start = Clock::now();
+    std::size_t hits = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, s.from.size(), 1024), std::size_t(0),
+        [&](const auto& r, std::size_t acc) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i)
+                acc += tracer.firstHit(s.from[i], dirs[i]).element >= 0 ? 1 : 0;
+            return acc;
+        },
+        std::plus<>());
+    benchmark::DoNotOptimize(hits);
+    return static_cast<double>(s.from.size()) / secondsSince(start);
+}
+
 long peakResidentKiB() {
     rusage u{};
     getrusage(RUSAGE_SELF, &u);
@@ -85,6 +106,8 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     rawOcclusionRate(lit->tracer(), segs);  // warm up
     double raw = rawOcclusionRate(lit->tracer(), segs);
     r["raw_occlusion_rays_per_s"] = raw;
+    const double rawHit = rawHitRate(lit->tracer(), segs);
+    r["raw_closest_hit_rays_per_s"] = rawHit;
 
     ProgressiveSolver& solver = lit->solver();
     const double thresholds[] = {0.1, 0.01, 0.001};
@@ -103,6 +126,14 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     double solverRate = st.seconds > 0 ? st.rays / st.seconds : 0;
     r["solver_rays_per_s"] = solverRate;
     r["ratio_solver_to_raw"] = raw > 0 ? solverRate / raw : 0;
+    // The same ray budget traced alone: the solver's closest-hit rays (stochastic batches) at
+    // the raw closest-hit rate, the rest at the raw occlusion rate. solver / this is the share
+    // of the solver's time spent tracing its own rays.
+    const double hitRays = static_cast<double>(st.stochasticRays);
+    const double occlusionRays = static_cast<double>(st.rays) - hitRays;
+    const double rawMixSeconds = occlusionRays / raw + hitRays / rawHit;
+    r["stochastic_ray_share"] = st.rays > 0 ? hitRays / static_cast<double>(st.rays) : 0.0;
+    r["ratio_solver_to_raw_mix"] = st.seconds > 0 ? rawMixSeconds / st.seconds : 0;
     r["shots"] = st.shots;
     r["stochastic_batches"] = st.stochasticBatches;
     r["unshot_fraction"] = solver.unshotFraction();
@@ -169,6 +200,21 @@ int runSolverBench(const BenchOptions& options) {
                 }
                 st.SetItemsProcessed(st.iterations());
             });
+        // The stochastic shots' query: the closest hit along a ray from a surface point.
+        std::vector<Vec3> dirs(segs.from.size());
+        for (std::size_t i = 0; i < dirs.size(); ++i) {
+            const Vec3 d = segs.to[i] - segs.from[i];
+            dirs[i] = glm::length(d) > 0 ? glm::normalize(d) : Vec3(0, 0, 1);
+        }
+        benchmark::RegisterBenchmark(
+            ("firstHit1/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
+                std::size_t i = 0;
+                for (auto _ : st) {
+                    benchmark::DoNotOptimize(lit->tracer().firstHit(segs.from[i], dirs[i]));
+                    i = (i + 1) & 0xffff;
+                }
+                st.SetItemsProcessed(st.iterations());
+            });
         benchmark::RegisterBenchmark(
             ("formFactorToPatch/" + options.scenes.front()).c_str(), [&](benchmark::State& st) {
                 std::size_t i = 0;
@@ -191,9 +237,9 @@ int runSolverBench(const BenchOptions& options) {
 
     nlohmann::json rows = nlohmann::json::array();
     std::printf(
-        "\n| scene | patches | elements | raw Mrays/s | solver Mrays/s | ratio | to 10%% s | to "
-        "1%% s | to 0.1%% s | peak MiB |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+        "\n| scene | patches | elements | raw Mrays/s | solver Mrays/s | ratio | raw hit Mrays/s | "
+        "hit-ray share | ratio to same mix | to 10%% s | to 1%% s | to 0.1%% s | peak MiB |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const std::string& scene : options.scenes) {
         nlohmann::json r = measureSceneIsolated(scene, options);
         rows.push_back(r);
@@ -203,11 +249,14 @@ int runSolverBench(const BenchOptions& options) {
             continue;
         }
         std::printf(
-            "| %s | %zu | %zu | %s | %s | %s | %s | %s | %s | %s |\n", scene.c_str(),
+            "| %s | %zu | %zu | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", scene.c_str(),
             r["patches"].get<std::size_t>(), r["elements"].get<std::size_t>(),
             cell(r["raw_occlusion_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
             cell(r["solver_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
             cell(r["ratio_solver_to_raw"], "%.2f").c_str(),
+            cell(r["raw_closest_hit_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
+            cell(r["stochastic_ray_share"], "%.2f").c_str(),
+            cell(r["ratio_solver_to_raw_mix"], "%.2f").c_str(),
             cell(r["seconds_to_10pct"], "%.2f").c_str(), cell(r["seconds_to_1pct"], "%.2f").c_str(),
             cell(r["seconds_to_0.1pct"], "%.2f").c_str(), cell(r["peak_rss_mib"], "%.0f").c_str());
         std::fflush(stdout);

@@ -340,6 +340,25 @@ TEST(Solver, ResultsDoNotDependOnThreadCount) {
     EXPECT_EQ(differingElements(one, four), 0) << "1 vs 4 threads";
 }
 
+TEST(Solver, StochasticTailDoesNotDependOnThreadCount) {
+    // The stochastic batches trace in parallel and apply their hits in parallel blocks of
+    // patches (receiveAll); every sum still runs in ray order.
+    const Scene scene = shadowScene();
+    SolverOptions options = interactiveSolverOptions();
+    options.stochasticBelow = 0.5;       // most of the solve is stochastic batches,
+    options.raysPerEmittedPower = 2e5;  // cheaper than deterministic shots here
+    auto solveWith = [&](std::size_t threads) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+        Solve s(scene, options);
+        s->converge(1e-3, 400);
+        EXPECT_GT(s->stats().stochasticBatches, 2u);
+        return s->radiosity();
+    };
+    const std::vector<Rgb> one = solveWith(1), two = solveWith(2), four = solveWith(4);
+    EXPECT_EQ(differingElements(one, two), 0) << "1 vs 2 threads";
+    EXPECT_EQ(differingElements(one, four), 0) << "1 vs 4 threads";
+}
+
 TEST(Solver, SameSeedSameResultOtherSeedSlightlyDifferent) {
     const Scene scene = shadowScene();
     SolverOptions a, b;
