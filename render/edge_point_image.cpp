@@ -460,17 +460,57 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
     // its rows) and records only their intersections, so bands write disjoint bytes and the
     // masks and the culled count equal a single band's (the serial reference) exactly.
     const int bands = mOptions.parallel ? std::min(mHeight, 16) : 1;
-    // Each edge's y extent, compact, for the bands' quick rejection (NaN for a non-finite
-    // edge: never rejected here, skipped by rasterizeEdge).
-    mEdgeRows.resize(edges.size());
+    // Each band's edges, in input order: those whose y extent meets the band's rows with a row
+    // of slack either side (all bands for a non-finite extent; rasterizeEdge skips such
+    // edges). Binned once (chunks of edges in parallel, counts, offsets, fill) instead of every
+    // band scanning every edge.
+    constexpr size_t kChunk = 4096;
+    const size_t chunks = (edges.size() + kChunk - 1) / kChunk;
     if (bands > 1) {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, edges.size(), 2048),
-                          [&](const tbb::blocked_range<size_t>& r) {
-                              for (size_t i = r.begin(); i != r.end(); ++i) {
-                                  const ScreenEdge& e = edges[i];
-                                  mEdgeRows[i] = {std::min(e.a.y, e.b.y), std::max(e.a.y, e.b.y)};
-                              }
-                          });
+        mEdgeBands.resize(edges.size());
+        mChunkBandCount.assign(chunks * bands, 0);
+        auto meets = [&](double ymin, double ymax, int b) {
+            return !(ymax < bandStart(mHeight, bands, b) - 1.0 ||
+                     ymin > bandStart(mHeight, bands, b + 1) + 1.0);
+        };
+        tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
+            uint32_t* count = &mChunkBandCount[c * bands];
+            for (size_t i = c * kChunk; i < std::min(edges.size(), (c + 1) * kChunk); ++i) {
+                const ScreenEdge& e = edges[i];
+                const double ymin = std::min(e.a.y, e.b.y), ymax = std::max(e.a.y, e.b.y);
+                int lo = 0, hi = bands - 1;
+                if (!std::isnan(ymin) && !std::isnan(ymax)) {
+                    // The bands meeting [ymin − 1, ymax + 1] are contiguous; search from the
+                    // bands of rows a little outside it.
+                    lo = bandOfRow(mHeight, bands, ymin - 2.0);
+                    hi = bandOfRow(mHeight, bands, ymax + 2.0);
+                    while (lo <= hi && !meets(ymin, ymax, lo)) ++lo;
+                    while (hi >= lo && !meets(ymin, ymax, hi)) --hi;
+                }
+                mEdgeBands[i] = {static_cast<uint8_t>(lo), static_cast<uint8_t>(hi)};
+                for (int b = lo; b <= hi; ++b) ++count[b];
+            }
+        });
+        // Offsets: band-major, chunks in order.
+        mBandEdgeStart.assign(static_cast<size_t>(bands) + 1, 0);
+        size_t offset = 0;
+        for (int b = 0; b < bands; ++b) {
+            mBandEdgeStart[b] = offset;
+            for (size_t c = 0; c < chunks; ++c) {
+                const uint32_t n = mChunkBandCount[c * bands + b];
+                mChunkBandCount[c * bands + b] = static_cast<uint32_t>(offset - mBandEdgeStart[b]);
+                offset += n;
+            }
+        }
+        mBandEdgeStart[bands] = offset;
+        mBandEdges.resize(offset);
+        tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
+            uint32_t* next = &mChunkBandCount[c * bands];
+            for (size_t i = c * kChunk; i < std::min(edges.size(), (c + 1) * kChunk); ++i) {
+                for (int b = mEdgeBands[i].first; b <= mEdgeBands[i].second; ++b)
+                    mBandEdges[mBandEdgeStart[b] + next[b]++] = static_cast<uint32_t>(i);
+            }
+        });
     }
     std::vector<size_t> culled(bands, 0);
     auto band = [&](int b) {
@@ -490,11 +530,8 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
             for (const ScreenEdge& e : edges) rasterizeEdge(e, rowLo, rowHi, kLineHi, culled[b]);
             return;
         }
-        for (size_t i = 0; i < edges.size(); ++i) {
-            // The edge's y extent misses the band's rows (a row of slack either side).
-            if (mEdgeRows[i].y < rowLo - 1.0 || mEdgeRows[i].x > rowHi + 1.0) continue;
-            rasterizeEdge(edges[i], rowLo, rowHi, kLineHi, culled[b]);
-        }
+        for (size_t n = mBandEdgeStart[b]; n < mBandEdgeStart[b + 1]; ++n)
+            rasterizeEdge(edges[mBandEdges[n]], rowLo, rowHi, kLineHi, culled[b]);
     };
     if (bands == 1) {
         band(0);
@@ -1106,6 +1143,16 @@ void EdgePointImage::filterComplexPixels(Image& out) {
         const int x = pixel % W;
         const int y = pixel / W;
         const glm::vec3 estimate = mPrimary[pixel];
+        // All 4 own subpixels complex (common inside dense geometry): the pixel keeps its
+        // estimate, summed as the general loop at the end sums it.
+        const uint8_t* own = &mSubType[4 * static_cast<size_t>(pixel)];
+        if (own[0] == kNeighbourTypeComplex && own[1] == kNeighbourTypeComplex &&
+            own[2] == kNeighbourTypeComplex && own[3] == kNeighbourTypeComplex) {
+            glm::vec3 total(0.0f);
+            for (int s = 0; s < 4; ++s) total += 0.25f * estimate;
+            out.at(x, y) = Rgb(total);
+            return;
+        }
         // Subpixel edge codes over the 6×6 subpixels of the 3×3 pixel neighbourhood.
         std::array<uint16_t, 36> codes;
         std::array<uint8_t, 36> types;

@@ -201,7 +201,12 @@ private:
     std::vector<uint8_t> mVertical;       ///< line x = i, y ∈ [j, j+1): H × (W+1)
     std::vector<uint8_t> mHorizontalMid;  ///< line y = j + ½: H × W
     std::vector<uint8_t> mVerticalMid;    ///< line x = i + ½: H × W
-    std::vector<glm::dvec2> mEdgeRows;    ///< rasterizeEdges() scratch: per edge y min, max
+    // rasterizeEdges() scratch: per edge its bands (first, last), per chunk of edges and band
+    // a count then an offset, and the edges of each band at mBandEdgeStart[band].
+    std::vector<std::pair<uint8_t, uint8_t>> mEdgeBands;
+    std::vector<uint32_t> mChunkBandCount;
+    std::vector<size_t> mBandEdgeStart;
+    std::vector<uint32_t> mBandEdges;
 
     // Classification (§4.1–4.2, §5.1).
     std::vector<uint16_t> mEdgeCode;
