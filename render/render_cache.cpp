@@ -260,12 +260,15 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
     });
 
     // Z-buffer per band of rows: each band takes its points in index order, as the serial
-    // loop does, so ties resolve identically.
+    // loop does, so ties resolve identically. Pixels without a point keep depth +inf (for the
+    // culling below: never nearer, and not counted).
+    constexpr double kNone = std::numeric_limits<double>::infinity();
     tbb::parallel_for(0, bands, [&](int band) {
         const int lo = static_cast<int>(static_cast<long long>(mHeight) * band / bands) * mWidth;
         const int hi =
             static_cast<int>(static_cast<long long>(mHeight) * (band + 1) / bands) * mWidth;
         std::fill(mPixelPoint.begin() + lo, mPixelPoint.begin() + hi, -1);
+        std::fill(mPixelDepth.begin() + lo, mPixelDepth.begin() + hi, kNone);
         for (std::size_t i = 0; i < n; ++i) {
             if (mProjBand[i] != band) continue;
             const int k = mProjPixel[i];
@@ -285,24 +288,19 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
         }
     });
 
-    // Depth culling as in reprojectSerial(), on pixel-indexed depths (+inf where no point:
-    // never nearer, and not counted), branch-free for inner pixels of the usual 3×3.
+    // Depth culling as in reprojectSerial(), on pixel-indexed depths, branch-free for inner
+    // pixels of the usual 3×3: reads the z-buffer, writes the survivors to mFiltered (then
+    // swapped in) and counts them per row.
     const int rad = std::max(0, mOptions.depthRadius);
     const double margin = 1 + mOptions.depthMargin;
-    constexpr double kNone = std::numeric_limits<double>::infinity();
-    mUnfiltered.resize(pixels);
-    tbb::parallel_for(0, mHeight, [&](int y) {
-        for (int x = 0; x < mWidth; ++x) {
-            const int k = y * mWidth + x;
-            mUnfiltered[k] = mPixelPoint[k];
-            if (mUnfiltered[k] < 0) mPixelDepth[k] = kNone;
-        }
-    });
+    mFiltered.resize(pixels);
     tbb::parallel_for(0, mHeight, [&](int y) {
         const bool innerRow = rad == 1 && y > 0 && y + 1 < mHeight;
+        int survivors = 0;
         for (int x = 0; x < mWidth; ++x) {
             const int k = y * mWidth + x;
-            if (mUnfiltered[k] < 0) continue;
+            mFiltered[k] = mPixelPoint[k];
+            if (mPixelPoint[k] < 0) continue;
             const double self = mPixelDepth[k];
             int neighbours = 0, nearer = 0;
             if (innerRow && x > 0 && x + 1 < mWidth) {
@@ -323,22 +321,22 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
                         const int xx = x + dx;
                         if ((dx == 0 && dy == 0) || xx < 0 || xx >= mWidth) continue;
                         const int q = yy * mWidth + xx;
-                        if (mUnfiltered[q] < 0) continue;
+                        if (mPixelPoint[q] < 0) continue;
                         ++neighbours;
                         nearer += mPixelDepth[q] * margin < self;
                     }
                 }
             }
-            if (nearer > 0 && 2 * nearer >= neighbours) mPixelPoint[k] = -1;
+            if (nearer > 0 && 2 * nearer >= neighbours)
+                mFiltered[k] = -1;
+            else
+                ++survivors;
         }
+        mRowCount[y + 1] = survivors;
     });
+    mPixelPoint.swap(mFiltered);
 
-    // Visible points in pixel order: counts per row, offsets, then rows in parallel.
-    tbb::parallel_for(0, mHeight, [&](int y) {
-        int count = 0;
-        for (int x = 0; x < mWidth; ++x) count += mPixelPoint[y * mWidth + x] >= 0;
-        mRowCount[y + 1] = count;
-    });
+    // Visible points in pixel order: offsets from the per-row counts, then rows in parallel.
     mRowCount[0] = 0;
     for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] += mRowCount[y];
     mScreen.resize(static_cast<std::size_t>(mRowCount[mHeight]));

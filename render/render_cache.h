@@ -173,7 +173,7 @@ private:
     std::vector<int> mPixelAge;              ///< per pixel: that age of its z-buffer point
     std::vector<double> mPixelDepth;         ///< per pixel: depth of its z-buffer point
     std::vector<glm::dvec2> mPixelPosition;  ///< per pixel: position of its z-buffer point
-    std::vector<int> mUnfiltered;            ///< per pixel: z-buffer point before culling
+    std::vector<int> mFiltered;              ///< per pixel: culling's output, swapped in
     std::vector<std::uint8_t> mProjBand;     ///< per point: band of rows (0xFF off screen)
     std::vector<double> mLuminance;          ///< per pixel: luminance of its point, 1e300 without
     std::vector<double> mLuminanceHi;        ///< the same, −1e300 without
