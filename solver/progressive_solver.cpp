@@ -64,47 +64,36 @@ Vec3 cosineDirection(const Vec3& n, RayRandom& rng) {
     return a * tx + b * ty + std::sqrt(std::max(0.0, 1 - r2)) * n;
 }
 
-/// Uniform points of a batch's shooting patches: every shooter's fan triangles, flattened once
-/// per batch with their cumulative doubled areas, so a ray's point costs a search in its
-/// shooter's short range instead of a walk over element records.
-class PatchSampler {
+/// Uniform points of one shooting patch: its fan triangles flattened with their cumulative
+/// doubled areas, so a ray's point costs a search in a short array instead of a walk over
+/// element records. A batch's rays are ordered by shooter, so each block of rays sets this up
+/// about once per shooter it meets; the result does not depend on where blocks start.
+class PatchPoints {
 public:
-    void build(const Discretization& disc, const std::vector<int>& shooters) {
-        const auto& patches = disc.patches();
-        const auto& elements = disc.elements();
-        mStart.assign(shooters.size() + 1, 0);
-        for (std::size_t k = 0; k < shooters.size(); ++k) {
-            std::size_t n = 0;
-            for (int e : patches[shooters[k]].elements) n += elements[e].vertices.size() - 2;
-            mStart[k + 1] = mStart[k] + n;
-        }
-        mTriangles.resize(mStart.back());
-        tbb::parallel_for(std::size_t(0), shooters.size(), [&](std::size_t k) {
-            std::size_t t = mStart[k];
-            double sum = 0;
-            for (int e : patches[shooters[k]].elements) {
-                const Element& el = elements[e];
-                const auto& pos = disc.objects()[el.object].worldPositions;
-                const Vec3& p0 = pos[el.vertices[0]];
-                for (std::size_t i = 1; i + 1 < el.vertices.size(); ++i) {
-                    Triangle& tri = mTriangles[t++];
-                    tri.p0 = p0;
-                    tri.e1 = pos[el.vertices[i]] - p0;
-                    tri.e2 = pos[el.vertices[i + 1]] - p0;
-                    tri.normal = el.normal;
-                    tri.cumulative = sum += glm::length(glm::cross(tri.e1, tri.e2));
-                }
+    void set(const Discretization& disc, const Patch& patch) {
+        mTriangles.clear();
+        double sum = 0;
+        for (int e : patch.elements) {
+            const Element& el = disc.elements()[e];
+            const auto& pos = disc.objects()[el.object].worldPositions;
+            const Vec3& p0 = pos[el.vertices[0]];
+            for (std::size_t i = 1; i + 1 < el.vertices.size(); ++i) {
+                Triangle& tri = mTriangles.emplace_back();
+                tri.p0 = p0;
+                tri.e1 = pos[el.vertices[i]] - p0;
+                tri.e2 = pos[el.vertices[i + 1]] - p0;
+                tri.normal = el.normal;
+                tri.cumulative = sum += glm::length(glm::cross(tri.e1, tri.e2));
             }
-        });
+        }
     }
 
-    /// A uniform point of shooter k (three numbers of `rng`) and its surface normal.
-    void sample(std::size_t k, RayRandom& rng, Vec3& point, Vec3& normal) const {
-        const Triangle* first = mTriangles.data() + mStart[k];
-        const Triangle* last = mTriangles.data() + mStart[k + 1] - 1;
+    /// A uniform point of the patch (three numbers of `rng`) and its surface normal.
+    void sample(RayRandom& rng, Vec3& point, Vec3& normal) const {
+        const Triangle* t = mTriangles.data();
+        const Triangle* last = t + mTriangles.size() - 1;
         const double pick = rng.next() * last->cumulative;
-        const Triangle* t = first;
-        while (t < last && pick > t->cumulative) ++t;  // a patch holds a few triangles
+        while (t < last && pick > t->cumulative) ++t;
         const double s = std::sqrt(rng.next()), r2 = rng.next();
         point = t->p0 + (s * (1 - r2)) * t->e1 + (s * r2) * t->e2;
         normal = t->normal;
@@ -113,10 +102,9 @@ public:
 private:
     struct Triangle {
         Vec3 p0, e1, e2, normal;
-        double cumulative;  ///< doubled area of the shooter's triangles up to this one
+        double cumulative;  ///< doubled area of the patch's triangles up to this one
     };
     std::vector<Triangle> mTriangles;
-    std::vector<std::size_t> mStart;  ///< per shooter, its first triangle (and one past the end)
 };
 
 }  // namespace
@@ -184,7 +172,6 @@ struct ProgressiveSolver::Impl {
     std::vector<Rgb> shooterUnshot;  ///< their ΔB at the start of the batch
     std::vector<Received> rayHits;   ///< per ray: receiver element and its irradiance
     std::vector<Rgb> carriedPerRay;  ///< per shooter: what one of its rays carries
-    PatchSampler shooterPoints;      ///< uniform points of the shooters
     // receiveAll's scratch: entries bucketed by block of patches, in list order.
     std::vector<int> blockStart, bucketed;
     std::vector<std::vector<int>> blockTouched;
@@ -527,9 +514,9 @@ void ProgressiveSolver::shootStochasticBatch() {
             unshot[k] * (area * total / (static_cast<double>(rays) * energyKey(unshot[k], area)));
     }
     const double eps = mTracer.epsilon();
-    PatchSampler& points = mImpl->shooterPoints;
-    points.build(mDisc, shooters);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
+        thread_local PatchPoints points;
+        std::size_t current = shooters.size();  // none yet in this block
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
             hits[r].element = -1;
             RayRandom rng{hashPair(batchSeed, r)};
@@ -537,8 +524,9 @@ void ProgressiveSolver::shootStochasticBatch() {
             double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
             std::size_t k = std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin();
             k = std::min(k, cdf.size() - 1);
+            if (k != current) points.set(mDisc, patches[shooters[current = k]]);
             Vec3 origin, nz;
-            points.sample(k, rng, origin, nz);
+            points.sample(rng, origin, nz);
             Vec3 dir = cosineDirection(nz, rng);
             RayTracer::FirstHit hit = mTracer.firstHit(origin + nz * eps, dir);
             if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
@@ -1040,9 +1028,9 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     auto& out = mImpl->rayHits;
     out.assign(2 * rays, Received{});
     const double eps = mTracer.epsilon();
-    PatchSampler& points = mImpl->shooterPoints;
-    points.build(mDisc, shooters);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
+        thread_local PatchPoints points;
+        std::size_t current = shooters.size();  // none yet in this block
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
             RayRandom rng{hashPair(batchSeed, r)};
             double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
@@ -1053,8 +1041,9 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             const Patch& P = patches[j];
             const bool removed =
                 std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
+            if (pick != current) points.set(mDisc, P), current = pick;
             Vec3 origin, nz;
-            points.sample(pick, rng, origin, nz);
+            points.sample(rng, origin, nz);
             origin += nz * eps;
             // Direction: into the cones the changed objects' bounding spheres subtend (one
             // picked by solid angle; the density counts every cone holding the direction), or
