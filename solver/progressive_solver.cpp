@@ -270,15 +270,17 @@ bool ProgressiveSolver::shootsStochastically(double propagation) const {
     if (!(mOptions.stochasticBelow > 0) || !(mEmittedEnergy > 0) ||
         propagation >= mOptions.stochasticBelow * mEmittedEnergy)
         return false;
-    // Below the threshold, the stochastic batch takes over once it moves power for fewer rays
-    // than a deterministic shot: a shot of power Φ costs about the mean ray count of the
-    // deterministic shots so far, a batch raysPerEmittedPower × Φ / Φ_emitted rays. Small
+    // Below the threshold, the stochastic batch takes over once it moves power for less
+    // tracing than a deterministic shot: a shot of power Φ costs about the mean ray count of
+    // the deterministic shots so far, a batch hitRayCost × raysPerEmittedPower × Φ / Φ_emitted
+    // occlusion-ray equivalents (its rays are closest-hit rays). Small
     // scenes (few receivers) keep shooting deterministically a little longer; ray counts
     // follow from the geometry only, so the choice does not depend on the thread count.
     if (mImpl->deterministicShots == 0) return true;
     const double meanRays = static_cast<double>(mImpl->deterministicRays) /
                             static_cast<double>(mImpl->deterministicShots);
-    return propagation / mEmittedEnergy * mOptions.raysPerEmittedPower < meanRays;
+    return mOptions.hitRayCost * propagation / mEmittedEnergy * mOptions.raysPerEmittedPower <
+           meanRays;
 }
 
 std::uint64_t ProgressiveSolver::converge(double eps, std::uint64_t maxShots,

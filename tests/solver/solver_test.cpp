@@ -347,6 +347,7 @@ TEST(Solver, StochasticTailDoesNotDependOnThreadCount) {
     SolverOptions options = interactiveSolverOptions();
     options.stochasticBelow = 0.5;       // most of the solve is stochastic batches,
     options.raysPerEmittedPower = 2e5;  // cheaper than deterministic shots here
+    options.hitRayCost = 1.0;           // (counted ray for ray)
     auto solveWith = [&](std::size_t threads) {
         tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
         Solve s(scene, options);
