@@ -490,6 +490,20 @@ int main(int argc, char** argv) {
     benchDisplay->add_option("--plot-dir", display.plotDir,
                              "write display-cache.png / display-epi.png (same samples) here");
     benchDisplay->add_option("--json", display.jsonOut, "write every frame as JSON");
+    benchDisplay
+        ->add_option("--shadow-refine", display.shadowRefine,
+                     "display shader: adaptive shadow refinement factor (0 = off)")
+        ->check(CLI::Range(0, 64));
+    benchDisplay
+        ->add_option("--shadow-max-refined", display.shadowMaxRefined,
+                     "display shader: refined shadow strata per axis at most")
+        ->check(CLI::Range(1, 256));
+    benchDisplay
+        ->add_option("--shadow-decision", display.shadowDecision,
+                     "display shader: decision shadow rays per axis")
+        ->check(CLI::Range(1, 64));
+    benchDisplay->add_flag("--reference-check", display.referenceCheck,
+                           "render two converged references (different seeds): their noise");
 
     try {
         app.parse(argc, argv);

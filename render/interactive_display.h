@@ -108,6 +108,26 @@ struct InteractiveDisplayOptions {
     std::string toString() const;
 };
 
+/// How renderConvergedReference shades: far less noise than renderReference, at many times
+/// its cost (a reference for error figures, not for display).
+struct ConvergedReferenceOptions {
+    std::uint64_t seed = 1;      ///< sub-pixel jitter and shadow patterns (two seeds: its noise)
+    int samplesPerAxis = 2;      ///< jittered sub-pixel samples per axis everywhere
+    int edgeSamplesPerAxis = 8;  ///< jittered sub-pixel samples per axis on edge pixels
+    /// A pixel is an edge pixel when its samples' displayed values (sRGB, clipped to [0, 1])
+    /// spread by more than this in some channel, or when the last EPI (same size) marks it
+    /// simple or complex and useEpiEdges.
+    double edgeSpread = 0.04;
+    bool useEpiEdges = true;
+    /// Shadow sampling of the reference's shader (PointShaderOptions' fields); no clamping of
+    /// negative estimates, so the per-pixel means stay unbiased.
+    int maxStrataPerAxis = 4;
+    int shadowRefine = 4;
+    int shadowMaxRefinedPerAxis = 16;
+    int shadowDecisionPerAxis = 4;
+    std::string toString() const;
+};
+
 /// The display for one Discretization/RayTracer and the ProgressiveSolver over them. Not
 /// thread-safe: call everything from one (the render) thread. In asynchronous mode, the
 /// Discretization and RayTracer may only change while the shader is paused: hold
@@ -222,6 +242,16 @@ public:
     /// Every pixel shaded with the point shader: samplesPerAxis² samples per pixel on a
     /// regular sub-pixel grid, averaged (box filter). oneTBB over rows; deterministic.
     Image renderReference(const CameraRays& camera, int samplesPerAxis = 2) const;
+    /// A nearly converged reference for error figures: every pixel from options.samplesPerAxis²
+    /// jittered sub-pixel samples (box filter), edge pixels (see ConvergedReferenceOptions::
+    /// edgeSpread; with useEpiEdges the last build of epi() must be for `camera`) reshaded
+    /// with edgeSamplesPerAxis² jittered samples instead, all with a copy of the shader using
+    /// deep adaptive shadow sampling and no clamp of negative values. Pauses the shader while
+    /// it runs; oneTBB over rows; deterministic in (options, camera, display state).
+    Image renderConvergedReference(const CameraRays& camera,
+                                   const ConvergedReferenceOptions& options = {}) const;
+    /// Pixels the last renderConvergedReference reshaded as edge pixels.
+    std::size_t lastReferenceEdgePixels() const { return mLastReferenceEdgePixels; }
 
     PointShader& shader() { return *mShader; }
     const PointShader& shader() const { return *mShader; }
@@ -262,6 +292,7 @@ private:
     std::vector<ScreenEdge> mScreenEdges;
     std::size_t mInsertedSinceFrame = 0;  ///< points inserted since the last frame started
     DisplayFrameStats mLast;
+    mutable std::size_t mLastReferenceEdgePixels = 0;
 };
 
 /// Clips world edges to the camera's near plane (view depth ≥ nearPlane) and projects them to

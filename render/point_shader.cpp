@@ -874,14 +874,38 @@ Rgb PointShader::indirectIrradiance(int element, const std::vector<double>& weig
 
 namespace {
 
+/// How forEachLightSample chooses its shadow rays (PointShaderOptions' fields).
+struct ShadowSampling {
+    double formFactorPerRay = 2e-3;
+    int maxStrataPerAxis = 4;
+    int refine = 0;  ///< 0: plain estimator
+    int maxRefinedPerAxis = 16;
+    int decisionPerAxis = 4;
+};
+
+ShadowSampling shadowSamplingOf(const PointShaderOptions& o) {
+    return {o.formFactorPerRay, o.maxStrataPerAxis, o.shadowRefine, o.shadowMaxRefinedPerAxis,
+            o.shadowDecisionPerAxis};
+}
+
+// Stream tags of the adaptive sampler's extra patterns (independent of the plain pattern).
+constexpr std::uint64_t kDecisionStream = 0xDEC1DE5EEDull;
+constexpr std::uint64_t kRefinedStream = 0x5EF1AEDull;
+
 /// The stratified samples of every light seen from (x, n), Bala et al.'s area lights:
-/// `visit(light, from, to, kernel)` for each sample y (kernel = cosθ_x cosθ_y / (π r²)) returns
-/// whether the sample counts as blocked; `done(light, unoccluded F, blocked F)` then gets the
-/// light's totals. Both estimators below share this pattern, so their samples match.
+/// `visit(light, from, to)` for each sample y returns whether the sample counts as blocked;
+/// `done(light, unoccluded F, blocked F)` then gets the light's totals. The estimators below
+/// share this pattern, so their samples match (and, with adaptive sampling, so do their
+/// decisions wherever their visits agree).
+///
+/// Blocked part (unbiased): (A/N) Σ K(x, y_i)·(1 − V(x, y_i)), K = cosθ_x cosθ_y / (π r²).
+/// Adaptive (sampling.refine > 0): a decision set D, independent of the plain set P and of the
+/// refined set R, picks the estimator: P's when D's rays agree, R's (finer) otherwise. Since D
+/// is independent of both, E[estimate] = P(agree)·truth + P(disagree)·truth.
 template <class Lights, class Visit, class Done>
 void forEachLightSample(const Lights& lights, const Vec3& x, const Vec3& n, int receiver,
-                        std::uint64_t key, double eps, double formFactorPerRay,
-                        int maxStrataPerAxis, Visit&& visit, Done&& done) {
+                        std::uint64_t key, double eps, const ShadowSampling& sampling,
+                        Visit&& visit, Done&& done) {
     const double invPi = glm::one_over_pi<double>();
     const Vec3 from = x + n * eps;
     for (std::size_t l = 0; l < lights.size(); ++l) {
@@ -892,23 +916,46 @@ void forEachLightSample(const Lights& lights, const Vec3& x, const Vec3& n, int 
         for (const auto& poly : L.polygons) fUnoccluded += polygonFormFactor(x, n, poly);
         if (!(fUnoccluded > 0)) continue;
         // Strata by the light's projected solid angle.
-        int perAxis = static_cast<int>(std::ceil(std::sqrt(fUnoccluded / formFactorPerRay)));
-        perAxis = std::clamp(perAxis, 1, std::max(1, maxStrataPerAxis));
-        const int rays = perAxis * perAxis;
-        // Unbiased blocked part: (A/N) Σ K(x, y_i)·(1 − V(x, y_i)).
-        SampleRandom rng{hashPair(key, l)};
-        double blocked = 0;
-        for (int i = 0; i < rays; ++i) {
-            double r0 = rng.next(), r1 = rng.next();
-            Vec3 ny;
-            Vec3 y = L.sample(i, rays, perAxis, r0, r1, ny);
-            Vec3 d = y - x;
-            double r2 = glm::dot(d, d);
-            double cx = glm::dot(n, d), cy = -glm::dot(ny, d);
-            if (!(r2 > 0) || cx <= 0 || cy <= 0) continue;
-            if (visit(L, from, y + ny * eps)) blocked += cx * cy / (r2 * r2) * invPi;
+        int perAxis =
+            static_cast<int>(std::ceil(std::sqrt(fUnoccluded / sampling.formFactorPerRay)));
+        perAxis = std::clamp(perAxis, 1, std::max(1, sampling.maxStrataPerAxis));
+        // One stratified set of s² rays from `stream`: the blocked part's estimate, and (when
+        // asked) whether its rays agreed. Directions the light faces away from count as
+        // unblocked with no weight.
+        auto estimate = [&](int s, std::uint64_t stream, bool* agreed) {
+            const int rays = s * s;
+            SampleRandom rng{hashPair(key ^ stream, l)};
+            double blocked = 0;
+            int blockedRays = 0, tested = 0;
+            for (int i = 0; i < rays; ++i) {
+                double r0 = rng.next(), r1 = rng.next();
+                Vec3 ny;
+                Vec3 y = L.sample(i, rays, s, r0, r1, ny);
+                Vec3 d = y - x;
+                double r2 = glm::dot(d, d);
+                double cx = glm::dot(n, d), cy = -glm::dot(ny, d);
+                if (!(r2 > 0) || cx <= 0 || cy <= 0) continue;
+                ++tested;
+                if (visit(L, from, y + ny * eps)) {
+                    blocked += cx * cy / (r2 * r2) * invPi;
+                    ++blockedRays;
+                }
+            }
+            if (agreed) *agreed = blockedRays == 0 || blockedRays == tested;
+            return blocked * (L.area / rays);
+        };
+        if (sampling.refine > 0) {
+            bool agreed = true;
+            (void)estimate(std::max(1, sampling.decisionPerAxis), kDecisionStream, &agreed);
+            if (!agreed) {
+                // A penumbra: the finer set alone (the decision rays stay out of it).
+                const int fine = std::clamp(perAxis * sampling.refine, perAxis,
+                                            std::max(perAxis, sampling.maxRefinedPerAxis));
+                done(L, fUnoccluded, estimate(fine, kRefinedStream, nullptr));
+                continue;
+            }
         }
-        done(L, fUnoccluded, blocked * (L.area / rays));
+        done(L, fUnoccluded, estimate(perAxis, 0, nullptr));
     }
 }
 
@@ -918,8 +965,7 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
                             std::uint64_t key) const {
     Rgb total(0.0);
     forEachLightSample(
-        st.lights, x, n, receiver, key, mTracer.epsilon(), mOptions.formFactorPerRay,
-        mOptions.maxStrataPerAxis,
+        st.lights, x, n, receiver, key, mTracer.epsilon(), shadowSamplingOf(mOptions),
         [&](const Light& L, const Vec3& from, const Vec3& to) {
             const bool sceneBlocked = mTracer.occluded(from, to);
             if (!sceneBlocked && !previewBlocks(st, from, to)) return false;
@@ -936,7 +982,7 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
         },
         [&](const Light& L, double fUnoccluded, double fBlocked) {
             double f = fUnoccluded - fBlocked;
-            if (f > 0) total += L.emission * f;
+            if (f > 0 || !mOptions.clampNegative) total += L.emission * f;
         });
     return total;
 }
@@ -949,8 +995,7 @@ Rgb PointShader::blockedChange(const std::vector<Light>& lights, const Visibilit
     Rgb change(0.0);
     const Visibility scene(ignore);
     forEachLightSample(
-        lights, x, n, receiver, key, mTracer.epsilon(), mOptions.formFactorPerRay,
-        mOptions.maxStrataPerAxis,
+        lights, x, n, receiver, key, mTracer.epsilon(), shadowSamplingOf(mOptions),
         [&](const Light&, const Vec3& from, const Vec3& to) {
             return mTracer.occluded(from, to, blocker) && !mTracer.occluded(from, to, scene);
         },
@@ -966,8 +1011,7 @@ Rgb PointShader::emittedBy(const std::vector<Light>& lights, const Visibility& e
     const Visibility scene(ignore);
     const bool blocks = admitsSomething(extra);
     forEachLightSample(
-        lights, x, n, receiver, key, mTracer.epsilon(), mOptions.formFactorPerRay,
-        mOptions.maxStrataPerAxis,
+        lights, x, n, receiver, key, mTracer.epsilon(), shadowSamplingOf(mOptions),
         [&](const Light&, const Vec3& from, const Vec3& to) {
             return mTracer.occluded(from, to, scene) ||
                    (blocks && mTracer.occluded(from, to, extra));
@@ -1029,7 +1073,7 @@ ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request)
     } else if (hit.element < static_cast<int>(st.elementIndirect.size())) {
         h += st.elementIndirect[hit.element];
     }
-    h = glm::max(h, Rgb(0.0));
+    if (mOptions.clampNegative) h = glm::max(h, Rgb(0.0));
     const Rgb emission = hit.backFace ? Rgb(0.0) : material.emission;
     out.radiance = (emission + material.reflectance * h) * glm::one_over_pi<double>();
     return out;

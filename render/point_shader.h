@@ -97,6 +97,21 @@ struct PointShaderOptions {
     /// over π), s² rays on a jittered grid over the light.
     int maxStrataPerAxis = 4;
     double formFactorPerRay = 2e-3;
+    /// Adaptive shadow sampling (0 = off, the plain estimator above). Per light, a separate
+    /// decision set of shadowDecisionPerAxis² stratified rays is traced first; when its rays
+    /// all agree (all blocked or all unblocked) the plain estimate is used unchanged (bit for
+    /// bit the same as with adaptive sampling off), otherwise (a penumbra) the blocked part is
+    /// estimated from a fresh stratified set of s'² rays, s' = clamp(s·shadowRefine, s,
+    /// shadowMaxRefinedPerAxis). The decision rays never enter the estimate, so it stays
+    /// unbiased. Costs the decision rays for every lit sample: off for the interactive display,
+    /// deep for converged references.
+    int shadowRefine = 0;
+    int shadowMaxRefinedPerAxis = 16;
+    int shadowDecisionPerAxis = 4;
+    /// Clamp each light's estimate and the total irradiance at 0 (the display: no negative
+    /// radiance from the blocked-part estimate's noise). Off for converged references, where
+    /// the clamp's bias would not average away.
+    bool clampNegative = true;
     int threads = 2;     ///< worker threads for asynchronous shading
     int batchSize = 64;  ///< requests a worker takes at a time
     bool recordTriples = true;

@@ -49,6 +49,15 @@ struct DisplayBenchOptions {
     double warmup = 0.25;          ///< fraction of the pixels shaded before the first frame
     double degPerFrame = 0.5;      ///< camera orbit per frame
     int referenceSamples = 2;      ///< reference supersampling per axis
+    /// The display's adaptive shadow sampling (PointShaderOptions::shadowRefine, 0 = off,
+    /// shadowMaxRefinedPerAxis, shadowDecisionPerAxis); the converged reference always uses
+    /// its own deep setting.
+    int shadowRefine = 0;
+    int shadowMaxRefined = 16;
+    int shadowDecision = 4;
+    /// Also render a second converged reference with another seed and print their difference
+    /// (the reference's own noise) and noise-subtracted errors.
+    bool referenceCheck = false;
     std::string plotDir;  ///< writes display-{cache,epi,reference,edges}.png of the first case
     std::string jsonOut;
 };
