@@ -95,10 +95,19 @@ public:
 
     /// Silhouette edges (eq. 1, boundary edges included) of every live object from `eye`.
     std::vector<WorldEdge> findSilhouettes(const Vec3& eye) const;
+    /// The same silhouettes per object: `perObject` is resized to objectCount() and entry o
+    /// holds object o's silhouettes (empty when not alive) in findSilhouettes(eye)'s order, so
+    /// the lists concatenated are findSilhouettes(eye). Objects are queried in parallel
+    /// (oneTBB) unless `parallel` is false; the lists keep their allocations across calls.
+    void findSilhouettes(const Vec3& eye, std::vector<std::vector<WorldEdge>>& perObject,
+                         bool parallel = true) const;
     /// Every sharp edge (§6.2; boundary edges included) of every live object.
     std::vector<WorldEdge> findSharpEdges() const;
     /// The sharp edges with at least one front-facing adjacent face seen from `eye`.
     std::vector<WorldEdge> findSharpEdges(const Vec3& eye) const;
+    /// The same facing sharp edges per object, as the per-object findSilhouettes.
+    void findSharpEdges(const Vec3& eye, std::vector<std::vector<WorldEdge>>& perObject,
+                        bool parallel = true) const;
     /// Shadow edges of every live light. Each (light, blocker) pair keeps its events and, per
     /// event, the edges it casts (§6.5). A moved light or blocker recomputes the pair; a moved,
     /// added, removed or restored receiver recomputes only the events whose region it met
@@ -181,6 +190,11 @@ private:
         std::vector<unsigned> computedAt;
     };
     struct Counters;
+    /// Appends object `o`'s silhouettes from `eye` to `out`; `ids` is scratch.
+    void appendSilhouettes(int o, const Vec3& eye, std::vector<int>& ids,
+                           std::vector<WorldEdge>& out) const;
+    /// Appends object `o`'s sharp edges with a front-facing adjacent face seen from `eye`.
+    void appendFacingSharpEdges(int o, const Vec3& eye, std::vector<WorldEdge>& out) const;
     /// Rebuilds a pair's events, frames and boxes (not its edges).
     void computeEvents(int light, int blocker, Pair& pair) const;
     void computeEventBoxes(Pair& pair) const;

@@ -228,7 +228,8 @@ std::string EpiStageTimes::toString() const {
 std::string EpiOptions::toString() const {
     std::ostringstream out;
     out << "EpiOptions{cull " << cullOccludedEdges << " slack " << depthSlack << "+" << densitySlack
-        << " antiAlias " << antiAlias << " complexFilter " << complexFilter << "}";
+        << " antiAlias " << antiAlias << " complexFilter " << complexFilter << " shortcut "
+        << complexFilterShortcut << "}";
     return out.str();
 }
 
@@ -454,6 +455,32 @@ void EdgePointImage::filterDepth() {
 
 // ---- Edge rasterization (§4.5) ------------------------------------------------------------
 
+bool edgeMayMark(const ScreenEdge& e, int width, int height) {
+    // rasterizeEdge returns at once for non-finite endpoints.
+    if (!finite2(e.a) || !finite2(e.b)) return false;
+    const double xmin = std::min(e.a.x, e.b.x), xmax = std::max(e.a.x, e.b.x);
+    const double ymin = std::min(e.a.y, e.b.y), ymax = std::max(e.a.y, e.b.y);
+    // Lines y = k/2 crossed are k in [⌊2·ymin⌋ + 1, ⌊2·ymax⌋] (rasterizeEdge's kFirst, kLast
+    // before clamping), lines x = k/2 likewise: none when both ends share a half-pixel cell.
+    // (A degenerate edge is such a case.)
+    if (std::floor(2.0 * xmin) == std::floor(2.0 * xmax) &&
+        std::floor(2.0 * ymin) == std::floor(2.0 * ymax)) {
+        return false;
+    }
+    // Outside the image. Crossings of lines x = c have x exact and y = a.y + t·d.y with
+    // t in [0, 1] (the division of numbers ordered as c between the ends), so y lies between
+    // a.y and fl(a.y + fl(b.y − a.y)), within 4 ulp of max(|a.y|, |b.y|) of [ymin, ymax];
+    // crossings of lines y = c likewise in x. The slack covers that with a wide margin.
+    const double mag = std::max(std::max(std::abs(e.a.x), std::abs(e.b.x)),
+                                std::max(std::abs(e.a.y), std::abs(e.b.y)));
+    const double slack = 1e-6 + 1e-9 * mag;
+    // Marks need x in [0, W) on lines y = c (vertical lines k/2 for k in [0, 2W]) and y in
+    // [0, H] on lines x = c (horizontal lines k/2 for k in [0, 2H]).
+    if (xmax < -slack || xmin > width + slack) return false;
+    if (ymax < -slack || ymin > height + slack) return false;
+    return true;
+}
+
 void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
     // Rows are split into bands; each band owns the boundary lines of its rows (horizontal
     // lines y = k/2 with ⌊k/2⌋ in the band, the last band also y = H; vertical crossings in
@@ -577,8 +604,8 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
         const double ymin = std::min(e.a.y, e.b.y);
         const double ymax = std::max(e.a.y, e.b.y);
         // Clamped in floating point first: huge coordinates must not overflow int.
-        const double kFirst = std::clamp(std::floor(2.0 * ymin) + 1.0, 0.0, 2.0 * H + 1.0);
-        const double kLast = std::clamp(std::floor(2.0 * ymax), -1.0, 2.0 * H);
+        const double kFirst = std::clamp(detail::floorExact(2.0 * ymin) + 1.0, 0.0, 2.0 * H + 1.0);
+        const double kLast = std::clamp(detail::floorExact(2.0 * ymax), -1.0, 2.0 * H);
         // This band's lines only.
         const int k0 = std::max(static_cast<int>(kFirst), 2 * rowLo);
         const int k1 = std::min(static_cast<int>(kLast), kLineHi);
@@ -587,7 +614,7 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
             const double t = (c - e.a.y) / d.y;
             const double x = e.a.x + t * d.x;
             if (!(x >= 0.0 && x < W)) continue;
-            const int q = static_cast<int>(std::floor(x * 8.0));
+            const int q = static_cast<int>(detail::floorExact(x * 8.0));
             const int i = q >> 3;
             if (occluded(t, x, std::min(c, H - 0.5))) continue;
             const uint8_t bit = static_cast<uint8_t>(1u << (q & 7));
@@ -604,8 +631,8 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
         const double xmax = std::max(e.a.x, e.b.x);
         const bool descendsRight = d.x * d.y > 0.0;
         // Clamped in floating point first: huge coordinates must not overflow int.
-        const double kFirst = std::clamp(std::floor(2.0 * xmin) + 1.0, 0.0, 2.0 * W + 1.0);
-        const double kLast = std::clamp(std::floor(2.0 * xmax), -1.0, 2.0 * W);
+        const double kFirst = std::clamp(detail::floorExact(2.0 * xmin) + 1.0, 0.0, 2.0 * W + 1.0);
+        const double kLast = std::clamp(detail::floorExact(2.0 * xmax), -1.0, 2.0 * W);
         int k0 = static_cast<int>(kFirst);
         int k1 = static_cast<int>(kLast);
         if (d.y != 0.0 && (rowLo > 0 || rowHi < H) && std::abs(d.y) > 1e-9 * std::abs(d.x)) {
@@ -614,10 +641,10 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
             const double xa = e.a.x + (rowLo - 1.0 - e.a.y) / d.y * d.x;
             const double xb = e.a.x + (rowHi + 1.0 - e.a.y) / d.y * d.x;
             if (std::isfinite(xa) && std::isfinite(xb)) {
-                const double lo =
-                    std::clamp(std::floor(2.0 * std::min(xa, xb)) - 1.0, -1.0, 2.0 * W + 1.0);
-                const double hi =
-                    std::clamp(std::floor(2.0 * std::max(xa, xb)) + 2.0, -1.0, 2.0 * W + 1.0);
+                const double lo = std::clamp(detail::floorExact(2.0 * std::min(xa, xb)) - 1.0, -1.0,
+                                             2.0 * W + 1.0);
+                const double hi = std::clamp(detail::floorExact(2.0 * std::max(xa, xb)) + 2.0, -1.0,
+                                             2.0 * W + 1.0);
                 k0 = std::max(k0, static_cast<int>(lo));
                 k1 = std::min(k1, static_cast<int>(hi));
             }
@@ -628,7 +655,7 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
             const double y = e.a.y + t * d.y;
             if (!(y >= 0.0 && y <= H)) continue;
             const double q8 = y * 8.0;
-            int q = static_cast<int>(std::floor(q8));
+            int q = static_cast<int>(detail::floorExact(q8));
             if (descendsRight && q8 == q) --q;
             if (q < 0 || q >= 8 * H) continue;
             const int j = q >> 3;
@@ -713,6 +740,11 @@ std::array<uint8_t, 4> EdgePointImage::boundaryMasks(int x, int y) const {
             mVertical[static_cast<size_t>(y) * (mWidth + 1) + x + 1],
             mHorizontal[static_cast<size_t>(y + 1) * mWidth + x],
             mVertical[static_cast<size_t>(y) * (mWidth + 1) + x]};
+}
+
+std::array<uint8_t, 2> EdgePointImage::halfLineMasks(int x, int y) const {
+    return {mHorizontalMid[static_cast<size_t>(y) * mWidth + x],
+            mVerticalMid[static_cast<size_t>(y) * mWidth + x]};
 }
 
 size_t EdgePointImage::countPixels(PixelClass c) const { return mPixelCounts[static_cast<int>(c)]; }
@@ -1140,6 +1172,35 @@ void EdgePointImage::filterComplexPixels(Image& out) {
     });
 
     auto filterPixel = [&](int pixel) {
+        if (mOptions.complexFilterShortcut) {
+            // No sample in the 3×3 neighbourhood: every region below keeps the estimate; the
+            // same sums in the same order as the general loop at the end.
+            const int cx = pixel % W, cy = pixel / W;
+            bool anySample = false;
+            for (int py = std::max(0, cy - 1); py <= std::min(H - 1, cy + 1); ++py)
+                for (int px = std::max(0, cx - 1); px <= std::min(W - 1, cx + 1); ++px)
+                    anySample |= mSamplePos[index(px, py)] != 0xFF;
+            if (!anySample) {
+                const glm::vec3 estimate = mPrimary[pixel];
+                glm::vec3 total(0.0f);
+                for (int s = 0; s < 4; ++s) {
+                    const uint8_t type = mSubType[4 * static_cast<size_t>(pixel) + s];
+                    if (type == kNeighbourTypeComplex) {
+                        total += 0.25f * estimate;
+                        continue;
+                    }
+                    const int regions = type == kNeighbourTypeEmpty ? 1 : 2;
+                    const float area0 =
+                        sub.region0Area[mSubCode[4 * static_cast<size_t>(pixel) + s]];
+                    for (int r = 0; r < regions; ++r) {
+                        const float area = regions == 1 ? 1.0f : (r == 0 ? area0 : 1.0f - area0);
+                        total += 0.25f * area * estimate;
+                    }
+                }
+                out.at(cx, cy) = Rgb(total);
+                return;
+            }
+        }
         const int x = pixel % W;
         const int y = pixel / W;
         const glm::vec3 estimate = mPrimary[pixel];

@@ -68,6 +68,10 @@ struct EpiOptions {
     double densitySlack = 0.25;
     bool antiAlias = true;      ///< §5.3 anti-aliasing of simple pixels
     bool complexFilter = true;  ///< §5.4 subpixel filter for complex pixels
+    /// §5.4: a complex pixel with no point in its 3×3 neighbourhood takes its regions' sums of
+    /// the estimate directly; false runs the general filter for it (the reference, equal bit
+    /// for bit).
+    bool complexFilterShortcut = true;
     /// Build and reconstruct on oneTBB (bands and rows); false runs every stage serially, the
     /// reference the parallel stages must equal bit for bit.
     bool parallel = true;
@@ -129,6 +133,9 @@ public:
     /// 8-bit intersection masks of the pixel's top, right, bottom and left boundary
     /// segments, bit k = k-th eighth along +x (horizontal) or +y (vertical).
     std::array<uint8_t, 4> boundaryMasks(int x, int y) const;
+    /// 8-bit intersection masks of the pixel's half-pixel lines (§5.4): the horizontal line
+    /// y + ½ and the vertical line x + ½, bits as boundaryMasks'.
+    std::array<uint8_t, 2> halfLineMasks(int x, int y) const;
 
     /// §5.2 reachability from pixel (x, y) to each pixel of its 5×5 neighbourhood, by
     /// neighbour lookups, chaining and combining outward from the centre: 4-bit masks
@@ -233,5 +240,26 @@ private:
     std::vector<uint16_t> mSubCode;   ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
     std::vector<uint8_t> mSubType;    ///< §5.4 scratch: their neighbour types
 };
+
+/// False only when EdgePointImage::build() would record no intersection of `e` with any
+/// boundary or half-pixel line of a width × height image, whatever the points: an endpoint is
+/// not finite, both endpoints lie in one half-pixel cell (no line x = k/2 or y = k/2 between
+/// them), or the edge lies wholly left of, right of, above or below the image (with a slack
+/// beyond the rounding of the rasterizer's crossing coordinates). Dropping such edges before
+/// build() leaves every mask, code, culled count and reconstructed pixel unchanged.
+bool edgeMayMark(const ScreenEdge& e, int width, int height);
+
+namespace detail {
+
+/// std::floor(v), equal bit for bit for every double (−0.0 and integers come back as they
+/// are, NaN and infinities unchanged), without a libm call: truncation and a correction for
+/// |v| < 2^52, where larger magnitudes are integral already. The rasterizer's floor.
+inline double floorExact(double v) {
+    if (!(v > -4503599627370496.0 && v < 4503599627370496.0)) return v;
+    const double t = static_cast<double>(static_cast<long long>(v));
+    return t > v ? t - 1.0 : (t == v ? v : t);
+}
+
+}  // namespace detail
 
 }  // namespace penumbra

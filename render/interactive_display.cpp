@@ -197,15 +197,15 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
 
     // Edges (§6): silhouettes and forward-facing sharp edges per frame, shadow edges kept until
     // something changes; then clip and project.
-    std::vector<WorldEdge> world;
     if (useEdges) {
         t = Clock::now();
         const Vec3 eye = camera.origin();
-        world = mEdges.findSilhouettes(eye);
-        st.silhouetteEdges = world.size();
-        std::vector<WorldEdge> sharp = mEdges.findSharpEdges(eye);
-        st.sharpEdges = sharp.size();
-        world.insert(world.end(), sharp.begin(), sharp.end());
+        // Per object in parallel, into lists kept across frames.
+        mEdges.findSilhouettes(eye, mSilhouettes);
+        mEdges.findSharpEdges(eye, mSharpEdges);
+        st.silhouetteEdges = st.sharpEdges = 0;
+        for (const auto& list : mSilhouettes) st.silhouetteEdges += list.size();
+        for (const auto& list : mSharpEdges) st.sharpEdges += list.size();
         st.times.silhouetteMs = msSince(t);
         if (mOptions.shadowEdges) {
             t = Clock::now();
@@ -216,10 +216,16 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
                 st.times.shadowMs = mLastShadowUpdateMs;
             }
             st.shadowEdges = mShadowEdges.size();
-            world.insert(world.end(), mShadowEdges.begin(), mShadowEdges.end());
         }
+        // Silhouettes, sharp edges and shadow edges projected in that order (findSilhouettes,
+        // findSharpEdges, mShadowEdges concatenated), less the edges that cannot mark the EPI.
         t = Clock::now();
-        mScreenEdges = projectEdges(world, camera, mOptions.nearPlane);
+        std::vector<const std::vector<WorldEdge>*> lists;
+        lists.reserve(mSilhouettes.size() + mSharpEdges.size() + 1);
+        for (const auto& list : mSilhouettes) lists.push_back(&list);
+        for (const auto& list : mSharpEdges) lists.push_back(&list);
+        if (mOptions.shadowEdges) lists.push_back(&mShadowEdges);
+        projectEpiEdges(lists, camera, mOptions.nearPlane, mScreenEdges, mProjectScratch);
         st.times.projectMs = msSince(t);
         st.times.findEdgesMs = st.times.silhouetteMs + st.times.shadowMs + st.times.projectMs;
     } else {
@@ -641,34 +647,91 @@ std::string ConvergedReferenceOptions::toString() const {
 // ---------------------------------------------------------------------------------------------
 // projectEdges
 
+namespace {
+
+/// One edge of projectEdges: false when it is dropped (behind the near plane or not
+/// projectable).
+bool projectEdge(const WorldEdge& e, const CameraRays& camera, double nearPlane, ScreenEdge& out) {
+    const Vec3 o = camera.origin(), f = camera.forward();
+    Vec3 a = e.a, b = e.b;
+    double da = glm::dot(a - o, f), db = glm::dot(b - o, f);
+    if (!(da >= nearPlane) && !(db >= nearPlane)) return false;  // behind (or NaN)
+    // Clip the part in front of the near plane.
+    if (da < nearPlane) {
+        a = a + (b - a) * ((nearPlane - da) / (db - da));
+        da = nearPlane;
+    } else if (db < nearPlane) {
+        b = b + (a - b) * ((nearPlane - db) / (da - db));
+        db = nearPlane;
+    }
+    auto pa = camera.projectToPixel(a), pb = camera.projectToPixel(b);
+    if (!pa || !pb) return false;
+    out.a = *pa;
+    out.b = *pb;
+    out.depthA = da;
+    out.depthB = db;
+    out.kind = screenKind(e.kind);
+    return true;
+}
+
+}  // namespace
+
 std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const CameraRays& camera,
                                      double nearPlane) {
-    const Vec3 o = camera.origin(), f = camera.forward();
     std::vector<ScreenEdge> out;
     out.reserve(edges.size());
-    for (const WorldEdge& e : edges) {
-        Vec3 a = e.a, b = e.b;
-        double da = glm::dot(a - o, f), db = glm::dot(b - o, f);
-        if (!(da >= nearPlane) && !(db >= nearPlane)) continue;  // behind (or NaN)
-        // Clip the part in front of the near plane.
-        if (da < nearPlane) {
-            a = a + (b - a) * ((nearPlane - da) / (db - da));
-            da = nearPlane;
-        } else if (db < nearPlane) {
-            b = b + (a - b) * ((nearPlane - db) / (da - db));
-            db = nearPlane;
-        }
-        auto pa = camera.projectToPixel(a), pb = camera.projectToPixel(b);
-        if (!pa || !pb) continue;
-        ScreenEdge s;
-        s.a = *pa;
-        s.b = *pb;
-        s.depthA = da;
-        s.depthB = db;
-        s.kind = screenKind(e.kind);
-        out.push_back(s);
-    }
+    ScreenEdge s;
+    for (const WorldEdge& e : edges)
+        if (projectEdge(e, camera, nearPlane, s)) out.push_back(s);
     return out;
+}
+
+void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
+                     const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
+                     std::vector<ScreenEdge>& scratch, bool parallel) {
+    const int W = camera.width(), H = camera.height();
+    // Global index n of the concatenation: list l holds [listStart[l], listStart[l + 1]).
+    std::vector<std::size_t> listStart(lists.size() + 1, 0);
+    for (std::size_t l = 0; l < lists.size(); ++l)
+        listStart[l + 1] = listStart[l] + lists[l]->size();
+    const std::size_t total = listStart.back();
+    constexpr std::size_t kChunk = 4096;
+    const std::size_t chunks = (total + kChunk - 1) / kChunk;
+    // Each chunk projects its edges into its own stretch of `scratch`, kept ones first.
+    scratch.resize(total);
+    std::vector<std::size_t> kept(chunks + 1, 0);
+    auto project = [&](std::size_t c) {
+        const std::size_t lo = c * kChunk, hi = std::min(total, lo + kChunk);
+        std::size_t l = static_cast<std::size_t>(
+            std::upper_bound(listStart.begin(), listStart.end(), lo) - listStart.begin() - 1);
+        std::size_t m = lo;
+        for (std::size_t n = lo; n < hi; ++n) {
+            while (n >= listStart[l + 1]) ++l;
+            ScreenEdge& s = scratch[m];
+            if (projectEdge((*lists[l])[n - listStart[l]], camera, nearPlane, s) &&
+                edgeMayMark(s, W, H)) {
+                ++m;
+            }
+        }
+        kept[c + 1] = m - lo;
+    };
+    if (parallel) {
+        tbb::parallel_for(std::size_t(0), chunks, project);
+    } else {
+        for (std::size_t c = 0; c < chunks; ++c) project(c);
+    }
+    // Offsets, then the kept edges of each chunk at its offset, in input order.
+    for (std::size_t c = 0; c < chunks; ++c) kept[c + 1] += kept[c];
+    out.resize(kept[chunks]);
+    auto gather = [&](std::size_t c) {
+        std::copy_n(scratch.begin() + static_cast<std::ptrdiff_t>(c * kChunk),
+                    kept[c + 1] - kept[c], out.begin() + static_cast<std::ptrdiff_t>(kept[c]));
+    };
+    if (parallel) {
+        tbb::parallel_for(std::size_t(0), chunks, gather);
+    } else {
+        for (std::size_t c = 0; c < chunks; ++c) gather(c);
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

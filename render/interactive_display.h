@@ -70,7 +70,8 @@ struct DisplayFrameStats {
     std::size_t silhouetteEdges = 0;  ///< world edges found this frame
     std::size_t sharpEdges = 0;
     std::size_t shadowEdges = 0;
-    std::size_t screenEdges = 0;  ///< after near-plane clipping
+    std::size_t screenEdges =
+        0;  ///< after near-plane clipping, less those that cannot mark the EPI
     std::size_t visiblePoints = 0;
     std::size_t newSamples = 0;        ///< points inserted for this frame (shaded since last)
     double newSampleFraction = 0;      ///< newSamples / pixels
@@ -289,8 +290,11 @@ private:
     std::vector<WorldEdge> mShadowEdges;  ///< cached world shadow edges
     bool mShadowsStale = true;
     double mLastShadowUpdateMs = 0;
-    std::vector<ScreenEdge> mScreenEdges;
-    std::size_t mInsertedSinceFrame = 0;  ///< points inserted since the last frame started
+    std::vector<ScreenEdge> mScreenEdges;  ///< the last frame's edges that may mark the EPI
+    /// Per object: the last frame's silhouettes and facing sharp edges (allocations reused).
+    std::vector<std::vector<WorldEdge>> mSilhouettes, mSharpEdges;
+    std::vector<ScreenEdge> mProjectScratch;  ///< projectEpiEdges' working space
+    std::size_t mInsertedSinceFrame = 0;      ///< points inserted since the last frame started
     DisplayFrameStats mLast;
     mutable std::size_t mLastReferenceEdgePixels = 0;
 };
@@ -300,6 +304,15 @@ private:
 /// Segments entirely behind the plane are dropped.
 std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const CameraRays& camera,
                                      double nearPlane = 1e-3);
+
+/// projectEdges over the concatenation of `*lists[0]`, `*lists[1]`, … less the edges
+/// edgeMayMark() rejects for the camera's raster, in input order, into `out` (overwritten;
+/// allocations kept, as `scratch`'s, working space). An EdgePointImage of the camera's size
+/// built from `out` equals one built from projectEdges' result bit for bit. Chunks of edges in
+/// parallel (oneTBB) unless `parallel` is false.
+void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
+                     const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
+                     std::vector<ScreenEdge>& scratch, bool parallel = true);
 
 /// Root mean square difference over all pixels and channels (linear values). Throws
 /// std::invalid_argument when the sizes differ.

@@ -152,3 +152,73 @@ TEST(EdgeFinder, MovedObjectKeepsItsTreeAndMovesItsEdges) {
     EXPECT_EQ(ofVersion, boxB.size());
     EXPECT_EQ(ofDead, 0u);
 }
+
+namespace {
+
+/// a and b equal field by field, positions bit for bit.
+::testing::AssertionResult sameEdges(const std::vector<WorldEdge>& a,
+                                     const std::vector<WorldEdge>& b) {
+    if (a.size() != b.size())
+        return ::testing::AssertionFailure() << a.size() << " vs " << b.size() << " edges";
+    for (std::size_t k = 0; k < a.size(); ++k) {
+        const WorldEdge &x = a[k], &y = b[k];
+        if (x.a != y.a || x.b != y.b || x.kind != y.kind || x.object != y.object ||
+            x.edge != y.edge || x.light != y.light || x.blocker != y.blocker)
+            return ::testing::AssertionFailure()
+                   << "edge " << k << ": " << x.toString() << " vs " << y.toString();
+    }
+    return ::testing::AssertionSuccess();
+}
+
+std::vector<WorldEdge> concatenated(const std::vector<std::vector<WorldEdge>>& lists) {
+    std::vector<WorldEdge> out;
+    for (const auto& list : lists) out.insert(out.end(), list.begin(), list.end());
+    return out;
+}
+
+}  // namespace
+
+TEST(EdgeFinder, PerObjectParallelSilhouettesAndSharpEdgesEqualTheSerialLists) {
+    // Many objects (copies of the primitives, moved), one of them not alive.
+    Scene scene = primitives();
+    const std::size_t base = scene.objects.size();
+    for (int copy = 1; copy < 6; ++copy)
+        for (std::size_t o = 0; o < base; ++o) {
+            SceneObject obj = scene.objects[o];
+            obj.id.append("-").append(std::to_string(copy));
+            obj.transform.translate += Vec3(0.7 * copy, 0.1 * copy, -0.4 * copy);
+            obj.transform.rotateDeg += Vec3(7.0 * copy, 11.0 * copy, 0.0);
+            scene.objects.push_back(obj);
+        }
+    Discretization disc(scene);
+    EdgeFinder finder(disc);
+    ASSERT_EQ(finder.objectCount(), static_cast<int>(scene.objects.size()));
+    finder.setObjectAlive(4, false);
+    std::mt19937 rng(8);
+    std::uniform_real_distribution<double> u(-3, 3);
+    // Lists reused across calls (stale content from a previous eye and an oversized list).
+    std::vector<std::vector<WorldEdge>> silParallel(40), silSerial, sharpParallel, sharpSerial;
+    silParallel[3].resize(7);
+    int silhouettes = 0, sharp = 0;
+    for (int i = 0; i < 12; ++i) {
+        const Vec3 eye(u(rng), std::abs(u(rng)) + 0.05, u(rng));
+        finder.findSilhouettes(eye, silParallel);
+        finder.findSilhouettes(eye, silSerial, false);
+        finder.findSharpEdges(eye, sharpParallel);
+        finder.findSharpEdges(eye, sharpSerial, false);
+        ASSERT_EQ(silParallel.size(), scene.objects.size());
+        EXPECT_TRUE(silParallel[4].empty() && sharpParallel[4].empty()) << "not alive";
+        for (std::size_t o = 0; o < silParallel.size(); ++o)
+            for (const WorldEdge& w : silParallel[o]) EXPECT_EQ(w.object, static_cast<int>(o));
+        const std::vector<WorldEdge> reference = finder.findSilhouettes(eye);
+        EXPECT_TRUE(sameEdges(concatenated(silParallel), reference)) << "eye " << i;
+        EXPECT_TRUE(sameEdges(concatenated(silSerial), reference)) << "eye " << i;
+        const std::vector<WorldEdge> sharpReference = finder.findSharpEdges(eye);
+        EXPECT_TRUE(sameEdges(concatenated(sharpParallel), sharpReference)) << "eye " << i;
+        EXPECT_TRUE(sameEdges(concatenated(sharpSerial), sharpReference)) << "eye " << i;
+        silhouettes += static_cast<int>(reference.size());
+        sharp += static_cast<int>(sharpReference.size());
+    }
+    EXPECT_GT(silhouettes, 1000);
+    EXPECT_GT(sharp, 100);
+}

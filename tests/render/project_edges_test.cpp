@@ -1,0 +1,100 @@
+// projectEpiEdges against its reference: the serial projectEdges of the concatenated lists,
+// less the edges edgeMayMark() rejects, field by field and bit for bit; and the EPI built from
+// either list, identical.
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <vector>
+
+#include "render/interactive_display.h"
+
+namespace penumbra {
+namespace {
+
+bool sameScreenEdge(const ScreenEdge& x, const ScreenEdge& y) {
+    return x.a == y.a && x.b == y.b && x.depthA == y.depthA && x.depthB == y.depthB &&
+           x.kind == y.kind;
+}
+
+TEST(ProjectEdges, ParallelProjectionEqualsTheSerialOneLessUnmarkableEdges) {
+    Camera c;
+    c.position = Vec3(0.3, 1.2, 2.0);
+    c.lookAt = Vec3(0.0, 0.5, -1.0);
+    c.up = Vec3(0, 1, 0);
+    c.fovDeg = 55;
+    const int W = 203, H = 157;
+    const CameraRays camera(c, W, H);
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    // Lists of uneven sizes (empty ones too, one longer than a chunk): edges all around the
+    // camera (behind it, across the near plane, off to the sides), most of them tiny as the
+    // silhouettes of fine meshes, some long.
+    std::vector<std::vector<WorldEdge>> lists(9);
+    const int sizes[9] = {0, 3000, 1, 0, 9000, 250, 0, 4097, 20};
+    for (int l = 0; l < 9; ++l)
+        for (int k = 0; k < sizes[l]; ++k) {
+            WorldEdge e;
+            e.a = Vec3(u(rng) * 8 - 4, u(rng) * 4 - 1, u(rng) * 9 - 6);
+            const double len = u(rng) < 0.8 ? 0.01 : u(rng) < 0.5 ? 0.2 : 5.0;
+            e.b = e.a + len * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+            e.kind = l % 3 == 0   ? EdgeKind::Silhouette
+                     : l % 3 == 1 ? EdgeKind::Sharp
+                                  : EdgeKind::Shadow;
+            e.object = l;
+            lists[l].push_back(e);
+        }
+    std::vector<const std::vector<WorldEdge>*> pointers;
+    std::vector<WorldEdge> all;
+    for (const auto& list : lists) {
+        pointers.push_back(&list);
+        all.insert(all.end(), list.begin(), list.end());
+    }
+    const double near = 0.05;
+    const std::vector<ScreenEdge> projected = projectEdges(all, camera, near);
+    std::vector<ScreenEdge> expected;
+    for (const ScreenEdge& s : projected)
+        if (edgeMayMark(s, W, H)) expected.push_back(s);
+    ASSERT_LT(projected.size(), all.size()) << "some edges must lie behind the camera";
+    ASSERT_LT(expected.size(), projected.size() * 3 / 4) << "most must be unmarkable";
+    ASSERT_GT(expected.size(), 1000u);
+
+    // Output and scratch reused with stale content, parallel and serial.
+    std::vector<ScreenEdge> out(5), scratch(70000);
+    for (bool parallel : {true, false, true}) {
+        projectEpiEdges(pointers, camera, near, out, scratch, parallel);
+        ASSERT_EQ(out.size(), expected.size()) << "parallel " << parallel;
+        int differing = 0;
+        for (std::size_t k = 0; k < out.size(); ++k)
+            differing += !sameScreenEdge(out[k], expected[k]);
+        EXPECT_EQ(differing, 0) << "parallel " << parallel;
+    }
+
+    // The EPI of the kept edges equals the EPI of every projected edge.
+    std::vector<ScreenPoint> points;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            if (u(rng) < 0.5) {
+                ScreenPoint p;
+                p.position = {x + u(rng), y + u(rng)};
+                p.depth = 1.0 + 6.0 * u(rng);
+                p.colour = Rgb(u(rng), 0.4, u(rng));
+                points.push_back(p);
+            }
+    EdgePointImage full(W, H), fast(W, H);
+    full.build(projected, points);
+    fast.build(out, points);
+    EXPECT_GT(full.countPixels(PixelClass::Simple) + full.countPixels(PixelClass::Complex), 500u);
+    EXPECT_EQ(full.culledIntersections(), fast.culledIntersections());
+    int differing = 0;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            differing += !(full.boundaryMasks(x, y) == fast.boundaryMasks(x, y) &&
+                           full.halfLineMasks(x, y) == fast.halfLineMasks(x, y) &&
+                           full.edgeCode(x, y) == fast.edgeCode(x, y));
+    EXPECT_EQ(differing, 0);
+    EXPECT_EQ(full.reconstruct(true).pixels, fast.reconstruct(true).pixels);
+}
+
+}  // namespace
+}  // namespace penumbra
