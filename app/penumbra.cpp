@@ -504,6 +504,8 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(1, 64));
     benchDisplay->add_flag("--reference-check", display.referenceCheck,
                            "render two converged references (different seeds): their noise");
+    benchDisplay->add_flag("--no-converged-reference", display.skipConvergedReference,
+                           "errors against the plain reference only (no converged one)");
 
     try {
         app.parse(argc, argv);
