@@ -463,8 +463,9 @@ bool edgeMayMark(const ScreenEdge& e, int width, int height) {
     // Lines y = k/2 crossed are k in [⌊2·ymin⌋ + 1, ⌊2·ymax⌋] (rasterizeEdge's kFirst, kLast
     // before clamping), lines x = k/2 likewise: none when both ends share a half-pixel cell.
     // (A degenerate edge is such a case.)
-    if (std::floor(2.0 * xmin) == std::floor(2.0 * xmax) &&
-        std::floor(2.0 * ymin) == std::floor(2.0 * ymax)) {
+    // (floorExact is std::floor bit for bit, without the libm call.)
+    if (detail::floorExact(2.0 * xmin) == detail::floorExact(2.0 * xmax) &&
+        detail::floorExact(2.0 * ymin) == detail::floorExact(2.0 * ymax)) {
         return false;
     }
     // Outside the image. Crossings of lines x = c have x exact and y = a.y + t·d.y with
