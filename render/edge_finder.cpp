@@ -16,6 +16,19 @@ namespace {
 
 Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
+/// Mesh edge `id` of object `o` in world space.
+WorldEdge meshWorldEdge(const Mat4& worldFromObject, const EdgeMesh& mesh, int id, EdgeKind kind,
+                        int o) {
+    const MeshEdge& e = mesh.edges()[id];
+    WorldEdge w;
+    w.a = apply(worldFromObject, mesh.positions()[e.v0]);
+    w.b = apply(worldFromObject, mesh.positions()[e.v1]);
+    w.kind = kind;
+    w.object = o;
+    w.edge = id;
+    return w;
+}
+
 /// Box–event tolerance relative to the box diagonal (reference mode): below ReceiverTree's
 /// face tolerance, so a box rejected here holds no face that would cross.
 constexpr double kTouchEps = 1e-12;
@@ -166,16 +179,8 @@ void EdgeFinder::appendSilhouettes(int o, const Vec3& eye, std::vector<int>& ids
     obj.tree->findSilhouettes(apply(obj.objectFromWorld, eye), ids);
     const EdgeMesh& mesh = obj.tree->mesh();
     out.reserve(out.size() + ids.size());
-    for (int id : ids) {
-        const MeshEdge& e = mesh.edges()[id];
-        WorldEdge w;
-        w.a = apply(obj.worldFromObject, mesh.positions()[e.v0]);
-        w.b = apply(obj.worldFromObject, mesh.positions()[e.v1]);
-        w.kind = EdgeKind::Silhouette;
-        w.object = o;
-        w.edge = id;
-        out.push_back(w);
-    }
+    for (int id : ids)
+        out.push_back(meshWorldEdge(obj.worldFromObject, mesh, id, EdgeKind::Silhouette, o));
 }
 
 std::vector<WorldEdge> EdgeFinder::findSilhouettes(const Vec3& eye) const {
@@ -211,16 +216,8 @@ std::vector<WorldEdge> EdgeFinder::findSharpEdges() const {
         const Object& obj = mObjects[o];
         if (!obj.alive) continue;
         const EdgeMesh& mesh = obj.tree->mesh();
-        for (int id : mesh.sharpEdges()) {
-            const MeshEdge& e = mesh.edges()[id];
-            WorldEdge w;
-            w.a = apply(obj.worldFromObject, mesh.positions()[e.v0]);
-            w.b = apply(obj.worldFromObject, mesh.positions()[e.v1]);
-            w.kind = EdgeKind::Sharp;
-            w.object = o;
-            w.edge = id;
-            out.push_back(w);
-        }
+        for (int id : mesh.sharpEdges())
+            out.push_back(meshWorldEdge(obj.worldFromObject, mesh, id, EdgeKind::Sharp, o));
     }
     return out;
 }
@@ -238,13 +235,7 @@ void EdgeFinder::appendFacingSharpEdges(int o, const Vec3& eye, std::vector<Worl
     for (int id : mesh.sharpEdges()) {
         const MeshEdge& e = mesh.edges()[id];
         if (!(obj.twoSided || front(e.f0) || front(e.f1))) continue;
-        WorldEdge w;
-        w.a = apply(obj.worldFromObject, mesh.positions()[e.v0]);
-        w.b = apply(obj.worldFromObject, mesh.positions()[e.v1]);
-        w.kind = EdgeKind::Sharp;
-        w.object = o;
-        w.edge = id;
-        out.push_back(w);
+        out.push_back(meshWorldEdge(obj.worldFromObject, mesh, id, EdgeKind::Sharp, o));
     }
 }
 
