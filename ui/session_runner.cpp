@@ -464,17 +464,36 @@ bool SessionRunner::renderIteration() {
     }
     const int w = std::max(1, view.width / d), h = std::max(1, view.height / d);
 
+    // A drag appends a version (its elements) before the solver publishes lighting for it:
+    // elements of versions this image does not show (dead, not the light's preview) get 0;
+    // any other gap waits for the next published lighting.
+    const Discretization& disc = mSession->discretization();
+    auto covering = [&](const std::shared_ptr<const std::vector<Rgb>>& values)
+        -> std::shared_ptr<const std::vector<Rgb>> {
+        const std::size_t n = disc.elements().size();
+        if (!values || values->size() >= n) return values;
+        for (std::size_t e = values->size(); e < n; ++e) {
+            const int o = disc.elements()[e].object;
+            if (disc.objects()[o].alive || o == light.previewVersion) return nullptr;
+        }
+        auto padded = std::make_shared<std::vector<Rgb>>(*values);
+        padded->resize(n, Rgb(0.0));
+        return padded;
+    };
+    const auto radiosity = covering(light.radiosity);
+    if (!radiosity) return false;
+    const auto pendingValues = covering(light.pending);
+
     auto img = std::make_shared<ViewportImage>();
     const double r0 = nowSeconds();
     try {
-        img->render =
-            renderViewport(mSession->discretization(), mSession->tracer(), *light.radiosity,
-                           view.camera, w, h, light.previewVersion, highlight);
-        if (view.mode == ViewMode::OutOfDate && light.pending) {
+        img->render = renderViewport(disc, mSession->tracer(), *radiosity, view.camera, w, h,
+                                     light.previewVersion, highlight);
+        if (view.mode == ViewMode::OutOfDate && pendingValues) {
             // The pending |ΔB| interpolated like the image, as a red tint.
             const ViewportRender pending =
-                renderViewport(mSession->discretization(), mSession->tracer(), *light.pending,
-                               view.camera, w, h, light.previewVersion);
+                renderViewport(disc, mSession->tracer(), *pendingValues, view.camera, w, h,
+                               light.previewVersion);
             tintPending(img->render.rgba, pending.radiance, light.pendingScale / M_PI);
             img->note = "red: pending unshot / redistribution |dB| (full at 5% of mean B)";
         }

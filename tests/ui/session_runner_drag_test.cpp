@@ -141,5 +141,39 @@ TEST(SessionRunnerDrag, EdgeAndPointModeShowsTheDraggedObjectAndItsOutline) {
     EXPECT_TRUE(runner.takeMessages().empty());
 }
 
+TEST(SessionRunnerDrag, GouraudImagesKeepComingWhileADragAppendsVersions) {
+    // Every move of a drag appends a version of the object before the solver publishes
+    // lighting with its elements; the Gouraud view must render meanwhile (those elements are
+    // not shown) instead of failing on the shorter lighting.
+    SessionRunnerOptions options;
+    options.solveBudgetMs = 5;
+    SessionRunner runner(std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{}),
+                         options);
+    ViewRequest v = view(true);
+    v.mode = ViewMode::Gouraud;
+    runner.setView(v);
+    runner.submit(SelectCommand{"slab"});
+    for (int i = 0; i < 40; ++i) {
+        TransformCommand t;
+        t.id = "slab";
+        t.translate = kOldPlace + (kNewPlace - kOldPlace) * ((i + 1) / 40.0);
+        runner.submitCoalescing(t);
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    runner.submit(UnselectCommand{});
+    v.interactive = false;
+    runner.setView(v);
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (!runner.quiescent() && std::chrono::steady_clock::now() < end)
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    ASSERT_TRUE(runner.quiescent());
+    for (const std::string& m : runner.takeMessages())
+        EXPECT_EQ(m.find("viewport:"), std::string::npos) << m;
+    const auto img = runner.image();
+    ASSERT_TRUE(img);
+    const CameraRays full(test::litRoomTopCamera(), kSize, kSize);
+    EXPECT_TRUE(reddish(pixel(*img, *full.projectToPixel(kNewPlace + Vec3(0, 0.05, 0)))));
+}
+
 }  // namespace
 }  // namespace penumbra
