@@ -462,6 +462,8 @@ int main(int argc, char** argv) {
                                                "scenes/robot-room.json", "scenes/large.json"});
     benchSolver->add_option("--max-seconds", bench.maxSecondsPerScene, "solver time cap per scene");
     benchSolver->add_option("--json", bench.jsonOut, "write every figure as JSON");
+    benchSolver->add_option("--child-scene", bench.childScene, "internal: one scene, JSON out")
+        ->group("");
     RedistributionBenchOptions redist;
     CLI::App* benchRedist = benchCmd->add_subcommand(
         "redistribution", "George et al. Figures 6 and 7: error against time after an edit");

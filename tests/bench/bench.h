@@ -13,6 +13,8 @@ struct BenchOptions {
     std::vector<std::string> scenes;
     double maxSecondsPerScene = 120;  ///< solver time cap per scene
     std::string jsonOut;              ///< optional JSON with every figure
+    /// Internal: measure this one scene and print its JSON (the per-scene child process).
+    std::string childScene;
 };
 
 /// `penumbra bench solver`: raw Embree occlusion rays/s vs solver rays/s, time to 10%, 1%,

@@ -1,17 +1,25 @@
 // `penumbra bench solver`: raw Embree occlusion throughput on each scene, the solver's own
 // ray throughput and their ratio, time to 10%, 1% and 0.1% unshot energy, and peak memory.
-// Each scene runs in a forked child so its peak resident memory is its own.
+// Each scene runs in a fresh child process (this executable, re-run) so its peak resident
+// memory is its own. Not a fork: a child forked after oneTBB started its workers inherits
+// none of them and runs every parallel loop on one thread (the table's figures before
+// 2026-11-25 were single-threaded for that reason).
 //
 // Index: measurements · Google Benchmark micro-benchmarks · table
 #include <benchmark/benchmark.h>
 #include <sys/resource.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
+#include <tbb/task_arena.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <mutex>
+#include <set>
+#include <thread>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -51,19 +59,28 @@ Segments makeSegments(const Discretization& disc, std::size_t count) {
     return s;
 }
 
-/// Occlusion rays per second over all worker threads.
-double rawOcclusionRate(const RayTracer& tracer, const Segments& s) {
+/// Occlusion rays per second over all worker threads; `threads`, when given, receives the
+/// number of distinct threads that traced.
+double rawOcclusionRate(const RayTracer& tracer, const Segments& s, int* threads = nullptr) {
+    std::mutex seenMutex;
+    std::set<std::thread::id> seen;
     auto start = Clock::now();
     std::size_t blocked = tbb::parallel_reduce(
         tbb::blocked_range<std::size_t>(0, s.from.size(), 1024), std::size_t(0),
         [&](const auto& r, std::size_t acc) {
+            if (threads) {
+                std::lock_guard<std::mutex> lock(seenMutex);
+                seen.insert(std::this_thread::get_id());
+            }
             for (std::size_t i = r.begin(); i != r.end(); ++i)
                 acc += tracer.occluded(s.from[i], s.to[i]) ? 1 : 0;
             return acc;
         },
         std::plus<>());
     benchmark::DoNotOptimize(blocked);
-    return static_cast<double>(s.from.size()) / secondsSince(start);
+    const double rate = static_cast<double>(s.from.size()) / secondsSince(start);
+    if (threads) *threads = static_cast<int>(seen.size());
+    return rate;
 }
 
 /// Closest-hit rays per second over all worker threads, from the same points along the same
@@ -104,8 +121,11 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
 
     Segments segs = makeSegments(lit->discretization(), 1 << 20);
     rawOcclusionRate(lit->tracer(), segs);  // warm up
-    double raw = rawOcclusionRate(lit->tracer(), segs);
+    int threadsSeen = 0;
+    double raw = rawOcclusionRate(lit->tracer(), segs, &threadsSeen);
     r["raw_occlusion_rays_per_s"] = raw;
+    r["threads"] = tbb::this_task_arena::max_concurrency();
+    r["threads_seen"] = threadsSeen;
     const double rawHit = rawHitRate(lit->tracer(), segs);
     r["raw_closest_hit_rays_per_s"] = rawHit;
 
@@ -142,29 +162,31 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     return r;
 }
 
-/// Runs measureScene in a child process so its peak memory is its own.
+/// Runs measureScene in a fresh process of this executable (`bench solver --child-scene`),
+/// so its peak memory is its own and oneTBB starts its workers there.
 nlohmann::json measureSceneIsolated(const std::string& path, const BenchOptions& options) {
     int fds[2];
     if (pipe(fds) != 0) return measureScene(path, options);
-    pid_t pid = fork();
-    if (pid == 0) {
-        close(fds[0]);
-        std::string out;
-        try {
-            out = measureScene(path, options).dump();
-        } catch (const std::exception& e) {
-            out = nlohmann::json{{"scene", path}, {"error", e.what()}}.dump();
-        }
-        std::size_t done = 0;
-        while (done < out.size()) {
-            ssize_t w = write(fds[1], out.data() + done, out.size() - done);
-            if (w <= 0) break;
-            done += static_cast<std::size_t>(w);
-        }
-        close(fds[1]);
-        _exit(0);
-    }
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addclose(&actions, fds[0]);
+    posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+    posix_spawn_file_actions_addclose(&actions, fds[1]);
+    const std::string maxSeconds = std::to_string(options.maxSecondsPerScene);
+    std::vector<std::string> args{"penumbra", "bench",         "solver",
+                                  "--child-scene", path, "--max-seconds", maxSeconds};
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    pid_t pid = 0;
+    const int spawned =
+        posix_spawn(&pid, "/proc/self/exe", &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
     close(fds[1]);
+    if (spawned != 0) {
+        close(fds[0]);
+        return {{"scene", path}, {"error", "cannot start the benchmark child"}};
+    }
     std::string text;
     char buf[4096];
     ssize_t n;
@@ -186,6 +208,17 @@ std::string cell(const nlohmann::json& v, const char* fmt) {
 }  // namespace
 
 int runSolverBench(const BenchOptions& options) {
+    if (!options.childScene.empty()) {
+        // The child of measureSceneIsolated: one scene, its JSON on stdout.
+        nlohmann::json r;
+        try {
+            r = measureScene(options.childScene, options);
+        } catch (const std::exception& e) {
+            r = {{"scene", options.childScene}, {"error", e.what()}};
+        }
+        std::printf("%s", r.dump().c_str());
+        return 0;
+    }
     // Micro-benchmarks through Google Benchmark: the per-query costs behind the table.
     {
         auto lit = LitScene::open(options.scenes.front(), interactiveSolverOptions());
@@ -238,8 +271,9 @@ int runSolverBench(const BenchOptions& options) {
     nlohmann::json rows = nlohmann::json::array();
     std::printf(
         "\n| scene | patches | elements | raw Mrays/s | solver Mrays/s | ratio | raw hit Mrays/s | "
-        "hit-ray share | ratio to same mix | to 10%% s | to 1%% s | to 0.1%% s | peak MiB |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        "hit-ray share | ratio to same mix | to 10%% s | to 1%% s | to 0.1%% s | peak MiB | "
+        "threads |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const std::string& scene : options.scenes) {
         nlohmann::json r = measureSceneIsolated(scene, options);
         rows.push_back(r);
@@ -249,7 +283,8 @@ int runSolverBench(const BenchOptions& options) {
             continue;
         }
         std::printf(
-            "| %s | %zu | %zu | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", scene.c_str(),
+            "| %s | %zu | %zu | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %d |\n",
+            scene.c_str(),
             r["patches"].get<std::size_t>(), r["elements"].get<std::size_t>(),
             cell(r["raw_occlusion_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
             cell(r["solver_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
@@ -258,7 +293,8 @@ int runSolverBench(const BenchOptions& options) {
             cell(r["stochastic_ray_share"], "%.2f").c_str(),
             cell(r["ratio_solver_to_raw_mix"], "%.2f").c_str(),
             cell(r["seconds_to_10pct"], "%.2f").c_str(), cell(r["seconds_to_1pct"], "%.2f").c_str(),
-            cell(r["seconds_to_0.1pct"], "%.2f").c_str(), cell(r["peak_rss_mib"], "%.0f").c_str());
+            cell(r["seconds_to_0.1pct"], "%.2f").c_str(), cell(r["peak_rss_mib"], "%.0f").c_str(),
+            r["threads_seen"].get<int>());
         std::fflush(stdout);
     }
     if (!options.jsonOut.empty()) writeFileAtomically(options.jsonOut, rows.dump(2) + "\n");
