@@ -91,35 +91,46 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
                          const Vec3& pn, std::vector<Vec3>& clipped, bool& wasClipped) {
     clipped.clear();
     wasClipped = false;
-    if (polygon.size() < 3) return 0;
+    const std::size_t m = polygon.size();
+    if (m < 3) return 0;
     // One-sided: the point must be in front of the polygon.
     if (glm::dot(x - polygon[0], pn) <= 0) return 0;
 
-    // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman).
-    const std::size_t m = polygon.size();
+    // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman). A convex
+    // polygon of m vertices keeps at most m + 1; each vertex's height is computed once.
+    clipped.resize(m + 1);
+    Vec3* out = clipped.data();
+    std::size_t count = 0;
+    double da = glm::dot(polygon[0] - x, n);
     for (std::size_t i = 0; i < m; ++i) {
         const Vec3& a = polygon[i];
-        const Vec3& b = polygon[(i + 1) % m];
-        double da = glm::dot(a - x, n), db = glm::dot(b - x, n);
-        if (da >= 0) clipped.push_back(a);
-        if ((da >= 0) != (db >= 0)) clipped.push_back(a + (b - a) * (da / (da - db)));
+        const Vec3& b = polygon[i + 1 < m ? i + 1 : 0];
+        const double db = glm::dot(b - x, n);
+        if (da >= 0) out[count++] = a;
+        if ((da >= 0) != (db >= 0)) out[count++] = a + (b - a) * (da / (da - db));
         wasClipped = wasClipped || da < 0;
+        da = db;
     }
-    const std::size_t count = clipped.size();
     if (count < 3) {
         clipped.clear();
         return 0;
     }
+    clipped.resize(count);
 
-    // Lambert's contour integral: F = 1/(2π) Σ β_k n·Γ̂_k.
+    // Lambert's contour integral: F = 1/(2π) Σ β_k n·Γ̂_k, each vertex's offset from x
+    // computed once.
     double sum = 0;
+    const Vec3 first = out[0] - x;
+    Vec3 r0 = first;
     for (std::size_t i = 0; i < count; ++i) {
-        Vec3 r0 = clipped[i] - x, r1 = clipped[(i + 1) % count] - x;
-        Vec3 c = glm::cross(r0, r1);
-        double cl = glm::length(c);
-        if (cl <= 0) continue;
-        double beta = angleAtan2(cl, glm::dot(r0, r1));
-        sum += beta * glm::dot(n, c) / cl;
+        const Vec3 r1 = i + 1 < count ? out[i + 1] - x : first;
+        const Vec3 c = glm::cross(r0, r1);
+        const double cl = glm::length(c);
+        if (cl > 0) {
+            const double beta = angleAtan2(cl, glm::dot(r0, r1));
+            sum += beta * glm::dot(n, c) / cl;
+        }
+        r0 = r1;
     }
     return std::abs(sum) / (2 * M_PI);
 }
@@ -150,6 +161,24 @@ namespace {
 /// formFactorChange) and counts the rays it traced; the result
 /// is unoccluded × Σ w·visit / Σ w (a ratio estimator, exact when nothing blocks and when
 /// everything does).
+/// Per-thread scratch of estimatePointToPatch: one thread-local lookup per pair.
+struct PairScratch {
+    std::vector<std::vector<Vec3>> polys;  ///< per polygon: its part above the horizon
+    std::vector<double> f;                 ///< per polygon: its unoccluded form factor
+    std::vector<Vec3> polygon;
+    std::vector<Vec3> normals;  ///< per polygon: unit normal (the plane's, clipping keeps it)
+    std::vector<std::vector<double>> fans;
+    std::vector<double> areaOverF;
+    std::vector<Vec3> targets;
+    std::vector<double> weights;
+    std::vector<int> visible;
+};
+
+PairScratch& pairScratch() {
+    static thread_local PairScratch scratch;
+    return scratch;
+}
+
 template <class Visit>
 PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& tracer,
                                   const Vec3& x, const Vec3& n, int patch,
@@ -157,17 +186,16 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
                                   Visit&& visit) {
     PointToPatch out;
     const Patch& P = disc.patches()[patch];
+    PairScratch& sc = pairScratch();
 
     // Exact unoccluded form factor of each element polygon of the patch (or of its outline
     // when planar), keeping the part above the receiver's horizon for sampling.
-    thread_local std::vector<std::vector<Vec3>> polys;
-    thread_local std::vector<double> f;
-    thread_local std::vector<Vec3> polygon;
-    // Per polygon: unit normal (the plane's, clipping keeps it).
-    thread_local std::vector<Vec3> normals;
+    auto& polys = sc.polys;
+    auto& f = sc.f;
+    auto& normals = sc.normals;
     double total = 0;
     const std::size_t count = P.outline.empty() ? P.elements.size() : 1;
-    polys.resize(count);
+    if (polys.size() < count) polys.resize(count);
     f.resize(count);
     normals.resize(count);
     for (std::size_t k = 0; k < count; ++k) {
@@ -175,10 +203,10 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         if (P.outline.empty()) {
             const Element& el = disc.elements()[P.elements[k]];
             const auto& pos = disc.objects()[el.object].worldPositions;
-            polygon.clear();
-            for (int v : el.vertices) polygon.push_back(pos[v]);
+            sc.polygon.clear();
+            for (int v : el.vertices) sc.polygon.push_back(pos[v]);
             normals[k] = el.normal;
-            total += f[k] = clippedFormFactor(x, n, polygon, el.normal, polys[k], wasClipped);
+            total += f[k] = clippedFormFactor(x, n, sc.polygon, el.normal, polys[k], wasClipped);
         } else {
             normals[k] = P.normal;
             total += f[k] = clippedFormFactor(x, n, P.outline, P.normal, polys[k], wasClipped);
@@ -194,15 +222,15 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     // The pair's samples first (targets and weights), then their visibility in one call.
     // Per sampled polygon, once: its fan triangles' cumulative doubled areas and the weight
     // factor A_k / F_k relative to the sampling density (∝ F_k / A_k).
-    thread_local std::vector<std::vector<double>> fans;
-    thread_local std::vector<double> areaOverF;
-    fans.resize(count);
+    auto& fans = sc.fans;
+    auto& areaOverF = sc.areaOverF;
+    if (fans.size() < count) fans.resize(count);
     areaOverF.assign(count, -1.0);
-    thread_local std::vector<Vec3> targets;
-    thread_local std::vector<double> weights;
-    thread_local std::vector<int> visible;
-    targets.clear();
-    weights.clear();
+    auto& targets = sc.targets;
+    auto& weights = sc.weights;
+    targets.resize(static_cast<std::size_t>(rays));
+    weights.resize(static_cast<std::size_t>(rays));
+    std::size_t taken = 0;
     double wAll = 0;
     const double stratum = total / rays;
     for (int s = 0; s < rays; ++s) {
@@ -228,13 +256,16 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         wAll += w;
         // Leave the source surface along its normal (toward x, which is in front of it), so
         // rays grazing the source plane do not hit the source itself in float precision.
-        targets.push_back(y + ny * eps);
-        weights.push_back(w);
+        targets[taken] = y + ny * eps;
+        weights[taken] = w;
+        ++taken;
     }
-    visible.assign(targets.size(), 0);
+    targets.resize(taken);
+    auto& visible = sc.visible;
+    visible.assign(taken, 0);
     visit(origin, targets, visible, out.rays);
     double wVisible = 0;
-    for (std::size_t i = 0; i < targets.size(); ++i) wVisible += weights[i] * visible[i];
+    for (std::size_t i = 0; i < taken; ++i) wVisible += weights[i] * visible[i];
     out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;
     return out;
 }

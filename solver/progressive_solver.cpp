@@ -366,7 +366,16 @@ void ProgressiveSolver::receiveAll(const std::vector<Received>& list) {
     blockTouched.resize(blocks);
     tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t b) {
         blockTouched[b].clear();
+        // The entries' elements are anywhere in a large scene: prefetch a few ahead.
+        constexpr int kAhead = 12;
+        const auto& elements = mDisc.elements();
         for (int i = start[b]; i < start[b + 1]; ++i) {
+            if (i + kAhead < start[b + 1]) {
+                const int ahead = list[bucketed[i + kAhead]].element;
+                __builtin_prefetch(&elements[ahead]);
+                __builtin_prefetch(&mElementH[ahead], 1);
+                __builtin_prefetch(&mElementB[ahead], 1);
+            }
             const Received& r = list[bucketed[i]];
             receive(r.element, r.irradiance);
             if (!touched[r.patch]) touched[r.patch] = 1, blockTouched[b].push_back(r.patch);
@@ -395,7 +404,7 @@ void ProgressiveSolver::shootPatch(int shooter) {
     auto& delta = mImpl->delta;
     delta.assign(n, Rgb(0.0));
     std::atomic<std::uint64_t> rays{0};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 32), [&](const auto& range) {
         int traced = 0;
         for (std::size_t e = range.begin(); e != range.end(); ++e)
             delta[e] = irradianceFrom(shooter, static_cast<int>(e), dB, {}, &traced);
@@ -519,21 +528,39 @@ void ProgressiveSolver::shootStochasticBatch() {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
         thread_local PatchPoints points;
         std::size_t current = shooters.size();  // none yet in this block
-        for (std::size_t r = range.begin(); r != range.end(); ++r) {
-            hits[r].element = -1;
-            RayRandom rng{hashPair(batchSeed, r)};
-            // The shooter, by power; a uniform point of it; a cosine-distributed direction.
-            double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
-            std::size_t k = std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin();
-            k = std::min(k, cdf.size() - 1);
-            if (k != current) points.set(mDisc, patches[shooters[current = k]]);
-            Vec3 origin, nz;
-            points.sample(rng, origin, nz);
-            Vec3 dir = cosineDirection(nz, rng);
-            RayTracer::FirstHit hit = mTracer.firstHit(origin + nz * eps, dir);
-            if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
-            if (hit.patch == shooters[k]) continue;
-            hits[r] = {hit.element, hit.patch, carriedPerRay[k] / hit.area};  // irradiance
+        // Rays go to the tracer in groups (RayTracer::firstHits prefetches each hit's record
+        // while the group's later rays trace).
+        constexpr int kGroup = 32;
+        Vec3 origins[kGroup], dirs[kGroup];
+        std::size_t shooterOf[kGroup];
+        RayTracer::FirstHit found[kGroup];
+        for (std::size_t g = range.begin(); g < range.end(); g += kGroup) {
+            const int m = static_cast<int>(std::min<std::size_t>(kGroup, range.end() - g));
+            for (int i = 0; i < m; ++i) {
+                const std::size_t r = g + static_cast<std::size_t>(i);
+                hits[r].element = -1;
+                RayRandom rng{hashPair(batchSeed, r)};
+                // The shooter, by power; a uniform point of it; a cosine-distributed direction.
+                double u =
+                    (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
+                std::size_t k = std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin();
+                k = std::min(k, cdf.size() - 1);
+                if (k != current) points.set(mDisc, patches[shooters[current = k]]);
+                Vec3 origin, nz;
+                points.sample(rng, origin, nz);
+                dirs[i] = cosineDirection(nz, rng);
+                origins[i] = origin + nz * eps;
+                shooterOf[i] = k;
+            }
+            mTracer.firstHits(origins, dirs, m, found);
+            for (int i = 0; i < m; ++i) {
+                const RayTracer::FirstHit& hit = found[i];
+                const std::size_t k = shooterOf[i];
+                if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
+                if (hit.patch == shooters[k]) continue;
+                hits[g + static_cast<std::size_t>(i)] = {hit.element, hit.patch,
+                                                         carriedPerRay[k] / hit.area};
+            }
         }
     });
     receiveAll(hits);

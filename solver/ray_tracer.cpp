@@ -397,6 +397,45 @@ RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
     return hit;
 }
 
+void RayTracer::firstHits(const Vec3* origins, const Vec3* dirs, int count, FirstHit* hits,
+                          const Visibility& visibility) const {
+    if (count <= 0) return;
+    FilterContext ctx;
+    RTCScene scene = mImpl->prepare(ctx, visibility);
+    // Pass 1: trace; keep (instance, triangle, t) in the answer's own fields until pass 2.
+    for (int i = 0; i < count; ++i) {
+        RTCRayHit rh =
+            makeRayHit(origins[i], dirs[i], 0.0f, std::numeric_limits<float>::infinity());
+        rtcIntersect1(scene, &ctx.context, &rh);
+        FirstHit& h = hits[i];
+        h = FirstHit{};
+        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+        h.element = static_cast<int>(rh.hit.instID[0]);
+        h.patch = static_cast<int>(rh.hit.primID);
+        h.t = rh.ray.tfar;
+        __builtin_prefetch(&mImpl->triangleHit[rh.hit.instID[0]][rh.hit.primID]);
+    }
+    mImpl->rays.local() += static_cast<unsigned long long>(count);
+    // Pass 2: the records, as firstHit reads them.
+    for (int i = 0; i < count; ++i) {
+        FirstHit& hit = hits[i];
+        if (hit.element < 0) continue;
+        const Impl::TriangleHit& t = mImpl->triangleHit[hit.element][hit.patch];
+        const Vec3& dir = dirs[i];
+        hit.element = t.element;
+        hit.patch = t.patch;
+        hit.area = t.area;
+        hit.backFace = dir.x * t.normal[0] + dir.y * t.normal[1] + dir.z * t.normal[2] > 0;
+        if (hit.backFace && t.twin >= 0) {
+            const Element& back = mDisc.elements()[t.twin];  // the two-sided face's back
+            hit.element = t.twin;
+            hit.patch = back.patch;
+            hit.area = back.area;
+            hit.backFace = false;
+        }
+    }
+}
+
 unsigned long long RayTracer::rayCount() const {
     unsigned long long total = 0;
     for (auto c : mImpl->rays) total += c;

@@ -120,6 +120,12 @@ public:
         double area = 0;  ///< (the element's record is a cache miss in large scenes)
     };
     FirstHit firstHit(const Vec3& origin, const Vec3& dir, const Visibility& visibility = {}) const;
+    /// firstHit for `count` rays (any number) at once, the same answers as one call each:
+    /// all rays are traced first, each prefetching the tracer's record of the triangle it
+    /// hit, then the records are read. A stochastic batch's hits land anywhere in a large
+    /// scene, and reading the record right after its ray was one cache miss per ray.
+    void firstHits(const Vec3* origins, const Vec3* dirs, int count, FirstHit* hits,
+                   const Visibility& visibility = {}) const;
 
     /// Rays traced since construction (occlusion and intersection), for reports.
     unsigned long long rayCount() const;

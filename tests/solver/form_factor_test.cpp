@@ -499,5 +499,51 @@ TEST(RayTracerPackets, Occluded8AnswersAsSingleRays) {
     EXPECT_LT(blockedCount, total - total / 10);
 }
 
+
+TEST(RayTracerPackets, FirstHitsAnswerAsSingleFirstHits) {
+    // The grouped closest-hit query of the stochastic batches gives, ray for ray, what
+    // firstHit gives: element, patch, area, side and distance, misses and back faces
+    // included, in the current scene and with an object ignored.
+    Scene scene = test::makeLitRoom("white");
+    SceneObject box;
+    box.id = "blocker";
+    box.shape.type = ShapeType::Box;
+    box.shape.size = Vec3(0.5);
+    box.material = "white";
+    box.transform.translate = Vec3(0.0, -0.3, 0.0);
+    scene.objects.push_back(box);
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    const auto& el = disc.elements();
+    std::vector<Vec3> origins, dirs;
+    for (int i = 0; i < 301; ++i) {  // not a multiple of any group size
+        const Element& a = el[hashPair(11, i) % el.size()];
+        // Every third ray starts far outside, so some escape and some meet backs.
+        const double far = i % 3 == 0 ? 10.0 : 1e-4;
+        origins.push_back(a.centroid + a.normal * far);
+        Vec3 d(std::sin(0.37 * i) + 0.1, std::cos(1.3 * i), std::sin(2.1 * i + 0.5));
+        dirs.push_back(glm::normalize(d));
+    }
+    int misses = 0, backs = 0;
+    for (const Visibility& v :
+         {Visibility{}, Visibility{static_cast<int>(scene.objects.size()) - 1}}) {
+        std::vector<RayTracer::FirstHit> grouped(origins.size());
+        tracer.firstHits(origins.data(), dirs.data(), static_cast<int>(origins.size()),
+                         grouped.data(), v);
+        for (std::size_t i = 0; i < origins.size(); ++i) {
+            const RayTracer::FirstHit one = tracer.firstHit(origins[i], dirs[i], v);
+            EXPECT_EQ(grouped[i].element, one.element) << "ray " << i;
+            EXPECT_EQ(grouped[i].patch, one.patch) << "ray " << i;
+            EXPECT_EQ(grouped[i].backFace, one.backFace) << "ray " << i;
+            EXPECT_EQ(grouped[i].t, one.t) << "ray " << i;
+            EXPECT_EQ(grouped[i].area, one.area) << "ray " << i;
+            misses += one.element < 0 ? 1 : 0;
+            backs += one.element >= 0 && one.backFace ? 1 : 0;
+        }
+    }
+    EXPECT_GT(misses, 0);
+    EXPECT_GT(backs, 0);
+}
+
 }  // namespace
 }  // namespace penumbra
