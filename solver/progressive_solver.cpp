@@ -72,6 +72,7 @@ class PatchPoints {
 public:
     void set(const Discretization& disc, const Patch& patch) {
         mTriangles.clear();
+        mCumulative.clear();
         double sum = 0;
         for (int e : patch.elements) {
             const Element& el = disc.elements()[e];
@@ -83,17 +84,22 @@ public:
                 tri.e1 = pos[el.vertices[i]] - p0;
                 tri.e2 = pos[el.vertices[i + 1]] - p0;
                 tri.normal = el.normal;
-                tri.cumulative = sum += glm::length(glm::cross(tri.e1, tri.e2));
+                mCumulative.push_back(sum += glm::length(glm::cross(tri.e1, tri.e2)));
             }
         }
     }
 
     /// A uniform point of the patch (three numbers of `rng`) and its surface normal.
     void sample(RayRandom& rng, Vec3& point, Vec3& normal) const {
-        const Triangle* t = mTriangles.data();
-        const Triangle* last = t + mTriangles.size() - 1;
-        const double pick = rng.next() * last->cumulative;
-        while (t < last && pick > t->cumulative) ++t;
+        // The first triangle whose cumulative area reaches the pick (the last if rounding
+        // leaves none), by bisection: large patches have dozens of triangles.
+        const std::size_t last = mCumulative.size() - 1;
+        const double pick = rng.next() * mCumulative[last];
+        const std::size_t i = std::min<std::size_t>(
+            std::lower_bound(mCumulative.begin(), mCumulative.end() - 1, pick) -
+                mCumulative.begin(),
+            last);
+        const Triangle* t = &mTriangles[i];
         const double s = std::sqrt(rng.next()), r2 = rng.next();
         point = t->p0 + (s * (1 - r2)) * t->e1 + (s * r2) * t->e2;
         normal = t->normal;
@@ -102,9 +108,9 @@ public:
 private:
     struct Triangle {
         Vec3 p0, e1, e2, normal;
-        double cumulative;  ///< doubled area of the patch's triangles up to this one
     };
     std::vector<Triangle> mTriangles;
+    std::vector<double> mCumulative;  ///< doubled area of the patch's triangles up to each
 };
 
 }  // namespace
