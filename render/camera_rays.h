@@ -34,6 +34,8 @@ public:
     const Vec3& forward() const { return mForward; }  ///< unit view direction
     const Vec3& right() const { return mRight; }      ///< unit, image +x
     const Vec3& up() const { return mUp; }            ///< unit, image −y
+    double tanHalfX() const { return mTanHalfX; }     ///< tan of half the horizontal field
+    double tanHalfY() const { return mTanHalfY; }     ///< tan of half the vertical field
     std::string toString() const;
 
 private:
