@@ -218,16 +218,17 @@ void PointShader::publish(std::shared_ptr<const State> state) {
     mState = std::move(state);
 }
 
-Rgb PointShader::computeElementDirect(int e, const std::vector<Light>& /*lights*/) const {
+Rgb PointShader::computeElementDirect(int e, const std::vector<int>& emitters) const {
     // The solver's irradianceFrom for the emitters' own shots: same culls, same pair seeds.
+    // (Only the emitter patches are visited: a loop over all patches per element cost
+    // 25k × 1M checks on armadillo-field, 39 s of the display's set-up.)
     const Element& el = mDisc.elements()[e];
     if (!mDisc.objects()[el.object].alive) return Rgb(0.0);
     Rgb sum(0.0);
-    for (std::size_t j = 0; j < mDisc.patches().size(); ++j) {
+    for (int j : emitters) {
         const Patch& P = mDisc.patches()[j];
-        if (!mDisc.objects()[P.object].alive) continue;
-        const Rgb& emission = mDisc.patchMaterial(static_cast<int>(j)).emission;
-        if (isZero(emission) || el.patch == static_cast<int>(j)) continue;
+        const Rgb& emission = mDisc.patchMaterial(j).emission;
+        if (el.patch == j) continue;
         Vec3 toReceiver = el.centroid - P.centroid;
         if (glm::dot(toReceiver, P.normal) < -P.radius) continue;
         if (glm::dot(-toReceiver, el.normal) < -P.radius) continue;
@@ -325,9 +326,10 @@ void PointShader::refreshDirect() {
     // H_direct(e) for every element, in parallel.
     const std::size_t n = mDisc.elements().size();
     mElementDirect.assign(n, Rgb(0.0));
+    const std::vector<int> emitters = emitterPatches(mDisc);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& r) {
         for (std::size_t e = r.begin(); e != r.end(); ++e)
-            mElementDirect[e] = computeElementDirect(static_cast<int>(e), next->lights);
+            mElementDirect[e] = computeElementDirect(static_cast<int>(e), emitters);
     });
     const int preview = next->previewObject;
     const Visibility previewOnly = next->previewOnly;
@@ -363,7 +365,6 @@ void PointShader::refreshDirect(const std::vector<int>& changedObjectList) {
         spheres.push_back({0.5 * (lo + hi), 0.5 * glm::length(hi - lo) + mTracer.epsilon()});
     }
     const std::vector<int> emitters = emitterPatches(mDisc);
-    auto lights = state()->lights;
     const std::size_t n = mDisc.elements().size(), old = mElementDirect.size();
     mElementDirect.resize(n, Rgb(0.0));
 
@@ -386,7 +387,7 @@ void PointShader::refreshDirect(const std::vector<int>& changedObjectList) {
                     }
                 }
             }
-            if (redo) mElementDirect[e] = computeElementDirect(static_cast<int>(e), lights);
+            if (redo) mElementDirect[e] = computeElementDirect(static_cast<int>(e), emitters);
         }
     });
     const auto st = state();
@@ -806,10 +807,10 @@ void PointShader::rebuildIndirect() {
     if (mElementDirect.size() < n) {
         const std::size_t old = mElementDirect.size();
         mElementDirect.resize(n, Rgb(0.0));
-        auto lights = state()->lights;
+        const std::vector<int> emitters = emitterPatches(mDisc);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(old, n, 64), [&](const auto& r) {
             for (std::size_t e = r.begin(); e != r.end(); ++e)
-                mElementDirect[e] = computeElementDirect(static_cast<int>(e), lights);
+                mElementDirect[e] = computeElementDirect(static_cast<int>(e), emitters);
         });
     }
     auto next = std::make_shared<State>();

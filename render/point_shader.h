@@ -295,8 +295,9 @@ private:
     struct DirectJob;
     std::shared_ptr<const State> state() const;
     void publish(std::shared_ptr<const State> state);
-    /// Σ_j E_j·F(e←j) with the solver's pair-seeded form factors.
-    Rgb computeElementDirect(int element, const std::vector<Light>& lights) const;
+    /// Σ_j E_j·F(e←j) with the solver's pair-seeded form factors, over `emitters` (the
+    /// alive emitter patches, ascending: emitterPatches).
+    Rgb computeElementDirect(int element, const std::vector<int>& emitters) const;
     ShadedPoint shadeWith(const State& state, const ShadeRequest& request) const;
     /// Nearest hit in the displayed world (the scene plus the preview object).
     RayHit traceWith(const State& state, const Vec3& origin, const Vec3& direction) const;
