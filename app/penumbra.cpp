@@ -121,6 +121,7 @@ struct RenderArgs {
     double sampleFraction = 0.02;
     double warmup = 0.25;
     double orbitDeg = 0.5;  ///< per frame
+    int smooth = displayEpiOptions().smoothRadius;  ///< EPI edge-free smoothing radius
 };
 
 /// The scene's camera named `name`, else "default", else the first, else a default Camera.
@@ -211,6 +212,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     displayOptions.width = r.width;
     displayOptions.height = r.height;
     displayOptions.sampleFraction = r.sampleFraction;
+    displayOptions.epi.smoothRadius = r.smooth;
     displayOptions.shader.seed = a.seed;
     displayOptions.cache.seed = a.seed;
     InteractiveDisplay display(session->discretization(), session->tracer(), options,
@@ -410,6 +412,11 @@ int main(int argc, char** argv) {
                      "new samples per frame as a fraction of the pixels (default 0.02)")
         ->check(CLI::Range(0.0, 1.0));
     renderCmd
+        ->add_option("--smooth", render.smooth,
+                     "epi: edge-free smoothing radius in pixels, 0 = the paper's reconstruction "
+                     "(default 8)")
+        ->check(CLI::Range(0, 60));
+    renderCmd
         ->add_option("--warmup", render.warmup,
                      "fraction of the pixels shaded before the first frame (default 0.25)")
         ->check(CLI::Range(0.0, 1.0));
@@ -504,6 +511,10 @@ int main(int argc, char** argv) {
         ->add_option("--shadow-decision", display.shadowDecision,
                      "display shader: decision shadow rays per axis")
         ->check(CLI::Range(1, 64));
+    benchDisplay
+        ->add_option("--smooth", display.smoothRadius,
+                     "EPI edge-free smoothing radius in pixels (0 = off; default: the display's)")
+        ->check(CLI::Range(0, 60));
     benchDisplay->add_flag("--reference-check", display.referenceCheck,
                            "render two converged references (different seeds): their noise");
     benchDisplay->add_flag("--no-converged-reference", display.skipConvergedReference,

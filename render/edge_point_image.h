@@ -31,6 +31,9 @@ struct ScreenEdge {
     double depthA = 0.0;
     double depthB = 0.0;
     Kind kind = Kind::Silhouette;
+    /// Radiance is continuous across this edge, only its derivatives jump (an area light's
+    /// umbral or penumbral event): EpiOptions::smoothRadius may average across it.
+    bool continuous = false;
     std::string toString() const;
 };
 
@@ -72,6 +75,15 @@ struct EpiOptions {
     /// the estimate directly; false runs the general filter for it (the reference, equal bit
     /// for bit).
     bool complexFilterShortcut = true;
+    /// Edge-free smoothing (an extension of §5.3; 0 turns it off). An empty pixel whose
+    /// (2r+1)² box holds no simple or complex pixel lies in one smooth region: no
+    /// discontinuity found by the edge finder crosses the box. It takes the mean of every
+    /// point in the largest such box, r = min(d − 1, smoothRadius) for the pixel's
+    /// Chebyshev distance d to the nearest edge pixel, instead of the peaked 5×5
+    /// interpolation. The points' own noise (stochastic shadow rays in penumbrae) then
+    /// averages out over (2r+1)² × density points, where the peaked filter keeps most of
+    /// it. Pixels next to edges (d ≤ 1) keep §5.3 unchanged.
+    int smoothRadius = 0;
     /// Build and reconstruct on oneTBB (bands and rows); false runs every stage serially, the
     /// reference the parallel stages must equal bit for bit.
     bool parallel = true;
@@ -174,6 +186,9 @@ private:
     void computeReachabilityMap();
     void interpolatePlain();
     void interpolatePrimary(Image& out);
+    /// EpiOptions::smoothRadius: replaces the interpolation of empty pixels far from every
+    /// edge by a wide average of the points.
+    void smoothEdgeFreeRegions(Image& out);
     void antiAlias(Image& out) const;
     void filterComplexPixels(Image& out);
     size_t paddedIndex(int x, int y) const {
@@ -208,6 +223,9 @@ private:
     std::vector<uint8_t> mVertical;       ///< line x = i, y ∈ [j, j+1): H × (W+1)
     std::vector<uint8_t> mHorizontalMid;  ///< line y = j + ½: H × W
     std::vector<uint8_t> mVerticalMid;    ///< line x = i + ½: H × W
+    /// 1 where a pixel side has a crossing of an edge that is not ScreenEdge::continuous:
+    /// the same layouts as mHorizontal and mVertical.
+    std::vector<uint8_t> mHorizontalHard, mVerticalHard;
     // rasterizeEdges() scratch: per edge its bands (first, last), per chunk of edges and band
     // a count then an offset, and the edges of each band at mBandEdgeStart[band].
     std::vector<std::pair<uint8_t, uint8_t>> mEdgeBands;
@@ -234,6 +252,9 @@ private:
     std::vector<glm::vec3> mPlain;         ///< plain (edge-ignoring) interpolation
     std::vector<float> mPlainWeight;
     std::vector<glm::vec3> mPrimary;  ///< primary-region colours
+    std::vector<uint8_t> mEdgeDistanceRow;  ///< smoothing: distance along the row to an edge pixel
+    std::vector<uint8_t> mEdgeDistance;     ///< smoothing: Chebyshev distance, capped
+    std::vector<glm::dvec4> mSummedArea;    ///< smoothing: summed-area table of (colour, 1)
     std::vector<uint8_t> mNearEdge;   ///< padded scratch: edges within 5 rows
     std::vector<float> mWeight;       ///< interpolation weight before renormalization
     std::vector<int> mComplexPixels;  ///< §5.4 scratch: the complex pixels' indices

@@ -694,6 +694,8 @@ bool projectEdge(const WorldEdge& e, const PixelProjector& camera, double nearPl
     out.depthA = da;
     out.depthB = db;
     out.kind = screenKind(e.kind);
+    // An area light's umbral and penumbral events bound regions of continuous radiance.
+    out.continuous = e.kind == EdgeKind::Shadow && e.shadow != ShadowKind::Hard;
     return true;
 }
 

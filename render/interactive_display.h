@@ -81,6 +81,13 @@ struct DisplayFrameStats {
     std::string toString() const;
 };
 
+/// EpiOptions as the display uses them by default: smoothRadius 8.
+inline EpiOptions displayEpiOptions() {
+    EpiOptions o;
+    o.smoothRadius = 8;
+    return o;
+}
+
 struct InteractiveDisplayOptions {
     int width = 512;
     int height = 512;
@@ -105,7 +112,9 @@ struct InteractiveDisplayOptions {
     PointShaderOptions shader;  ///< threads are forced to 0 in synchronous mode
     RenderCacheOptions cache;
     EdgeFinderOptions edges;
-    EpiOptions epi;
+    /// The display's EPI: the paper's, plus edge-free smoothing of radius 8
+    /// (EpiOptions::smoothRadius).
+    EpiOptions epi = displayEpiOptions();
     std::string toString() const;
 };
 

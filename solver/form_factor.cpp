@@ -96,9 +96,11 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
     // One-sided: the point must be in front of the polygon.
     if (glm::dot(x - polygon[0], pn) <= 0) return 0;
 
-    // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman). A convex
-    // polygon of m vertices keeps at most m + 1; each vertex's height is computed once.
-    clipped.resize(m + 1);
+    // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman); each
+    // vertex's height is computed once. The output has a vertex per kept vertex and per sign
+    // change: at most m + ⌊m/2⌋ (signs alternating, as rounding can make them for a polygon
+    // lying in the horizon plane).
+    clipped.resize(m + m / 2 + 1);
     Vec3* out = clipped.data();
     std::size_t count = 0;
     double da = glm::dot(polygon[0] - x, n);
@@ -126,7 +128,7 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
         const Vec3 r1 = i + 1 < count ? out[i + 1] - x : first;
         const Vec3 c = glm::cross(r0, r1);
         const double cl = glm::length(c);
-        if (cl > 0) {
+        if (!(cl <= 0)) {  // as before: a NaN length is not skipped
             const double beta = angleAtan2(cl, glm::dot(r0, r1));
             sum += beta * glm::dot(n, c) / cl;
         }

@@ -60,6 +60,8 @@ struct DisplayBenchOptions {
     /// Also render a second converged reference with another seed and print their difference
     /// (the reference's own noise) and noise-subtracted errors.
     bool referenceCheck = false;
+    /// EpiOptions::smoothRadius for the display (−1: the display's default).
+    int smoothRadius = -1;
     /// Skip the converged reference (minutes): errors against the plain reference only.
     bool skipConvergedReference = false;
     std::string plotDir;  ///< writes display-{cache,epi,reference,edges}.png of the first case

@@ -115,6 +115,7 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
     displayOptions.shader.shadowRefine = options.shadowRefine;
     displayOptions.shader.shadowMaxRefinedPerAxis = options.shadowMaxRefined;
     displayOptions.shader.shadowDecisionPerAxis = options.shadowDecision;
+    if (options.smoothRadius >= 0) displayOptions.epi.smoothRadius = options.smoothRadius;
     start = Clock::now();
     InteractiveDisplay display(session->discretization(), session->tracer(),
                                interactiveSolverOptions(), displayOptions);

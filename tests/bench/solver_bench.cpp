@@ -131,7 +131,12 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
         std::sort(v, v + 5);
         return v[2];
     };
-    double raw = median5([&] { return rawOcclusionRate(lit->tracer(), segs, &threadsSeen); });
+    double raw = median5([&] {
+        int seen = 0;
+        const double rate = rawOcclusionRate(lit->tracer(), segs, &seen);
+        threadsSeen = std::max(threadsSeen, seen);
+        return rate;
+    });
     r["raw_occlusion_rays_per_s"] = raw;
     r["threads"] = tbb::this_task_arena::max_concurrency();
     r["threads_seen"] = threadsSeen;
@@ -203,8 +208,14 @@ nlohmann::json measureSceneIsolated(const std::string& path, const BenchOptions&
     close(fds[0]);
     int status = 0;
     waitpid(pid, &status, 0);
-    if (text.empty()) return {{"scene", path}, {"error", "benchmark child failed"}};
-    return nlohmann::json::parse(text);
+    nlohmann::json r = nlohmann::json::parse(text, nullptr, false);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || r.is_discarded() || !r.is_object()) {
+        const std::string how = WIFSIGNALED(status)
+                                    ? "killed by signal " + std::to_string(WTERMSIG(status))
+                                    : "exit status " + std::to_string(WEXITSTATUS(status));
+        return {{"scene", path}, {"error", "benchmark child failed (" + how + ")"}};
+    }
+    return r;
 }
 
 std::string cell(const nlohmann::json& v, const char* fmt) {
@@ -226,6 +237,7 @@ int runSolverBench(const BenchOptions& options) {
             r = {{"scene", options.childScene}, {"error", e.what()}};
         }
         std::printf("%s", r.dump().c_str());
+        std::fflush(stdout);  // before any teardown
         return 0;
     }
     // Micro-benchmarks through Google Benchmark: the per-query costs behind the table.
