@@ -176,6 +176,7 @@ nlohmann::json frameJson(const DisplayFrameStats& f) {
             {"interpolate_ms", t.interpolateMs},
             {"anti_alias_ms", t.antiAliasMs},
             {"complex_filter_ms", t.complexFilterMs},
+            {"smooth_ms", t.smoothMs},
             {"request_ms", t.requestMs},
             {"shade_ms", t.shadeMs},
             {"new_samples", f.newSamples},

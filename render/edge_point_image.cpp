@@ -203,8 +203,7 @@ std::string ScreenEdge::toString() const {
     std::ostringstream out;
     const char* kinds[] = {"silhouette", "sharp", "shadow"};
     out << "ScreenEdge{" << kinds[static_cast<int>(kind)] << " (" << a.x << ", " << a.y
-        << ") depth " << depthA << " -> (" << b.x << ", " << b.y << ") depth " << depthB
-        << (continuous ? ", continuous" : "") << "}";
+        << ") depth " << depthA << " -> (" << b.x << ", " << b.y << ") depth " << depthB << "}";
     return out.str();
 }
 
@@ -222,7 +221,7 @@ std::string EpiStageTimes::toString() const {
         << " ms, rasterize " << rasterizeMs << " ms, classify " << classifyMs
         << " ms, reachability " << reachabilityMs << " ms, interpolate " << interpolateMs
         << " ms, anti-alias " << antiAliasMs << " ms, complex filter " << complexFilterMs
-        << " ms (reconstruct " << reconstructMs() << " ms)";
+        << " ms, smooth " << smoothMs << " ms (reconstruct " << reconstructMs() << " ms)";
     return out.str();
 }
 
@@ -253,8 +252,6 @@ EdgePointImage::EdgePointImage(int width, int height, EpiOptions options)
                        std::numeric_limits<float>::infinity());
     mHorizontal.assign(static_cast<size_t>(height + 1) * width, 0);
     mVertical.assign(static_cast<size_t>(height) * (width + 1), 0);
-    mHorizontalHard.assign(mHorizontal.size(), 0);
-    mVerticalHard.assign(mVertical.size(), 0);
     mHorizontalMid.assign(n, 0);
     mVerticalMid.assign(n, 0);
     mEdgeCode.assign(n, kEdgeCodeEmpty);
@@ -552,13 +549,6 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
                   mHorizontal.begin() + static_cast<ptrdiff_t>(rowHi + (b + 1 == bands)) * W, 0);
         std::fill(mVertical.begin() + static_cast<ptrdiff_t>(rowLo) * (W + 1),
                   mVertical.begin() + static_cast<ptrdiff_t>(rowHi) * (W + 1), 0);
-        if (mOptions.smoothRadius > 0) {
-            std::fill(mHorizontalHard.begin() + static_cast<ptrdiff_t>(rowLo) * W,
-                      mHorizontalHard.begin() + static_cast<ptrdiff_t>(rowHi + (b + 1 == bands)) * W,
-                      0);
-            std::fill(mVerticalHard.begin() + static_cast<ptrdiff_t>(rowLo) * (W + 1),
-                      mVerticalHard.begin() + static_cast<ptrdiff_t>(rowHi) * (W + 1), 0);
-        }
         std::fill(mHorizontalMid.begin() + static_cast<ptrdiff_t>(rowLo) * W,
                   mHorizontalMid.begin() + static_cast<ptrdiff_t>(rowHi) * W, 0);
         std::fill(mVerticalMid.begin() + static_cast<ptrdiff_t>(rowLo) * W,
@@ -631,7 +621,6 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
             const uint8_t bit = static_cast<uint8_t>(1u << (q & 7));
             if ((k & 1) == 0) {
                 mHorizontal[static_cast<size_t>(k / 2) * W + i] |= bit;
-                if (!e.continuous) mHorizontalHard[static_cast<size_t>(k / 2) * W + i] = 1;
             } else {
                 mHorizontalMid[static_cast<size_t>(k / 2) * W + i] |= bit;
             }
@@ -676,7 +665,6 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
             const uint8_t bit = static_cast<uint8_t>(1u << (q & 7));
             if ((k & 1) == 0) {
                 mVertical[static_cast<size_t>(j) * (W + 1) + k / 2] |= bit;
-                if (!e.continuous) mVerticalHard[static_cast<size_t>(j) * (W + 1) + k / 2] = 1;
             } else {
                 mVerticalMid[static_cast<size_t>(j) * W + k / 2] |= bit;
             }
@@ -1371,7 +1359,7 @@ void EdgePointImage::filterComplexPixels(Image& out) {
 
 Image EdgePointImage::reconstruct(bool useEdges) {
     mTimes.reachabilityMs = mTimes.interpolateMs = mTimes.antiAliasMs = 0.0;
-    mTimes.complexFilterMs = 0.0;
+    mTimes.complexFilterMs = mTimes.smoothMs = 0.0;
     Image out(mWidth, mHeight);
 
     if (!useEdges) {
@@ -1406,11 +1394,11 @@ Image EdgePointImage::reconstruct(bool useEdges) {
         mTimes.complexFilterMs = millisecondsSince(start);
     }
     if (mOptions.smoothRadius > 0) {
-        // Last: it replaces whole pixels, whatever the stages above gave them. Counted as
-        // interpolation.
+        // Last: it replaces whole pixels, whatever the stages above gave them. A stage of
+        // its own (not one of the paper's three filters).
         start = std::chrono::steady_clock::now();
         smoothEdgeFreeRegions(out);
-        mTimes.interpolateMs += millisecondsSince(start);
+        mTimes.smoothMs = millisecondsSince(start);
     }
     return out;
 }
@@ -1421,21 +1409,17 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
     const int R = std::clamp(mOptions.smoothRadius, 1, 100);
     const int cap = R + 1;
     const size_t n = static_cast<size_t>(mWidth) * mHeight;
-    // Chebyshev distance to the nearest pixel a discontinuity crosses (an edge that is not
-    // ScreenEdge::continuous crosses one of its sides), capped at R + 1: along each row
-    // first (two sweeps), then the minimum over the rows within the cap of max(|dy|, row
-    // distance). Pixels beyond the image count as crossed by nothing.
+    // Chebyshev distance to the nearest simple or complex pixel, capped at R + 1: along each
+    // row first (two sweeps), then the minimum over the rows within the cap of
+    // max(|dy|, row distance). Pixels beyond the image count as empty.
     mEdgeDistanceRow.resize(n);
     mEdgeDistance.resize(n);
     forRows(mOptions.parallel, mHeight, [&](int y) {
         uint8_t* row = &mEdgeDistanceRow[static_cast<size_t>(y) * mWidth];
-        const uint8_t* top = &mHorizontalHard[static_cast<size_t>(y) * mWidth];
-        const uint8_t* bottom = top + mWidth;
-        const uint8_t* sides = &mVerticalHard[static_cast<size_t>(y) * (mWidth + 1)];
+        const uint16_t* codes = &mEdgeCode[static_cast<size_t>(y) * mWidth];
         int d = cap;
         for (int x = 0; x < mWidth; ++x) {
-            const bool hard = top[x] | bottom[x] | sides[x] | sides[x + 1];
-            d = hard ? 0 : std::min(d + 1, cap);
+            d = codes[x] != kEdgeCodeEmpty ? 0 : std::min(d + 1, cap);
             row[x] = static_cast<uint8_t>(d);
         }
         d = cap;
@@ -1468,7 +1452,7 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
         glm::dvec4 sum(0.0);
         for (int x = 0; x < mWidth; ++x) dst[x + 1] = sum += glm::dvec4(src[x]);
     });
-    constexpr int kColumns = 64;
+    constexpr int kColumns = 32;
     forRows(mOptions.parallel, (sw + kColumns - 1) / kColumns, [&](int block) {
         const int x0 = block * kColumns, x1 = std::min(sw, x0 + kColumns);
         for (int y = 1; y <= mHeight; ++y) {
@@ -1478,10 +1462,9 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
         }
     });
 
-    // Each pixel whose nearest discontinuity pixel is d > 1 away takes the box average of
-    // radius min(d − 1, R) (a box no discontinuity crosses), when the box holds at least two
-    // points. That includes simple and complex pixels whose edges are all continuous: the
-    // radiance has no jump there for §5.3–5.4 to keep.
+    // Each empty pixel whose nearest edge pixel is d > 1 away takes the box average of radius
+    // min(d − 1, R) (a box no edge crosses), when the box holds at least two points. The
+    // pixels §5.3–5.4 read around simple and complex pixels (d ≤ 1) are left as they are.
     forRows(mOptions.parallel, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const int d = mEdgeDistance[index(x, y)];

@@ -31,9 +31,6 @@ struct ScreenEdge {
     double depthA = 0.0;
     double depthB = 0.0;
     Kind kind = Kind::Silhouette;
-    /// Radiance is continuous across this edge, only its derivatives jump (an area light's
-    /// umbral or penumbral event): EpiOptions::smoothRadius may average across it.
-    bool continuous = false;
     std::string toString() const;
 };
 
@@ -56,6 +53,7 @@ struct EpiStageTimes {
     double interpolateMs = 0;    ///< §5.3
     double antiAliasMs = 0;      ///< §5.3 anti-aliasing pass
     double complexFilterMs = 0;  ///< §5.4
+    double smoothMs = 0;         ///< edge-free smoothing (EpiOptions::smoothRadius)
     double buildMs() const { return pointsMs + depthFilterMs + rasterizeMs + classifyMs; }
     /// Reachability + interpolation + anti-aliasing: DESIGN.md's "reconstruct_ms".
     double reconstructMs() const { return reachabilityMs + interpolateMs + antiAliasMs; }
@@ -76,13 +74,13 @@ struct EpiOptions {
     /// for bit).
     bool complexFilterShortcut = true;
     /// Edge-free smoothing (an extension of §5.3; 0 turns it off). An empty pixel whose
-    /// (2r+1)² box holds no simple or complex pixel lies in one smooth region: no
-    /// discontinuity found by the edge finder crosses the box. It takes the mean of every
-    /// point in the largest such box, r = min(d − 1, smoothRadius) for the pixel's
-    /// Chebyshev distance d to the nearest edge pixel, instead of the peaked 5×5
-    /// interpolation. The points' own noise (stochastic shadow rays in penumbrae) then
-    /// averages out over (2r+1)² × density points, where the peaked filter keeps most of
-    /// it. Pixels next to edges (d ≤ 1) keep §5.3 unchanged.
+    /// (2r+1)² box holds no simple or complex pixel lies in one region that no edge crosses
+    /// (no silhouette, crease or shadow boundary). It takes the mean of every point in the
+    /// largest such box, r = min(d − 1, smoothRadius) for the pixel's Chebyshev distance d
+    /// to the nearest edge pixel, instead of the peaked 5×5 interpolation. The points' own
+    /// noise (stochastic shadow rays in penumbrae) then averages out over (2r+1)² × density
+    /// points, where the peaked filter keeps most of it. Pixels next to edges (d ≤ 1) keep
+    /// §5.3–5.4 unchanged.
     int smoothRadius = 0;
     /// Build and reconstruct on oneTBB (bands and rows); false runs every stage serially, the
     /// reference the parallel stages must equal bit for bit.
@@ -223,9 +221,6 @@ private:
     std::vector<uint8_t> mVertical;       ///< line x = i, y ∈ [j, j+1): H × (W+1)
     std::vector<uint8_t> mHorizontalMid;  ///< line y = j + ½: H × W
     std::vector<uint8_t> mVerticalMid;    ///< line x = i + ½: H × W
-    /// 1 where a pixel side has a crossing of an edge that is not ScreenEdge::continuous:
-    /// the same layouts as mHorizontal and mVertical.
-    std::vector<uint8_t> mHorizontalHard, mVerticalHard;
     // rasterizeEdges() scratch: per edge its bands (first, last), per chunk of edges and band
     // a count then an offset, and the edges of each band at mBandEdgeStart[band].
     std::vector<std::pair<uint8_t, uint8_t>> mEdgeBands;

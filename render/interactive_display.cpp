@@ -66,7 +66,8 @@ std::string DisplayStageTimes::toString() const {
     s << "DisplayStageTimes{edges " << findEdgesMs << " ms (silhouettes " << silhouetteMs
       << ", shadows " << shadowMs << ", project " << projectMs << "), rasterize " << rasterizeMs
       << ", points " << pointsMs << ", reach " << reachabilityMs << ", interp " << interpolateMs
-      << ", aa " << antiAliasMs << ", complex " << complexFilterMs << ", request " << requestMs
+      << ", aa " << antiAliasMs << ", complex " << complexFilterMs << ", smooth " << smoothMs
+      << ", request " << requestMs
       << ", total " << totalMs << ", shade " << shadeMs << "}";
     return s.str();
 }
@@ -243,6 +244,7 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     st.times.interpolateMs = epi.interpolateMs;
     st.times.antiAliasMs = epi.antiAliasMs;
     st.times.complexFilterMs = epi.complexFilterMs;
+    st.times.smoothMs = epi.smoothMs;
     st.emptyPixels = mEpi.countPixels(PixelClass::Empty);
     st.simplePixels = mEpi.countPixels(PixelClass::Simple);
     st.complexPixels = mEpi.countPixels(PixelClass::Complex);
@@ -694,8 +696,6 @@ bool projectEdge(const WorldEdge& e, const PixelProjector& camera, double nearPl
     out.depthA = da;
     out.depthB = db;
     out.kind = screenKind(e.kind);
-    // An area light's umbral and penumbral events bound regions of continuous radiance.
-    out.continuous = e.kind == EdgeKind::Shadow && e.shadow != ShadowKind::Hard;
     return true;
 }
 

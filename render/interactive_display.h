@@ -56,6 +56,7 @@ struct DisplayStageTimes {
     double interpolateMs = 0;    ///< §5.3
     double antiAliasMs = 0;      ///< §5.3
     double complexFilterMs = 0;  ///< §5.4
+    double smoothMs = 0;         ///< edge-free smoothing (EpiOptions::smoothRadius)
     double requestMs = 0;        ///< drawing the new sample requests from the priority image
     double totalMs = 0;          ///< the whole frame without synchronous shading
     double shadeMs = 0;          ///< synchronous shading of this frame's requests

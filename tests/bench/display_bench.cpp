@@ -84,6 +84,7 @@ void add(DisplayStageTimes& sum, const DisplayStageTimes& t, double w) {
     sum.interpolateMs += w * t.interpolateMs;
     sum.antiAliasMs += w * t.antiAliasMs;
     sum.complexFilterMs += w * t.complexFilterMs;
+    sum.smoothMs += w * t.smoothMs;
     sum.requestMs += w * t.requestMs;
     sum.totalMs += w * t.totalMs;
     sum.shadeMs += w * t.shadeMs;
@@ -161,6 +162,7 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
                           {"interpolate_ms", f.times.interpolateMs},
                           {"anti_alias_ms", f.times.antiAliasMs},
                           {"complex_filter_ms", f.times.complexFilterMs},
+                          {"smooth_ms", f.times.smoothMs},
                           {"shade_ms", f.times.shadeMs},
                           {"new_sample_fraction", f.newSampleFraction}});
     }
@@ -249,15 +251,16 @@ void printTable(const std::vector<CaseResult>& results, const DisplayBenchOption
         "per frame, warm-up %.0f%% of the pixels; means over frames 1..%d\n",
         options.width, options.height, options.frames, options.degPerFrame,
         100 * options.sampleFraction, 100 * options.warmup, options.frames - 1);
-    std::printf("\n%-16s %10s %6s %6s %6s %6s %6s %6s %6s %6s %7s %7s\n", "scene (ms)", "triangles",
-                "edges", "raster", "points", "reach", "interp", "AA", "complex", "total", "+shade",
-                "fullRT");
+    std::printf("\n%-16s %10s %6s %6s %6s %6s %6s %6s %6s %6s %6s %7s %7s\n", "scene (ms)",
+                "triangles", "edges", "raster", "points", "reach", "interp", "AA", "complex",
+                "smooth", "total", "+shade", "fullRT");
     for (const CaseResult& r : results) {
         const DisplayStageTimes& t = r.mean;
-        std::printf("%-16s %10zu %6.1f %6.1f %6.1f %6.1f %6.1f %6.1f %6.1f %6.1f %7.1f %7.0f\n",
-                    r.name.c_str(), r.triangles, t.findEdgesMs, t.rasterizeMs, t.pointsMs,
-                    t.reachabilityMs, t.interpolateMs, t.antiAliasMs, t.complexFilterMs, t.totalMs,
-                    t.totalMs + t.shadeMs, r.fullRtMs);
+        std::printf(
+            "%-16s %10zu %6.1f %6.1f %6.1f %6.1f %6.1f %6.1f %6.1f %6.1f %6.1f %7.1f %7.0f\n",
+            r.name.c_str(), r.triangles, t.findEdgesMs, t.rasterizeMs, t.pointsMs, t.reachabilityMs,
+            t.interpolateMs, t.antiAliasMs, t.complexFilterMs, t.smoothMs, t.totalMs,
+            t.totalMs + t.shadeMs, r.fullRtMs);
     }
     std::printf("\n%-16s %12s %8s %8s %9s %9s %9s %9s %9s\n", "scene", "reach+int+AA", "fps",
                 "fps+sh", "speedup", "spd+sh", "new/frm", "epi err", "cache err");
