@@ -120,7 +120,7 @@ struct RenderArgs {
     int frames = 0;  ///< 0: 1, or one per log line plus the first
     double sampleFraction = 0.02;
     double warmup = 0.25;
-    double orbitDeg = 0.5;  ///< per frame
+    double orbitDeg = 0.5;                          ///< per frame
     int smooth = displayEpiOptions().smoothRadius;  ///< EPI edge-free smoothing radius
 };
 

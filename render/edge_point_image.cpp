@@ -1435,8 +1435,7 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
         for (int yy = y0; yy <= y1; ++yy) {
             const uint8_t dy = static_cast<uint8_t>(std::abs(yy - y));
             const uint8_t* row = &mEdgeDistanceRow[static_cast<size_t>(yy) * mWidth];
-            for (int x = 0; x < mWidth; ++x)
-                dst[x] = std::min(dst[x], std::max(dy, row[x]));
+            for (int x = 0; x < mWidth; ++x) dst[x] = std::min(dst[x], std::max(dy, row[x]));
         }
     });
 

@@ -246,15 +246,15 @@ private:
     std::vector<glm::vec4> mRowSums;       ///< horizontal pass of the plain filter
     std::vector<glm::vec3> mPlain;         ///< plain (edge-ignoring) interpolation
     std::vector<float> mPlainWeight;
-    std::vector<glm::vec3> mPrimary;  ///< primary-region colours
+    std::vector<glm::vec3> mPrimary;        ///< primary-region colours
     std::vector<uint8_t> mEdgeDistanceRow;  ///< smoothing: distance along the row to an edge pixel
     std::vector<uint8_t> mEdgeDistance;     ///< smoothing: Chebyshev distance, capped
     std::vector<glm::dvec4> mSummedArea;    ///< smoothing: summed-area table of (colour, 1)
-    std::vector<uint8_t> mNearEdge;   ///< padded scratch: edges within 5 rows
-    std::vector<float> mWeight;       ///< interpolation weight before renormalization
-    std::vector<int> mComplexPixels;  ///< §5.4 scratch: the complex pixels' indices
-    std::vector<uint16_t> mSubCode;   ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
-    std::vector<uint8_t> mSubType;    ///< §5.4 scratch: their neighbour types
+    std::vector<uint8_t> mNearEdge;         ///< padded scratch: edges within 5 rows
+    std::vector<float> mWeight;             ///< interpolation weight before renormalization
+    std::vector<int> mComplexPixels;        ///< §5.4 scratch: the complex pixels' indices
+    std::vector<uint16_t> mSubCode;  ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
+    std::vector<uint8_t> mSubType;   ///< §5.4 scratch: their neighbour types
 };
 
 /// False only when EdgePointImage::build() would record no intersection of `e` with any

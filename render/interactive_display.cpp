@@ -67,8 +67,7 @@ std::string DisplayStageTimes::toString() const {
       << ", shadows " << shadowMs << ", project " << projectMs << "), rasterize " << rasterizeMs
       << ", points " << pointsMs << ", reach " << reachabilityMs << ", interp " << interpolateMs
       << ", aa " << antiAliasMs << ", complex " << complexFilterMs << ", smooth " << smoothMs
-      << ", request " << requestMs
-      << ", total " << totalMs << ", shade " << shadeMs << "}";
+      << ", request " << requestMs << ", total " << totalMs << ", shade " << shadeMs << "}";
     return s.str();
 }
 

@@ -37,8 +37,8 @@ void fanAreas(const std::vector<Vec3>& poly, std::vector<double>& cumulative) {
     cumulative.clear();
     double sum = 0;
     for (std::size_t i = 0; i + 2 < poly.size(); ++i)
-        cumulative.push_back(
-            sum += glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0])));
+        cumulative.push_back(sum +=
+                             glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0])));
 }
 
 /// Uniform point in a convex polygon: the fan triangle by area (r0 ∈ [0, 1]), then a uniform
@@ -253,8 +253,8 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         const Vec3& ny = normals[k];
         // Point-to-point kernel cos·cos/r², over the sampling density: d is unnormalized, so
         // the cosines carry a factor r² more.
-        double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) *
-                   areaOverF[k] / (dd * dd);
+        double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) * areaOverF[k] /
+                   (dd * dd);
         wAll += w;
         // Leave the source surface along its normal (toward x, which is in front of it), so
         // rays grazing the source plane do not hit the source itself in float precision.

@@ -7,8 +7,8 @@
 //
 // Index: measurements · Google Benchmark micro-benchmarks · table
 #include <benchmark/benchmark.h>
-#include <sys/resource.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -18,12 +18,12 @@
 
 #include <algorithm>
 #include <chrono>
-#include <mutex>
-#include <set>
-#include <thread>
 #include <cstdio>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "bench/bench.h"
@@ -187,8 +187,8 @@ nlohmann::json measureSceneIsolated(const std::string& path, const BenchOptions&
     posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
     posix_spawn_file_actions_addclose(&actions, fds[1]);
     const std::string maxSeconds = std::to_string(options.maxSecondsPerScene);
-    std::vector<std::string> args{"penumbra", "bench",         "solver",
-                                  "--child-scene", path, "--max-seconds", maxSeconds};
+    std::vector<std::string> args{"penumbra", "bench",         "solver",  "--child-scene",
+                                  path,       "--max-seconds", maxSeconds};
     std::vector<char*> argv;
     for (std::string& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -305,8 +305,7 @@ int runSolverBench(const BenchOptions& options) {
         }
         std::printf(
             "| %s | %zu | %zu | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %d |\n",
-            scene.c_str(),
-            r["patches"].get<std::size_t>(), r["elements"].get<std::size_t>(),
+            scene.c_str(), r["patches"].get<std::size_t>(), r["elements"].get<std::size_t>(),
             cell(r["raw_occlusion_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
             cell(r["solver_rays_per_s"].get<double>() / 1e6, "%.2f").c_str(),
             cell(r["ratio_solver_to_raw"], "%.2f").c_str(),

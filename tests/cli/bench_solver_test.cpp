@@ -32,8 +32,8 @@ TEST(BenchSolverCli, EachSceneIsMeasuredOnEveryCoreInAFreshChild) {
     ASSERT_EQ(rows.size(), 1u);
     const auto& r = rows[0];
     ASSERT_FALSE(r.contains("error")) << r.dump();
-    for (const char* key : {"raw_occlusion_rays_per_s", "solver_rays_per_s",
-                            "ratio_solver_to_raw", "peak_rss_mib"})
+    for (const char* key :
+         {"raw_occlusion_rays_per_s", "solver_rays_per_s", "ratio_solver_to_raw", "peak_rss_mib"})
         EXPECT_GT(r[key].get<double>(), 0) << key;
     EXPECT_GT(r["shots"].get<long>(), 0);
     // The raw-ray loop (1,024 tasks of 1,024 rays) ran on every core oneTBB offers.

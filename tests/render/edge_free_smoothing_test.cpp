@@ -81,12 +81,16 @@ TEST(EdgeFreeSmoothing, SmoothedPixelsAreTheMeanOfTheirLargestEdgeFreeBox) {
                 const Rgb got = image.at(x, y);
                 if (count >= 2) {
                     const Rgb mean = sum / static_cast<double>(count);
-                    ASSERT_NEAR(got.x, mean.x, 1e-6) << "trial " << trial << " (" << x << ", " << y << ")";
-                    ASSERT_NEAR(got.y, mean.y, 1e-6) << "trial " << trial << " (" << x << ", " << y << ")";
-                    ASSERT_NEAR(got.z, mean.z, 1e-6) << "trial " << trial << " (" << x << ", " << y << ")";
+                    ASSERT_NEAR(got.x, mean.x, 1e-6)
+                        << "trial " << trial << " (" << x << ", " << y << ")";
+                    ASSERT_NEAR(got.y, mean.y, 1e-6)
+                        << "trial " << trial << " (" << x << ", " << y << ")";
+                    ASSERT_NEAR(got.z, mean.z, 1e-6)
+                        << "trial " << trial << " (" << x << ", " << y << ")";
                     ++smoothed;
                 } else {
-                    ASSERT_EQ(got, plain.at(x, y)) << "trial " << trial << " (" << x << ", " << y << ")";
+                    ASSERT_EQ(got, plain.at(x, y))
+                        << "trial " << trial << " (" << x << ", " << y << ")";
                     ++kept;
                 }
             }
@@ -118,9 +122,11 @@ TEST(EdgeFreeSmoothing, NoColourCrossesAStraightEdge) {
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {
                 if (x + 1 <= 20) {
-                    ASSERT_LT(glm::length(image.at(x, y) - left), 1e-5) << radius << " " << x << " " << y;
+                    ASSERT_LT(glm::length(image.at(x, y) - left), 1e-5)
+                        << radius << " " << x << " " << y;
                 } else if (x >= 21) {
-                    ASSERT_LT(glm::length(image.at(x, y) - right), 1e-5) << radius << " " << x << " " << y;
+                    ASSERT_LT(glm::length(image.at(x, y) - right), 1e-5)
+                        << radius << " " << x << " " << y;
                 }
             }
     }
@@ -136,7 +142,8 @@ TEST(EdgeFreeSmoothing, AveragesOutPointNoiseOnAFlatField) {
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x)
             if (u(rng) < 0.8)
-                points.push_back(makePoint({x + u(rng), y + u(rng)}, Rgb(0.5 + 0.4 * (u(rng) - 0.5))));
+                points.push_back(
+                    makePoint({x + u(rng), y + u(rng)}, Rgb(0.5 + 0.4 * (u(rng) - 0.5))));
     auto rmse = [&](const Image& image) {
         double s = 0;
         for (int y = 0; y < H; ++y)

@@ -499,7 +499,6 @@ TEST(RayTracerPackets, Occluded8AnswersAsSingleRays) {
     EXPECT_LT(blockedCount, total - total / 10);
 }
 
-
 TEST(RayTracerPackets, FirstHitsAnswerAsSingleFirstHits) {
     // The grouped closest-hit query of the stochastic batches gives, ray for ray, what
     // firstHit gives: element, patch, area, side and distance, misses and back faces
