@@ -1430,12 +1430,16 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
     });
     forRows(mOptions.parallel, mHeight, [&](int y) {
         const int y0 = std::max(0, y - cap), y1 = std::min(mHeight - 1, y + cap);
-        uint8_t* dst = &mEdgeDistance[static_cast<size_t>(y) * mWidth];
+        // (Restrict: byte pointers may alias anything, which kept this loop scalar.)
+        uint8_t* __restrict dst = &mEdgeDistance[static_cast<size_t>(y) * mWidth];
         for (int x = 0; x < mWidth; ++x) dst[x] = static_cast<uint8_t>(cap);
         for (int yy = y0; yy <= y1; ++yy) {
             const uint8_t dy = static_cast<uint8_t>(std::abs(yy - y));
-            const uint8_t* row = &mEdgeDistanceRow[static_cast<size_t>(yy) * mWidth];
-            for (int x = 0; x < mWidth; ++x) dst[x] = std::min(dst[x], std::max(dy, row[x]));
+            const uint8_t* __restrict row = &mEdgeDistanceRow[static_cast<size_t>(yy) * mWidth];
+            for (int x = 0; x < mWidth; ++x) {
+                const uint8_t far = row[x] > dy ? row[x] : dy;
+                dst[x] = dst[x] < far ? dst[x] : far;
+            }
         }
     });
 
