@@ -116,6 +116,22 @@ struct RayTracer::Impl {
         double area;      ///< the element's area
     };
     std::vector<std::vector<TriangleHit>> triangleHit;
+    /// The answer of firstHit from a hit triangle's record (t aside): its element, or the
+    /// twin behind a two-sided face seen from the back.
+    static void readHit(const TriangleHit& t, const Vec3& dir, const Discretization& disc,
+                        RayTracer::FirstHit& hit) {
+        hit.element = t.element;
+        hit.patch = t.patch;
+        hit.area = t.area;
+        hit.backFace = dir.x * t.normal[0] + dir.y * t.normal[1] + dir.z * t.normal[2] > 0;
+        if (hit.backFace && t.twin >= 0) {
+            const Element& back = disc.elements()[t.twin];  // the two-sided face's back
+            hit.element = t.twin;
+            hit.patch = back.patch;
+            hit.area = back.area;
+            hit.backFace = false;
+        }
+    }
     /// Per-thread ray counters. ets_key_per_instance finds the calling thread's counter
     /// through a native thread-local key, not a hash-table lookup: a few ns per ray.
     mutable tbb::enumerable_thread_specific<unsigned long long,
@@ -381,19 +397,8 @@ RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
     ++mImpl->rays.local();
     FirstHit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
-    const Impl::TriangleHit& t = mImpl->triangleHit[rh.hit.instID[0]][rh.hit.primID];
-    hit.element = t.element;
-    hit.patch = t.patch;
-    hit.area = t.area;
-    hit.backFace = dir.x * t.normal[0] + dir.y * t.normal[1] + dir.z * t.normal[2] > 0;
+    Impl::readHit(mImpl->triangleHit[rh.hit.instID[0]][rh.hit.primID], dir, mDisc, hit);
     hit.t = rh.ray.tfar;
-    if (hit.backFace && t.twin >= 0) {
-        const Element& back = mDisc.elements()[t.twin];  // the two-sided face's back
-        hit.element = t.twin;
-        hit.patch = back.patch;
-        hit.area = back.area;
-        hit.backFace = false;
-    }
     return hit;
 }
 
@@ -420,19 +425,7 @@ void RayTracer::firstHits(const Vec3* origins, const Vec3* dirs, int count, Firs
     for (int i = 0; i < count; ++i) {
         FirstHit& hit = hits[i];
         if (hit.element < 0) continue;
-        const Impl::TriangleHit& t = mImpl->triangleHit[hit.element][hit.patch];
-        const Vec3& dir = dirs[i];
-        hit.element = t.element;
-        hit.patch = t.patch;
-        hit.area = t.area;
-        hit.backFace = dir.x * t.normal[0] + dir.y * t.normal[1] + dir.z * t.normal[2] > 0;
-        if (hit.backFace && t.twin >= 0) {
-            const Element& back = mDisc.elements()[t.twin];  // the two-sided face's back
-            hit.element = t.twin;
-            hit.patch = back.patch;
-            hit.area = back.area;
-            hit.backFace = false;
-        }
+        Impl::readHit(mImpl->triangleHit[hit.element][hit.patch], dirs[i], mDisc, hit);
     }
 }
 

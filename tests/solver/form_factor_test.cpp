@@ -457,10 +457,8 @@ TEST(FormFactor, SamplePatternIsKeyedBySeedAndReceiver) {
 namespace penumbra {
 namespace {
 
-TEST(RayTracerPackets, Occluded8AnswersAsSingleRays) {
-    // A packet of segments from one point (the solver's visibility samples of one pair) is
-    // blocked exactly where the single-ray query says so, in the current scene and with an
-    // object ignored.
+/// The lit test room with a half-metre box blocker (the last object) below its centre.
+Scene litRoomWithABlocker() {
     Scene scene = test::makeLitRoom("white");
     SceneObject box;
     box.id = "blocker";
@@ -469,6 +467,14 @@ TEST(RayTracerPackets, Occluded8AnswersAsSingleRays) {
     box.material = "white";
     box.transform.translate = Vec3(0.0, -0.3, 0.0);
     scene.objects.push_back(box);
+    return scene;
+}
+
+TEST(RayTracerPackets, Occluded8AnswersAsSingleRays) {
+    // A packet of segments from one point (the solver's visibility samples of one pair) is
+    // blocked exactly where the single-ray query says so, in the current scene and with an
+    // object ignored.
+    Scene scene = litRoomWithABlocker();
     Discretization disc(scene);
     RayTracer tracer(disc);
     const auto& el = disc.elements();
@@ -503,14 +509,7 @@ TEST(RayTracerPackets, FirstHitsAnswerAsSingleFirstHits) {
     // The grouped closest-hit query of the stochastic batches gives, ray for ray, what
     // firstHit gives: element, patch, area, side and distance, misses and back faces
     // included, in the current scene and with an object ignored.
-    Scene scene = test::makeLitRoom("white");
-    SceneObject box;
-    box.id = "blocker";
-    box.shape.type = ShapeType::Box;
-    box.shape.size = Vec3(0.5);
-    box.material = "white";
-    box.transform.translate = Vec3(0.0, -0.3, 0.0);
-    scene.objects.push_back(box);
+    Scene scene = litRoomWithABlocker();
     Discretization disc(scene);
     RayTracer tracer(disc);
     const auto& el = disc.elements();
