@@ -105,6 +105,13 @@ std::string InteractiveDisplay::toString() const {
 
 namespace {
 
+/// The display's points may be negative (PointShaderOptions::clampNegative off); a frame is
+/// not. NaN stays NaN (every output path shows it as black).
+Image clampedAtZero(Image image) {
+    for (Rgb& p : image.pixels) p = Rgb(std::max(p.x, 0.0), std::max(p.y, 0.0), std::max(p.z, 0.0));
+    return image;
+}
+
 PointShaderOptions shaderOptionsFor(const InteractiveDisplayOptions& o) {
     PointShaderOptions s = o.shader;
     if (o.synchronous) s.threads = 0;
@@ -235,7 +242,7 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
 
     // The edge-and-point image and its reconstruction (§4–5).
     mEpi.build(mScreenEdges, points);
-    Image image = mEpi.reconstruct(useEdges);
+    Image image = clampedAtZero(mEpi.reconstruct(useEdges));
     const EpiStageTimes& epi = mEpi.stageTimes();
     st.times.pointsMs += epi.pointsMs;
     st.times.rasterizeMs = epi.depthFilterMs + epi.rasterizeMs + epi.classifyMs;
@@ -278,7 +285,9 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     return image;
 }
 
-Image InteractiveDisplay::reconstructLast(bool useEdges) { return mEpi.reconstruct(useEdges); }
+Image InteractiveDisplay::reconstructLast(bool useEdges) {
+    return clampedAtZero(mEpi.reconstruct(useEdges));
+}
 
 // ---------------------------------------------------------------------------------------------
 // Warm-up
@@ -555,7 +564,8 @@ Image InteractiveDisplay::renderReference(const CameraRays& camera, int samplesP
                                        kReferenceFrame};
                         sum += mShader->shade(r).radiance;
                     }
-                image.at(x, y) = sum / static_cast<double>(s * s);
+                // The pixel's mean, clamped after averaging as a frame is.
+                image.at(x, y) = glm::max(sum / static_cast<double>(s * s), Rgb(0.0));
             }
     });
     return image;

@@ -82,6 +82,18 @@ struct DisplayFrameStats {
     std::string toString() const;
 };
 
+/// PointShaderOptions as the display uses them by default: clampNegative off. A point's
+/// direct light is Lambert's exact unoccluded part less a sampled blocked part, which
+/// scatters about the truth and below 0 in umbrae; clamping each point there biased every
+/// shadow upward once the points were averaged (armadillo-field, where the indirect light is
+/// weak: +0.02–0.04 in display units within 8 pixels of a shadow edge, against the
+/// converged reference). The frame is clamped instead, after the reconstruction.
+inline PointShaderOptions displayShaderOptions() {
+    PointShaderOptions o;
+    o.clampNegative = false;
+    return o;
+}
+
 /// EpiOptions as the display uses them by default: smoothRadius 8.
 inline EpiOptions displayEpiOptions() {
     EpiOptions o;
@@ -110,7 +122,10 @@ struct InteractiveDisplayOptions {
     /// At most this many requests wait in the asynchronous shader's queue; a frame asks for
     /// no more than fit.
     std::size_t maxPendingPerFrame = 4;
-    PointShaderOptions shader;  ///< threads are forced to 0 in synchronous mode
+    /// threads are forced to 0 in synchronous mode. The display's points are not clamped at
+    /// 0 (displayShaderOptions): their noise averages out in the reconstruction, and the
+    /// frame is clamped at 0 after it.
+    PointShaderOptions shader = displayShaderOptions();
     RenderCacheOptions cache;
     EdgeFinderOptions edges;
     /// The display's EPI: the paper's, plus edge-free smoothing of radius 8
