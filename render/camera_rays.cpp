@@ -39,6 +39,8 @@ CameraRays::CameraRays(const Camera& camera, int width, int height)
 
     mTanHalfY = std::tan(glm::radians(camera.fovDeg) * 0.5);
     mTanHalfX = mTanHalfY * static_cast<double>(width) / static_cast<double>(height);
+    mPixelRight = mRight * (0.5 * width / mTanHalfX);
+    mPixelUp = mUp * (0.5 * height / mTanHalfY);
 }
 
 Vec3 CameraRays::rayDirection(double px, double py) const {

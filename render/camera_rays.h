@@ -28,14 +28,21 @@ public:
     /// Pixel coordinates (px, py) where a world point projects; empty when the point is not
     /// in front of the camera. The result may lie outside the raster.
     std::optional<glm::dvec2> projectToPixel(const Vec3& world) const;
+    /// projectToPixel for a point whose view depth dot(world − origin, forward) is known and
+    /// positive, with the constants folded: one division (the edges' per-frame projection).
+    /// Agrees with projectToPixel to rounding.
+    glm::dvec2 projectAtDepth(const Vec3& world, double depth) const {
+        const Vec3 d = world - mOrigin;
+        const double inv = 1.0 / depth;
+        return {0.5 * mWidth + glm::dot(d, mPixelRight) * inv,
+                0.5 * mHeight - glm::dot(d, mPixelUp) * inv};
+    }
 
     int width() const { return mWidth; }
     int height() const { return mHeight; }
     const Vec3& forward() const { return mForward; }  ///< unit view direction
     const Vec3& right() const { return mRight; }      ///< unit, image +x
     const Vec3& up() const { return mUp; }            ///< unit, image −y
-    double tanHalfX() const { return mTanHalfX; }     ///< tan of half the horizontal field
-    double tanHalfY() const { return mTanHalfY; }     ///< tan of half the vertical field
     std::string toString() const;
 
 private:
@@ -43,8 +50,10 @@ private:
     Vec3 mForward{0, 0, -1};
     Vec3 mRight{1, 0, 0};
     Vec3 mUp{0, 1, 0};
-    double mTanHalfY = 1;  ///< tan(fovY / 2)
-    double mTanHalfX = 1;  ///< tanHalfY · width / height
+    double mTanHalfY = 1;       ///< tan(fovY / 2)
+    double mTanHalfX = 1;       ///< tanHalfY · width / height
+    Vec3 mPixelRight{1, 0, 0};  ///< mRight · width / (2 tanHalfX): projectAtDepth
+    Vec3 mPixelUp{0, 1, 0};     ///< mUp · height / (2 tanHalfY)
     int mWidth = 1;
     int mHeight = 1;
 };

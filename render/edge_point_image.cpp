@@ -1446,13 +1446,16 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
     // Summed-area table of (colour, 1) over the points, in double (float sums of 262k terms
     // lose the colour's low bits): S(x, y) = Σ over x' < x, y' < y. Rows in parallel, then
     // columns in parallel blocks.
+    // Every entry is written below; only row 0 and column 0 are zeros.
     const int sw = mWidth + 1;
-    mSummedArea.assign(static_cast<size_t>(sw) * (mHeight + 1), glm::dvec4(0.0));
+    mSummedArea.resize(static_cast<size_t>(sw) * (mHeight + 1));
+    std::fill_n(mSummedArea.begin(), sw, glm::dvec4(0.0));
     const int pw = mWidth + 4;
     forRows(mOptions.parallel, mHeight, [&](int y) {
         const glm::vec4* src = &mPaddedAll[static_cast<size_t>(y + 2) * pw + 2];
         glm::dvec4* dst = &mSummedArea[static_cast<size_t>(y + 1) * sw];
         glm::dvec4 sum(0.0);
+        dst[0] = sum;
         for (int x = 0; x < mWidth; ++x) dst[x + 1] = sum += glm::dvec4(src[x]);
     });
     constexpr int kColumns = 32;

@@ -660,33 +660,11 @@ std::string ConvergedReferenceOptions::toString() const {
 
 namespace {
 
-/// The camera's projection with its constants folded: pixel x = cx + (d · sx) / depth,
-/// y = cy − (d · sy) / depth for d = p − eye, one division per point (CameraRays::
-/// projectToPixel's formula, rearranged; the two agree to rounding).
-struct PixelProjector {
-    Vec3 origin, forward, sx, sy;
-    double cx, cy;
-    explicit PixelProjector(const CameraRays& camera)
-        : origin(camera.origin()),
-          forward(camera.forward()),
-          sx(camera.right() * (0.5 * camera.width() / camera.tanHalfX())),
-          sy(camera.up() * (0.5 * camera.height() / camera.tanHalfY())),
-          cx(0.5 * camera.width()),
-          cy(0.5 * camera.height()) {}
-    /// `depth` is dot(p − eye, forward), positive.
-    glm::dvec2 toPixel(const Vec3& p, double depth) const {
-        const Vec3 d = p - origin;
-        const double inv = 1.0 / depth;
-        return {cx + glm::dot(d, sx) * inv, cy - glm::dot(d, sy) * inv};
-    }
-};
-
 /// One edge of projectEdges: false when it is dropped (behind the near plane or not
 /// projectable).
-bool projectEdge(const WorldEdge& e, const PixelProjector& camera, double nearPlane,
-                 ScreenEdge& out) {
-    const Vec3& o = camera.origin;
-    const Vec3& f = camera.forward;
+bool projectEdge(const WorldEdge& e, const CameraRays& camera, double nearPlane, ScreenEdge& out) {
+    const Vec3& o = camera.origin();
+    const Vec3& f = camera.forward();
     Vec3 a = e.a, b = e.b;
     double da = glm::dot(a - o, f), db = glm::dot(b - o, f);
     if (!(da >= nearPlane) && !(db >= nearPlane)) return false;  // behind (or NaN)
@@ -700,8 +678,8 @@ bool projectEdge(const WorldEdge& e, const PixelProjector& camera, double nearPl
     }
     // Both depths are now at least the near plane (> 0): both ends project.
     if (!(da > 0) || !(db > 0)) return false;
-    out.a = camera.toPixel(a, da);
-    out.b = camera.toPixel(b, db);
+    out.a = camera.projectAtDepth(a, da);
+    out.b = camera.projectAtDepth(b, db);
     out.depthA = da;
     out.depthB = db;
     out.kind = screenKind(e.kind);
@@ -714,10 +692,9 @@ std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const 
                                      double nearPlane) {
     std::vector<ScreenEdge> out;
     out.reserve(edges.size());
-    const PixelProjector projector(camera);
     ScreenEdge s;
     for (const WorldEdge& e : edges)
-        if (projectEdge(e, projector, nearPlane, s)) out.push_back(s);
+        if (projectEdge(e, camera, nearPlane, s)) out.push_back(s);
     return out;
 }
 
@@ -725,7 +702,6 @@ void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
                      const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
                      std::vector<ScreenEdge>& scratch, bool parallel) {
     const int W = camera.width(), H = camera.height();
-    const PixelProjector projector(camera);
     // Global index n of the concatenation: list l holds [listStart[l], listStart[l + 1]).
     std::vector<std::size_t> listStart(lists.size() + 1, 0);
     for (std::size_t l = 0; l < lists.size(); ++l)
@@ -744,7 +720,7 @@ void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
         for (std::size_t n = lo; n < hi; ++n) {
             while (n >= listStart[l + 1]) ++l;
             ScreenEdge& s = scratch[m];
-            if (projectEdge((*lists[l])[n - listStart[l]], projector, nearPlane, s) &&
+            if (projectEdge((*lists[l])[n - listStart[l]], camera, nearPlane, s) &&
                 edgeMayMark(s, W, H)) {
                 ++m;
             }
