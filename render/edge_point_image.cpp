@@ -1237,22 +1237,20 @@ void EdgePointImage::filterComplexPixels(Image& out) {
         // fill: edges[dir][ra][rb] has bit a set when region ra of subpixel a meets region rb
         // of its neighbour to the right (dir 0, a + 1) or below (dir 1, a + 6). Components are
         // labelled on demand; only the labels' equality matters below.
+        // Branch-free: adjacency bit 2·ra + rb selects edges[dir][ra][rb].
         uint64_t edges[2][2][2] = {};
+        auto addEdges = [&edges](int dir, unsigned m, int a) {
+            const uint64_t bit = uint64_t(1) << a;
+            edges[dir][0][0] |= bit & (uint64_t(0) - (m & 1u));
+            edges[dir][0][1] |= bit & (uint64_t(0) - ((m >> 1) & 1u));
+            edges[dir][1][0] |= bit & (uint64_t(0) - ((m >> 2) & 1u));
+            edges[dir][1][1] |= bit & (uint64_t(0) - ((m >> 3) & 1u));
+        };
         for (int v = 0; v < 6; ++v) {
             for (int u = 0; u < 6; ++u) {
                 const int a = v * 6 + u;
-                if (u + 1 < 6) {
-                    for (unsigned m = adjacency[0][types[a] * 8 + types[a + 1]]; m; m &= m - 1) {
-                        const int bit = std::countr_zero(m);
-                        edges[0][bit >> 1][bit & 1] |= uint64_t(1) << a;
-                    }
-                }
-                if (v + 1 < 6) {
-                    for (unsigned m = adjacency[1][types[a] * 8 + types[a + 6]]; m; m &= m - 1) {
-                        const int bit = std::countr_zero(m);
-                        edges[1][bit >> 1][bit & 1] |= uint64_t(1) << a;
-                    }
-                }
+                if (u + 1 < 6) addEdges(0, adjacency[0][types[a] * 8 + types[a + 1]], a);
+                if (v + 1 < 6) addEdges(1, adjacency[1][types[a] * 8 + types[a + 6]], a);
             }
         }
         // Only the components of the pixel's own 4 subpixels' regions are needed: they are

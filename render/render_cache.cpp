@@ -45,6 +45,9 @@ RenderCache::RenderCache(int width, int height, std::size_t capacity, RenderCach
     }
     const std::size_t pixels = static_cast<std::size_t>(width) * height;
     mPoints.reserve(capacity);
+    mPosition.reserve(capacity);
+    mBorn.reserve(capacity);
+    mVisible.reserve(capacity);
     mPixelPoint.assign(pixels, -1);
     mScreenOfPixel.assign(pixels, -1);
     mPriority.assign(pixels, 1.0);
@@ -65,9 +68,7 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
         p.colour = s.radiance;
         p.object = s.object;
         p.element = s.element;
-        p.age = 0;
         p.frame = s.frame;
-        p.visible = true;
         return p;
     };
     // Of a batch larger than the cache only its last capacity() points stay.
@@ -84,19 +85,27 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
         order.resize(existing);
         std::iota(order.begin(), order.end(), 0);
         auto moreEvictable = [&](int a, int b) {
-            const CachePoint &pa = mPoints[a], &pb = mPoints[b];
-            if (pa.visible != pb.visible) return !pa.visible;
-            if (pa.age != pb.age) return pa.age > pb.age;
+            if (mVisible[a] != mVisible[b]) return !mVisible[a];
+            if (mBorn[a] != mBorn[b]) return mBorn[a] < mBorn[b];  // the older
             return a < b;
         };
         std::nth_element(order.begin(), order.begin() + (victims - 1), order.end(), moreEvictable);
     }
     std::size_t v = 0;
     for (std::size_t i = first; i < batch.size(); ++i) {
-        if (mPoints.size() < mCapacity)
+        std::size_t slot = mPoints.size();
+        if (slot < mCapacity) {
             mPoints.push_back(toCache(batch[i]));
-        else
-            mPoints[order[v++]] = toCache(batch[i]);
+            mPosition.emplace_back();
+            mBorn.emplace_back();
+            mVisible.emplace_back();
+        } else {
+            slot = static_cast<std::size_t>(order[v++]);
+            mPoints[slot] = toCache(batch[i]);
+        }
+        mPosition[slot] = batch[i].position;
+        mBorn[slot] = mFrame;  // age 0 in the next reprojection
+        mVisible[slot] = 1;    // new points count as visible
     }
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
 }
@@ -150,10 +159,10 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
 
     // Project every point to the new camera.
     for (std::size_t i = 0; i < n; ++i) {
-        const auto p = camera.projectToPixel(mPoints[i].position);
+        const auto p = camera.projectToPixel(mPosition[i]);
         if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
         position[i] = *p;
-        depth[i] = glm::dot(mPoints[i].position - camera.origin(), camera.forward());
+        depth[i] = glm::dot(mPosition[i] - camera.origin(), camera.forward());
         const int x = std::min(static_cast<int>(p->x), mWidth - 1);
         const int y = std::min(static_cast<int>(p->y), mHeight - 1);
         pixel[i] = y * mWidth + x;
@@ -170,7 +179,7 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
         }
         const double dc = depth[cur];
         if (depth[i] < dc * (1 - kSameSurface) ||
-            (depth[i] <= dc * (1 + kSameSurface) && mPoints[i].age < mPoints[cur].age))
+            (depth[i] <= dc * (1 + kSameSurface) && ageBefore(i) < ageBefore(cur)))
             cur = static_cast<int>(i);
     }
 
@@ -200,19 +209,18 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
         }
     }
 
-    // Visible points in pixel order; then every point ages by a frame.
-    for (CachePoint& p : mPoints) p.visible = false;
+    // Visible points in pixel order (every point ages by a frame: ages count from mFrame).
+    std::fill(mVisible.begin(), mVisible.end(), 0);
     mScreen.clear();
     std::fill(mScreenOfPixel.begin(), mScreenOfPixel.end(), -1);
     for (std::size_t k = 0; k < mPixelPoint.size(); ++k) {
         const int i = mPixelPoint[k];
         if (i < 0) continue;
-        mPoints[i].visible = true;
+        mVisible[i] = 1;
         mScreenOfPixel[k] = static_cast<int>(mScreen.size());
-        mScreen.push_back({position[i], depth[i], mPoints[i].colour, mPoints[i].age});
+        mScreen.push_back({position[i], depth[i], mPoints[i].colour, ageBefore(i)});
     }
     computePriority();
-    for (CachePoint& p : mPoints) ++p.age;
 }
 
 void RenderCache::reprojectParallel(const CameraRays& camera) {
@@ -232,22 +240,26 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
     mLuminanceHi.resize(pixels);
     mRowCount.resize(static_cast<std::size_t>(mHeight) + 1);
 
-    // One pass over the points: project, remember the age, age by a frame, hide; and the band
-    // of rows each point falls in, for the z-buffer below.
+    // One pass over the points' compact arrays (position, birth frame): project, remember the
+    // age; and the band of rows each point falls in, counted per fixed chunk of points.
+    std::fill(mVisible.begin(), mVisible.end(), 0);
     const int bands = std::min(mHeight, 8);
+    constexpr std::size_t kChunk = 8192;
+    const std::size_t chunks = (n + kChunk - 1) / kChunk;
     mProjBand.resize(n);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            CachePoint& pt = mPoints[i];
-            mProjAge[i] = pt.age;
-            ++pt.age;
-            pt.visible = false;
+    mChunkBandCount.assign(chunks * static_cast<std::size_t>(bands), 0);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        std::uint32_t* count = &mChunkBandCount[c * static_cast<std::size_t>(bands)];
+        const std::size_t end = std::min(n, (c + 1) * kChunk);
+        for (std::size_t i = c * kChunk; i != end; ++i) {
+            const Vec3& position = mPosition[i];
+            mProjAge[i] = ageBefore(i);
             mProjPixel[i] = -1;
             mProjBand[i] = 0xFF;
-            const auto p = camera.projectToPixel(pt.position);
+            const auto p = camera.projectToPixel(position);
             if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
             mProjPosition[i] = *p;
-            mProjDepth[i] = glm::dot(pt.position - camera.origin(), camera.forward());
+            mProjDepth[i] = glm::dot(position - camera.origin(), camera.forward());
             const int x = std::min(static_cast<int>(p->x), mWidth - 1);
             const int y = std::min(static_cast<int>(p->y), mHeight - 1);
             mProjPixel[i] = y * mWidth + x;
@@ -256,7 +268,29 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
             while (b + 1 < bands && y >= static_cast<long long>(mHeight) * (b + 1) / bands) ++b;
             while (b > 0 && y < static_cast<long long>(mHeight) * b / bands) --b;
             mProjBand[i] = static_cast<std::uint8_t>(b);
+            ++count[b];
         }
+    });
+    // Each band's points in index order (chunk offsets from the counts, then a scatter), so
+    // a band reads only its own points: scanning every point per band cost a mispredicted
+    // branch per point and band.
+    mBandStart.assign(static_cast<std::size_t>(bands) + 1, 0);
+    for (int b = 0; b < bands; ++b) {
+        std::uint32_t at = mBandStart[b];
+        for (std::size_t c = 0; c < chunks; ++c) {
+            std::uint32_t& k = mChunkBandCount[c * static_cast<std::size_t>(bands) + b];
+            const std::uint32_t here = k;
+            k = at;  // now the chunk's first slot in the band's list
+            at += here;
+        }
+        mBandStart[b + 1] = at;
+    }
+    mBandPoints.resize(mBandStart[bands]);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        std::uint32_t* slot = &mChunkBandCount[c * static_cast<std::size_t>(bands)];
+        const std::size_t end = std::min(n, (c + 1) * kChunk);
+        for (std::size_t i = c * kChunk; i != end; ++i)
+            if (mProjBand[i] != 0xFF) mBandPoints[slot[mProjBand[i]]++] = static_cast<int>(i);
     });
 
     // Z-buffer per band of rows: each band takes its points in index order, as the serial
@@ -269,10 +303,9 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
             static_cast<int>(static_cast<long long>(mHeight) * (band + 1) / bands) * mWidth;
         std::fill(mPixelPoint.begin() + lo, mPixelPoint.begin() + hi, -1);
         std::fill(mPixelDepth.begin() + lo, mPixelDepth.begin() + hi, kNone);
-        for (std::size_t i = 0; i < n; ++i) {
-            if (mProjBand[i] != band) continue;
+        for (std::uint32_t j = mBandStart[band]; j != mBandStart[band + 1]; ++j) {
+            const int i = mBandPoints[j];
             const int k = mProjPixel[i];
-            if (k < lo || k >= hi) continue;  // (never: the band holds the row)
             int& cur = mPixelPoint[k];
             const double d = mProjDepth[i];
             if (cur >= 0) {
@@ -281,7 +314,7 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
                       (d <= dc * (1 + kSameSurface) && mProjAge[i] < mPixelAge[k])))
                     continue;
             }
-            cur = static_cast<int>(i);
+            cur = i;
             mPixelDepth[k] = d;
             mPixelAge[k] = mProjAge[i];
             mPixelPosition[k] = mProjPosition[i];
@@ -344,6 +377,10 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
         int s = mRowCount[y];
         for (int x = 0; x < mWidth; ++x) {
             const int k = y * mWidth + x;
+            // The points are in insertion order, not pixel order: fetch ahead.
+            constexpr int kAhead = 8;
+            if (x + kAhead < mWidth && mPixelPoint[k + kAhead] >= 0)
+                __builtin_prefetch(&mPoints[mPixelPoint[k + kAhead]].colour);
             const int i = mPixelPoint[k];
             if (i < 0) {
                 mScreenOfPixel[k] = -1;
@@ -351,8 +388,8 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
                 mLuminanceHi[k] = -1e300;
                 continue;
             }
-            CachePoint& pt = mPoints[i];
-            pt.visible = true;
+            const CachePoint& pt = mPoints[i];
+            mVisible[i] = 1;
             mScreenOfPixel[k] = s;
             // Position, depth and age from the pixel's z-buffer entry (read in order; only the
             // point's colour and flag are a random access).
@@ -634,10 +671,25 @@ Image RenderCache::interpolatedImage() const {
 
 template <class Drop>
 std::size_t RenderCache::dropIf(Drop drop) {
+    // Compacts the record and the per-point arrays together, keeping the order.
     const std::size_t before = mPoints.size();
-    mPoints.erase(std::remove_if(mPoints.begin(), mPoints.end(), drop), mPoints.end());
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < before; ++i) {
+        if (drop(mPoints[i])) continue;
+        if (kept != i) {
+            mPoints[kept] = std::move(mPoints[i]);
+            mPosition[kept] = mPosition[i];
+            mBorn[kept] = mBorn[i];
+            mVisible[kept] = mVisible[i];
+        }
+        ++kept;
+    }
+    mPoints.resize(kept);
+    mPosition.resize(kept);
+    mBorn.resize(kept);
+    mVisible.resize(kept);
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
-    return before - mPoints.size();
+    return before - kept;
 }
 
 std::size_t RenderCache::invalidateObjects(const std::unordered_set<int>& objects) {
@@ -664,8 +716,7 @@ std::string CachePoint::toString() const {
     std::ostringstream s;
     s << "CachePoint{position (" << position.x << ", " << position.y << ", " << position.z
       << "), colour (" << colour.x << ", " << colour.y << ", " << colour.z << "), object " << object
-      << ", element " << element << ", age " << age << ", frame " << frame
-      << (visible ? ", visible}" : ", hidden}");
+      << ", element " << element << ", frame " << frame << "}";
     return s.str();
 }
 

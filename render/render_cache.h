@@ -33,15 +33,15 @@ namespace penumbra {
 // frames reprojected since shaded, 0 in its first frame) is the EPI's input type, defined in
 // render/edge_point_image.h.
 
-/// One cached shaded point (Walter et al. 1999 §3).
+/// One cached shaded point (Walter et al. 1999 §3). Its age and whether it survived the last
+/// reprojection are kept by the cache (RenderCache::age, RenderCache::visible), in arrays
+/// the per-frame passes stream through without touching these records.
 struct CachePoint {
     Vec3 position{0.0};  ///< world space; misses sit kMissDistance along their ray
     Rgb colour{0.0};     ///< radiance, W/m²/sr
     int object = -1;     ///< Discretization object index, −1 for a miss
     int element = -1;
-    int age = 0;              ///< frames reprojected since shaded
     std::uint64_t frame = 0;  ///< frame the point was requested in
-    bool visible = true;      ///< survived the last reprojection (new points count as visible)
     std::string toString() const;
 };
 
@@ -126,6 +126,10 @@ public:
     void clear();
 
     const std::vector<CachePoint>& points() const { return mPoints; }
+    /// Frames reprojected since point i was shaded.
+    int age(std::size_t i) const { return static_cast<int>(mFrame - mBorn[i]); }
+    /// Whether point i survived the last reprojection (new points count as visible).
+    bool visible(std::size_t i) const { return mVisible[i] != 0; }
     std::size_t size() const { return mPoints.size(); }
     std::size_t capacity() const { return mCapacity; }
     int width() const { return mWidth; }
@@ -157,6 +161,14 @@ private:
     std::size_t mCapacity;
     RenderCacheOptions mOptions;
     std::vector<CachePoint> mPoints;
+    // Per point, beside mPoints: what every reprojection reads or writes, so it streams through
+    // 33 bytes a point instead of the whole records.
+    std::vector<Vec3> mPosition;         ///< mPoints[i].position
+    std::vector<std::uint64_t> mBorn;    ///< mFrame when inserted: its age is mFrame − this
+    std::vector<std::uint8_t> mVisible;  ///< survived the last reprojection
+    /// Age during the current reprojection (mFrame already counts it), as the frame's screen
+    /// points carry it: 0 in a point's first.
+    int ageBefore(std::size_t i) const { return static_cast<int>(mFrame - 1 - mBorn[i]); }
     std::uint64_t mFrame = 0;
 
     std::vector<int> mPixelPoint;           ///< per pixel, −1 when empty
@@ -166,18 +178,21 @@ private:
     std::vector<std::uint64_t> mRequested;  ///< per pixel, frame + 1 of the last request
 
     // Scratch of reprojectParallel(), kept between frames.
-    std::vector<int> mProjPixel;             ///< per point: pixel, −1 off screen
-    std::vector<double> mProjDepth;          ///< per point: view depth
-    std::vector<int> mProjAge;               ///< per point: age before this frame's increment
-    std::vector<glm::dvec2> mProjPosition;   ///< per point: projectToPixel (when on screen)
-    std::vector<int> mPixelAge;              ///< per pixel: that age of its z-buffer point
-    std::vector<double> mPixelDepth;         ///< per pixel: depth of its z-buffer point
-    std::vector<glm::dvec2> mPixelPosition;  ///< per pixel: position of its z-buffer point
-    std::vector<int> mFiltered;              ///< per pixel: culling's output, swapped in
-    std::vector<std::uint8_t> mProjBand;     ///< per point: band of rows (0xFF off screen)
-    std::vector<double> mLuminance;          ///< per pixel: luminance of its point, 1e300 without
-    std::vector<double> mLuminanceHi;        ///< the same, −1e300 without
-    std::vector<int> mRowCount;              ///< per row: visible points (prefix sums)
+    std::vector<int> mProjPixel;                 ///< per point: pixel, −1 off screen
+    std::vector<double> mProjDepth;              ///< per point: view depth
+    std::vector<int> mProjAge;                   ///< per point: age before this frame's increment
+    std::vector<glm::dvec2> mProjPosition;       ///< per point: projectToPixel (when on screen)
+    std::vector<int> mPixelAge;                  ///< per pixel: that age of its z-buffer point
+    std::vector<double> mPixelDepth;             ///< per pixel: depth of its z-buffer point
+    std::vector<glm::dvec2> mPixelPosition;      ///< per pixel: position of its z-buffer point
+    std::vector<int> mFiltered;                  ///< per pixel: culling's output, swapped in
+    std::vector<std::uint8_t> mProjBand;         ///< per point: band of rows (0xFF off screen)
+    std::vector<std::uint32_t> mChunkBandCount;  ///< per chunk of points and band: count, then slot
+    std::vector<std::uint32_t> mBandStart;       ///< per band: first entry in mBandPoints
+    std::vector<int> mBandPoints;                ///< on-screen points by band, in index order
+    std::vector<double> mLuminance;    ///< per pixel: luminance of its point, 1e300 without
+    std::vector<double> mLuminanceHi;  ///< the same, −1e300 without
+    std::vector<int> mRowCount;        ///< per row: visible points (prefix sums)
     // Scratch of requestSamplesParallel().
     std::vector<double> mEffective;    ///< per pixel: priority, 0 while held back
     std::vector<double> mTileSum;      ///< per tile: summed effective priority

@@ -167,9 +167,9 @@ TEST(RenderCache, PointBehindANearerSurfacesPointsIsDiscarded) {
     for (int y = 0; y < 16; ++y)
         EXPECT_GE(cache.pixelPoints()[y * 32 + 16], 0)
             << "background beside a silhouette, row " << y;
-    for (const CachePoint& p : cache.points())
-        if (p.object == 2) {
-            EXPECT_FALSE(p.visible) << p.toString();
+    for (std::size_t i = 0; i < cache.size(); ++i)
+        if (cache.points()[i].object == 2) {
+            EXPECT_FALSE(cache.visible(i)) << cache.points()[i].toString();
         }
     EXPECT_GE(cache.pixelPoints()[25 * 32 + 25], 0) << "far points among far points stay";
     int far = 0;
@@ -232,8 +232,8 @@ TEST(RenderCache, ParallelReprojectionEqualsSerialBitForBit) {
         ASSERT_EQ(parallel.priority(), serial.priority()) << "frame " << frame;
         ASSERT_EQ(parallel.size(), serial.size());
         for (std::size_t i = 0; i < parallel.size(); ++i) {
-            ASSERT_EQ(parallel.points()[i].age, serial.points()[i].age) << i;
-            ASSERT_EQ(parallel.points()[i].visible, serial.points()[i].visible) << i;
+            ASSERT_EQ(parallel.age(i), serial.age(i)) << i;
+            ASSERT_EQ(parallel.visible(i), serial.visible(i)) << i;
         }
         // Requests (tiles in parallel, one random stream): the default budget, then a second
         // call in the same frame (held-back pixels) with a budget over the remaining pixels.
@@ -295,6 +295,52 @@ TEST(RenderCache, InvalidationRemovesExactlyTheMatchingPoints) {
     cache.clear();
     EXPECT_EQ(cache.size(), 0u);
     EXPECT_TRUE(cache.reproject(rays).empty());
+}
+
+TEST(RenderCache, ScreenPointsMatchTheirRecordsAfterInvalidationAndReplacement) {
+    // The reprojection reads the cache's per-point arrays (position, birth frame), not the
+    // records: after compaction by invalidation and replacement of evicted slots, each screen
+    // point must still be its record's projection, colour and age.
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), 24, 24);
+    RenderCache cache(24, 24, 700);
+    auto batch = [&](int seed, int count) {
+        std::vector<ShadedPoint> b;
+        std::mt19937 rng(static_cast<unsigned>(seed));
+        std::uniform_real_distribution<double> u(0.0, 24.0), t(2.0, 4.0), c(0.0, 1.0);
+        for (int i = 0; i < count; ++i) {
+            ShadedPoint p =
+                pointOnRay(rays, u(rng), u(rng), t(rng), i % 7, Rgb(c(rng), c(rng), c(rng)));
+            p.element = seed * 10000 + i;
+            b.push_back(p);
+        }
+        return b;
+    };
+    cache.insert(batch(1, 500));
+    cache.reproject(rays);
+    cache.reproject(rays);
+    ASSERT_GT(cache.invalidateObjects({2, 5}), 0u);  // compacts the arrays
+    cache.insert(batch(2, 400));                     // fills up, then replaces
+    ASSERT_EQ(cache.size(), 700u);
+    const CameraRays moved(cameraAt(Vec3(0.3, -0.2, 5), Vec3(0.1, 0, 0)), 24, 24);
+    for (int frame = 0; frame < 2; ++frame) {
+        const auto& screen = cache.reproject(moved);
+        ASSERT_FALSE(screen.empty());
+        std::size_t checked = 0;
+        for (int k = 0; k < 24 * 24; ++k) {
+            const int i = cache.pixelPoints()[k];
+            if (i < 0) continue;
+            const CachePoint& p = cache.points()[static_cast<std::size_t>(i)];
+            const auto expected = moved.projectToPixel(p.position);
+            ASSERT_TRUE(expected.has_value());
+            const ScreenPoint& s = screen[checked++];
+            EXPECT_EQ(static_cast<int>(s.position.y) * 24 + static_cast<int>(s.position.x), k);
+            EXPECT_TRUE(s.position == *expected) << p.toString() << " at " << str(s.position);
+            EXPECT_TRUE(s.colour == p.colour) << p.toString();
+            EXPECT_EQ(s.age + 1, cache.age(static_cast<std::size_t>(i))) << p.toString();
+            EXPECT_TRUE(cache.visible(static_cast<std::size_t>(i)));
+        }
+        EXPECT_EQ(checked, screen.size());
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
