@@ -64,6 +64,19 @@ Vec3 cosineDirection(const Vec3& n, RayRandom& rng) {
     return a * tx + b * ty + std::sqrt(std::max(0.0, 1 - r2)) * n;
 }
 
+/// std::lower_bound over a[0, n) (the first index whose value is not below x; n when none),
+/// without branches on the comparisons: the searches of the stochastic rays go to random
+/// places, so a branching bisection mispredicts about every other step.
+std::size_t lowerBound(const double* a, std::size_t n, double x) {
+    const double* first = a;
+    while (n > 1) {
+        const std::size_t half = n / 2;
+        first = first[half - 1] < x ? first + half : first;
+        n -= half;
+    }
+    return static_cast<std::size_t>(first - a) + (n == 1 && first[0] < x ? 1 : 0);
+}
+
 /// Uniform points of one shooting patch: its fan triangles flattened with their cumulative
 /// doubled areas, so a ray's point costs a search in a short array instead of a walk over
 /// element records. A batch's rays are ordered by shooter, so each block of rays sets this up
@@ -95,10 +108,7 @@ public:
         // leaves none), by bisection: large patches have dozens of triangles.
         const std::size_t last = mCumulative.size() - 1;
         const double pick = rng.next() * mCumulative[last];
-        const std::size_t i = std::min<std::size_t>(
-            std::lower_bound(mCumulative.begin(), mCumulative.end() - 1, pick) -
-                mCumulative.begin(),
-            last);
+        const std::size_t i = std::min(lowerBound(mCumulative.data(), last, pick), last);
         const Triangle* t = &mTriangles[i];
         const double s = std::sqrt(rng.next()), r2 = rng.next();
         point = t->p0 + (s * (1 - r2)) * t->e1 + (s * r2) * t->e2;
@@ -549,7 +559,7 @@ void ProgressiveSolver::shootStochasticBatch() {
                 // The shooter, by power; a uniform point of it; a cosine-distributed direction.
                 double u =
                     (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
-                std::size_t k = std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin();
+                std::size_t k = lowerBound(cdf.data(), cdf.size(), u);
                 k = std::min(k, cdf.size() - 1);
                 if (k != current) points.set(mDisc, patches[shooters[current = k]]);
                 Vec3 origin, nz;
@@ -1069,8 +1079,7 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
             RayRandom rng{hashPair(batchSeed, r)};
             double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
-            std::size_t pick = std::min<std::size_t>(
-                std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin(), cdf.size() - 1);
+            std::size_t pick = std::min(lowerBound(cdf.data(), cdf.size(), u), cdf.size() - 1);
             const int j = shooters[pick];
             const double pj = (cdf[pick] - (pick ? cdf[pick - 1] : 0.0)) / total;
             const Patch& P = patches[j];
