@@ -122,26 +122,29 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
 
     Segments segs = makeSegments(lit->discretization(), 1 << 20);
     rawOcclusionRate(lit->tracer(), segs);  // warm up
-    // Each raw rate is the median of five passes over the 2^20 segments: one pass is 30 ms
-    // on a small scene, and single passes moved by ±10% on a shared machine.
+    // Each raw rate is the median of ten passes over the 2^20 segments, five before the solve
+    // and five after it: one pass is 30 ms on a small scene, single passes moved by ±10% on a
+    // shared machine, and medians of five taken minutes apart still differed by up to 20% on
+    // large, so the solve is bracketed.
     int threadsSeen = 0;
-    auto median5 = [](auto&& rate) {
-        double v[5];
-        for (double& x : v) x = rate();
-        std::sort(v, v + 5);
-        return v[2];
+    auto passes = [](auto&& rate, std::vector<double>& into) {
+        for (int k = 0; k < 5; ++k) into.push_back(rate());
     };
-    double raw = median5([&] {
+    auto median = [](std::vector<double> v) {
+        std::sort(v.begin(), v.end());
+        const std::size_t n = v.size();
+        return n == 0 ? 0.0 : n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+    };
+    auto occlusionPass = [&] {
         int seen = 0;
         const double rate = rawOcclusionRate(lit->tracer(), segs, &seen);
         threadsSeen = std::max(threadsSeen, seen);
         return rate;
-    });
-    r["raw_occlusion_rays_per_s"] = raw;
-    r["threads"] = tbb::this_task_arena::max_concurrency();
-    r["threads_seen"] = threadsSeen;
-    const double rawHit = median5([&] { return rawHitRate(lit->tracer(), segs); });
-    r["raw_closest_hit_rays_per_s"] = rawHit;
+    };
+    auto hitPass = [&] { return rawHitRate(lit->tracer(), segs); };
+    std::vector<double> rawBefore, rawAfter, hitBefore, hitAfter;
+    passes(occlusionPass, rawBefore);
+    passes(hitPass, hitBefore);
 
     ProgressiveSolver& solver = lit->solver();
     const double thresholds[] = {0.1, 0.01, 0.001};
@@ -156,6 +159,21 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
         r[names[k]] = solver.stats().seconds;
         r[std::string("shots_to_") + (names[k] + 11)] = solver.stats().shots;
     }
+    // The solve's peak memory, before the passes after it allocate their own.
+    r["peak_rss_mib"] = peakResidentKiB() / 1024.0;
+    passes(occlusionPass, rawAfter);
+    passes(hitPass, hitAfter);
+    std::vector<double> rawAll = rawBefore, hitAll = hitBefore;
+    rawAll.insert(rawAll.end(), rawAfter.begin(), rawAfter.end());
+    hitAll.insert(hitAll.end(), hitAfter.begin(), hitAfter.end());
+    const double raw = median(rawAll), rawHit = median(hitAll);
+    r["raw_occlusion_rays_per_s"] = raw;
+    r["raw_occlusion_rays_per_s_before"] = median(rawBefore);
+    r["raw_occlusion_rays_per_s_after"] = median(rawAfter);
+    r["threads"] = tbb::this_task_arena::max_concurrency();
+    r["threads_seen"] = threadsSeen;
+    r["raw_closest_hit_rays_per_s"] = rawHit;
+
     const SolverStats& st = solver.stats();
     double solverRate = st.seconds > 0 ? st.rays / st.seconds : 0;
     r["solver_rays_per_s"] = solverRate;
@@ -172,7 +190,6 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     r["stochastic_batches"] = st.stochasticBatches;
     r["unshot_fraction"] = solver.unshotFraction();
     r["solver_seconds"] = st.seconds;
-    r["peak_rss_mib"] = peakResidentKiB() / 1024.0;
     return r;
 }
 
