@@ -559,7 +559,15 @@ void ProgressiveSolver::shootStochasticBatch() {
                 // The shooter, by power; a uniform point of it; a cosine-distributed direction.
                 double u =
                     (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
-                std::size_t k = lowerBound(cdf.data(), cdf.size(), u);
+                // u grows with r (each term of its formula is monotone), so within a block
+                // the shooter is found by stepping on from the last one's: lower_bound's
+                // answer, since every cdf entry before that one is below the last u.
+                std::size_t k = current;
+                if (k >= cdf.size()) {
+                    k = lowerBound(cdf.data(), cdf.size(), u);
+                } else {
+                    while (k < cdf.size() && cdf[k] < u) ++k;
+                }
                 k = std::min(k, cdf.size() - 1);
                 if (k != current) points.set(mDisc, patches[shooters[current = k]]);
                 Vec3 origin, nz;
