@@ -326,19 +326,21 @@ void RayTracer::occluded8(const Vec3& from, const Vec3* to, int count, bool* blo
     RTCScene scene = mImpl->prepare(ctx, visibility);
     alignas(32) int valid[8];
     alignas(32) RTCRay8 ray;
+    // Each segment as an unnormalized direction over t in [0, 1]: no square root or division
+    // per lane.
     for (int i = 0; i < 8; ++i) {
-        Vec3 d = i < count ? to[i] - from : Vec3(0.0);
-        const double len = glm::length(d);
-        valid[i] = i < count && len > 0 ? -1 : 0;
-        if (valid[i]) d /= len;
+        const Vec3 d = i < count ? to[i] - from : Vec3(0.0);
+        const float dx = static_cast<float>(d.x), dy = static_cast<float>(d.y),
+                    dz = static_cast<float>(d.z);
+        valid[i] = i < count && (dx != 0.0f || dy != 0.0f || dz != 0.0f) ? -1 : 0;
         ray.org_x[i] = static_cast<float>(from.x);
         ray.org_y[i] = static_cast<float>(from.y);
         ray.org_z[i] = static_cast<float>(from.z);
-        ray.dir_x[i] = static_cast<float>(d.x);
-        ray.dir_y[i] = static_cast<float>(d.y);
-        ray.dir_z[i] = static_cast<float>(d.z);
+        ray.dir_x[i] = dx;
+        ray.dir_y[i] = dy;
+        ray.dir_z[i] = dz;
         ray.tnear[i] = 0.0f;
-        ray.tfar[i] = valid[i] ? static_cast<float>(len) : 0.0f;
+        ray.tfar[i] = valid[i] ? 1.0f : 0.0f;
         ray.time[i] = 0.0f;
         ray.mask[i] = 0xffffffffu;
         ray.id[i] = static_cast<unsigned>(i);
