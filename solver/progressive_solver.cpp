@@ -289,7 +289,7 @@ bool ProgressiveSolver::shootsStochastically(double propagation) const {
     // Below the threshold, the stochastic batch takes over once it moves power for less
     // tracing than a deterministic shot: a shot of power Φ costs about the mean ray count of
     // the deterministic shots so far, a batch hitRayCost × raysPerEmittedPower × Φ / Φ_emitted
-    // occlusion-ray equivalents (its rays are closest-hit rays). Small
+    // deterministic-ray equivalents (its rays are closest-hit rays with their own set-up). Small
     // scenes (few receivers) keep shooting deterministically a little longer; ray counts
     // follow from the geometry only, so the choice does not depend on the thread count.
     if (mImpl->deterministicShots == 0) return true;

@@ -45,7 +45,8 @@ struct SolverOptions {
     /// scenes) and carries its own set-up (shooter, point, direction) and receiving. Measured
     /// in the solver on cube-room, where the choice matters most: 117 ns a batch ray against
     /// 39 ns a deterministic one (wall, 2 threads), so 3. Time to 0.1% unshot is flat for
-    /// costs 2.5–5 there (0.49–0.52 s) and 25% longer with 1.
+    /// costs 2.5–5 there (0.49–0.52 s); with 1 it was a third longer (an earlier measurement
+    /// under load: 1.87 s against 1.40 s with 3).
     double hitRayCost = 3.0;
     /// A stochastic batch (propagation or redistribution) takes the strongest shooters up
     /// to about this many rays; the rest wait for the next batch.

@@ -294,21 +294,22 @@ void RayTracer::updateAlive(int o) {
 }
 
 bool RayTracer::occluded(const Vec3& from, const Vec3& to, const Visibility& visibility) const {
-    Vec3 d = to - from;
-    double len = glm::length(d);
-    if (!(len > 0)) return false;
-    d /= len;
+    // The segment as an unnormalized direction over t in [0, 1], as occluded8 traces it.
+    const Vec3 d = to - from;
+    const float dx = static_cast<float>(d.x), dy = static_cast<float>(d.y),
+                dz = static_cast<float>(d.z);
+    if (!(dx * dx + dy * dy + dz * dz > 0.0f)) return false;  // empty, or not a number
     FilterContext ctx;
     RTCScene scene = mImpl->prepare(ctx, visibility);
     RTCRay ray;
     ray.org_x = static_cast<float>(from.x);
     ray.org_y = static_cast<float>(from.y);
     ray.org_z = static_cast<float>(from.z);
-    ray.dir_x = static_cast<float>(d.x);
-    ray.dir_y = static_cast<float>(d.y);
-    ray.dir_z = static_cast<float>(d.z);
+    ray.dir_x = dx;
+    ray.dir_y = dy;
+    ray.dir_z = dz;
     ray.tnear = 0.0f;
-    ray.tfar = static_cast<float>(len);
+    ray.tfar = 1.0f;
     ray.time = 0.0f;
     ray.mask = 0xffffffffu;
     ray.id = 0;
@@ -332,7 +333,7 @@ void RayTracer::occluded8(const Vec3& from, const Vec3* to, int count, bool* blo
         const Vec3 d = i < count ? to[i] - from : Vec3(0.0);
         const float dx = static_cast<float>(d.x), dy = static_cast<float>(d.y),
                     dz = static_cast<float>(d.z);
-        valid[i] = i < count && (dx != 0.0f || dy != 0.0f || dz != 0.0f) ? -1 : 0;
+        valid[i] = i < count && dx * dx + dy * dy + dz * dz > 0.0f ? -1 : 0;  // not NaN
         ray.org_x[i] = static_cast<float>(from.x);
         ray.org_y[i] = static_cast<float>(from.y);
         ray.org_z[i] = static_cast<float>(from.z);

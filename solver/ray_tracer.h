@@ -99,7 +99,8 @@ public:
         int mId = -1;
     };
 
-    /// True when the open segment from `from` to `to` is blocked.
+    /// True when the open segment from `from` to `to` is blocked (traced as the direction
+    /// to − from over t in [0, 1]; false for an empty or non-finite segment).
     bool occluded(const Vec3& from, const Vec3& to, const Visibility& visibility = {}) const;
 
     /// Occlusion of up to 8 segments sharing the start `from` (one coherent packet,

@@ -159,7 +159,8 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
         r[names[k]] = solver.stats().seconds;
         r[std::string("shots_to_") + (names[k] + 11)] = solver.stats().shots;
     }
-    // The solve's peak memory, before the passes after it allocate their own.
+    // Peak memory up to the end of the solve (the high-water mark includes the passes before
+    // it, as it always did), read before the passes after it allocate again.
     r["peak_rss_mib"] = peakResidentKiB() / 1024.0;
     passes(occlusionPass, rawAfter);
     passes(hitPass, hitAfter);

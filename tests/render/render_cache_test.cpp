@@ -300,9 +300,9 @@ TEST(RenderCache, InvalidationRemovesExactlyTheMatchingPoints) {
 TEST(RenderCache, ScreenPointsMatchTheirRecordsAfterInvalidationAndReplacement) {
     // The reprojection reads the cache's per-point arrays (position, birth frame), not the
     // records: after compaction by invalidation and replacement of evicted slots, each screen
-    // point must still be its record's projection, colour and age.
+    // point must still be its record's projection, colour and age, in the serial reference
+    // and the parallel reprojection alike.
     const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), 24, 24);
-    RenderCache cache(24, 24, 700);
     auto batch = [&](int seed, int count) {
         std::vector<ShadedPoint> b;
         std::mt19937 rng(static_cast<unsigned>(seed));
@@ -315,31 +315,51 @@ TEST(RenderCache, ScreenPointsMatchTheirRecordsAfterInvalidationAndReplacement) 
         }
         return b;
     };
-    cache.insert(batch(1, 500));
-    cache.reproject(rays);
-    cache.reproject(rays);
-    ASSERT_GT(cache.invalidateObjects({2, 5}), 0u);  // compacts the arrays
-    cache.insert(batch(2, 400));                     // fills up, then replaces
-    ASSERT_EQ(cache.size(), 700u);
-    const CameraRays moved(cameraAt(Vec3(0.3, -0.2, 5), Vec3(0.1, 0, 0)), 24, 24);
-    for (int frame = 0; frame < 2; ++frame) {
-        const auto& screen = cache.reproject(moved);
-        ASSERT_FALSE(screen.empty());
-        std::size_t checked = 0;
-        for (int k = 0; k < 24 * 24; ++k) {
-            const int i = cache.pixelPoints()[k];
-            if (i < 0) continue;
-            const CachePoint& p = cache.points()[static_cast<std::size_t>(i)];
-            const auto expected = moved.projectToPixel(p.position);
-            ASSERT_TRUE(expected.has_value());
-            const ScreenPoint& s = screen[checked++];
-            EXPECT_EQ(static_cast<int>(s.position.y) * 24 + static_cast<int>(s.position.x), k);
-            EXPECT_TRUE(s.position == *expected) << p.toString() << " at " << str(s.position);
-            EXPECT_TRUE(s.colour == p.colour) << p.toString();
-            EXPECT_EQ(s.age + 1, cache.age(static_cast<std::size_t>(i))) << p.toString();
-            EXPECT_TRUE(cache.visible(static_cast<std::size_t>(i)));
+    for (bool parallel : {true, false}) {
+        RenderCacheOptions options;
+        options.parallel = parallel;
+        RenderCache cache(24, 24, 700, options);
+        cache.insert(batch(1, 250));  // two frames old by the moved camera's first
+        cache.reproject(rays);
+        cache.insert(batch(3, 250));  // one frame old then
+        cache.reproject(rays);
+        ASSERT_GT(cache.invalidateObjects({2, 5}), 0u);  // compacts the arrays
+        const std::size_t left = cache.size();
+        cache.insert(batch(2, 400));  // fills up, then replaces (the hidden, then the oldest)
+        ASSERT_EQ(cache.size(), 700u);
+        std::size_t replaced = 0;
+        for (std::size_t i = 0; i < left; ++i) {
+            const int e = cache.points()[i].element;
+            replaced += e >= 20000 && e < 30000;
         }
-        EXPECT_EQ(checked, screen.size());
+        ASSERT_GT(replaced, 0u) << "some new points sit in the slots of evicted ones";
+
+        const CameraRays moved(cameraAt(Vec3(0.3, -0.2, 5), Vec3(0.1, 0, 0)), 24, 24);
+        for (int frame = 0; frame < 2; ++frame) {
+            const auto& screen = cache.reproject(moved);
+            ASSERT_FALSE(screen.empty());
+            std::vector<char> shown(cache.size(), 0);
+            std::size_t checked = 0;
+            for (int k = 0; k < 24 * 24; ++k) {
+                const int i = cache.pixelPoints()[k];
+                if (i < 0) continue;
+                const std::size_t pi = static_cast<std::size_t>(i);
+                shown[pi] = 1;
+                const CachePoint& p = cache.points()[pi];
+                const auto expected = moved.projectToPixel(p.position);
+                ASSERT_TRUE(expected.has_value());
+                const ScreenPoint& s = screen[checked++];
+                EXPECT_EQ(static_cast<int>(s.position.y) * 24 + static_cast<int>(s.position.x), k);
+                EXPECT_TRUE(s.position == *expected) << p.toString() << " at " << str(s.position);
+                EXPECT_TRUE(s.colour == p.colour) << p.toString();
+                // Batch 1 saw two frames before these, batch 3 one, batch 2 none.
+                const int before = p.element >= 30000 ? 1 : p.element >= 20000 ? 0 : 2;
+                EXPECT_EQ(s.age, before + frame) << p.toString();
+            }
+            EXPECT_EQ(checked, screen.size());
+            for (std::size_t i = 0; i < cache.size(); ++i)
+                EXPECT_EQ(cache.visible(i), shown[i] != 0) << cache.points()[i].toString();
+        }
     }
 }
 
