@@ -38,6 +38,9 @@ public:
                 0.5 * mHeight - glm::dot(d, mPixelUp) * inv};
     }
 
+    /// Pixels spanned by a unit length facing the camera at unit view depth (divide by the
+    /// depth for other depths).
+    double pixelsPerUnit() const { return 0.5 * mHeight / mTanHalfY; }
     int width() const { return mWidth; }
     int height() const { return mHeight; }
     const Vec3& forward() const { return mForward; }  ///< unit view direction

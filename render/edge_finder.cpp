@@ -14,6 +14,32 @@ namespace penumbra {
 
 namespace {
 
+/// Width of an area light's penumbra at point x of a soft shadow edge running along `along`
+/// on the event's plane: the light's extent across the edge and the ray (from the event's
+/// light feature to x), scaled by s − 1 (similar triangles through the blocker feature at
+/// s = 1). A lower bound of the width on the receiver, which grazing incidence widens.
+double penumbraWidth(const std::vector<Vec3>& light, const ShadowEvent& ev, const EventFrame& frame,
+                     const Vec3& x, const Vec3& along) {
+    const double s = frame.eval(2, x);
+    if (!(s > 1) || light.size() < 2) return 0.0;
+    const Vec3 ray = x - 0.5 * (ev.p0 + ev.p1);
+    Vec3 across = glm::cross(along, ray);
+    const double length = glm::length(across);
+    if (!(length > 0)) return 0.0;
+    across /= length;
+    double lo = HUGE_VAL, hi = -HUGE_VAL;
+    for (const Vec3& v : light) {
+        const double t = glm::dot(v, across);
+        lo = std::min(lo, t);
+        hi = std::max(hi, t);
+    }
+    return (hi - lo) * (s - 1);
+}
+
+}  // namespace
+
+namespace {
+
 Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
 /// Mesh edge `id` of object `o` in world space.
@@ -536,6 +562,7 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     }
     std::vector<EventEdge> found;
     clipEvent(crossings, found);
+    const std::vector<Vec3>& lightPolygon = mLights[lightIndex].light.polygon;
     for (const EventEdge& fe : found) {
         WorldEdge w;
         w.a = fe.a;
@@ -546,6 +573,10 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         w.edge = ev.blockerFeature;
         w.light = lightIndex;
         w.blocker = blockerIndex;
+        if (ev.kind != ShadowKind::Hard) {
+            w.penumbraA = penumbraWidth(lightPolygon, ev, frame, fe.a, fe.b - fe.a);
+            w.penumbraB = penumbraWidth(lightPolygon, ev, frame, fe.b, fe.b - fe.a);
+        }
         edges.push_back(w);
     }
 }

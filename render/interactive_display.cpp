@@ -232,7 +232,8 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
         for (const auto& list : mSilhouettes) lists.push_back(&list);
         for (const auto& list : mSharpEdges) lists.push_back(&list);
         if (mOptions.shadowEdges) lists.push_back(&mShadowEdges);
-        projectEpiEdges(lists, camera, mOptions.nearPlane, mScreenEdges, mProjectScratch);
+        projectEpiEdges(lists, camera, mOptions.nearPlane, mScreenEdges, mProjectScratch, true,
+                        mOptions.maxPenumbraPixels);
         st.times.projectMs = msSince(t);
         st.times.findEdgesMs = st.times.silhouetteMs + st.times.shadowMs + st.times.projectMs;
     } else {
@@ -662,12 +663,20 @@ namespace {
 
 /// One edge of projectEdges: false when it is dropped (behind the near plane or not
 /// projectable).
-bool projectEdge(const WorldEdge& e, const CameraRays& camera, double nearPlane, ScreenEdge& out) {
+bool projectEdge(const WorldEdge& e, const CameraRays& camera, double nearPlane,
+                 double maxPenumbraPixels, ScreenEdge& out) {
     const Vec3& o = camera.origin();
     const Vec3& f = camera.forward();
     Vec3 a = e.a, b = e.b;
     double da = glm::dot(a - o, f), db = glm::dot(b - o, f);
     if (!(da >= nearPlane) && !(db >= nearPlane)) return false;  // behind (or NaN)
+    // A wide penumbra at both ends: the radiance is smooth across this soft shadow edge.
+    if (maxPenumbraPixels > 0 && (e.penumbraA > 0 || e.penumbraB > 0)) {
+        const double limit = maxPenumbraPixels / camera.pixelsPerUnit();
+        if (e.penumbraA > limit * std::max(da, nearPlane) &&
+            e.penumbraB > limit * std::max(db, nearPlane))
+            return false;
+    }
     // Clip the part in front of the near plane.
     if (da < nearPlane) {
         a = a + (b - a) * ((nearPlane - da) / (db - da));
@@ -689,18 +698,18 @@ bool projectEdge(const WorldEdge& e, const CameraRays& camera, double nearPlane,
 }  // namespace
 
 std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const CameraRays& camera,
-                                     double nearPlane) {
+                                     double nearPlane, double maxPenumbraPixels) {
     std::vector<ScreenEdge> out;
     out.reserve(edges.size());
     ScreenEdge s;
     for (const WorldEdge& e : edges)
-        if (projectEdge(e, camera, nearPlane, s)) out.push_back(s);
+        if (projectEdge(e, camera, nearPlane, maxPenumbraPixels, s)) out.push_back(s);
     return out;
 }
 
 void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
                      const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
-                     std::vector<ScreenEdge>& scratch, bool parallel) {
+                     std::vector<ScreenEdge>& scratch, bool parallel, double maxPenumbraPixels) {
     const int W = camera.width(), H = camera.height();
     // Global index n of the concatenation: list l holds [listStart[l], listStart[l + 1]).
     std::vector<std::size_t> listStart(lists.size() + 1, 0);
@@ -720,7 +729,8 @@ void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
         for (std::size_t n = lo; n < hi; ++n) {
             while (n >= listStart[l + 1]) ++l;
             ScreenEdge& s = scratch[m];
-            if (projectEdge((*lists[l])[n - listStart[l]], camera, nearPlane, s) &&
+            if (projectEdge((*lists[l])[n - listStart[l]], camera, nearPlane, maxPenumbraPixels,
+                            s) &&
                 edgeMayMark(s, W, H)) {
                 ++m;
             }

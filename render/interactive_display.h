@@ -115,6 +115,13 @@ struct InteractiveDisplayOptions {
     /// Near-plane distance (metres along the view axis) edges are clipped against.
     double nearPlane = 1e-3;
     bool shadowEdges = true;  ///< find shadow edges (silhouettes and sharp edges always)
+    /// A soft shadow edge (an area light's umbral or penumbral event) marks the EPI only where
+    /// its penumbra is at most this many pixels wide on screen at one of its ends (≤ 0: every
+    /// shadow edge marks, as in the paper). Across a wide penumbra the radiance is continuous (a D1
+    /// discontinuity, Heckbert 1992) and varies over many pixels, so the edge would only stop
+    /// the interpolation and the smoothing from averaging the points' noise; narrow ones (a
+    /// small light, or near contact: the "hardening" of Bala et al. Figure 9) stay edges.
+    double maxPenumbraPixels = 2;
     /// After a solution update or an edit, cached points on elements whose shading (E + ρ·H,
     /// luminance) changed by more than this fraction of the element's value, or of 1% of the
     /// mean, are dropped (Bala et al. §7.5: invalidate samples whose lighting changed).
@@ -327,8 +334,10 @@ private:
 /// Clips world edges to the camera's near plane (view depth ≥ nearPlane) and projects them to
 /// pixel coordinates; depth at each endpoint is its view depth (distance along forward()).
 /// Segments entirely behind the plane are dropped.
+/// With maxPenumbraPixels > 0, soft shadow edges whose penumbra (WorldEdge::penumbraA, B) is
+/// wider than that on screen at both ends are dropped too.
 std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const CameraRays& camera,
-                                     double nearPlane = 1e-3);
+                                     double nearPlane = 1e-3, double maxPenumbraPixels = 0);
 
 /// projectEdges over the concatenation of `*lists[0]`, `*lists[1]`, … less the edges
 /// edgeMayMark() rejects for the camera's raster, in input order, into `out` (overwritten;
@@ -337,7 +346,8 @@ std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const 
 /// parallel (oneTBB) unless `parallel` is false.
 void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
                      const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
-                     std::vector<ScreenEdge>& scratch, bool parallel = true);
+                     std::vector<ScreenEdge>& scratch, bool parallel = true,
+                     double maxPenumbraPixels = 0);
 
 /// Root mean square difference over all pixels and channels (linear values). Throws
 /// std::invalid_argument when the sizes differ.

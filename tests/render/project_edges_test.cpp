@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -15,6 +16,48 @@ namespace {
 bool sameScreenEdge(const ScreenEdge& x, const ScreenEdge& y) {
     return x.a == y.a && x.b == y.b && x.depthA == y.depthA && x.depthB == y.depthB &&
            x.kind == y.kind;
+}
+
+TEST(ProjectEdges, SoftShadowEdgesWithAWidePenumbraAtBothEndsAreDropped) {
+    // A camera 4 m from the plane z = 0, 200 pixels over a 60° field: one pixel is
+    // 2·4·tan 30° / 200 = 0.0231 m there.
+    Camera c;
+    c.position = Vec3(0, 0, 4);
+    c.lookAt = Vec3(0, 0, 0);
+    c.up = Vec3(0, 1, 0);
+    c.fovDeg = 60;
+    const CameraRays camera(c, 200, 200);
+    const double pixel = 2 * 4 * std::tan(glm::radians(30.0)) / 200;
+    EXPECT_NEAR(4.0 / camera.pixelsPerUnit(), pixel, 1e-12);
+    auto edge = [](EdgeKind kind, double penumbraA, double penumbraB, double y) {
+        WorldEdge e;
+        e.a = Vec3(-1, y, 0);
+        e.b = Vec3(1, y, 0);
+        e.kind = kind;
+        e.shadow = penumbraA > 0 || penumbraB > 0 ? ShadowKind::Penumbra : ShadowKind::Hard;
+        e.penumbraA = penumbraA;
+        e.penumbraB = penumbraB;
+        return e;
+    };
+    const std::vector<WorldEdge> edges = {
+        edge(EdgeKind::Shadow, 3.1 * pixel, 5 * pixel, -0.5),  // wide at both ends: dropped
+        edge(EdgeKind::Shadow, 2.9 * pixel, 9 * pixel, -0.3),  // narrow at a: kept
+        edge(EdgeKind::Shadow, 9 * pixel, 1 * pixel, -0.1),    // narrow at b: kept
+        edge(EdgeKind::Shadow, 0, 0, 0.1),                     // a hard shadow: kept
+        edge(EdgeKind::Silhouette, 0, 0, 0.3),                 // kept
+    };
+    const auto all = projectEdges(edges, camera, 1e-3);
+    ASSERT_EQ(all.size(), 5u) << "without the option every edge is kept";
+    const auto kept = projectEdges(edges, camera, 1e-3, 3.0);
+    ASSERT_EQ(kept.size(), 4u);
+    for (std::size_t k = 0; k < kept.size(); ++k)
+        EXPECT_TRUE(sameScreenEdge(kept[k], all[k + 1])) << "edge " << k + 1;
+    // The parallel projection applies the same rule.
+    std::vector<ScreenEdge> out, scratch;
+    const std::vector<const std::vector<WorldEdge>*> lists = {&edges};
+    projectEpiEdges(lists, camera, 1e-3, out, scratch, true, 3.0);
+    ASSERT_EQ(out.size(), 4u);
+    for (std::size_t k = 0; k < out.size(); ++k) EXPECT_TRUE(sameScreenEdge(out[k], kept[k]));
 }
 
 TEST(ProjectEdges, ParallelProjectionEqualsTheSerialOneLessUnmarkableEdges) {

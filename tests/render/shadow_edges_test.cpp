@@ -126,6 +126,8 @@ TEST(ShadowEdges, PointLightSquareShadowIsTheProjectedSquare) {
     for (const WorldEdge& e : edges) {
         EXPECT_EQ(e.kind, EdgeKind::Shadow);
         EXPECT_EQ(e.shadow, ShadowKind::Hard);
+        EXPECT_EQ(e.penumbraA, 0.0) << "a point light casts no penumbra";
+        EXPECT_EQ(e.penumbraB, 0.0);
         EXPECT_EQ(e.blocker, 1) << e.toString();
         EXPECT_EQ(e.object, 0) << e.toString();
         int side = -1;
@@ -175,6 +177,14 @@ TEST(ShadowEdges, AreaLightUmbraAndPenumbraLines) {
         EXPECT_NEAR(e.a.y, 0, 1e-12);
         bool isUmbra = e.shadow == ShadowKind::Umbra;
         (isUmbra ? umbra : penumbra)++;
+        // The penumbra between each umbra line and its penumbra line is (s − 1)·2Lh wide on
+        // the floor (similar triangles through the blocker edge). The estimate is the width
+        // across the ray, which is shorter by the cosine of the ray's tilt from the vertical
+        // (at most about 31° here).
+        for (double w : {e.penumbraA, e.penumbraB}) {
+            EXPECT_LE(w, (s - 1) * 2 * Lh + 1e-9) << e.toString();
+            EXPECT_GE(w, (s - 1) * 2 * Lh * 0.85) << e.toString();
+        }
         int found = -1;
         for (int axis : {0, 2}) {
             const Lines& l = axis == 0 ? lx : lz;
