@@ -122,6 +122,8 @@ struct RenderArgs {
     double warmup = 0.25;
     double orbitDeg = 0.5;                          ///< per frame
     int smooth = displayEpiOptions().smoothRadius;  ///< EPI edge-free smoothing radius
+    /// Soft shadow edges wider than this on screen do not mark the EPI (0: all do).
+    double maxPenumbraPixels = InteractiveDisplayOptions{}.maxPenumbraPixels;
 };
 
 /// The scene's camera named `name`, else "default", else the first, else a default Camera.
@@ -214,6 +216,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     displayOptions.height = r.height;
     displayOptions.sampleFraction = r.sampleFraction;
     displayOptions.epi.smoothRadius = r.smooth;
+    displayOptions.maxPenumbraPixels = r.maxPenumbraPixels;
     displayOptions.shader.seed = a.seed;
     displayOptions.cache.seed = a.seed;
     InteractiveDisplay display(session->discretization(), session->tracer(), options,
@@ -418,6 +421,11 @@ int main(int argc, char** argv) {
                      "(default 8)")
         ->check(CLI::Range(0, 60));
     renderCmd
+        ->add_option("--max-penumbra", render.maxPenumbraPixels,
+                     "epi: soft shadow edges mark the image only where their penumbra is at most "
+                     "this many pixels wide, 0 = every shadow edge as in the paper (default 2)")
+        ->check(CLI::Range(0.0, 1e6));
+    renderCmd
         ->add_option("--warmup", render.warmup,
                      "fraction of the pixels shaded before the first frame (default 0.25)")
         ->check(CLI::Range(0.0, 1.0));
@@ -516,6 +524,11 @@ int main(int argc, char** argv) {
         ->add_option("--smooth", display.smoothRadius,
                      "EPI edge-free smoothing radius in pixels (0 = off; default: the display's)")
         ->check(CLI::Range(0, 60));
+    benchDisplay
+        ->add_option("--max-penumbra", display.maxPenumbraPixels,
+                     "soft shadow edges mark the EPI only where their penumbra is at most this "
+                     "many pixels wide (0 = every shadow edge; default: the display's)")
+        ->check(CLI::Range(0.0, 1e6));
     benchDisplay->add_flag("--reference-check", display.referenceCheck,
                            "render two converged references (different seeds): their noise");
     benchDisplay->add_flag("--no-converged-reference", display.skipConvergedReference,

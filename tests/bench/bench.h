@@ -62,6 +62,8 @@ struct DisplayBenchOptions {
     bool referenceCheck = false;
     /// EpiOptions::smoothRadius for the display (−1: the display's default).
     int smoothRadius = -1;
+    /// InteractiveDisplayOptions::maxPenumbraPixels (−1: the display's default).
+    double maxPenumbraPixels = -1;
     /// Skip the converged reference (minutes): errors against the plain reference only.
     bool skipConvergedReference = false;
     std::string plotDir;  ///< writes display-{cache,epi,reference,edges}.png of the first case

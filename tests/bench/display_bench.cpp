@@ -117,6 +117,8 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
     displayOptions.shader.shadowMaxRefinedPerAxis = options.shadowMaxRefined;
     displayOptions.shader.shadowDecisionPerAxis = options.shadowDecision;
     if (options.smoothRadius >= 0) displayOptions.epi.smoothRadius = options.smoothRadius;
+    if (options.maxPenumbraPixels >= 0)
+        displayOptions.maxPenumbraPixels = options.maxPenumbraPixels;
     start = Clock::now();
     InteractiveDisplay display(session->discretization(), session->tracer(),
                                interactiveSolverOptions(), displayOptions);
