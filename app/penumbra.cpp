@@ -289,6 +289,8 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     report["height"] = r.height;
     report["sample_fraction"] = r.sampleFraction;
     report["warmup"] = r.warmup;
+    report["smooth_radius"] = r.smooth;
+    report["max_penumbra_pixels"] = r.maxPenumbraPixels;
     report["frames"] = std::move(frameReports);
     writeReport(a.report, report);
     return 0;
