@@ -14,22 +14,16 @@ namespace penumbra {
 
 namespace {
 
-/// Width of an area light's penumbra at point x of a soft shadow edge running along `along`
-/// on the event's plane: the light's extent across the edge and the ray (from the event's
-/// light feature to x), scaled by s − 1 (similar triangles through the blocker feature at
-/// s = 1). A lower bound of the width on the receiver, which grazing incidence widens.
-double penumbraWidth(const std::vector<Vec3>& light, const ShadowEvent& ev, const EventFrame& frame,
-                     const Vec3& x, const Vec3& along) {
+/// Width of an area light's penumbra at point x of a soft shadow edge: the light's extent
+/// across the event's plane (moving the light point that way by d moves the shadow boundary
+/// by d·(s − 1), by similar triangles through the blocker feature at s = 1), times s − 1. The
+/// width across the rays; a receiver at an angle to them widens it.
+double penumbraWidth(const std::vector<Vec3>& light, const EventFrame& frame, const Vec3& x) {
     const double s = frame.eval(2, x);
     if (!(s > 1) || light.size() < 2) return 0.0;
-    const Vec3 ray = x - 0.5 * (ev.p0 + ev.p1);
-    Vec3 across = glm::cross(along, ray);
-    const double length = glm::length(across);
-    if (!(length > 0)) return 0.0;
-    across /= length;
     double lo = HUGE_VAL, hi = -HUGE_VAL;
     for (const Vec3& v : light) {
-        const double t = glm::dot(v, across);
+        const double t = glm::dot(v, frame.normal);
         lo = std::min(lo, t);
         hi = std::max(hi, t);
     }
@@ -574,8 +568,8 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         w.light = lightIndex;
         w.blocker = blockerIndex;
         if (ev.kind != ShadowKind::Hard) {
-            w.penumbraA = penumbraWidth(lightPolygon, ev, frame, fe.a, fe.b - fe.a);
-            w.penumbraB = penumbraWidth(lightPolygon, ev, frame, fe.b, fe.b - fe.a);
+            w.penumbraA = penumbraWidth(lightPolygon, frame, fe.a);
+            w.penumbraB = penumbraWidth(lightPolygon, frame, fe.b);
         }
         edges.push_back(w);
     }

@@ -37,7 +37,7 @@ struct WorldEdge {
     int light = -1;
     int blocker = -1;
     /// Soft shadow edges (umbral and penumbral events of an area light): the width of the
-    /// penumbra at a and at b, world space — the light's extent across the edge and the ray,
+    /// penumbra at a and at b, world space — the light's extent across the event's plane,
     /// times (s − 1), the blocker-to-receiver over the light-to-blocker distance along the
     /// event's rays. 0 for hard shadows, silhouettes and sharp edges.
     double penumbraA = 0, penumbraB = 0;

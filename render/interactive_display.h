@@ -116,11 +116,13 @@ struct InteractiveDisplayOptions {
     double nearPlane = 1e-3;
     bool shadowEdges = true;  ///< find shadow edges (silhouettes and sharp edges always)
     /// A soft shadow edge (an area light's umbral or penumbral event) marks the EPI only where
-    /// its penumbra is at most this many pixels wide on screen at one of its ends (≤ 0: every
-    /// shadow edge marks, as in the paper). Across a wide penumbra the radiance is continuous (a D1
-    /// discontinuity, Heckbert 1992) and varies over many pixels, so the edge would only stop
-    /// the interpolation and the smoothing from averaging the points' noise; narrow ones (a
-    /// small light, or near contact: the "hardening" of Bala et al. Figure 9) stay edges.
+    /// its penumbra is at most this many pixels wide at one of its ends (≤ 0: every shadow
+    /// edge marks, as in the paper). The width is measured as if the receiver faced the
+    /// camera: a grazing view narrows a penumbra on screen, and that is not corrected. Across a
+    /// wide penumbra the radiance is continuous (a D1 discontinuity, Heckbert 1992) and varies over
+    /// many pixels, so the edge would only stop the interpolation and the smoothing from averaging
+    /// the points' noise; narrow ones (a small light, or near contact: the "hardening" of Bala et
+    /// al. Figure 9) stay edges.
     double maxPenumbraPixels = 2;
     /// After a solution update or an edit, cached points on elements whose shading (E + ρ·H,
     /// luminance) changed by more than this fraction of the element's value, or of 1% of the
@@ -295,6 +297,8 @@ public:
     int width() const { return mOptions.width; }
     int height() const { return mOptions.height; }
     const InteractiveDisplayOptions& options() const { return mOptions; }
+    /// InteractiveDisplayOptions::maxPenumbraPixels from the next frame on.
+    void setMaxPenumbraPixels(double pixels) { mOptions.maxPenumbraPixels = pixels; }
     std::string toString() const;
 
 private:

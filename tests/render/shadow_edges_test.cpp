@@ -178,9 +178,10 @@ TEST(ShadowEdges, AreaLightUmbraAndPenumbraLines) {
         bool isUmbra = e.shadow == ShadowKind::Umbra;
         (isUmbra ? umbra : penumbra)++;
         // The penumbra between each umbra line and its penumbra line is (s − 1)·2Lh wide on
-        // the floor (similar triangles through the blocker edge). The estimate is the width
-        // across the ray, which is shorter by the cosine of the ray's tilt from the vertical
-        // (at most about 31° here).
+        // the floor (similar triangles through the blocker edge). The estimate is the light's
+        // extent across the event plane, shorter by the cosine of the plane's tilt from the
+        // vertical: at most atan(0.55 / 1) = 28.8° here (blocker edge at ±0.2 to light
+        // corners at 0.35 across, 1 m above it), cos ≥ 0.876.
         for (double w : {e.penumbraA, e.penumbraB}) {
             EXPECT_LE(w, (s - 1) * 2 * Lh + 1e-9) << e.toString();
             EXPECT_GE(w, (s - 1) * 2 * Lh * 0.85) << e.toString();
