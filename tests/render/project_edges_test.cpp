@@ -46,9 +46,15 @@ TEST(ProjectEdges, SoftShadowEdgesWithAWidePenumbraAtBothEndsAreDropped) {
         edge(EdgeKind::Shadow, 0, 0, 0.1),                     // a hard shadow: kept
         edge(EdgeKind::Silhouette, 0, 0, 0.3),                 // kept
     };
-    const auto all = projectEdges(edges, camera, 1e-3);
-    ASSERT_EQ(all.size(), 5u) << "without the option every edge is kept";
-    const auto kept = projectEdges(edges, camera, 1e-3, 3.0);
+    std::vector<WorldEdge> edges2 = edges;
+    // Ends at different depths (4 and 8 m: a pixel there is 2·pixel wide): 4 pixels at a and
+    // 3.5 at b, so dropped; pairing the widths with the wrong ends would keep it (2 and 7).
+    WorldEdge deep = edge(EdgeKind::Shadow, 4 * pixel, 7 * pixel, 0.5);
+    deep.b = Vec3(1, 0.5, -4);
+    edges2.push_back(deep);
+    const auto all = projectEdges(edges2, camera, 1e-3);
+    ASSERT_EQ(all.size(), 6u) << "without the option every edge is kept";
+    const auto kept = projectEdges(edges2, camera, 1e-3, 3.0);
     ASSERT_EQ(kept.size(), 4u);
     for (std::size_t k = 0; k < kept.size(); ++k)
         EXPECT_TRUE(sameScreenEdge(kept[k], all[k + 1])) << "edge " << k + 1;

@@ -147,14 +147,16 @@ TEST(ShadowEdges, AreaLightUmbraAndPenumbraLines) {
     // height b) over the floor: every line is the projection of a blocker edge through a
     // light corner. Light x = lx projects blocker edge x = ±B to x = s·(±B) + (1 − s)·lx,
     // s = h / (h − b); umbra lines come from the far light side, penumbra from the near side.
-    const double B = 0.2, b = 0.5, Lh = 0.3, h = 1.5;
+    // The light is a rectangle (half-sizes Lx, Lz), so a penumbra width measured along the
+    // edge instead of across it would show.
+    const double B = 0.2, b = 0.5, Lx = 0.3, Lz = 0.15, h = 1.5;
     const Vec3 c(0.05, h, -0.03);
     Scene scene = blockerScene({{0, b, 0}}, 2 * B);
     Discretization disc(scene);
     EdgeFinder finder(disc);
     Light light;
-    light.polygon = {c + Vec3(-Lh, 0, -Lh), c + Vec3(-Lh, 0, Lh), c + Vec3(Lh, 0, Lh),
-                     c + Vec3(Lh, 0, -Lh)};  // counter-clockwise seen from below
+    light.polygon = {c + Vec3(-Lx, 0, -Lz), c + Vec3(-Lx, 0, Lz), c + Vec3(Lx, 0, Lz),
+                     c + Vec3(Lx, 0, -Lz)};  // counter-clockwise seen from below
     finder.addLight(light);
     std::vector<WorldEdge> edges = finder.findShadowEdges();
     ASSERT_FALSE(edges.empty());
@@ -164,8 +166,8 @@ TEST(ShadowEdges, AreaLightUmbraAndPenumbraLines) {
     struct Lines {
         double umbLo, umbHi, penLo, penHi;
     };
-    Lines lx{line(-B, c.x - Lh), line(B, c.x + Lh), line(-B, c.x + Lh), line(B, c.x - Lh)};
-    Lines lz{line(-B, c.z - Lh), line(B, c.z + Lh), line(-B, c.z + Lh), line(B, c.z - Lh)};
+    Lines lx{line(-B, c.x - Lx), line(B, c.x + Lx), line(-B, c.x + Lx), line(B, c.x - Lx)};
+    Lines lz{line(-B, c.z - Lz), line(B, c.z + Lz), line(-B, c.z + Lz), line(B, c.z - Lz)};
     ASSERT_LT(lx.umbLo, lx.umbHi);
     // Segments found on each analytic line, as intervals of the other coordinate.
     std::map<std::pair<int, int>, std::vector<std::pair<double, double>>> onLine;
@@ -177,14 +179,16 @@ TEST(ShadowEdges, AreaLightUmbraAndPenumbraLines) {
         EXPECT_NEAR(e.a.y, 0, 1e-12);
         bool isUmbra = e.shadow == ShadowKind::Umbra;
         (isUmbra ? umbra : penumbra)++;
-        // The penumbra between each umbra line and its penumbra line is (s − 1)·2Lh wide on
-        // the floor (similar triangles through the blocker edge). The estimate is the light's
-        // extent across the event plane, shorter by the cosine of the plane's tilt from the
-        // vertical: at most atan(0.55 / 1) = 28.8° here (blocker edge at ±0.2 to light
-        // corners at 0.35 across, 1 m above it), cos ≥ 0.876.
+        // The penumbra between each umbra line and its penumbra line is (s − 1)·2L wide on
+        // the floor, L the light's half-size across the line (similar triangles through the
+        // blocker edge). The estimate is the light's extent across the event plane, shorter
+        // by the cosine of the plane's tilt from the vertical: at most atan(0.55 / 1) = 28.8°
+        // here (blocker edge at ±0.2 to light corners 0.35 across, 1 m above it), cos ≥ 0.876.
+        const bool alongZ = std::abs(e.a.x - e.b.x) < 1e-9;  // a line x = const: across is x
+        const double width = (s - 1) * 2 * (alongZ ? Lx : Lz);
         for (double w : {e.penumbraA, e.penumbraB}) {
-            EXPECT_LE(w, (s - 1) * 2 * Lh + 1e-9) << e.toString();
-            EXPECT_GE(w, (s - 1) * 2 * Lh * 0.85) << e.toString();
+            EXPECT_LE(w, width + 1e-9) << e.toString();
+            EXPECT_GE(w, width * 0.85) << e.toString();
         }
         int found = -1;
         for (int axis : {0, 2}) {
