@@ -12,6 +12,7 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <sstream>
 
 #include "bench/bench.h"
 #include "edit/edit_log.h"
@@ -366,6 +367,23 @@ int runReplayCommand(ReplayArgs& a) {
     return 0;
 }
 
+/// The EPI reconstruction options `render` and `bench display` share: `--smooth R` and
+/// `--max-penumbra W`.
+void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPixels) {
+    cmd->add_option("--smooth", smooth,
+                    "epi: edge-free smoothing radius in pixels, 0 = the paper's reconstruction "
+                    "(default " +
+                        std::to_string(displayEpiOptions().smoothRadius) + ")")
+        ->check(CLI::Range(0, 60));
+    std::ostringstream penumbraDefault;
+    penumbraDefault << InteractiveDisplayOptions{}.maxPenumbraPixels;
+    cmd->add_option("--max-penumbra", maxPenumbraPixels,
+                    "epi: soft shadow edges mark the image only where their penumbra is at most "
+                    "this many pixels wide, 0 = every shadow edge as in the paper (default " +
+                        penumbraDefault.str() + ")")
+        ->check(CLI::Range(0.0, 1e6));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -417,16 +435,7 @@ int main(int argc, char** argv) {
         ->add_option("--sample-fraction", render.sampleFraction,
                      "new samples per frame as a fraction of the pixels (default 0.02)")
         ->check(CLI::Range(0.0, 1.0));
-    renderCmd
-        ->add_option("--smooth", render.smooth,
-                     "epi: edge-free smoothing radius in pixels, 0 = the paper's reconstruction "
-                     "(default 8)")
-        ->check(CLI::Range(0, 60));
-    renderCmd
-        ->add_option("--max-penumbra", render.maxPenumbraPixels,
-                     "epi: soft shadow edges mark the image only where their penumbra is at most "
-                     "this many pixels wide, 0 = every shadow edge as in the paper (default 2)")
-        ->check(CLI::Range(0.0, 1e6));
+    addReconstructionOptions(renderCmd, render.smooth, render.maxPenumbraPixels);
     renderCmd
         ->add_option("--warmup", render.warmup,
                      "fraction of the pixels shaded before the first frame (default 0.25)")
@@ -522,15 +531,7 @@ int main(int argc, char** argv) {
         ->add_option("--shadow-decision", display.shadowDecision,
                      "display shader: decision shadow rays per axis")
         ->check(CLI::Range(1, 64));
-    benchDisplay
-        ->add_option("--smooth", display.smoothRadius,
-                     "EPI edge-free smoothing radius in pixels (0 = off; default: the display's)")
-        ->check(CLI::Range(0, 60));
-    benchDisplay
-        ->add_option("--max-penumbra", display.maxPenumbraPixels,
-                     "soft shadow edges mark the EPI only where their penumbra is at most this "
-                     "many pixels wide (0 = every shadow edge; default: the display's)")
-        ->check(CLI::Range(0.0, 1e6));
+    addReconstructionOptions(benchDisplay, display.smoothRadius, display.maxPenumbraPixels);
     benchDisplay->add_flag("--reference-check", display.referenceCheck,
                            "render two converged references (different seeds): their noise");
     benchDisplay->add_flag("--no-converged-reference", display.skipConvergedReference,

@@ -14,25 +14,20 @@ namespace penumbra {
 
 namespace {
 
-/// Width of an area light's penumbra at point x of a soft shadow edge: the light's extent
-/// across the event's plane (moving the light point that way by d moves the shadow boundary
-/// by d·(s − 1), by similar triangles through the blocker feature at s = 1), times s − 1. The
-/// width across the rays; a receiver at an angle to them widens it.
-double penumbraWidth(const std::vector<Vec3>& light, const EventFrame& frame, const Vec3& x) {
-    const double s = frame.eval(2, x);
-    if (!(s > 1) || light.size() < 2) return 0.0;
+/// An area light's extent across a plane of unit normal `normal`: moving the light point that
+/// way by d moves a soft shadow boundary in that plane by d·(s − 1) at ray parameter s (similar
+/// triangles through the blocker feature at s = 1), so the penumbra there is this × (s − 1),
+/// measured across the rays (a receiver at an angle to them widens it).
+double lightExtentAcross(const std::vector<Vec3>& light, const Vec3& normal) {
+    if (light.size() < 2) return 0.0;
     double lo = HUGE_VAL, hi = -HUGE_VAL;
     for (const Vec3& v : light) {
-        const double t = glm::dot(v, frame.normal);
+        const double t = glm::dot(v, normal);
         lo = std::min(lo, t);
         hi = std::max(hi, t);
     }
-    return (hi - lo) * (s - 1);
+    return hi - lo;
 }
-
-}  // namespace
-
-namespace {
 
 Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
@@ -556,7 +551,14 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     }
     std::vector<EventEdge> found;
     clipEvent(crossings, found);
-    const std::vector<Vec3>& lightPolygon = mLights[lightIndex].light.polygon;
+    const double extent = ev.kind == ShadowKind::Hard
+                              ? 0.0
+                              : lightExtentAcross(mLights[lightIndex].light.polygon, frame.normal);
+    // The penumbra's width at x: the extent × (s − 1), 0 where s ≤ 1 (or is not a number).
+    auto penumbraAt = [&](const Vec3& x) {
+        const double s = frame.eval(2, x);
+        return s > 1 ? extent * (s - 1) : 0.0;
+    };
     for (const EventEdge& fe : found) {
         WorldEdge w;
         w.a = fe.a;
@@ -567,9 +569,9 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         w.edge = ev.blockerFeature;
         w.light = lightIndex;
         w.blocker = blockerIndex;
-        if (ev.kind != ShadowKind::Hard) {
-            w.penumbraA = penumbraWidth(lightPolygon, frame, fe.a);
-            w.penumbraB = penumbraWidth(lightPolygon, frame, fe.b);
+        if (extent > 0) {
+            w.penumbraA = penumbraAt(fe.a);
+            w.penumbraB = penumbraAt(fe.b);
         }
         edges.push_back(w);
     }

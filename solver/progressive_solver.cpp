@@ -77,6 +77,21 @@ std::size_t lowerBound(const double* a, std::size_t n, double x) {
     return static_cast<std::size_t>(first - a) + (n == 1 && first[0] < x ? 1 : 0);
 }
 
+/// The shooter of a batch ray at u ∈ [0, total]: the first whose cumulative power `cdf`
+/// reaches u (lower_bound), clamped to the last (rounding). A block's rays come in order of
+/// u (each term of u's formula grows with the ray index), so from the previous ray's answer
+/// `from` the search steps on: every entry before it is below the previous u. `from` =
+/// cdf.size() starts a block with a bisection.
+std::size_t shooterAt(const std::vector<double>& cdf, std::size_t from, double u) {
+    std::size_t k = from;
+    if (k >= cdf.size()) {
+        k = lowerBound(cdf.data(), cdf.size(), u);
+    } else {
+        while (k < cdf.size() && cdf[k] < u) ++k;
+    }
+    return std::min(k, cdf.size() - 1);
+}
+
 /// Uniform points of one shooting patch: its fan triangles flattened with their cumulative
 /// doubled areas, so a ray's point costs a search in a short array instead of a walk over
 /// element records. A batch's rays are ordered by shooter, so each block of rays sets this up
@@ -559,16 +574,7 @@ void ProgressiveSolver::shootStochasticBatch() {
                 // The shooter, by power; a uniform point of it; a cosine-distributed direction.
                 double u =
                     (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
-                // u grows with r (each term of its formula is monotone), so within a block
-                // the shooter is found by stepping on from the last one's: lower_bound's
-                // answer, since every cdf entry before that one is below the last u.
-                std::size_t k = current;
-                if (k >= cdf.size()) {
-                    k = lowerBound(cdf.data(), cdf.size(), u);
-                } else {
-                    while (k < cdf.size() && cdf[k] < u) ++k;
-                }
-                k = std::min(k, cdf.size() - 1);
+                const std::size_t k = shooterAt(cdf, current, u);
                 if (k != current) points.set(mDisc, patches[shooters[current = k]]);
                 Vec3 origin, nz;
                 points.sample(rng, origin, nz);
@@ -1087,7 +1093,7 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
             RayRandom rng{hashPair(batchSeed, r)};
             double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
-            std::size_t pick = std::min(lowerBound(cdf.data(), cdf.size(), u), cdf.size() - 1);
+            const std::size_t pick = shooterAt(cdf, current, u);
             const int j = shooters[pick];
             const double pj = (cdf[pick] - (pick ? cdf[pick - 1] : 0.0)) / total;
             const Patch& P = patches[j];

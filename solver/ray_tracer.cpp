@@ -67,6 +67,16 @@ void setInstanceTransform(RTCGeometry inst, const Mat4& worldFromObject) {
     rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
 }
 
+/// A segment as Embree traces it: the unnormalized direction to − from over t in [0, 1], with
+/// no square root or division. False for an empty or non-finite segment (nothing to trace).
+bool segmentDirection(const Vec3& from, const Vec3& to, float& dx, float& dy, float& dz) {
+    const Vec3 d = to - from;
+    dx = static_cast<float>(d.x);
+    dy = static_cast<float>(d.y);
+    dz = static_cast<float>(d.z);
+    return dx * dx + dy * dy + dz * dz > 0.0f;  // false for NaN too
+}
+
 }  // namespace
 
 struct RayTracer::Impl {
@@ -294,11 +304,8 @@ void RayTracer::updateAlive(int o) {
 }
 
 bool RayTracer::occluded(const Vec3& from, const Vec3& to, const Visibility& visibility) const {
-    // The segment as an unnormalized direction over t in [0, 1], as occluded8 traces it.
-    const Vec3 d = to - from;
-    const float dx = static_cast<float>(d.x), dy = static_cast<float>(d.y),
-                dz = static_cast<float>(d.z);
-    if (!(dx * dx + dy * dy + dz * dz > 0.0f)) return false;  // empty, or not a number
+    float dx, dy, dz;
+    if (!segmentDirection(from, to, dx, dy, dz)) return false;
     FilterContext ctx;
     RTCScene scene = mImpl->prepare(ctx, visibility);
     RTCRay ray;
@@ -327,13 +334,9 @@ void RayTracer::occluded8(const Vec3& from, const Vec3* to, int count, bool* blo
     RTCScene scene = mImpl->prepare(ctx, visibility);
     alignas(32) int valid[8];
     alignas(32) RTCRay8 ray;
-    // Each segment as an unnormalized direction over t in [0, 1]: no square root or division
-    // per lane.
     for (int i = 0; i < 8; ++i) {
-        const Vec3 d = i < count ? to[i] - from : Vec3(0.0);
-        const float dx = static_cast<float>(d.x), dy = static_cast<float>(d.y),
-                    dz = static_cast<float>(d.z);
-        valid[i] = i < count && dx * dx + dy * dy + dz * dz > 0.0f ? -1 : 0;  // not NaN
+        float dx = 0, dy = 0, dz = 0;
+        valid[i] = i < count && segmentDirection(from, to[i], dx, dy, dz) ? -1 : 0;
         ray.org_x[i] = static_cast<float>(from.x);
         ray.org_y[i] = static_cast<float>(from.y);
         ray.org_z[i] = static_cast<float>(from.z);
