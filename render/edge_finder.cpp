@@ -388,7 +388,22 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     pair.computedAt[e] = mGeneration;
     const bool reuse = computedAt > 0 && !mOptions.exhaustiveShadows;
     auto changed = [&](int r) { return mChangedAt[r] > computedAt; };
-    std::vector<NearReceiver> kept;
+    // Working space kept per thread across events (tens of thousands per update): allocations
+    // were a tenth of the update.
+    struct Candidate {
+        double sMin, sMax;
+        int receiver;
+    };
+    struct Scratch {
+        std::vector<NearReceiver> kept;
+        std::vector<Candidate> order;
+        EventCoverage coverage;
+        std::vector<EventEdge> found;
+        std::vector<ReceiverCrossings> crossings;
+    };
+    static thread_local Scratch scratch;
+    std::vector<NearReceiver>& kept = scratch.kept;
+    kept.clear();
     if (reuse)
         for (const NearReceiver& nr : near)
             if (!changed(nr.receiver)) kept.push_back(nr);
@@ -400,11 +415,8 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     constexpr double kHideS = 1 + 1e-7;
     // Receivers whose bounds meet the event's region, with the range of s there; without one
     // beyond the blocker the event casts nothing (§6.5).
-    struct Candidate {
-        double sMin, sMax;
-        int receiver;
-    };
-    std::vector<Candidate> order;
+    std::vector<Candidate>& order = scratch.order;
+    order.clear();
     bool live = false;
     const int n = static_cast<int>(mObjects.size());
     std::size_t next = 0;  // into `kept`, in object order like the loop
@@ -437,35 +449,42 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
     if (!live) return;
     counters.intersected.fetch_add(1, std::memory_order_relaxed);
 
-    std::vector<ReceiverCrossings> crossings;
-    EventCoverage coverage;
-    coverage.hideS = kHideS;
+    // Receivers with crossings: the first `used` of the pool (their vectors' allocations
+    // kept across events).
+    std::vector<ReceiverCrossings>& pool = scratch.crossings;
+    std::size_t used = 0;
+    auto slot = [&](int r) -> ReceiverCrossings& {
+        if (used == pool.size()) pool.emplace_back();
+        ReceiverCrossings& rc = pool[used];
+        rc.receiver = r;
+        rc.worldFromObject = &mObjects[r].worldFromObject;
+        rc.crossings.clear();
+        return rc;
+    };
+    EventCoverage& coverage = scratch.coverage;
+    coverage.reset(kHideS);
     long long queries = 0, nodes = 0;
     auto query = [&](int r, double sLo, double sHi) {
         const Object& rec = mObjects[r];
-        ReceiverCrossings rc;
-        rc.receiver = r;
-        rc.worldFromObject = &rec.worldFromObject;
+        ReceiverCrossings& rc = slot(r);
         bool cull = rec.tree->mesh().closed() && !rec.twoSided;
         rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, &nodes, sLo,
                                 sHi, &coverage);
         ++queries;
         if (rec.twoSided)
             for (auto& c : rc.crossings) c.front = true;
-        if (!rc.crossings.empty()) crossings.push_back(std::move(rc));
+        if (!rc.crossings.empty()) ++used;
     };
     if (mOptions.exhaustiveShadows) {
         for (const Candidate& c : order) {
             const Object& rec = mObjects[c.receiver];
-            ReceiverCrossings rc;
-            rc.receiver = c.receiver;
-            rc.worldFromObject = &rec.worldFromObject;
+            ReceiverCrossings& rc = slot(c.receiver);
             bool cull = rec.tree->mesh().closed() && !rec.twoSided;
             rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, &nodes);
             ++queries;
             if (rec.twoSided)
                 for (auto& cr : rc.crossings) cr.front = true;
-            if (!rc.crossings.empty()) crossings.push_back(std::move(rc));
+            if (!rc.crossings.empty()) ++used;
         }
         order.clear();
     }
@@ -515,7 +534,10 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
             return;
         }
         for (const auto& c : own) coverage.add(c.u0, c.u1, std::max(c.g[0][2], c.g[1][2]));
-        if (!own.empty()) crossings.push_back({blockerIndex, &rec.worldFromObject, own});
+        if (!own.empty()) {
+            slot(blockerIndex).crossings.assign(own.begin(), own.end());
+            ++used;
+        }
         order.erase(self);
     }
     // Between light and blocker (s < 1), the other receivers nearest first: surfaces there
@@ -549,8 +571,9 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         counters.hidden.fetch_add(1, std::memory_order_relaxed);
         return;
     }
-    std::vector<EventEdge> found;
-    clipEvent(crossings, found);
+    std::vector<EventEdge>& found = scratch.found;
+    found.clear();
+    clipEvent(std::span<const ReceiverCrossings>(pool.data(), used), found);
     const double extent = ev.kind == ShadowKind::Hard
                               ? 0.0
                               : lightExtentAcross(mLights[lightIndex].light.polygon, frame.normal);

@@ -524,7 +524,8 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
     Entry stack[128];
     int top = 0;
     stack[top++] = entryOf(0);
-    std::vector<Vec3> pts;
+    // A face's crossing points with the plane: at most one per vertex (faces have at most 64).
+    Vec3 pts[64];
     while (top > 0) {
         const Entry entry = stack[--top];
         const Node& node = mNodes[entry.node];
@@ -588,23 +589,25 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
                 neg = neg || sgn[j] < 0;
             }
             if (!pos || !neg) continue;
-            pts.clear();
+            int npts = 0;
             for (int j = 0; j < cnt; ++j) {
                 int j2 = (j + 1) % cnt;
                 const Vec3& a = m.positions()[m.faceVertices()[fb + j]];
                 const Vec3& b = m.positions()[m.faceVertices()[fb + j2]];
-                if (sgn[j] == 0) pts.push_back(a);
+                // A vertex on the plane, or a sign change after it: never both, so at most
+                // one point per vertex.
+                if (sgn[j] == 0) pts[npts++] = a;
                 if (sgn[j] * sgn[j2] < 0) {
                     double t = dist[j] / (dist[j] - dist[j2]);
-                    pts.push_back(a + t * (b - a));
+                    pts[npts++] = a + t * (b - a);
                 }
             }
-            if (pts.size() < 2) continue;
+            if (npts < 2) continue;
             // The two crossing points farthest apart.
             Vec3 x0 = pts[0], x1 = pts[1];
             double best = glm::length(x1 - x0);
-            for (std::size_t p = 0; p < pts.size(); ++p)
-                for (std::size_t q = p + 1; q < pts.size(); ++q) {
+            for (int p = 0; p < npts; ++p)
+                for (int q = p + 1; q < npts; ++q) {
                     double d = glm::length(pts[q] - pts[p]);
                     if (d > best) {
                         best = d;
@@ -671,6 +674,15 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
 
 // ---------------------------------------------------------------------------------------------
 // EventCoverage
+
+void EventCoverage::reset(double hide) {
+    mPieces.clear();
+    mLength = 0;
+    mThreshold = HUGE_VAL;
+    mDirty = false;
+    mComputedAt = 0;
+    hideS = hide;
+}
 
 void EventCoverage::add(double u0, double u1, double sMax) {
     if (!(u1 - u0 >= 1e-12)) return;
@@ -753,14 +765,23 @@ double paramAt(const ReceiverTree::Crossing& c, double u) {
 }  // namespace
 
 void clipEvent(const std::vector<ReceiverCrossings>& receivers, std::vector<EventEdge>& out) {
+    clipEvent(std::span<const ReceiverCrossings>(receivers), out);
+}
+
+void clipEvent(std::span<const ReceiverCrossings> receivers, std::vector<EventEdge>& out) {
     struct Item {
         double u0, u1;
         int receiver;
         const ReceiverTree::Crossing* c;
         const Mat4* m;
     };
-    std::vector<Item> items;
-    std::vector<double> breaks;
+    // Working space kept per thread (one call per event recomputed).
+    static thread_local std::vector<Item> items;
+    static thread_local std::vector<double> breaks;
+    static thread_local std::vector<int> active;
+    items.clear();
+    breaks.clear();
+    active.clear();
     for (const ReceiverCrossings& r : receivers)
         for (const auto& c : r.crossings) {
             items.push_back({c.u0, c.u1, r.receiver, &c, r.worldFromObject});
@@ -771,7 +792,6 @@ void clipEvent(const std::vector<ReceiverCrossings>& receivers, std::vector<Even
     std::sort(items.begin(), items.end(), [](const Item& a, const Item& b) { return a.u0 < b.u0; });
     std::sort(breaks.begin(), breaks.end());
     breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
-    std::vector<int> active;
     std::size_t next = 0;
     const Item* lastItem = nullptr;
     double lastU = -1;

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <span>
 #include <vector>
 
 #include "render/edge_tree.h"
@@ -80,6 +81,8 @@ bool isConcaveEdge(const EdgeMesh& mesh, int edge);
 class EventCoverage {
 public:
     void add(double u0, double u1, double sMax);
+    /// Empty again, with hideS = `hide`; allocations kept (one coverage serves many events).
+    void reset(double hide = -HUGE_VAL);
     double threshold() const;
     /// An upper bound of threshold() that is cheap to call often: recomputed only after the
     /// pieces grew by a quarter since the last computation (stale values only cull less).
@@ -200,5 +203,6 @@ struct ReceiverCrossings {
 /// Intervals are split at crossing endpoints only (two receivers that cross inside an interval
 /// are resolved at its midpoint).
 void clipEvent(const std::vector<ReceiverCrossings>& receivers, std::vector<EventEdge>& out);
+void clipEvent(std::span<const ReceiverCrossings> receivers, std::vector<EventEdge>& out);
 
 }  // namespace penumbra

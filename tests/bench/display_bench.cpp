@@ -56,6 +56,9 @@ Camera orbit(const Camera& camera, double deg) {
     return out;
 }
 
+/// Moves of the shadow-update figure (there and back).
+constexpr int kMoves = 5;
+
 struct CaseResult {
     std::string name;
     std::size_t triangles = 0;
@@ -69,7 +72,9 @@ struct CaseResult {
     double referenceNoise = -1;  ///< RMSE between two converged references (--reference-check)
     double silhouetteMs = 0;
     std::size_t silhouetteEdges = 0, shadowEdges = 0;
-    double initialShadowMs = 0, shadowUpdateMs = 0;
+    double initialShadowMs = 0;
+    double shadowUpdateMs = 0;  ///< median over the moves
+    double shadowUpdateFirstMs = 0, shadowUpdateMaxMs = 0;
     double complexFraction = 0;
 };
 
@@ -158,6 +163,7 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
                           {"find_edges_ms", f.times.findEdgesMs},
                           {"silhouette_ms", f.times.silhouetteMs},
                           {"shadow_ms", f.times.shadowMs},
+                          {"project_ms", f.times.projectMs},
                           {"rasterize_ms", f.times.rasterizeMs},
                           {"points_ms", f.times.pointsMs},
                           {"reachability_ms", f.times.reachabilityMs},
@@ -166,7 +172,12 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
                           {"complex_filter_ms", f.times.complexFilterMs},
                           {"smooth_ms", f.times.smoothMs},
                           {"shade_ms", f.times.shadeMs},
-                          {"new_sample_fraction", f.newSampleFraction}});
+                          {"new_sample_fraction", f.newSampleFraction},
+                          {"silhouette_edges", f.silhouetteEdges},
+                          {"sharp_edges", f.sharpEdges},
+                          {"shadow_edges", f.shadowEdges},
+                          {"screen_edges", f.screenEdges},
+                          {"complex_pixels", f.complexPixels}});
     }
     if (counted > 0) {
         DisplayStageTimes scaled;
@@ -220,16 +231,26 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
         writePng(edgeImage, options.plotDir + "/display-edges.png");
     }
 
-    // Move an object: shadow edges of the stale light–blocker pairs are recomputed.
+    // Move an object there and back, kMoves times: shadow edges of the stale light–blocker
+    // pairs are recomputed after each move. One 50 ms figure moved by ±10% between runs on
+    // a shared machine, so the median is reported, with the first (cold: buffers not yet
+    // grown) and the slowest.
     if (!spec.moved.empty() && session->objectVersion(spec.moved) >= 0) {
-        EditCommand move;
-        move.op = MoveCommand{spec.moved, spec.by};
-        EditResult r = session->apply(move);
-        std::vector<int> changed = r.added;
-        changed.insert(changed.end(), r.removed.begin(), r.removed.end());
-        display.notifyChanged(changed, nullptr);
-        display.renderFrame(lastRays, true);
-        res.shadowUpdateMs = display.lastShadowUpdateMs();
+        std::vector<double> times;
+        for (int k = 0; k < kMoves; ++k) {
+            EditCommand move;
+            move.op = MoveCommand{spec.moved, k % 2 == 0 ? spec.by : -spec.by};
+            EditResult r = session->apply(move);
+            std::vector<int> changed = r.added;
+            changed.insert(changed.end(), r.removed.begin(), r.removed.end());
+            display.notifyChanged(changed, nullptr);
+            display.renderFrame(lastRays, true);
+            times.push_back(display.lastShadowUpdateMs());
+        }
+        res.shadowUpdateFirstMs = times.front();
+        res.shadowUpdateMaxMs = *std::max_element(times.begin(), times.end());
+        std::sort(times.begin(), times.end());
+        res.shadowUpdateMs = times[times.size() / 2];
     }
 
     json = {{"scene", name},
@@ -250,6 +271,8 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
             {"reference_noise_rmse", res.referenceNoise},
             {"initial_shadow_ms", res.initialShadowMs},
             {"shadow_update_ms", res.shadowUpdateMs},
+            {"shadow_update_first_ms", res.shadowUpdateFirstMs},
+            {"shadow_update_max_ms", res.shadowUpdateMaxMs},
             {"silhouette_edges", res.silhouetteEdges},
             {"shadow_edges", res.shadowEdges},
             {"frames", std::move(frames)}};
@@ -329,8 +352,10 @@ void printTable(const std::vector<CaseResult>& results, const DisplayBenchOption
                     r.triangles >= 1000000 ? (r.silhouetteMs <= 20 ? "met" : "NOT met")
                                            : "(goal is for >= 1M triangles)");
         std::printf(
-            "    shadow edges updated <= 50 ms (move)   : %7.1f ms %s   (initial %.0f ms)\n",
-            r.shadowUpdateMs, r.shadowUpdateMs <= 50 ? "met" : "NOT met", r.initialShadowMs);
+            "    shadow edges updated <= 50 ms (move)   : %7.1f ms %s   (median of %d moves; "
+            "first %.1f, slowest %.1f; initial %.0f ms)\n",
+            r.shadowUpdateMs, r.shadowUpdateMs <= 50 ? "met" : "NOT met", kMoves,
+            r.shadowUpdateFirstMs, r.shadowUpdateMaxMs, r.initialShadowMs);
         std::printf(
             "    speedup over shading every pixel once : %7.0fx display only, %.0fx with "
             "shading (full RT %.0f ms)\n",
