@@ -79,8 +79,11 @@ struct EpiOptions {
     /// largest such box, r = min(d − 1, smoothRadius) for the pixel's Chebyshev distance d
     /// to the nearest edge pixel, instead of the peaked 5×5 interpolation. The points' own
     /// noise (stochastic shadow rays in penumbrae) then averages out over (2r+1)² × density
-    /// points, where the peaked filter keeps most of it. Pixels next to edges (d ≤ 1) keep
-    /// §5.3–5.4 unchanged.
+    /// points, where the peaked filter keeps most of it. That from d = 3 on; empty pixels
+    /// nearer an edge pixel (d = 1, 2) take §5.3's filter once more over the primary colours
+    /// of themselves and their reachable 5×5 neighbours (those with a positive weight), which
+    /// respects edges as §5.3 does with about twice its support. Simple and complex pixels
+    /// keep §5.3–5.4 unchanged.
     int smoothRadius = 0;
     /// Build and reconstruct on oneTBB (bands and rows); false runs every stage serially, the
     /// reference the parallel stages must equal bit for bit.
@@ -162,6 +165,9 @@ public:
     /// After reconstruct(): per pixel the total filter weight of the samples used, before
     /// renormalization (§5.3 prioritized sampling: low weight → high priority; 0 → none).
     const std::vector<float>& interpolationWeights() const { return mWeight; }
+    /// After reconstruct(true): the pixel's primary colour (§5.3; a complex pixel's estimate),
+    /// before anti-aliasing, the complex filter and smoothing.
+    Rgb primaryColour(int x, int y) const { return Rgb(mPrimary[index(x, y)]); }
 
     /// Pixel counts by class (counted by build(), O(1)) and the number of culled
     /// intersections of the last build().
