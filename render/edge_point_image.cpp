@@ -229,7 +229,8 @@ std::string EpiOptions::toString() const {
     std::ostringstream out;
     out << "EpiOptions{cull " << cullOccludedEdges << " slack " << depthSlack << "+" << densitySlack
         << " antiAlias " << antiAlias << " complexFilter " << complexFilter << " shortcut "
-        << complexFilterShortcut << " smooth " << smoothRadius << "}";
+        << complexFilterShortcut << " dense " << denseComplexLimit << " smooth " << smoothRadius
+        << "}";
     return out.str();
 }
 
@@ -1173,6 +1174,21 @@ void EdgePointImage::filterComplexPixels(Image& out) {
     });
 
     auto filterPixel = [&](int pixel) {
+        if (mOptions.denseComplexLimit > 0) {
+            // Within a dense cluster of complex pixels the subpixel regions hold few usable
+            // samples (those in complex subpixels are skipped): the pixel keeps its estimate,
+            // the render cache's reconstruction (§7.5: no worse than traditional
+            // reconstruction where the edges are too dense to resolve).
+            const int cx = pixel % W, cy = pixel / W;
+            int complexAround = 0;
+            for (int py = std::max(0, cy - 1); py <= std::min(H - 1, cy + 1); ++py)
+                for (int px = std::max(0, cx - 1); px <= std::min(W - 1, cx + 1); ++px)
+                    complexAround += mEdgeCode[index(px, py)] == kEdgeCodeComplex;
+            if (complexAround >= mOptions.denseComplexLimit) {
+                out.at(cx, cy) = Rgb(mPrimary[pixel]);
+                return;
+            }
+        }
         if (mOptions.complexFilterShortcut) {
             // No sample in the 3×3 neighbourhood: every region below keeps the estimate; the
             // same sums in the same order as the general loop at the end.

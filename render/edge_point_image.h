@@ -73,6 +73,13 @@ struct EpiOptions {
     /// the estimate directly; false runs the general filter for it (the reference, equal bit
     /// for bit).
     bool complexFilterShortcut = true;
+    /// §5.4 in dense clusters (0 turns it off, the paper's filter everywhere): a complex pixel
+    /// with at least this many complex pixels in its 3×3 neighbourhood (itself included)
+    /// keeps its estimate, the render cache's 5×5 interpolation. Its subpixel regions there
+    /// reach few usable samples, one or two each, and were noisier than the estimate
+    /// (armadillo-field's statues, 50k triangles in 40–60 pixels: 0.000697 against 0.000660
+    /// of the mean squared error), at half the filter's time.
+    int denseComplexLimit = 0;
     /// Edge-free smoothing (an extension of §5.3; 0 turns it off). An empty pixel whose
     /// (2r+1)² box holds no simple or complex pixel lies in one region that no edge crosses
     /// (no silhouette, crease or shadow boundary). It takes the mean of every point in the

@@ -1,7 +1,8 @@
 // The EPI's shortcuts against their references, bit for bit: edges edgeMayMark() rejects
 // mark nothing (each alone, and a dense scene built with and without them), the rasterizer's
 // floor equals std::floor, and the complex filter's shortcut for pixels without points equals
-// the general filter.
+// the general filter; with EpiOptions::denseComplexLimit, complex pixels in dense clusters keep
+// their estimate and every other pixel is as without it.
 
 #include <gtest/gtest.h>
 
@@ -240,6 +241,55 @@ TEST(EdgePointImage, ComplexFilterShortcutEqualsTheGeneralFilter) {
         int differing = 0;
         for (size_t k = 0; k < a.pixels.size(); ++k) differing += a.pixels[k] != b.pixels[k];
         EXPECT_EQ(differing, 0) << "parallel " << parallel;
+    }
+}
+
+TEST(EdgePointImage, DenseComplexClustersKeepTheirEstimate) {
+    // Dense short edges over the left half (clusters of complex pixels), sparse ones over the
+    // right (isolated complex pixels), points everywhere.
+    const int W = 120, H = 90;
+    std::mt19937 rng(29);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<ScreenEdge> edges;
+    for (int k = 0; k < 4000; ++k) {
+        const bool dense = k < 3600;
+        const glm::dvec2 a{(dense ? 0.0 : 0.5 * W) + u(rng) * 0.5 * W, u(rng) * H};
+        edges.push_back(makeEdge(a, a + glm::dvec2(u(rng) * 3 - 1.5, u(rng) * 3 - 1.5)));
+    }
+    std::vector<ScreenPoint> points;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            if (u(rng) < 0.5)
+                points.push_back(
+                    makePoint({x + u(rng), y + u(rng)}, Rgb(u(rng), 0.3, u(rng)), 1.0 + u(rng)));
+    for (bool parallel : {true, false}) {
+        EpiOptions denseOptions, paperOptions;
+        denseOptions.parallel = paperOptions.parallel = parallel;
+        denseOptions.denseComplexLimit = 5;
+        EdgePointImage dense(W, H, denseOptions), paper(W, H, paperOptions);
+        dense.build(edges, points);
+        paper.build(edges, points);
+        const Image a = dense.reconstruct(true), b = paper.reconstruct(true);
+        int clustered = 0, filtered = 0, changed = 0;
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                int around = 0;
+                for (int v = std::max(0, y - 1); v <= std::min(H - 1, y + 1); ++v)
+                    for (int w = std::max(0, x - 1); w <= std::min(W - 1, x + 1); ++w)
+                        around += dense.pixelClass(w, v) == PixelClass::Complex;
+                const bool inCluster = dense.pixelClass(x, y) == PixelClass::Complex && around >= 5;
+                if (inCluster) {
+                    ++clustered;
+                    ASSERT_EQ(a.at(x, y), dense.primaryColour(x, y)) << x << " " << y;
+                    changed += a.at(x, y) != b.at(x, y);
+                } else {
+                    filtered += dense.pixelClass(x, y) == PixelClass::Complex;
+                    ASSERT_EQ(a.at(x, y), b.at(x, y)) << x << " " << y;
+                }
+            }
+        EXPECT_GT(clustered, 1000);
+        EXPECT_GT(filtered, 100) << "complex pixels outside clusters, filtered as in §5.4";
+        EXPECT_GT(changed, clustered / 2) << "the filter changes most clustered pixels";
     }
 }
 
