@@ -1115,6 +1115,33 @@ void EdgePointImage::filterComplexPixels(Image& out) {
             if (mEdgeCode[index(x, y)] == kEdgeCodeComplex)
                 complexPixels[k++] = static_cast<int>(index(x, y));
     });
+    // EpiOptions::denseComplexLimit: complex pixels in dense clusters keep their estimate now
+    // and leave the list; the others are marked in mFiltered (complex pixels only) so that
+    // subpixel codes are computed around them alone. (Within a dense cluster the subpixel
+    // regions reach few usable samples, those in complex subpixels being skipped, and came
+    // out noisier than the estimate, the render cache's reconstruction: §7.5.)
+    const bool dense = mOptions.denseComplexLimit > 0;
+    if (dense) {
+        mFiltered.assign(static_cast<size_t>(W) * H, 0);
+        forRows(mOptions.parallel, H, [&](int y) {
+            for (size_t k = rowStart[y]; k < rowStart[y + 1]; ++k) {
+                const int pixel = complexPixels[k];
+                const int cx = pixel % W;
+                int around = 0;
+                for (int py = std::max(0, y - 1); py <= std::min(H - 1, y + 1); ++py)
+                    for (int px = std::max(0, cx - 1); px <= std::min(W - 1, cx + 1); ++px)
+                        around += mEdgeCode[index(px, py)] == kEdgeCodeComplex;
+                if (around >= mOptions.denseComplexLimit) {
+                    out.at(cx, y) = Rgb(mPrimary[pixel]);
+                } else {
+                    mFiltered[pixel] = 1;
+                }
+            }
+        });
+        complexPixels.erase(std::remove_if(complexPixels.begin(), complexPixels.end(),
+                                           [&](int pixel) { return !mFiltered[pixel]; }),
+                            complexPixels.end());
+    }
     // 4 bits of a boundary line at twice-pixel coordinate k2 (even: pixel boundary, odd:
     // half-pixel line) over the half of pixel segment `cell` selected by `half`.
     auto horizontalBits = [&](int k2, int column, int half) -> unsigned {
@@ -1143,11 +1170,13 @@ void EdgePointImage::filterComplexPixels(Image& out) {
         bool anyComplex = false;
         for (int y = y0; y <= y1; ++y) anyComplex |= mRowCounts[y][2] > 0;
         if (!anyComplex) return;
-        // Whether column x of rows y0..y1 holds a complex pixel.
+        // Whether column x of rows y0..y1 holds a complex pixel to filter.
         auto columnComplex = [&](int x) {
             if (x < 0 || x >= W) return false;
             for (int y = y0; y <= y1; ++y)
-                if (mEdgeCode[index(x, y)] == kEdgeCodeComplex) return true;
+                if (dense ? mFiltered[index(x, y)] != 0
+                          : mEdgeCode[index(x, y)] == kEdgeCodeComplex)
+                    return true;
             return false;
         };
         bool left = false, centre = columnComplex(0);
@@ -1174,21 +1203,6 @@ void EdgePointImage::filterComplexPixels(Image& out) {
     });
 
     auto filterPixel = [&](int pixel) {
-        if (mOptions.denseComplexLimit > 0) {
-            // Within a dense cluster of complex pixels the subpixel regions hold few usable
-            // samples (those in complex subpixels are skipped): the pixel keeps its estimate,
-            // the render cache's reconstruction (§7.5: no worse than traditional
-            // reconstruction where the edges are too dense to resolve).
-            const int cx = pixel % W, cy = pixel / W;
-            int complexAround = 0;
-            for (int py = std::max(0, cy - 1); py <= std::min(H - 1, cy + 1); ++py)
-                for (int px = std::max(0, cx - 1); px <= std::min(W - 1, cx + 1); ++px)
-                    complexAround += mEdgeCode[index(px, py)] == kEdgeCodeComplex;
-            if (complexAround >= mOptions.denseComplexLimit) {
-                out.at(cx, cy) = Rgb(mPrimary[pixel]);
-                return;
-            }
-        }
         if (mOptions.complexFilterShortcut) {
             // No sample in the 3×3 neighbourhood: every region below keeps the estimate; the
             // same sums in the same order as the general loop at the end.

@@ -267,6 +267,7 @@ private:
     std::vector<float> mWeight;             ///< interpolation weight before renormalization
     std::vector<int> mComplexPixels;        ///< §5.4 scratch: the complex pixels' indices
     std::vector<uint16_t> mSubCode;  ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
+    std::vector<uint8_t> mFiltered;  ///< §5.4 scratch: complex pixels the filter runs on
     std::vector<uint8_t> mSubType;   ///< §5.4 scratch: their neighbour types
 };
 
