@@ -1438,7 +1438,9 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
     // by reachability, the others by boxes.
     constexpr int kRingDistance = 2;
     const int R = std::clamp(mOptions.smoothRadius, 1, 100);
-    const int cap = R + 1;
+    // Distances are capped where they stop mattering: past the largest box, and past the
+    // pixels the reachability pass takes (so that R = 1 still leaves d ≥ 3 to the boxes).
+    const int cap = std::max(R, kRingDistance) + 1;
     const size_t n = static_cast<size_t>(mWidth) * mHeight;
     // Chebyshev distance to the nearest simple or complex pixel, capped at R + 1: along each
     // row first (two sweeps), then the minimum over the rows within the cap of

@@ -290,6 +290,21 @@ TEST(EdgePointImage, DenseComplexClustersKeepTheirEstimate) {
         EXPECT_GT(clustered, 1000);
         EXPECT_GT(filtered, 100) << "complex pixels outside clusters, filtered as in §5.4";
         EXPECT_GT(changed, clustered / 2) << "the filter changes most clustered pixels";
+        // A second frame on the same image (the clusters moved): as a fresh image's, so no
+        // subpixel code of the first frame is read.
+        std::vector<ScreenEdge> moved = edges;
+        for (ScreenEdge& e : moved) {
+            e.a.x = W - e.a.x;
+            e.b.x = W - e.b.x;
+        }
+        EdgePointImage fresh(W, H, denseOptions);
+        dense.build(moved, points);
+        fresh.build(moved, points);
+        const Image second = dense.reconstruct(true), expected = fresh.reconstruct(true);
+        int differing = 0;
+        for (size_t k = 0; k < second.pixels.size(); ++k)
+            differing += second.pixels[k] != expected.pixels[k];
+        EXPECT_EQ(differing, 0) << "parallel " << parallel;
     }
 }
 
