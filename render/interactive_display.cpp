@@ -267,7 +267,10 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
             pending >= cap ? 0 : static_cast<int>(std::min<std::size_t>(budget, cap - pending));
     }
     std::vector<ShadeRequest> requests;
-    if (budget > 0) requests = mCache.requestSamples(camera, budget);
+    if (budget > 0) {
+        mCache.applyInterpolationFeedback(mEpi.interpolationWeights());
+        requests = mCache.requestSamples(camera, budget);
+    }
     st.requestedSamples = requests.size();
     if (!mOptions.synchronous && !requests.empty()) mShader->submit(requests);
     st.times.requestMs = msSince(t);

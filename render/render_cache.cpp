@@ -456,6 +456,24 @@ void RenderCache::computePriority(bool luminanceDone) {
     });
 }
 
+void RenderCache::applyInterpolationFeedback(const std::vector<float>& weights) {
+    if (weights.size() != mPriority.size())
+        throw std::invalid_argument("RenderCache::applyInterpolationFeedback: " +
+                                    std::to_string(weights.size()) + " weights for " +
+                                    std::to_string(mPriority.size()) + " pixels");
+    if (!(mOptions.feedbackWeight > 0)) return;
+    const double floor = std::clamp(mOptions.emptyFloor, 0.0, 1.0);
+    const double scale = 1.0 / mOptions.feedbackWeight;
+    tbb::parallel_for(0, mHeight, [&](int y) {
+        for (int x = 0; x < mWidth; ++x) {
+            const int k = y * mWidth + x;
+            if (mScreenOfPixel[k] >= 0) continue;
+            const double w = std::max(0.0, static_cast<double>(weights[k]));
+            mPriority[k] = floor + (1.0 - floor) / (1.0 + w * scale);
+        }
+    });
+}
+
 std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, int budget) {
     const std::size_t pixels = mPriority.size();
     if (budget < 0)

@@ -61,6 +61,13 @@ struct RenderCacheOptions {
     double ageWeight = 0.45;
     double ageScale = 16;
     double contrastWeight = 0.45;
+    /// Bala et al. §5.3 prioritized sampling: once applyInterpolationFeedback() has the
+    /// reconstruction's filter weights, an empty pixel's priority falls with the total weight
+    /// w of the samples its interpolation reached, emptyFloor + (1 − emptyFloor)/(1 + w/
+    /// feedbackWeight): 1 with no reachable sample, so the pixels edges cut off from their
+    /// neighbours' samples are sampled first. feedbackWeight 0 keeps every empty pixel at 1.
+    double emptyFloor = 0.5;
+    double feedbackWeight = 0.25;
     /// A pixel requested in one of the last holdFrames frames is not requested again (its
     /// sample may still be in the shader's queue).
     int holdFrames = 2;
@@ -105,6 +112,11 @@ public:
     /// Per pixel priority from the last reproject() (Walter et al.: empty pixels first, then
     /// old points and high local contrast), in [0, 1].
     const std::vector<double>& priority() const { return mPriority; }
+    /// Lowers the priority of the empty pixels of the last reproject() by the total filter
+    /// weight their interpolation found (one weight per pixel, row-major, as
+    /// EdgePointImage::interpolationWeights(); see RenderCacheOptions::emptyFloor). Throws
+    /// std::invalid_argument when the size differs from the raster.
+    void applyInterpolationFeedback(const std::vector<float>& weights);
     /// Draws this frame's new sample requests from the priority image: `budget` requests
     /// (negative: sampleFraction × pixels), allocated to tiles in proportion to their summed
     /// priority by systematic sampling, then to each tile's highest-priority pixels, at a

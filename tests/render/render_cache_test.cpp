@@ -481,6 +481,62 @@ TEST(RenderCache, OldPointsAndHighContrastRaisePriority) {
     EXPECT_GT(cache.priority()[3 * 16 + 12], fresh + 0.1) << "old points are wanted more";
 }
 
+TEST(RenderCache, InterpolationFeedbackRanksEmptyPixelsByTheirFilterWeight) {
+    // Bala et al. §5.3: an empty pixel's priority falls with the total filter weight its
+    // interpolation found; one with no reachable sample stays most wanted.
+    const int w = 16, h = 16;
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), w, h);
+    RenderCacheOptions options;
+    options.tileSize = 16;  // one tile: requests follow the priority order alone
+    options.parallel = false;
+    RenderCache cache(w, h, 1000, options);
+    std::vector<ShadedPoint> points;
+    for (int y = 0; y < h; y += 2)
+        for (int x = 0; x < w; x += 2) points.push_back(pointOnRay(rays, x + 0.5, y + 0.5, 3.0));
+    cache.insert(points);
+    cache.reproject(rays);
+    const std::vector<double> before = cache.priority();
+
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> weight(0.05f, 2.0f);
+    std::vector<float> weights(static_cast<std::size_t>(w) * h);
+    for (float& v : weights) v = weight(rng);
+    const int unreached = 5 * w + 9, leastWeight = 11 * w + 3;
+    weights[unreached] = 0.0f;
+    weights[leastWeight] = 0.01f;
+    cache.applyInterpolationFeedback(weights);
+    for (int k = 0; k < w * h; ++k) {
+        const bool hasPoint = cache.pixelPoints()[k] >= 0;
+        if (hasPoint) {
+            EXPECT_EQ(cache.priority()[k], before[k]) << "pixel " << k << " keeps its priority";
+        } else {
+            const double expected = options.emptyFloor + (1.0 - options.emptyFloor) /
+                                                             (1.0 + weights[k] / options.feedbackWeight);
+            EXPECT_NEAR(cache.priority()[k], expected, 1e-12) << "pixel " << k;
+            EXPECT_GE(cache.priority()[k], options.emptyFloor);
+        }
+    }
+    EXPECT_EQ(cache.priority()[unreached], 1.0);
+    // The two least supported empty pixels are requested first, in that order of priority.
+    const auto requests = cache.requestSamples(rays, 2);
+    ASSERT_EQ(requests.size(), 2u);
+    std::set<int> requested;
+    for (const ShadeRequest& r : requests)
+        requested.insert(static_cast<int>(r.pixel.y) * w + static_cast<int>(r.pixel.x));
+    EXPECT_EQ(requested, (std::set<int>{unreached, leastWeight}));
+
+    // Without feedback (feedbackWeight 0) priorities stay; a wrong size is refused.
+    RenderCacheOptions off = options;
+    off.feedbackWeight = 0;
+    RenderCache plain(w, h, 1000, off);
+    plain.insert(points);
+    plain.reproject(rays);
+    const std::vector<double> plainBefore = plain.priority();
+    plain.applyInterpolationFeedback(weights);
+    EXPECT_EQ(plain.priority(), plainBefore);
+    EXPECT_THROW(cache.applyInterpolationFeedback(std::vector<float>(10)), std::invalid_argument);
+}
+
 // ---------------------------------------------------------------------------------------------
 // With the point shader
 
