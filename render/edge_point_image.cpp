@@ -229,7 +229,7 @@ std::string EpiOptions::toString() const {
     std::ostringstream out;
     out << "EpiOptions{cull " << cullOccludedEdges << " slack " << depthSlack << "+" << densitySlack
         << " antiAlias " << antiAlias << " complexFilter " << complexFilter << " shortcut "
-        << complexFilterShortcut << " dense " << denseComplexLimit << " smooth " << smoothRadius
+        << complexFilterShortcut << " dense " << denseComplexLimit << " radius " << denseRadius << " smooth " << smoothRadius
         << "}";
     return out.str();
 }
@@ -1501,6 +1501,51 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
         }
     });
 
+    // EpiOptions::denseRadius: the pixels with at least denseComplexLimit complex pixels in
+    // their 3×3, from per-row sums of three.
+    const bool dense = mOptions.denseRadius > 0 && mOptions.denseComplexLimit > 0;
+    if (dense) {
+        mComplexRow.resize(n);
+        mDense.resize(n);
+        forRows(mOptions.parallel, mHeight, [&](int y) {
+            uint8_t* row = &mComplexRow[static_cast<size_t>(y) * mWidth];
+            if (mRowCounts[y][2] == 0) {
+                std::fill_n(row, mWidth, uint8_t{0});
+                return;
+            }
+            const uint16_t* codes = &mEdgeCode[static_cast<size_t>(y) * mWidth];
+            for (int x = 0; x < mWidth; ++x) {
+                int c = codes[x] == kEdgeCodeComplex;
+                if (x > 0) c += codes[x - 1] == kEdgeCodeComplex;
+                if (x + 1 < mWidth) c += codes[x + 1] == kEdgeCodeComplex;
+                row[x] = static_cast<uint8_t>(c);
+            }
+        });
+        forRows(mOptions.parallel, mHeight, [&](int y) {
+            uint8_t* out = &mDense[static_cast<size_t>(y) * mWidth];
+            const int y0 = std::max(0, y - 1), y1 = std::min(mHeight - 1, y + 1);
+            bool any = false;
+            for (int yy = y0; yy <= y1; ++yy) any = any || mRowCounts[yy][2] > 0;
+            if (!any) {
+                std::fill_n(out, mWidth, uint8_t{0});
+                return;
+            }
+            for (int x = 0; x < mWidth; ++x) {
+                int c = 0;
+                for (int yy = y0; yy <= y1; ++yy) c += mComplexRow[static_cast<size_t>(yy) * mWidth + x];
+                out[x] = c >= mOptions.denseComplexLimit;
+            }
+        });
+    }
+    auto boxSum = [&](int x, int y, int r) {
+        const int xa = std::max(0, x - r), xb = std::min(mWidth, x + r + 1);
+        const int ya = std::max(0, y - r), yb = std::min(mHeight, y + r + 1);
+        return mSummedArea[static_cast<size_t>(yb) * sw + xb] -
+               mSummedArea[static_cast<size_t>(yb) * sw + xa] -
+               mSummedArea[static_cast<size_t>(ya) * sw + xb] +
+               mSummedArea[static_cast<size_t>(ya) * sw + xa];
+    };
+
     // Each empty pixel whose nearest edge pixel is d > kRingDistance away takes the box
     // average of radius min(d − 1, R) (a box no edge crosses), when the box holds at least two
     // points; nearer ones are filtered below.
@@ -1508,13 +1553,7 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
         for (int x = 0; x < mWidth; ++x) {
             const int d = mEdgeDistance[index(x, y)];
             if (d <= kRingDistance) continue;
-            const int r = std::min(d - 1, R);
-            const int xa = std::max(0, x - r), xb = std::min(mWidth, x + r + 1);
-            const int ya = std::max(0, y - r), yb = std::min(mHeight, y + r + 1);
-            const glm::dvec4 sum = mSummedArea[static_cast<size_t>(yb) * sw + xb] -
-                                   mSummedArea[static_cast<size_t>(yb) * sw + xa] -
-                                   mSummedArea[static_cast<size_t>(ya) * sw + xb] +
-                                   mSummedArea[static_cast<size_t>(ya) * sw + xa];
+            const glm::dvec4 sum = boxSum(x, y, std::min(d - 1, R));
             if (sum.w >= 1.5) out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
         }
     });
@@ -1534,6 +1573,8 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             const size_t i = index(x, y);
             const int d = mEdgeDistance[i];
             if (d < 1 || d > kRingDistance) continue;
+            // (A dense pixel with points enough for its box is written below.)
+            if (dense && mDense[i] && boxSum(x, y, mOptions.denseRadius).w >= 1.5) continue;
             glm::vec3 sum = mWeight[i] > 0.0f ? mPrimary[i] : glm::vec3(0.0f);
             float total = mWeight[i] > 0.0f ? 1.0f : 0.0f;
             for (uint32_t bits = mReach[i] & 0xFFFFFFu; bits; bits &= bits - 1) {
@@ -1548,6 +1589,19 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             if (total > 0.0f) out.at(x, y) = Rgb(sum / total);
         }
     });
+
+    // Dense regions: the box mean over every point within denseRadius, whatever the class.
+    if (dense) {
+        const int r = mOptions.denseRadius;
+        forRows(mOptions.parallel, mHeight, [&](int y) {
+            const uint8_t* row = &mDense[static_cast<size_t>(y) * mWidth];
+            for (int x = 0; x < mWidth; ++x) {
+                if (!row[x]) continue;
+                const glm::dvec4 sum = boxSum(x, y, r);
+                if (sum.w >= 1.5) out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
+            }
+        });
+    }
 }
 
 // ---- Classification image -----------------------------------------------------------------

@@ -97,14 +97,16 @@ inline PointShaderOptions displayShaderOptions() {
 /// EpiOptions as the display uses them by default: smoothRadius 6 (against the converged
 /// references: armadillo-field 0.0428 at 8, 0.0415 at 6, 0.0409 at 4; robot-room 0.0087 at
 /// 8, 0.0096 at 6, 0.0190 at 4, where the sparse points of its wide walls need the larger
-/// boxes) and denseComplexLimit 5.
+/// boxes), denseComplexLimit 3 and denseRadius 3.
 inline EpiOptions displayEpiOptions() {
     EpiOptions o;
     o.smoothRadius = 6;
-    // The complex filter leaves dense clusters of complex pixels (a majority of the 3×3) to
-    // the estimate: armadillo-field 0.0414 → 0.0410 and 5.2 → 2.3 ms; robot-room 0.0096
-    // either way, 2.4 → 1.6 ms.
-    o.denseComplexLimit = 5;
+    // Dense regions (3 or more complex pixels in the 3×3) take the mean of the points within
+    // 3 pixels, and the complex filter leaves their complex pixels alone: against the
+    // converged references, with the interpolation feedback, armadillo-field 0.0407 → 0.0373
+    // (limit 5: 0.0381; 2: 0.0373); robot-room 0.0070 → 0.0087.
+    o.denseComplexLimit = 3;
+    o.denseRadius = 3;
     return o;
 }
 

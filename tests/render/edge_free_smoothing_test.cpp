@@ -2,8 +2,9 @@
 // brute-force reference (a smoothed pixel 3 or more pixels from every simple or complex pixel
 // is the mean of the points in the largest box around it that holds none; one 1 or 2 pixels
 // away is the filter-weighted mean of its own and its reachable neighbours' primary colours;
-// every other pixel is the unsmoothed reconstruction bit for bit), never across a straight
-// edge, and less noise on a flat noisy field.
+// every other pixel is the unsmoothed reconstruction bit for bit), dense regions of complex
+// pixels take their box's mean, never across a straight edge, and less noise on a flat noisy
+// field.
 
 #include <gtest/gtest.h>
 
@@ -129,6 +130,76 @@ TEST(EdgeFreeSmoothing, SmoothedPixelsAreTheMeanOfTheirLargestEdgeFreeBoxOrOfThe
     EXPECT_GT(smoothed, 1000);
     EXPECT_GT(kept, 300);
     EXPECT_GT(ringed, 1000);
+}
+
+TEST(EdgeFreeSmoothing, DenseRegionsTakeTheMeanOfTheirBox) {
+    // Clusters of short random edges make regions of complex pixels. A pixel (of any class)
+    // with at least denseComplexLimit complex pixels in its 3×3 takes the mean of the points
+    // in its (2·denseRadius + 1)² box when the box holds two or more; every other pixel is
+    // the reconstruction without dense regions, bit for bit.
+    constexpr int W = 56, H = 44;
+    std::mt19937 rng(19);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int dense = 0, other = 0, classes[3] = {0, 0, 0};
+    for (int trial = 0; trial < 4; ++trial) {
+        const int limit = 2 + trial % 3, radius = 1 + trial % 3;
+        std::vector<ScreenEdge> edges;
+        for (int cluster = 0; cluster < 3; ++cluster) {
+            const glm::dvec2 c(8 + u(rng) * (W - 16), 8 + u(rng) * (H - 16));
+            for (int k = 0; k < 60; ++k) {
+                const glm::dvec2 a = c + glm::dvec2(u(rng) - 0.5, u(rng) - 0.5) * 12.0;
+                edges.push_back(makeEdge(a, a + glm::dvec2(u(rng) - 0.5, u(rng) - 0.5) * 3.0));
+            }
+        }
+        edges.push_back(makeEdge({u(rng) * W, 0.0}, {u(rng) * W, double(H)}));
+        std::vector<ScreenPoint> points;
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                if (u(rng) < 0.25 + 0.1 * trial)
+                    points.push_back(
+                        makePoint({x + u(rng), y + u(rng)}, Rgb(u(rng), u(rng), u(rng))));
+        EpiOptions without = smoothing(6);
+        without.denseComplexLimit = limit;
+        EpiOptions with = without;
+        with.denseRadius = radius;
+        EdgePointImage plainEpi(W, H, without), denseEpi(W, H, with);
+        plainEpi.build(edges, points);
+        denseEpi.build(edges, points);
+        const Image plain = plainEpi.reconstruct(true);
+        const Image image = denseEpi.reconstruct(true);
+        for (int y = 0; y < H; ++y) {
+            for (int x = 0; x < W; ++x) {
+                int around = 0;
+                for (int yy = std::max(0, y - 1); yy <= std::min(H - 1, y + 1); ++yy)
+                    for (int xx = std::max(0, x - 1); xx <= std::min(W - 1, x + 1); ++xx)
+                        around += denseEpi.pixelClass(xx, yy) == PixelClass::Complex;
+                int count = 0;
+                Rgb sum(0.0);
+                for (int yy = std::max(0, y - radius); yy <= std::min(H - 1, y + radius); ++yy)
+                    for (int xx = std::max(0, x - radius); xx <= std::min(W - 1, x + radius);
+                         ++xx)
+                        if (denseEpi.samplePosition(xx, yy) >= 0) {
+                            ++count;
+                            sum += denseEpi.sampleColour(xx, yy);
+                        }
+                const Rgb got = image.at(x, y);
+                if (around >= limit && count >= 2) {
+                    const Rgb mean = sum / static_cast<double>(count);
+                    ASSERT_LT(glm::length(got - mean), 1e-6)
+                        << "trial " << trial << " (" << x << ", " << y << ")";
+                    ++dense;
+                    ++classes[static_cast<int>(denseEpi.pixelClass(x, y))];
+                } else {
+                    ASSERT_EQ(got, plain.at(x, y))
+                        << "trial " << trial << " (" << x << ", " << y << ")";
+                    ++other;
+                }
+            }
+        }
+    }
+    EXPECT_GT(dense, 500);
+    EXPECT_GT(other, 2000);
+    for (int c = 0; c < 3; ++c) EXPECT_GT(classes[c], 20) << "class " << c;
 }
 
 TEST(EdgeFreeSmoothing, NoColourCrossesAStraightEdge) {
