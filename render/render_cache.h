@@ -198,6 +198,7 @@ private:
     std::vector<double> mPixelDepth;             ///< per pixel: depth of its z-buffer point
     std::vector<glm::dvec2> mPixelPosition;      ///< per pixel: position of its z-buffer point
     std::vector<int> mFiltered;                  ///< per pixel: culling's output, swapped in
+    std::vector<std::uint8_t> mRowBand;          ///< per row: its band
     std::vector<std::uint8_t> mProjBand;         ///< per point: band of rows (0xFF off screen)
     std::vector<std::uint32_t> mChunkBandCount;  ///< per chunk of points and band: count, then slot
     std::vector<std::uint32_t> mBandStart;       ///< per band: first entry in mBandPoints

@@ -64,6 +64,8 @@ struct DisplayBenchOptions {
     int smoothRadius = -1;
     /// InteractiveDisplayOptions::maxPenumbraPixels (−1: the display's default).
     double maxPenumbraPixels = -1;
+    /// InteractiveDisplayOptions::cacheCapacityPerPixel (−1: the display's default).
+    double cacheCapacity = -1;
     /// Skip the converged reference (minutes): errors against the plain reference only.
     bool skipConvergedReference = false;
     std::string plotDir;  ///< writes display-{cache,epi,reference,edges}.png of the first case
