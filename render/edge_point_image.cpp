@@ -229,8 +229,8 @@ std::string EpiOptions::toString() const {
     std::ostringstream out;
     out << "EpiOptions{cull " << cullOccludedEdges << " slack " << depthSlack << "+" << densitySlack
         << " antiAlias " << antiAlias << " complexFilter " << complexFilter << " shortcut "
-        << complexFilterShortcut << " dense " << denseComplexLimit << " radius " << denseRadius << " smooth " << smoothRadius
-        << "}";
+        << complexFilterShortcut << " dense " << denseComplexLimit << " radius " << denseRadius
+        << " smooth " << smoothRadius << "}";
     return out.str();
 }
 
@@ -1532,7 +1532,8 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             }
             for (int x = 0; x < mWidth; ++x) {
                 int c = 0;
-                for (int yy = y0; yy <= y1; ++yy) c += mComplexRow[static_cast<size_t>(yy) * mWidth + x];
+                for (int yy = y0; yy <= y1; ++yy)
+                    c += mComplexRow[static_cast<size_t>(yy) * mWidth + x];
                 out[x] = c >= mOptions.denseComplexLimit;
             }
         });

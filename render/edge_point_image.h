@@ -271,9 +271,10 @@ private:
     std::vector<glm::vec4> mRowSums;       ///< horizontal pass of the plain filter
     std::vector<glm::vec3> mPlain;         ///< plain (edge-ignoring) interpolation
     std::vector<float> mPlainWeight;
-    std::vector<glm::vec3> mPrimary;        ///< primary-region colours
-    std::vector<uint8_t> mComplexRow;  ///< smoothing: complex pixels among the pixel and its row neighbours
-    std::vector<uint8_t> mDense;       ///< smoothing: 1 where EpiOptions::denseRadius applies
+    std::vector<glm::vec3> mPrimary;  ///< primary-region colours
+    std::vector<uint8_t>
+        mComplexRow;  ///< smoothing: complex pixels among the pixel and its row neighbours
+    std::vector<uint8_t> mDense;            ///< smoothing: 1 where EpiOptions::denseRadius applies
     std::vector<uint8_t> mEdgeDistanceRow;  ///< smoothing: distance along the row to an edge pixel
     std::vector<uint8_t> mEdgeDistance;     ///< smoothing: Chebyshev distance, capped
     std::vector<glm::dvec4> mSummedArea;    ///< smoothing: summed-area table of (colour, 1)

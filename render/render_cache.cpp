@@ -462,9 +462,9 @@ void RenderCache::computePriority(bool luminanceDone) {
 
 void RenderCache::applyInterpolationFeedback(const std::vector<float>& weights) {
     if (weights.size() != mPriority.size())
-        throw std::invalid_argument("RenderCache::applyInterpolationFeedback: " +
-                                    std::to_string(weights.size()) + " weights for " +
-                                    std::to_string(mPriority.size()) + " pixels");
+        throw std::invalid_argument(
+            "RenderCache::applyInterpolationFeedback: " + std::to_string(weights.size()) +
+            " weights for " + std::to_string(mPriority.size()) + " pixels");
     if (!(mOptions.feedbackWeight > 0)) return;
     const double floor = std::clamp(mOptions.emptyFloor, 0.0, 1.0);
     const double scale = 1.0 / mOptions.feedbackWeight;

@@ -34,6 +34,22 @@ ScreenPoint makePoint(glm::dvec2 p, Rgb colour) {
     return s;
 }
 
+/// Brute force: the points in the (2r+1)² box around (x, y), clipped to the image.
+struct BoxPoints {
+    int count = 0;
+    Rgb sum{0.0};
+};
+BoxPoints pointsInBox(const EdgePointImage& epi, int x, int y, int r, int W, int H) {
+    BoxPoints b;
+    for (int yy = std::max(0, y - r); yy <= std::min(H - 1, y + r); ++yy)
+        for (int xx = std::max(0, x - r); xx <= std::min(W - 1, x + r); ++xx)
+            if (epi.samplePosition(xx, yy) >= 0) {
+                ++b.count;
+                b.sum += epi.sampleColour(xx, yy);
+            }
+    return b;
+}
+
 EpiOptions smoothing(int radius) {
     EpiOptions o;
     o.smoothRadius = radius;
@@ -98,19 +114,10 @@ TEST(EdgeFreeSmoothing, SmoothedPixelsAreTheMeanOfTheirLargestEdgeFreeBoxOrOfThe
                     ++ringed;
                     continue;
                 }
-                int count = 0;
-                Rgb sum(0.0);
-                if (d >= 3) {
-                    const int r = std::min(d - 1, R);
-                    for (int yy = std::max(0, y - r); yy <= std::min(H - 1, y + r); ++yy)
-                        for (int xx = std::max(0, x - r); xx <= std::min(W - 1, x + r); ++xx)
-                            if (smoothEpi.samplePosition(xx, yy) >= 0) {
-                                ++count;
-                                sum += smoothEpi.sampleColour(xx, yy);
-                            }
-                }
-                if (count >= 2) {
-                    const Rgb mean = sum / static_cast<double>(count);
+                const BoxPoints box =
+                    d >= 3 ? pointsInBox(smoothEpi, x, y, std::min(d - 1, R), W, H) : BoxPoints{};
+                if (box.count >= 2) {
+                    const Rgb mean = box.sum / static_cast<double>(box.count);
                     ASSERT_NEAR(got.x, mean.x, 1e-6)
                         << "trial " << trial << " (" << x << ", " << y << ")";
                     ASSERT_NEAR(got.y, mean.y, 1e-6)
@@ -173,18 +180,10 @@ TEST(EdgeFreeSmoothing, DenseRegionsTakeTheMeanOfTheirBox) {
                 for (int yy = std::max(0, y - 1); yy <= std::min(H - 1, y + 1); ++yy)
                     for (int xx = std::max(0, x - 1); xx <= std::min(W - 1, x + 1); ++xx)
                         around += denseEpi.pixelClass(xx, yy) == PixelClass::Complex;
-                int count = 0;
-                Rgb sum(0.0);
-                for (int yy = std::max(0, y - radius); yy <= std::min(H - 1, y + radius); ++yy)
-                    for (int xx = std::max(0, x - radius); xx <= std::min(W - 1, x + radius);
-                         ++xx)
-                        if (denseEpi.samplePosition(xx, yy) >= 0) {
-                            ++count;
-                            sum += denseEpi.sampleColour(xx, yy);
-                        }
+                const BoxPoints box = pointsInBox(denseEpi, x, y, radius, W, H);
                 const Rgb got = image.at(x, y);
-                if (around >= limit && count >= 2) {
-                    const Rgb mean = sum / static_cast<double>(count);
+                if (around >= limit && box.count >= 2) {
+                    const Rgb mean = box.sum / static_cast<double>(box.count);
                     ASSERT_LT(glm::length(got - mean), 1e-6)
                         << "trial " << trial << " (" << x << ", " << y << ")";
                     ++dense;

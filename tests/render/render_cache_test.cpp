@@ -510,8 +510,9 @@ TEST(RenderCache, InterpolationFeedbackRanksEmptyPixelsByTheirFilterWeight) {
         if (hasPoint) {
             EXPECT_EQ(cache.priority()[k], before[k]) << "pixel " << k << " keeps its priority";
         } else {
-            const double expected = options.emptyFloor + (1.0 - options.emptyFloor) /
-                                                             (1.0 + weights[k] / options.feedbackWeight);
+            const double expected =
+                options.emptyFloor +
+                (1.0 - options.emptyFloor) / (1.0 + weights[k] / options.feedbackWeight);
             EXPECT_NEAR(cache.priority()[k], expected, 1e-12) << "pixel " << k;
             EXPECT_GE(cache.priority()[k], options.emptyFloor);
         }
