@@ -532,11 +532,12 @@ int main(int argc, char** argv) {
                      "display shader: decision shadow rays per axis")
         ->check(CLI::Range(1, 64));
     addReconstructionOptions(benchDisplay, display.smoothRadius, display.maxPenumbraPixels);
+    std::ostringstream capacityDefault;
+    capacityDefault << InteractiveDisplayOptions{}.cacheCapacityPerPixel;
     benchDisplay
         ->add_option("--cache-capacity", display.cacheCapacity,
-                     "render cache points per pixel (default " +
-                         std::to_string(InteractiveDisplayOptions{}.cacheCapacityPerPixel) + ")")
-        ->check(CLI::Range(0.1, 64.0));
+                     "render cache points per pixel (default " + capacityDefault.str() + ")")
+        ->check(CLI::Range(0.1, 16.0));
     benchDisplay->add_flag("--reference-check", display.referenceCheck,
                            "render two converged references (different seeds): their noise");
     benchDisplay->add_flag("--no-converged-reference", display.skipConvergedReference,

@@ -110,7 +110,8 @@ public:
     /// next insert() or invalidation.
     const std::vector<int>& pixelPoints() const { return mPixelPoint; }
     /// Per pixel priority from the last reproject() (Walter et al.: empty pixels first, then
-    /// old points and high local contrast), in [0, 1].
+    /// old points and high local contrast), in [0, 1], as applyInterpolationFeedback() left
+    /// it.
     const std::vector<double>& priority() const { return mPriority; }
     /// Lowers the priority of the empty pixels of the last reproject() by the total filter
     /// weight their interpolation found (one weight per pixel, row-major, as

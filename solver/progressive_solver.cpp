@@ -556,7 +556,14 @@ void ProgressiveSolver::shootStochasticBatch() {
             unshot[k] * (area * total / (static_cast<double>(rays) * energyKey(unshot[k], area)));
     }
     const double eps = mTracer.epsilon();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
+    // Blocks of 256 rays at fixed offsets: the groups (and firstHits' packets of eight) hold
+    // the same rays whatever the threads' split, so a hit that a packet's traversal order
+    // could break differently from another packet's (a ray through a shared edge) is still
+    // the same from run to run.
+    constexpr std::size_t kBlock = 256;
+    const std::size_t blocks = (rays + kBlock - 1) / kBlock;
+    tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t block) {
+        const std::size_t begin = block * kBlock, end = std::min(rays, begin + kBlock);
         thread_local PatchPoints points;
         std::size_t current = shooters.size();  // none yet in this block
         // Rays go to the tracer in groups (RayTracer::firstHits prefetches each hit's record
@@ -565,8 +572,8 @@ void ProgressiveSolver::shootStochasticBatch() {
         Vec3 origins[kGroup], dirs[kGroup];
         std::size_t shooterOf[kGroup];
         RayTracer::FirstHit found[kGroup];
-        for (std::size_t g = range.begin(); g < range.end(); g += kGroup) {
-            const int m = static_cast<int>(std::min<std::size_t>(kGroup, range.end() - g));
+        for (std::size_t g = begin; g < end; g += kGroup) {
+            const int m = static_cast<int>(std::min<std::size_t>(kGroup, end - g));
             for (int i = 0; i < m; ++i) {
                 const std::size_t r = g + static_cast<std::size_t>(i);
                 hits[r].element = -1;

@@ -149,7 +149,8 @@ TEST(EdgeFreeSmoothing, DenseRegionsTakeTheMeanOfTheirBox) {
     std::uniform_real_distribution<double> u(0.0, 1.0);
     int dense = 0, other = 0, classes[3] = {0, 0, 0};
     for (int trial = 0; trial < 4; ++trial) {
-        const int limit = 2 + trial % 3, radius = 1 + trial % 3;
+        // Limit and radius vary apart (2, 3, 4, 2 against 1, 1, 2, 2).
+        const int limit = 2 + trial % 3, radius = 1 + (trial / 2) % 3;
         std::vector<ScreenEdge> edges;
         for (int cluster = 0; cluster < 3; ++cluster) {
             const glm::dvec2 c(8 + u(rng) * (W - 16), 8 + u(rng) * (H - 16));

@@ -525,6 +525,18 @@ TEST(RenderCache, InterpolationFeedbackRanksEmptyPixelsByTheirFilterWeight) {
     for (const ShadeRequest& r : requests)
         requested.insert(static_cast<int>(r.pixel.y) * w + static_cast<int>(r.pixel.x));
     EXPECT_EQ(requested, (std::set<int>{unreached, leastWeight}));
+    // The parallel request path reads the same priorities.
+    RenderCacheOptions parallelOptions = options;
+    parallelOptions.parallel = true;
+    RenderCache parallel(w, h, 1000, parallelOptions);
+    parallel.insert(points);
+    parallel.reproject(rays);
+    parallel.applyInterpolationFeedback(weights);
+    EXPECT_EQ(parallel.priority(), cache.priority());
+    std::set<int> parallelRequested;
+    for (const ShadeRequest& r : parallel.requestSamples(rays, 2))
+        parallelRequested.insert(static_cast<int>(r.pixel.y) * w + static_cast<int>(r.pixel.x));
+    EXPECT_EQ(parallelRequested, requested);
 
     // Without feedback (feedbackWeight 0) priorities stay; a wrong size is refused.
     RenderCacheOptions off = options;
