@@ -5,7 +5,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <cmath>
@@ -23,12 +22,21 @@ namespace {
 /// Of two near-equal depths (within this fraction) the younger point wins the pixel.
 constexpr double kSameSurface = 0.01;
 
+/// The frame's random draws, counter-based: draw i is a hash of (seed, i), so any stretch of
+/// the sequence can be drawn where it is used (requestSamplesParallel() starts each tile at
+/// its offset) and no serial chain has to run ahead of the requests.
 struct CacheRandom {
-    std::uint64_t state;
-    double next() {
-        state = hashPair(state, 0x7f4a7c159e3779b9ull);
-        return static_cast<double>(state >> 11) * 0x1.0p-53;
+    std::uint64_t seed;
+    std::uint64_t index = 0;
+    static double at(std::uint64_t seed, std::uint64_t i) {
+        // splitmix64's finalizer over the Weyl sequence seed + (i + 1)·γ.
+        std::uint64_t x = seed + (i + 1) * 0x9e3779b97f4a7c15ull;
+        x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+        x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+        x ^= x >> 31;
+        return static_cast<double>(x >> 11) * 0x1.0p-53;
     }
+    double next() { return at(seed, index++); }
 };
 
 }  // namespace
@@ -52,10 +60,6 @@ RenderCache::RenderCache(int width, int height, std::size_t capacity, RenderCach
     mScreenOfPixel.assign(pixels, -1);
     mPriority.assign(pixels, 1.0);
     mRequested.assign(pixels, 0);
-}
-
-RenderCache::~RenderCache() {
-    if (mStreamTask) mStreamTask->wait();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -120,35 +124,13 @@ const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera)
                                     std::to_string(camera.height()) + " differs from the cache's " +
                                     std::to_string(mWidth) + "x" + std::to_string(mHeight));
     }
-    if (mStreamTask) mStreamTask->wait();
     ++mFrame;
     if (mOptions.parallel) {
         reprojectParallel(camera);
-        startRandomStream();
     } else {
         reprojectSerial(camera);
     }
     return mScreen;
-}
-
-void RenderCache::startRandomStream() {
-    // The frame's request stream is one serial hash chain (about 2 ms for a 512×512 frame's
-    // 270k draws). It depends only on the seed and the frame, so a oneTBB task draws it while
-    // the display finds edges (serial) and builds the EPI; requestSamplesParallel() waits for
-    // it and extends it if its budget needs more. Enough for every pixel being a candidate and
-    // the default budget.
-    const std::size_t pixels = static_cast<std::size_t>(mWidth) * mHeight;
-    const long budget = std::lround(mOptions.sampleFraction * static_cast<double>(pixels));
-    const std::size_t length = 1 + pixels + 2 * static_cast<std::size_t>(std::max(0L, budget));
-    if (!mStreamTask) mStreamTask = std::make_unique<tbb::task_group>();
-    mStreamFrame = mFrame;
-    mStream.resize(length);
-    const std::uint64_t seed = hashPair(mOptions.seed, mFrame);
-    mStreamTask->run([this, seed] {
-        CacheRandom rng{seed};
-        for (double& d : mStream) d = rng.next();
-        mStreamState = rng.state;
-    });
 }
 
 void RenderCache::reprojectSerial(const CameraRays& camera) {
@@ -551,10 +533,9 @@ std::vector<ShadeRequest> RenderCache::requestSamplesSerial(const CameraRays& ca
 std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& camera,
                                                               int budget) {
     // requestSamplesSerial() reorganized: the effective priorities, tile sums and each tile's
-    // choice run in parallel; only the random stream stays serial, one hash chain drawn up
-    // front (startRandomStream()) and read at each tile's offset (the order the serial loop
-    // consumes it in: u0, then per tile that gets requests one draw per candidate and two per
-    // request).
+    // choice run in parallel; each tile draws its stretch of the frame's counter-based random
+    // sequence from its offset (the order the serial loop consumes it in: u0, then per tile
+    // that gets requests one draw per candidate and two per request).
     // Bit for bit the serial result (tested).
     const int T = std::max(1, mOptions.tileSize);
     const int tilesX = (mWidth + T - 1) / T, tilesY = (mHeight + T - 1) / T;
@@ -585,14 +566,10 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
     });
     const double total = std::accumulate(mTileSum.begin(), mTileSum.end(), 0.0);
     if (!(total > 0)) return {};
-    if (mStreamTask) mStreamTask->wait();
-    if (!mStreamTask || mStreamFrame != mFrame) {
-        startRandomStream();  // no parallel reproject() this frame
-        mStreamTask->wait();
-    }
+    const std::uint64_t seed = hashPair(mOptions.seed, mFrame);
     std::vector<int> tileCount(tiles, 0);
     {
-        const double u0 = mStream[0];
+        const double u0 = CacheRandom::at(seed, 0);
         std::size_t t = 0;
         double upTo = mTileSum[0];
         for (int k = 0; k < budget; ++k) {
@@ -610,15 +587,6 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
         drawStart[t + 1] = drawStart[t] + (want == 0 ? 0 : candidates + 2 * take);
         outStart[t + 1] = outStart[t] + (want == 0 ? 0 : take);
     }
-    // The draws after u0: the precomputed stream, extended when this budget needs more.
-    if (mStream.size() < 1 + drawStart[tiles]) {
-        CacheRandom rng{mStreamState};
-        std::size_t k = mStream.size();
-        mStream.resize(1 + drawStart[tiles]);
-        for (; k < mStream.size(); ++k) mStream[k] = rng.next();
-        mStreamState = rng.state;
-    }
-    const double* draws = mStream.data() + 1;
 
     std::vector<ShadeRequest> out(outStart[tiles]);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles, 16), [&](const tbb::blocked_range<
@@ -628,20 +596,20 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
             const int want = tileCount[t];
             if (want == 0) continue;
             const int tx = static_cast<int>(t % tilesX), ty = static_cast<int>(t / tilesX);
-            const double* draw = draws + drawStart[t];
+            CacheRandom draw{seed, 1 + drawStart[t]};  // after u0
             cand.clear();
             for (int y = ty * T; y < std::min(mHeight, (ty + 1) * T); ++y)
                 for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
                     const double p = mEffective[y * mWidth + x];
-                    if (p > 0) cand.push_back({p + 1e-9 * *draw++, y * mWidth + x});
+                    if (p > 0) cand.push_back({p + 1e-9 * draw.next(), y * mWidth + x});
                 }
             const std::size_t take = std::min<std::size_t>(want, cand.size());
             std::partial_sort(cand.begin(), cand.begin() + take, cand.end(),
                               [](const auto& a, const auto& b) { return a.first > b.first; });
             for (std::size_t c = 0; c < take; ++c) {
                 const int k = cand[c].second;
-                const double jy = *draw++;  // y first, as requestSamplesSerial()
-                const double jx = *draw++;
+                const double jy = draw.next();  // y first, as requestSamplesSerial()
+                const double jx = draw.next();
                 const glm::dvec2 p(k % mWidth + jx, k / mWidth + jy);
                 out[outStart[t] + c] = {p, camera.origin(), camera.rayDirection(p.x, p.y), mFrame};
                 mRequested[k] = mFrame + 1;

@@ -11,7 +11,6 @@
 // camera (the visible points feed the EPI), requestSamples() for the shader, and optionally
 // interpolatedImage() for a plain (edge-unaware) reconstruction.
 
-#include <tbb/task_group.h>
 
 #include <cstdint>
 #include <glm/glm.hpp>
@@ -83,8 +82,6 @@ public:
     /// An image raster of width × height pixels and room for `capacity` points (Walter et al.
     /// use a few times the pixel count). Throws std::invalid_argument for non-positive sizes.
     RenderCache(int width, int height, std::size_t capacity, RenderCacheOptions options = {});
-    /// Waits for the frame's random stream (see startRandomStream()).
-    ~RenderCache();
     RenderCache(const RenderCache&) = delete;
     RenderCache& operator=(const RenderCache&) = delete;
 
@@ -211,13 +208,6 @@ private:
     std::vector<double> mEffective;    ///< per pixel: priority, 0 while held back
     std::vector<double> mTileSum;      ///< per tile: summed effective priority
     std::vector<int> mTileCandidates;  ///< per tile: pixels with positive effective priority
-    // The frame's random stream for requestSamplesParallel(), drawn by a task started at the
-    // end of reproject().
-    void startRandomStream();
-    std::unique_ptr<tbb::task_group> mStreamTask;
-    std::vector<double> mStream;     ///< the draws in order, u0 first
-    std::uint64_t mStreamFrame = 0;  ///< the frame it belongs to
-    std::uint64_t mStreamState = 0;  ///< the generator's state after its last draw
 };
 
 }  // namespace penumbra
