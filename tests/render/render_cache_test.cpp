@@ -481,6 +481,62 @@ TEST(RenderCache, OldPointsAndHighContrastRaisePriority) {
     EXPECT_GT(cache.priority()[3 * 16 + 12], fresh + 0.1) << "old points are wanted more";
 }
 
+TEST(RenderCache, PriorityOfAPointIsItsAgeAndTheContrastOfItsClippedNeighbourhood) {
+    // Brute force over the screen points: Walter et al. 2002's local contrast (max − min)/
+    // (max + min) of the luminances of the points in the pixel's 3×3 neighbourhood, clipped
+    // to the image, plus the age term; empty pixels 1.
+    const int w = 23, h = 17;
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), w, h);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (bool parallel : {false, true}) {
+        RenderCacheOptions options;
+        options.parallel = parallel;
+        RenderCache cache(w, h, 4 * w * h, options);
+        for (int round = 0; round < 3; ++round) {
+            std::vector<ShadedPoint> points;
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x)
+                    if (u(rng) < 0.4)
+                        points.push_back(pointOnRay(rays, x + u(rng), y + u(rng), 3.0, 0,
+                                                    Rgb(u(rng), u(rng), u(rng))));
+            cache.insert(points);
+            cache.reproject(rays);
+        }
+        std::vector<int> screenOf(static_cast<std::size_t>(w) * h, -1);
+        const auto& screen = cache.screenPoints();
+        for (std::size_t s = 0; s < screen.size(); ++s)
+            screenOf[static_cast<int>(screen[s].position.y) * w +
+                     static_cast<int>(screen[s].position.x)] = static_cast<int>(s);
+        int withPoint = 0;
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                const int s = screenOf[y * w + x];
+                const double got = cache.priority()[y * w + x];
+                if (s < 0) {
+                    EXPECT_EQ(got, 1.0) << x << " " << y;
+                    continue;
+                }
+                double lo = 1e300, hi = -1e300;
+                for (int yy = std::max(0, y - 1); yy <= std::min(h - 1, y + 1); ++yy)
+                    for (int xx = std::max(0, x - 1); xx <= std::min(w - 1, x + 1); ++xx)
+                        if (screenOf[yy * w + xx] >= 0) {
+                            const double l = luminance(screen[screenOf[yy * w + xx]].colour);
+                            lo = std::min(lo, l);
+                            hi = std::max(hi, l);
+                        }
+                const double contrast = hi > 0 ? (hi - lo) / (hi + lo) : 0.0;
+                const double age = screen[s].age;
+                const double expected =
+                    std::min(0.99, options.ageWeight * age / (age + options.ageScale) +
+                                       options.contrastWeight * std::clamp(contrast, 0.0, 1.0));
+                EXPECT_DOUBLE_EQ(got, expected) << x << " " << y << " parallel " << parallel;
+                ++withPoint;
+            }
+        EXPECT_GT(withPoint, w * h / 2);
+    }
+}
+
 TEST(RenderCache, InterpolationFeedbackRanksEmptyPixelsByTheirFilterWeight) {
     // Bala et al. §5.3: an empty pixel's priority falls with the total filter weight its
     // interpolation found; one with no reachable sample stays most wanted.
