@@ -1128,13 +1128,8 @@ void EdgePointImage::filterComplexPixels(Image& out) {
         forRows(mOptions.parallel, H, [&](int y) {
             for (size_t k = rowStart[y]; k < rowStart[y + 1]; ++k) {
                 const int pixel = complexPixels[k];
-                const int cx = pixel % W;
-                int around = 0;
-                for (int py = std::max(0, y - 1); py <= std::min(H - 1, y + 1); ++py)
-                    for (int px = std::max(0, cx - 1); px <= std::min(W - 1, cx + 1); ++px)
-                        around += mEdgeCode[index(px, py)] == kEdgeCodeComplex;
-                if (around >= mOptions.denseComplexLimit) {
-                    out.at(cx, y) = Rgb(mPrimary[pixel]);
+                if (mDense[pixel]) {
+                    out.at(pixel % W, y) = Rgb(mPrimary[pixel]);
                 } else {
                     mFiltered[pixel] = 1;
                 }
@@ -1385,6 +1380,51 @@ void EdgePointImage::filterComplexPixels(Image& out) {
                       });
 }
 
+// ---- Dense complex regions ---------------------------------------------------------------
+
+void EdgePointImage::markDenseComplex() {
+    // EpiOptions::denseComplexLimit: the pixels, of any class, with at least that many complex
+    // pixels in their 3×3 (itself included), from per-row sums of three. The complex filter
+    // leaves such complex pixels to their estimate, and the smoothing's dense regions
+    // (denseRadius) take their box means.
+    const size_t n = static_cast<size_t>(mWidth) * mHeight;
+    mComplexRow.resize(n);
+    mDense.resize(n);
+    forRows(mOptions.parallel, mHeight, [&](int y) {
+        uint8_t* row = &mComplexRow[static_cast<size_t>(y) * mWidth];
+        if (mRowCounts[y][2] == 0) {
+            std::fill_n(row, mWidth, uint8_t{0});
+            return;
+        }
+        const uint16_t* codes = &mEdgeCode[static_cast<size_t>(y) * mWidth];
+        for (int x = 0; x < mWidth; ++x) {
+            int c = codes[x] == kEdgeCodeComplex;
+            if (x > 0) c += codes[x - 1] == kEdgeCodeComplex;
+            if (x + 1 < mWidth) c += codes[x + 1] == kEdgeCodeComplex;
+            row[x] = static_cast<uint8_t>(c);
+        }
+    });
+    forRows(mOptions.parallel, mHeight, [&](int y) {
+        uint8_t* __restrict mask = &mDense[static_cast<size_t>(y) * mWidth];
+        const int y0 = std::max(0, y - 1), y1 = std::min(mHeight - 1, y + 1);
+        bool any = false;
+        for (int yy = y0; yy <= y1; ++yy) any = any || mRowCounts[yy][2] > 0;
+        if (!any) {
+            std::fill_n(mask, mWidth, uint8_t{0});
+            return;
+        }
+        const int W = mWidth, limit = mOptions.denseComplexLimit;
+        const uint8_t* __restrict r0 = &mComplexRow[static_cast<size_t>(y0) * W];
+        const uint8_t* __restrict r1 = &mComplexRow[static_cast<size_t>(y) * W];
+        const uint8_t* __restrict r2 = &mComplexRow[static_cast<size_t>(y1) * W];
+        const int rows = y1 - y0 + 1;  // 3 inside the image, fewer at its borders
+        for (int x = 0; x < W; ++x) {
+            const int c = r0[x] + (rows >= 2 ? r2[x] : 0) + (rows == 3 ? r1[x] : 0);
+            mask[x] = c >= limit;
+        }
+    });
+}
+
 // ---- Reconstruct --------------------------------------------------------------------------
 
 Image EdgePointImage::reconstruct(bool useEdges) {
@@ -1418,6 +1458,7 @@ Image EdgePointImage::reconstruct(bool useEdges) {
         antiAlias(out);
         mTimes.antiAliasMs = millisecondsSince(start);
     }
+    if (mOptions.denseComplexLimit > 0) markDenseComplex();
     if (mOptions.complexFilter) {
         start = std::chrono::steady_clock::now();
         filterComplexPixels(out);
@@ -1505,47 +1546,7 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
         }
     });
 
-    // EpiOptions::denseRadius: the pixels with at least denseComplexLimit complex pixels in
-    // their 3×3, from per-row sums of three.
     const bool dense = mOptions.denseRadius > 0 && mOptions.denseComplexLimit > 0;
-    if (dense) {
-        mComplexRow.resize(n);
-        mDense.resize(n);
-        forRows(mOptions.parallel, mHeight, [&](int y) {
-            uint8_t* row = &mComplexRow[static_cast<size_t>(y) * mWidth];
-            if (mRowCounts[y][2] == 0) {
-                std::fill_n(row, mWidth, uint8_t{0});
-                return;
-            }
-            const uint16_t* codes = &mEdgeCode[static_cast<size_t>(y) * mWidth];
-            for (int x = 0; x < mWidth; ++x) {
-                int c = codes[x] == kEdgeCodeComplex;
-                if (x > 0) c += codes[x - 1] == kEdgeCodeComplex;
-                if (x + 1 < mWidth) c += codes[x + 1] == kEdgeCodeComplex;
-                row[x] = static_cast<uint8_t>(c);
-            }
-        });
-        forRows(mOptions.parallel, mHeight, [&](int y) {
-            uint8_t* mask = &mDense[static_cast<size_t>(y) * mWidth];
-            const int y0 = std::max(0, y - 1), y1 = std::min(mHeight - 1, y + 1);
-            bool any = false;
-            for (int yy = y0; yy <= y1; ++yy) any = any || mRowCounts[yy][2] > 0;
-            if (!any) {
-                std::fill_n(mask, mWidth, uint8_t{0});
-                return;
-            }
-            const int W = mWidth, limit = mOptions.denseComplexLimit;
-            const uint8_t* __restrict r0 = &mComplexRow[static_cast<size_t>(y0) * W];
-            const uint8_t* __restrict r1 = &mComplexRow[static_cast<size_t>(y) * W];
-            const uint8_t* __restrict r2 = &mComplexRow[static_cast<size_t>(y1) * W];
-            const int rows = y1 - y0 + 1;  // 3 inside the image, fewer at its borders
-            uint8_t* __restrict dst = mask;
-            for (int x = 0; x < W; ++x) {
-                const int c = r0[x] + (rows >= 2 ? r2[x] : 0) + (rows == 3 ? r1[x] : 0);
-                dst[x] = c >= limit;
-            }
-        });
-    }
     auto boxSum = [&](int x, int y, int r) {
         const int xa = std::max(0, x - r), xb = std::min(mWidth, x + r + 1);
         const int ya = std::max(0, y - r), yb = std::min(mHeight, y + r + 1);
@@ -1553,6 +1554,14 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
                mSummedArea[static_cast<size_t>(yb) * sw + xa] -
                mSummedArea[static_cast<size_t>(ya) * sw + xb] +
                mSummedArea[static_cast<size_t>(ya) * sw + xa];
+    };
+    // EpiOptions::denseRadius: a dense pixel takes the mean of every point in its box,
+    // whatever its class, when the box holds two or more (false: it keeps what it has).
+    auto writeDenseMean = [&](int x, int y) {
+        const glm::dvec4 sum = boxSum(x, y, mOptions.denseRadius);
+        if (!(sum.w >= 1.5)) return false;
+        out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
+        return true;
     };
 
     // Each empty pixel whose nearest edge pixel is d > kRingDistance away takes the box
@@ -1582,8 +1591,7 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             const size_t i = index(x, y);
             const int d = mEdgeDistance[i];
             if (d < 1 || d > kRingDistance) continue;
-            // (A dense pixel with points enough for its box is written below.)
-            if (dense && mDense[i] && boxSum(x, y, mOptions.denseRadius).w >= 1.5) continue;
+            if (dense && mDense[i] && writeDenseMean(x, y)) continue;
             glm::vec3 sum = mWeight[i] > 0.0f ? mPrimary[i] : glm::vec3(0.0f);
             float total = mWeight[i] > 0.0f ? 1.0f : 0.0f;
             for (uint32_t bits = mReach[i] & 0xFFFFFFu; bits; bits &= bits - 1) {
@@ -1599,15 +1607,12 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
         }
     });
 
-    // Dense regions: the box mean over every point within denseRadius, whatever the class.
+    // Dense regions' simple and complex pixels (d = 0; the ring pass wrote the empty ones).
     if (dense) {
-        const int r = mOptions.denseRadius;
         forRows(mOptions.parallel, mHeight, [&](int y) {
-            const uint8_t* row = &mDense[static_cast<size_t>(y) * mWidth];
             for (int x = 0; x < mWidth; ++x) {
-                if (!row[x]) continue;
-                const glm::dvec4 sum = boxSum(x, y, r);
-                if (sum.w >= 1.5) out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
+                const size_t i = index(x, y);
+                if (mDense[i] && mEdgeDistance[i] == 0) writeDenseMean(x, y);
             }
         });
     }

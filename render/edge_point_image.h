@@ -213,6 +213,7 @@ private:
     /// edge by a wide average of the points.
     void smoothEdgeFreeRegions(Image& out);
     void antiAlias(Image& out) const;
+    void markDenseComplex();
     void filterComplexPixels(Image& out);
     size_t paddedIndex(int x, int y) const {
         return static_cast<size_t>(y + 2) * (mWidth + 4) + (x + 2);
@@ -271,10 +272,9 @@ private:
     std::vector<glm::vec4> mRowSums;       ///< horizontal pass of the plain filter
     std::vector<glm::vec3> mPlain;         ///< plain (edge-ignoring) interpolation
     std::vector<float> mPlainWeight;
-    std::vector<glm::vec3> mPrimary;  ///< primary-region colours
-    std::vector<uint8_t>
-        mComplexRow;  ///< smoothing: complex pixels among the pixel and its row neighbours
-    std::vector<uint8_t> mDense;            ///< smoothing: 1 where EpiOptions::denseRadius applies
+    std::vector<glm::vec3> mPrimary;        ///< primary-region colours
+    std::vector<uint8_t> mComplexRow;       ///< complex pixels in each 1×3 (markDenseComplex)
+    std::vector<uint8_t> mDense;            ///< 1: denseComplexLimit reached in the 3×3
     std::vector<uint8_t> mEdgeDistanceRow;  ///< smoothing: distance along the row to an edge pixel
     std::vector<uint8_t> mEdgeDistance;     ///< smoothing: Chebyshev distance, capped
     std::vector<glm::dvec4> mSummedArea;    ///< smoothing: summed-area table of (colour, 1)

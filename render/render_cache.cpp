@@ -22,19 +22,14 @@ namespace {
 /// Of two near-equal depths (within this fraction) the younger point wins the pixel.
 constexpr double kSameSurface = 0.01;
 
-/// The frame's random draws, counter-based: draw i is a hash of (seed, i), so any stretch of
+/// The frame's random draws, counter-based: draw i is hashPair(seed, i), so any stretch of
 /// the sequence can be drawn where it is used (requestSamplesParallel() starts each tile at
 /// its offset) and no serial chain has to run ahead of the requests.
 struct CacheRandom {
     std::uint64_t seed;
     std::uint64_t index = 0;
     static double at(std::uint64_t seed, std::uint64_t i) {
-        // splitmix64's finalizer over the Weyl sequence seed + (i + 1)·γ.
-        std::uint64_t x = seed + (i + 1) * 0x9e3779b97f4a7c15ull;
-        x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-        x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-        x ^= x >> 31;
-        return static_cast<double>(x >> 11) * 0x1.0p-53;
+        return static_cast<double>(hashPair(seed, i) >> 11) * 0x1.0p-53;
     }
     double next() { return at(seed, index++); }
 };
@@ -408,7 +403,7 @@ void RenderCache::computePriority(bool luminanceDone) {
         });
     // The 3×3 minimum and maximum, separably: per row, the column extremes over the rows
     // y − 1 … y + 1 inside the image (vectorized), then over x − 1 … x + 1 (min and max are
-    // exact, so this equals the 3×3 loop it replaced, at a third of its time).
+    // exact, so this equals a nine-point loop per pixel).
     tbb::parallel_for(tbb::blocked_range<int>(0, mHeight), [&](const tbb::blocked_range<int>& r) {
         const int W = mWidth;
         thread_local std::vector<double> columnLo, columnHi;
