@@ -125,6 +125,14 @@ void Discretization::finishElement(int e) {
     el.centroid = total > 0 ? c / total : poly[0];
 }
 
+void convexFanAreas(const std::vector<Vec3>& poly, std::vector<double>& cumulative) {
+    cumulative.clear();
+    double sum = 0;
+    for (std::size_t i = 0; i + 2 < poly.size(); ++i)
+        cumulative.push_back(sum +=
+                             glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0])));
+}
+
 void Discretization::finishPatch(int p) {
     Patch& patch = mPatches[p];
     patch.area = 0;
@@ -142,6 +150,10 @@ void Discretization::finishPatch(int p) {
     for (int e : patch.elements)
         for (const Vec3& v : elementPolygon(e))
             patch.radius = std::max(patch.radius, glm::length(v - patch.centroid));
+    convexFanAreas(patch.outline, patch.outlineFans);
+    const auto& o = patch.outline;
+    patch.parallelogram =
+        o.size() == 4 && glm::length(o[0] + o[2] - o[1] - o[3]) <= 1e-12 * (1 + patch.radius);
 }
 
 namespace {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "solver/contour_integral.h"
 #include "solver/discretization.h"
 #include "solver/ray_tracer.h"
 
@@ -18,12 +19,6 @@ std::uint64_t splitmix(std::uint64_t x) {
     return x ^ (x >> 31);
 }
 
-/// Small deterministic generator for pair-seeded patterns.
-struct PairRandom {
-    std::uint64_t state;
-    double next() { return static_cast<double>((state = splitmix(state)) >> 11) * 0x1.0p-53; }
-};
-
 Vec3 polygonNormal(const std::vector<Vec3>& poly) {
     Vec3 n(0.0);
     for (std::size_t i = 0; i < poly.size(); ++i)
@@ -31,18 +26,8 @@ Vec3 polygonNormal(const std::vector<Vec3>& poly) {
     return n;
 }
 
-/// Cumulative doubled areas of the fan triangles (poly[0], poly[i+1], poly[i+2]) of a convex
-/// polygon, for samplePolygon.
-void fanAreas(const std::vector<Vec3>& poly, std::vector<double>& cumulative) {
-    cumulative.clear();
-    double sum = 0;
-    for (std::size_t i = 0; i + 2 < poly.size(); ++i)
-        cumulative.push_back(sum +=
-                             glm::length(glm::cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0])));
-}
-
-/// Uniform point in a convex polygon: the fan triangle by area (r0 ∈ [0, 1]), then a uniform
-/// point of it.
+/// Uniform point in a convex polygon: the fan triangle by area (r0 ∈ [0, 1]; `fans` from
+/// convexFanAreas), then a uniform point of it.
 Vec3 samplePolygon(const std::vector<Vec3>& poly, const std::vector<double>& fans, double r0,
                    double r1, double r2) {
     double pick = r0 * fans.back();
@@ -54,30 +39,6 @@ Vec3 samplePolygon(const std::vector<Vec3>& poly, const std::vector<double>& fan
 
 }  // namespace
 
-// atan(a) = a·P(a²) on a = min/max ∈ [0, 1], P of degree 10 fitted by us (least squares
-// reweighted toward minimax absolute error: max 1.4e-10 on [0, 1]), then the octant. The
-// contour integral takes four of these per polygon; libm's atan2 was a tenth of a cube-room
-// solve.
-double angleAtan2(double y, double x) {
-    const double ax = std::abs(x);
-    const double hi = std::max(ax, y), lo = std::min(ax, y);
-    if (!(hi > 0)) return 0;
-    const double a = lo / hi, s = a * a;
-    // Estrin's scheme: a short dependency chain.
-    const double s2 = s * s, s4 = s2 * s2, s8 = s4 * s4;
-    const double p01 = 0.99999999667237049 + s * -0.3333330208903717;
-    const double p23 = 0.19999129786621939 + s * -0.14274432022169178;
-    const double p45 = 0.11028650565781659 + s * -0.087138588795384275;
-    const double p67 = 0.065413758853929485 + s * -0.042088081586575191;
-    const double p89 = 0.020467823501212654 + s * -0.0063947658920403376;
-    const double p10 = 0.00093755837204316853;
-    const double p = (p01 + s2 * p23) + s4 * (p45 + s2 * p67) + s8 * (p89 + s2 * p10);
-    double r = a * p;
-    if (y > ax) r = M_PI_2 - r;
-    if (x < 0) r = M_PI - r;
-    return r;
-}
-
 std::uint64_t hashPair(std::uint64_t a, std::uint64_t b) {
     return splitmix(splitmix(a) ^ (b + 0x632be59bd9b4e019ull + (a << 6) + (a >> 2)));
 }
@@ -85,21 +46,33 @@ std::uint64_t hashPair(std::uint64_t a, std::uint64_t b) {
 namespace {
 
 /// Lambert's contour integral over `polygon` (front side toward `pn`) clipped to the
-/// hemisphere above (x, n); the clipped polygon is left in `clipped` (empty when nothing is
-/// seen) and `wasClipped` tells whether the horizon cut it.
+/// hemisphere above (x, n). `wasClipped` tells whether the horizon cut it; only then is the
+/// part above the horizon written to `clipped` (empty when nothing is seen) — otherwise the
+/// polygon itself is what x sees, and nothing is copied.
 double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon,
                          const Vec3& pn, std::vector<Vec3>& clipped, bool& wasClipped) {
-    clipped.clear();
     wasClipped = false;
     const std::size_t m = polygon.size();
-    if (m < 3) return 0;
+    if (m < 3) {
+        wasClipped = true;
+        clipped.clear();
+        return 0;
+    }
     // One-sided: the point must be in front of the polygon.
-    if (glm::dot(x - polygon[0], pn) <= 0) return 0;
+    if (glm::dot(x - polygon[0], pn) <= 0) {
+        wasClipped = true;
+        clipped.clear();
+        return 0;
+    }
+    bool below = false;
+    for (std::size_t i = 0; i < m; ++i) below = below || glm::dot(polygon[i] - x, n) < 0;
+    if (!below) return std::abs(contourSum(x, n, polygon.data(), m)) / (2 * M_PI);
 
     // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman); each
     // vertex's height is computed once. The output has a vertex per kept vertex and per sign
     // change: at most m + ⌊m/2⌋ (signs alternating, as rounding can make them for a polygon
     // lying in the horizon plane).
+    wasClipped = true;
     clipped.resize(m + m / 2 + 1);
     Vec3* out = clipped.data();
     std::size_t count = 0;
@@ -110,7 +83,6 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
         const double db = glm::dot(b - x, n);
         if (da >= 0) out[count++] = a;
         if ((da >= 0) != (db >= 0)) out[count++] = a + (b - a) * (da / (da - db));
-        wasClipped = wasClipped || da < 0;
         da = db;
     }
     if (count < 3) {
@@ -118,23 +90,7 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
         return 0;
     }
     clipped.resize(count);
-
-    // Lambert's contour integral: F = 1/(2π) Σ β_k n·Γ̂_k, each vertex's offset from x
-    // computed once.
-    double sum = 0;
-    const Vec3 first = out[0] - x;
-    Vec3 r0 = first;
-    for (std::size_t i = 0; i < count; ++i) {
-        const Vec3 r1 = i + 1 < count ? out[i + 1] - x : first;
-        const Vec3 c = glm::cross(r0, r1);
-        const double cl = glm::length(c);
-        if (!(cl <= 0)) {  // as before: a NaN length is not skipped
-            const double beta = angleAtan2(cl, glm::dot(r0, r1));
-            sum += beta * glm::dot(n, c) / cl;
-        }
-        r0 = r1;
-    }
-    return std::abs(sum) / (2 * M_PI);
+    return std::abs(contourSum(x, n, out, count)) / (2 * M_PI);
 }
 
 }  // namespace
@@ -169,7 +125,9 @@ struct PairScratch {
     std::vector<double> f;                 ///< per polygon: its unoccluded form factor
     std::vector<Vec3> polygon;
     std::vector<Vec3> normals;  ///< per polygon: unit normal (the plane's, clipping keeps it)
-    std::vector<std::vector<double>> fans;
+    std::vector<std::vector<double>> fans;          ///< per clipped polygon: its fan areas
+    std::vector<const std::vector<Vec3>*> source;   ///< per polygon: what is sampled
+    std::vector<const std::vector<double>*> fanOf;  ///< per polygon: its fans, once known
     std::vector<double> areaOverF;
     std::vector<Vec3> targets;
     std::vector<double> weights;
@@ -191,15 +149,23 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     PairScratch& sc = pairScratch();
 
     // Exact unoccluded form factor of each element polygon of the patch (or of its outline
-    // when planar), keeping the part above the receiver's horizon for sampling.
+    // when planar), keeping the part above the receiver's horizon for sampling: the polygon
+    // itself when the horizon does not cut it (with the patch's own fan areas for an
+    // outline), else its clipped part (fans computed when first sampled).
     auto& polys = sc.polys;
     auto& f = sc.f;
     auto& normals = sc.normals;
+    auto& source = sc.source;
+    auto& fans = sc.fans;
+    auto& fanOf = sc.fanOf;
     double total = 0;
     const std::size_t count = P.outline.empty() ? P.elements.size() : 1;
     if (polys.size() < count) polys.resize(count);
+    if (fans.size() < count) fans.resize(count);
     f.resize(count);
     normals.resize(count);
+    source.resize(count);
+    fanOf.resize(count);
     for (std::size_t k = 0; k < count; ++k) {
         bool wasClipped = false;
         if (P.outline.empty()) {
@@ -209,24 +175,26 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
             for (int v : el.vertices) sc.polygon.push_back(pos[v]);
             normals[k] = el.normal;
             total += f[k] = clippedFormFactor(x, n, sc.polygon, el.normal, polys[k], wasClipped);
+            if (!wasClipped) polys[k].swap(sc.polygon);
+            source[k] = &polys[k];
+            fanOf[k] = nullptr;
         } else {
             normals[k] = P.normal;
             total += f[k] = clippedFormFactor(x, n, P.outline, P.normal, polys[k], wasClipped);
+            source[k] = wasClipped ? &polys[k] : &P.outline;
+            fanOf[k] = wasClipped || P.outlineFans.empty() ? nullptr : &P.outlineFans;
         }
     }
     out.unoccluded = total;
     if (!(total > 0)) return out;
 
     const int rays = visibilityRayCount(total, maxRays);
-    PairRandom rng{hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch))};
     const double eps = tracer.epsilon();
     const Vec3 origin = x + n * eps;
     // The pair's samples first (targets and weights), then their visibility in one call.
-    // Per sampled polygon, once: its fan triangles' cumulative doubled areas and the weight
-    // factor A_k / F_k relative to the sampling density (∝ F_k / A_k).
-    auto& fans = sc.fans;
+    // Per sampled polygon, once: the weight factor A_k / F_k relative to the sampling density
+    // (∝ F_k / A_k).
     auto& areaOverF = sc.areaOverF;
-    if (fans.size() < count) fans.resize(count);
     areaOverF.assign(count, -1.0);
     auto& targets = sc.targets;
     auto& weights = sc.weights;
@@ -235,32 +203,72 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     std::size_t taken = 0;
     double wAll = 0;
     const double stratum = total / rays;
-    for (int s = 0; s < rays; ++s) {
-        double u = (s + rng.next()) * stratum;
-        // The polygon by form factor; polygons with nothing above the horizon are never taken.
-        std::size_t k = 0;
-        while (k + 1 < count && (u > f[k] || !(f[k] > 0))) u -= f[k++];
-        while (!(f[k] > 0)) --k;  // rounding past the last polygon seen; total > 0 bounds it
-        double r1 = rng.next(), r2 = rng.next();
-        if (areaOverF[k] < 0) {
-            fanAreas(polys[k], fans[k]);
-            areaOverF[k] = 0.5 * fans[k].back() / f[k];
-        }
-        Vec3 y = samplePolygon(polys[k], fans[k], std::min(u / f[k], 1.0), r1, r2);
-        Vec3 d = y - origin;
-        double dd = glm::dot(d, d);
-        if (!(dd > 0)) continue;
-        const Vec3& ny = normals[k];
+    // The samples' three numbers (the jitter within the sample's form-factor stratum and the
+    // two of a uniform point in the polygon) follow the R3 Kronecker sequence, s·(1/φ, 1/φ²,
+    // 1/φ³) mod 1 with φ⁴ = φ + 1 (Roberts 2018), rotated mod 1 by a pair-seeded offset
+    // (Cranley–Patterson): each sample is uniform, the pair's samples are spread evenly, and
+    // a sample costs three additions instead of three hashes.
+    const std::uint64_t h =
+        hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch));
+    constexpr double kUnit = 0x1.0p-21;
+    constexpr std::uint64_t kMask = (1u << 21) - 1;
+    double q0 = static_cast<double>(h >> 43) * kUnit;
+    double q1 = static_cast<double>((h >> 22) & kMask) * kUnit;
+    double q2 = static_cast<double>((h >> 1) & kMask) * kUnit;
+    constexpr double kG0 = 0.81917251339616443, kG1 = 0.67104360670378921,
+                     kG2 = 0.54970047790197026;
+    // Leave the source surface along its normal (toward x, which is in front of it), so rays
+    // grazing the source plane do not hit the source itself in float precision.
+    auto addSample = [&](const Vec3& y, const Vec3& ny, double weightScale) {
+        const Vec3 d = y - origin;
+        const double dd = glm::dot(d, d);
+        if (!(dd > 0)) return;
         // Point-to-point kernel cos·cos/r², over the sampling density: d is unnormalized, so
         // the cosines carry a factor r² more.
-        double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) * areaOverF[k] /
-                   (dd * dd);
+        const double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) *
+                         weightScale / (dd * dd);
         wAll += w;
-        // Leave the source surface along its normal (toward x, which is in front of it), so
-        // rays grazing the source plane do not hit the source itself in float precision.
         targets[taken] = y + ny * eps;
         weights[taken] = w;
         ++taken;
+    };
+    if (count == 1 && source[0] == &P.outline && P.parallelogram) {
+        // The whole of a parallelogram outline is seen: its point (a, b) with a stratified by
+        // sample (the jitter q0) and b from the sequence, no search and no square root.
+        const Vec3 o = P.outline[0], eu = P.outline[1] - o, ev = P.outline[3] - o;
+        const double aOverF = P.area / f[0];
+        for (int s = 0; s < rays; ++s) {
+            if (s > 0) {
+                q0 += kG0, q1 += kG1;
+                q0 -= q0 >= 1 ? 1.0 : 0.0;
+                q1 -= q1 >= 1 ? 1.0 : 0.0;
+            }
+            addSample(o + ((s + q0) / rays) * eu + q1 * ev, normals[0], aOverF);
+        }
+    } else {
+        for (int s = 0; s < rays; ++s) {
+            if (s > 0) {
+                q0 += kG0, q1 += kG1, q2 += kG2;
+                q0 -= q0 >= 1 ? 1.0 : 0.0;
+                q1 -= q1 >= 1 ? 1.0 : 0.0;
+                q2 -= q2 >= 1 ? 1.0 : 0.0;
+            }
+            double u = (s + q0) * stratum;
+            // The polygon by form factor; polygons with nothing above the horizon are never
+            // taken.
+            std::size_t k = 0;
+            while (k + 1 < count && (u > f[k] || !(f[k] > 0))) u -= f[k++];
+            while (!(f[k] > 0)) --k;  // rounding past the last polygon seen; total > 0 bounds it
+            if (areaOverF[k] < 0) {
+                if (!fanOf[k]) {
+                    convexFanAreas(*source[k], fans[k]);
+                    fanOf[k] = &fans[k];
+                }
+                areaOverF[k] = 0.5 * fanOf[k]->back() / f[k];
+            }
+            addSample(samplePolygon(*source[k], *fanOf[k], std::min(u / f[k], 1.0), q1, q2),
+                      normals[k], areaOverF[k]);
+        }
     }
     targets.resize(taken);
     auto& visible = sc.visible;
@@ -281,7 +289,7 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
         disc, tracer, x, n, patch, receiverKey, seed, maxRays,
         [&](const Vec3& from, const std::vector<Vec3>& to, std::vector<int>& visible, int& rays) {
             const int count = static_cast<int>(to.size());
-            if (count < 4) {
+            if (count < 2) {
                 for (int i = 0; i < count; ++i)
                     visible[i] = tracer.occluded(from, to[i], visibility) ? 0 : 1;
                 rays += count;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "solver/contour_integral.h"
 #include "solver/ray_tracer.h"
 #include "solver/scene.h"
 
@@ -18,10 +19,6 @@ class RayTracer;
 /// hemisphere above `x`; a point behind the polygon's plane sees nothing (one-sided).
 /// Lambert's formula: F = 1/(2π) Σ_k β_k (n · γ̂_k), β_k the angle each edge subtends.
 double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon);
-
-/// atan2(y, x) for y ≥ 0, an angle in [0, π], within 2e-10 rad of std::atan2 and cheaper:
-/// the contour integral's edge angles.
-double angleAtan2(double y, double x);
 
 /// Deterministic 64-bit hash for pair-seeded sample patterns.
 std::uint64_t hashPair(std::uint64_t a, std::uint64_t b);

@@ -326,20 +326,23 @@ bool RayTracer::occluded(const Vec3& from, const Vec3& to, const Visibility& vis
     return ray.tfar < 0.0f;
 }
 
-void RayTracer::occluded8(const Vec3& from, const Vec3* to, int count, bool* blocked,
-                          const Visibility& visibility) const {
-    if (count <= 0) return;
-    if (count > 8) throw std::invalid_argument("RayTracer::occluded8: more than 8 segments");
-    FilterContext ctx;
-    RTCScene scene = mImpl->prepare(ctx, visibility);
-    alignas(32) int valid[8];
-    alignas(32) RTCRay8 ray;
-    for (int i = 0; i < 8; ++i) {
+namespace {
+
+/// Occlusion of `count` ≤ W segments from one start as one Embree packet of width W
+/// (RTCRay4/rtcOccluded4 or RTCRay8/rtcOccluded8); returns the number of segments traced.
+template <int W, class Packet, class Trace>
+int occludedPacket(RTCScene scene, RTCIntersectContext* context, const Vec3& from, const Vec3* to,
+                   int count, bool* blocked, Trace&& trace) {
+    alignas(32) int valid[W];
+    alignas(32) Packet ray;
+    const float ox = static_cast<float>(from.x), oy = static_cast<float>(from.y),
+                oz = static_cast<float>(from.z);
+    for (int i = 0; i < W; ++i) {
         float dx = 0, dy = 0, dz = 0;
         valid[i] = i < count && segmentDirection(from, to[i], dx, dy, dz) ? -1 : 0;
-        ray.org_x[i] = static_cast<float>(from.x);
-        ray.org_y[i] = static_cast<float>(from.y);
-        ray.org_z[i] = static_cast<float>(from.z);
+        ray.org_x[i] = ox;
+        ray.org_y[i] = oy;
+        ray.org_z[i] = oz;
         ray.dir_x[i] = dx;
         ray.dir_y[i] = dy;
         ray.dir_z[i] = dz;
@@ -350,12 +353,33 @@ void RayTracer::occluded8(const Vec3& from, const Vec3* to, int count, bool* blo
         ray.id[i] = static_cast<unsigned>(i);
         ray.flags[i] = 0;
     }
-    rtcOccluded8(valid, scene, &ctx.context, &ray);
+    trace(valid, scene, context, &ray);
     int traced = 0;
     for (int i = 0; i < count; ++i) {
         blocked[i] = valid[i] && ray.tfar[i] < 0.0f;
         traced += valid[i] ? 1 : 0;
     }
+    return traced;
+}
+
+}  // namespace
+
+void RayTracer::occluded8(const Vec3& from, const Vec3* to, int count, bool* blocked,
+                          const Visibility& visibility) const {
+    if (count <= 0) return;
+    if (count > 8) throw std::invalid_argument("RayTracer::occluded8: more than 8 segments");
+    FilterContext ctx;
+    RTCScene scene = mImpl->prepare(ctx, visibility);
+    // Up to four segments go as a packet of four: Embree's cost is per packet, so a half-full
+    // packet of eight pays for lanes it does not use.
+    const int traced =
+        count <= 4
+            ? occludedPacket<4, RTCRay4>(scene, &ctx.context, from, to, count, blocked,
+                                         [](const int* v, RTCScene sc, RTCIntersectContext* c,
+                                            RTCRay4* r) { rtcOccluded4(v, sc, c, r); })
+            : occludedPacket<8, RTCRay8>(scene, &ctx.context, from, to, count, blocked,
+                                         [](const int* v, RTCScene sc, RTCIntersectContext* c,
+                                            RTCRay8* r) { rtcOccluded8(v, sc, c, r); });
     mImpl->rays.local() += static_cast<unsigned long long>(traced);
 }
 

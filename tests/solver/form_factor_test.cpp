@@ -351,6 +351,89 @@ TEST(FormFactor, HalfBlockedLampIsHalfVisible) {
     ::testing::Test::RecordProperty("rms_relative_error", std::to_string(rms));
 }
 
+/// The visible form factor from (x, n) to patch p by quadrature: every element polygon fanned
+/// into triangles, each cut into grid² congruent pieces whose centroids carry the point kernel
+/// cos·cos/(π r²) times one occlusion ray. Independent of formFactorToPatch's sampling.
+double quadratureFormFactor(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
+                            const Vec3& n, int p, int grid, bool withVisibility) {
+    const double eps = tracer.epsilon();
+    double sum = 0;
+    for (int e : disc.patches()[p].elements) {
+        const std::vector<Vec3> poly = disc.elementPolygon(e);
+        const Vec3 ny = disc.elements()[e].normal;
+        for (std::size_t t = 1; t + 1 < poly.size(); ++t) {
+            const Vec3 a = poly[0], du = (poly[t] - a) / double(grid),
+                       dv = (poly[t + 1] - a) / double(grid);
+            const double piece = 0.5 * glm::length(glm::cross(du, dv));
+            auto add = [&](const Vec3& y) {
+                const Vec3 d = y - x;
+                const double r2 = glm::dot(d, d);
+                const double cx = glm::dot(n, d), cy = -glm::dot(ny, d);
+                if (cx <= 0 || cy <= 0) return;
+                if (withVisibility && tracer.occluded(x + n * eps, y + ny * eps)) return;
+                sum += cx * cy / (M_PI * r2 * r2) * piece;
+            };
+            for (int i = 0; i < grid; ++i)
+                for (int j = 0; i + j < grid; ++j) {
+                    const Vec3 c = a + double(i) * du + double(j) * dv;
+                    add(c + (du + dv) / 3.0);  // the piece pointing up
+                    if (i + j + 2 <= grid) add(c + (2.0 * du + 2.0 * dv) / 3.0);  // and down
+                }
+        }
+    }
+    return sum;
+}
+
+TEST(FormFactor, CurvedPatchesBehindABlockerMatchQuadrature) {
+    // A sphere's patches are curved: no outline, so the estimate samples its element polygons
+    // (the general path, not the parallelogram one). Half of the sphere is hidden from the
+    // receiver by a blocker whose edge runs under its middle, so patches are fully seen, fully
+    // hidden and partly hidden. Per patch the mean over 256 sample patterns must match the
+    // quadrature with visibility within 4 standard errors, and the unoccluded part the
+    // quadrature without it.
+    Scene scene = test::emptyScene(0.3, 0.12);
+    test::addMaterial(scene, "white", Rgb(0.5));
+    SceneObject sphere;
+    sphere.id = "sphere";
+    sphere.shape.type = ShapeType::Sphere;
+    sphere.shape.radius = 0.4;
+    sphere.shape.segments = 16;
+    sphere.material = "white";
+    sphere.transform.translate = Vec3(0, 1.2, 0);
+    scene.objects = {sphere, test::makeQuad("half", 0.6, 1.2, "white", {-0.3, 0.5, 0})};
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    const Vec3 x(0.0), n(0, 1, 0);
+    int partial = 0, checked = 0;
+    for (int p = 0; p < static_cast<int>(disc.patches().size()); ++p) {
+        const Patch& P = disc.patches()[p];
+        if (P.object != 0) continue;
+        ASSERT_TRUE(P.outline.empty()) << "sphere patches are curved";
+        const double unoccluded = quadratureFormFactor(disc, tracer, x, n, p, 24, false);
+        if (unoccluded < 2e-3) continue;
+        const double visible = quadratureFormFactor(disc, tracer, x, n, p, 96, true);
+        double sum = 0, sumSq = 0;
+        const int keys = 256;
+        for (int key = 0; key < keys; ++key) {
+            const PointToPatch ff = formFactorToPatch(disc, tracer, x, n, p, key, 1, 16);
+            ASSERT_NEAR(ff.unoccluded, unoccluded, 2e-3 * unoccluded)
+                << "patch " << p << ": exact unoccluded against the quadrature";
+            sum += ff.visible;
+            sumSq += ff.visible * ff.visible;
+        }
+        // The mean at 4 standard errors of the patterns' spread.
+        const double mean = sum / keys;
+        const double error = std::sqrt(std::max(0.0, sumSq / keys - mean * mean) / keys);
+        EXPECT_NEAR(mean, visible, 4 * error + 1e-4 * unoccluded)
+            << "patch " << p << ": mean estimate " << mean << " ± " << error << ", quadrature "
+            << visible << " of unoccluded " << unoccluded;
+        partial += visible > 0.1 * unoccluded && visible < 0.9 * unoccluded ? 1 : 0;
+        ++checked;
+    }
+    EXPECT_GE(partial, 2) << "the blocker's edge should cut some patches";
+    EXPECT_GE(checked, 6);
+}
+
 TEST(FormFactor, PatchPartlyBelowTheHorizonIsStillSeen) {
     // The receiver is 0.01 under the lamp near its +x edge, its normal tipped 80° toward +x:
     // only the strip x > 0.448 of the lamp is above its horizon, but that strip is close and

@@ -1,0 +1,22 @@
+#pragma once
+// The kernel of the analytic form factors: Lambert's contour sum over a polygon's edges.
+// Built with -fno-math-errno -fno-trapping-math (CMakeLists.txt), so GCC computes the edges
+// two at a time.
+
+#include <cstddef>
+
+#include "solver/scene.h"
+
+namespace penumbra {
+
+/// atan2(y, x) for y ≥ 0, an angle in [0, π], within 2e-10 rad of std::atan2 and cheaper:
+/// the contour integral's edge angles.
+double angleAtan2(double y, double x);
+
+/// Lambert's contour sum Σ_k β_k (n · γ̂_k) over the closed polygon v[0..count) seen from x
+/// (β_k the angle edge k subtends, γ̂_k the unit normal of the plane through x and the
+/// edge): 2π times the form factor from (x, n) to the polygon, signed by its winding. An
+/// edge through x adds nothing.
+double contourSum(const Vec3& x, const Vec3& n, const Vec3* v, std::size_t count);
+
+}  // namespace penumbra
