@@ -105,7 +105,7 @@ int visibilityRayCount(double fUnoccluded, int maxRays) {
     if (maxRays <= 1) return 1;
     // About one ray per 1e-4 of form factor, growing as its square root: near pairs (large F,
     // sharp shadows matter most) get up to maxRays, distant ones a single ray.
-    int n = static_cast<int>(std::ceil(std::sqrt(std::max(fUnoccluded, 0.0) / 1e-4)));
+    int n = static_cast<int>(std::ceil(std::sqrt(std::max(fUnoccluded, 0.0) * 1e4)));
     return std::clamp(n, 1, maxRays);
 }
 
@@ -131,6 +131,7 @@ struct PairScratch {
     std::vector<double> areaOverF;
     std::vector<Vec3> targets;
     std::vector<double> weights;
+    std::vector<double> r4;  ///< per sample: |d|⁴, the weight's denominator
     std::vector<int> visible;
 };
 
@@ -218,18 +219,20 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     constexpr double kG0 = 0.81917251339616443, kG1 = 0.67104360670378921,
                      kG2 = 0.54970047790197026;
     // Leave the source surface along its normal (toward x, which is in front of it), so rays
-    // grazing the source plane do not hit the source itself in float precision.
+    // grazing the source plane do not hit the source itself in float precision. Each sample's
+    // weight is the point-to-point kernel cos·cos/r² over the sampling density: d is
+    // unnormalized, so the cosines carry a factor r² more. Numerator and r⁴ first; the
+    // divisions after the loop, two at a time.
+    auto& r4 = sc.r4;
+    r4.resize(static_cast<std::size_t>(rays));
     auto addSample = [&](const Vec3& y, const Vec3& ny, double weightScale) {
         const Vec3 d = y - origin;
         const double dd = glm::dot(d, d);
         if (!(dd > 0)) return;
-        // Point-to-point kernel cos·cos/r², over the sampling density: d is unnormalized, so
-        // the cosines carry a factor r² more.
-        const double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) *
-                         weightScale / (dd * dd);
-        wAll += w;
+        weights[taken] =
+            std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) * weightScale;
+        r4[taken] = dd * dd;
         targets[taken] = y + ny * eps;
-        weights[taken] = w;
         ++taken;
     };
     if (count == 1 && source[0] == &P.outline && P.parallelogram) {
@@ -270,6 +273,8 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
                       normals[k], areaOverF[k]);
         }
     }
+    for (std::size_t i = 0; i < taken; ++i) weights[i] /= r4[i];
+    for (std::size_t i = 0; i < taken; ++i) wAll += weights[i];
     targets.resize(taken);
     auto& visible = sc.visible;
     visible.assign(taken, 0);
@@ -296,10 +301,10 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
                 return;
             }
             // The samples of one pair leave one point toward one patch: coherent packets.
-            bool blocked[8];
-            for (int i = 0; i < count; i += 8) {
-                const int m = std::min(8, count - i);
-                tracer.occluded8(from, to.data() + i, m, blocked, visibility);
+            bool blocked[16];
+            for (int i = 0; i < count; i += 16) {
+                const int m = std::min(16, count - i);
+                tracer.occludedPacket(from, to.data() + i, m, blocked, visibility);
                 for (int k = 0; k < m; ++k) visible[i + k] = blocked[k] ? 0 : 1;
             }
             rays += count;

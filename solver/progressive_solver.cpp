@@ -29,14 +29,25 @@ bool isZero(const Rgb& c) { return c.x == 0 && c.y == 0 && c.z == 0; }
 
 /// Deterministic uniform numbers in [0, 1) for one stochastic ray: SplitMix64 (Steele,
 /// Lea, Flood 2014), a Weyl sequence through a 64-bit mixer, seeded per ray by hashPair so
-/// a ray's numbers do not depend on which thread traces it.
+/// a ray's numbers do not depend on which thread traces it. Each 64-bit output gives three
+/// numbers of 21 bits (steps of 4.8e-7, finer than the float rays they place): a ray's six or
+/// so numbers cost two mixes instead of six.
 struct RayRandom {
     std::uint64_t state;
+    std::uint64_t word = 0;
+    int left = 0;
     double next() {
-        std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+        if (left == 0) {
+            std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+            z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+            z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+            word = z ^ (z >> 31);
+            left = 3;
+        }
+        const double u = static_cast<double>(word >> 43) * 0x1.0p-21;
+        word <<= 21;
+        --left;
+        return u;
     }
 };
 
@@ -50,17 +61,16 @@ void frameAround(const Vec3& z, Vec3& tx, Vec3& ty) {
     ty = Vec3(b, sign + z.y * z.y * a, -z.y);
 }
 
-/// A cosine-distributed direction about unit normal n (Malley's method: a uniform point of
-/// the unit disk, by rejection from its square, lifted to the hemisphere).
-Vec3 cosineDirection(const Vec3& n, RayRandom& rng) {
+/// A cosine-distributed direction about unit normal n, whose frame (tx, ty, n) is given
+/// (Malley's method: a uniform point of the unit disk, by rejection from its square, lifted to
+/// the hemisphere).
+Vec3 cosineDirection(const Vec3& n, const Vec3& tx, const Vec3& ty, RayRandom& rng) {
     double a, b, r2;
     do {
         a = 2 * rng.next() - 1;
         b = 2 * rng.next() - 1;
         r2 = a * a + b * b;
     } while (r2 > 1);
-    Vec3 tx, ty;
-    frameAround(n, tx, ty);
     return a * tx + b * ty + std::sqrt(std::max(0.0, 1 - r2)) * n;
 }
 
@@ -112,13 +122,15 @@ public:
                 tri.e1 = pos[el.vertices[i]] - p0;
                 tri.e2 = pos[el.vertices[i + 1]] - p0;
                 tri.normal = el.normal;
+                frameAround(el.normal, tri.tx, tri.ty);
                 mCumulative.push_back(sum += glm::length(glm::cross(tri.e1, tri.e2)));
             }
         }
     }
 
-    /// A uniform point of the patch (three numbers of `rng`) and its surface normal.
-    void sample(RayRandom& rng, Vec3& point, Vec3& normal) const {
+    /// A uniform point of the patch (three numbers of `rng`) and its surface's frame: the
+    /// normal and two tangents (frameAround's).
+    void sample(RayRandom& rng, Vec3& point, Vec3& normal, Vec3& tx, Vec3& ty) const {
         // The first triangle whose cumulative area reaches the pick (the last if rounding
         // leaves none), by bisection: large patches have dozens of triangles.
         const std::size_t last = mCumulative.size() - 1;
@@ -128,11 +140,13 @@ public:
         const double s = std::sqrt(rng.next()), r2 = rng.next();
         point = t->p0 + (s * (1 - r2)) * t->e1 + (s * r2) * t->e2;
         normal = t->normal;
+        tx = t->tx;
+        ty = t->ty;
     }
 
 private:
     struct Triangle {
-        Vec3 p0, e1, e2, normal;
+        Vec3 p0, e1, e2, normal, tx, ty;
     };
     std::vector<Triangle> mTriangles;
     std::vector<double> mCumulative;  ///< doubled area of the patch's triangles up to each
@@ -196,7 +210,8 @@ struct ProgressiveSolver::Impl {
     std::vector<Rgb> temp;             ///< per element radiosity, display only
     IndexedMaxHeap queue;
     std::vector<Rgb> delta;  ///< per element, radiosity received in the current shot
-    std::vector<int> level;  ///< per element, subdivision depth
+    std::vector<std::uint8_t> patchReceived;  ///< per patch: received in the current shot
+    std::vector<int> level;                   ///< per element, subdivision depth
     // Scratch for stochastic batches.
     std::vector<double> patchCdf;    ///< power CDF over the shooters
     std::vector<int> shooters;       ///< patches shot in the batch
@@ -432,24 +447,45 @@ void ProgressiveSolver::shootPatch(int shooter) {
     // Gather the radiosity each element receives from this shot (Cohen §4:
     // ΔRad = ρ_e ΔB_i F_ie A_i / A_e, with F_ie A_i / A_e = F_e→i by reciprocity).
     const std::size_t n = mDisc.elements().size();
-    auto& delta = mImpl->delta;
-    delta.assign(n, Rgb(0.0));
     std::atomic<std::uint64_t> rays{0};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 32), [&](const auto& range) {
-        int traced = 0;
-        for (std::size_t e = range.begin(); e != range.end(); ++e)
-            delta[e] = irradianceFrom(shooter, static_cast<int>(e), dB, {}, &traced);
-        rays += static_cast<std::uint64_t>(traced);
-    });
-
-    // Apply in element order, so results do not depend on the thread count.
-    for (std::size_t e = 0; e < n; ++e)
-        if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
-    if (mOptions.gradientThreshold > 0) subdivideSteepElements();
-    for (std::size_t e = 0; e < mDisc.elements().size(); ++e)
-        if (e >= delta.size() || !isZero(delta[e])) touchElement(static_cast<int>(e));
+    if (mOptions.gradientThreshold > 0) {
+        // Subdivision needs every element's delta: gather, then apply in element order, so
+        // results do not depend on the thread count.
+        auto& delta = mImpl->delta;
+        delta.assign(n, Rgb(0.0));
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 32), [&](const auto& range) {
+            int traced = 0;
+            for (std::size_t e = range.begin(); e != range.end(); ++e)
+                delta[e] = irradianceFrom(shooter, static_cast<int>(e), dB, {}, &traced);
+            rays += static_cast<std::uint64_t>(traced);
+        });
+        for (std::size_t e = 0; e < n; ++e)
+            if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
+        subdivideSteepElements();
+        for (std::size_t e = 0; e < mDisc.elements().size(); ++e)
+            if (e >= delta.size() || !isZero(delta[e])) touchElement(static_cast<int>(e));
+    } else {
+        // By receiving patch: a task owns its patches' elements and unshot sums, so it applies
+        // what it gathers at once, in the patch's element order (ascending, as the element
+        // loop above applies them), and the shot has no serial pass over the elements.
+        auto& received = mImpl->patchReceived;
+        received.assign(patches.size(), 0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, patches.size(), 8),
+                          [&](const auto& range) {
+                              int traced = 0;
+                              for (std::size_t p = range.begin(); p != range.end(); ++p)
+                                  for (int e : patches[p].elements) {
+                                      const Rgb d = irradianceFrom(shooter, e, dB, {}, &traced);
+                                      if (isZero(d)) continue;
+                                      receive(e, d);
+                                      received[p] = 1;
+                                  }
+                              rays += static_cast<std::uint64_t>(traced);
+                          });
+        for (std::size_t p = 0; p < patches.size(); ++p)
+            if (received[p]) updatePriority(static_cast<int>(p));
+    }
     updateTouchedPriorities();
-    (void)patches;
     ++mStats.shots;
     mStats.rays += mTracer.rayCount() - raysBefore;
     ++mImpl->deterministicShots;
@@ -556,7 +592,7 @@ void ProgressiveSolver::shootStochasticBatch() {
             unshot[k] * (area * total / (static_cast<double>(rays) * energyKey(unshot[k], area)));
     }
     const double eps = mTracer.epsilon();
-    // Blocks of 256 rays at fixed offsets: the groups (and firstHits' packets of eight) hold
+    // Blocks of 256 rays at fixed offsets: the groups (and firstHits' packets of sixteen) hold
     // the same rays whatever the threads' split, so a hit that a packet's traversal order
     // could break differently from another packet's (a ray through a shared edge) is still
     // the same from run to run.
@@ -583,9 +619,9 @@ void ProgressiveSolver::shootStochasticBatch() {
                     (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
                 const std::size_t k = shooterAt(cdf, current, u);
                 if (k != current) points.set(mDisc, patches[shooters[current = k]]);
-                Vec3 origin, nz;
-                points.sample(rng, origin, nz);
-                dirs[i] = cosineDirection(nz, rng);
+                Vec3 origin, nz, tx, ty;
+                points.sample(rng, origin, nz, tx, ty);
+                dirs[i] = cosineDirection(nz, tx, ty, rng);
                 origins[i] = origin + nz * eps;
                 shooterOf[i] = k;
             }
@@ -1107,8 +1143,8 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             const bool removed =
                 std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
             if (pick != current) points.set(mDisc, P), current = pick;
-            Vec3 origin, nz;
-            points.sample(rng, origin, nz);
+            Vec3 origin, nz, tx, ty;
+            points.sample(rng, origin, nz, tx, ty);
             origin += nz * eps;
             // Direction: into the cones the changed objects' bounding spheres subtend (one
             // picked by solid angle; the density counts every cone holding the direction), or
@@ -1135,7 +1171,7 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
                 totalSolidAngle += 2 * M_PI * (1 - cosMax);
             }
             if (inside || nCones == 0) {
-                dir = cosineDirection(nz, rng);
+                dir = cosineDirection(nz, tx, ty, rng);
                 weight = 1.0;  // cosine sampling of the whole hemisphere
             } else {
                 double pickCone = rng.next() * totalSolidAngle;

@@ -103,10 +103,10 @@ public:
     /// to − from over t in [0, 1]; false for an empty or non-finite segment).
     bool occluded(const Vec3& from, const Vec3& to, const Visibility& visibility = {}) const;
 
-    /// Occlusion of up to 8 segments sharing the start `from` (one coherent packet,
-    /// rtcOccluded8): blocked[i] for the segment to to[i], as occluded() would answer.
-    void occluded8(const Vec3& from, const Vec3* to, int count, bool* blocked,
-                   const Visibility& visibility = {}) const;
+    /// Occlusion of up to 16 segments sharing the start `from` (one coherent packet of 4, 8 or
+    /// 16: rtcOccluded4/8/16): blocked[i] for the segment to to[i], as occluded() would answer.
+    void occludedPacket(const Vec3& from, const Vec3* to, int count, bool* blocked,
+                        const Visibility& visibility = {}) const;
 
     /// Nearest hit along origin + t·dir, t in (tNear, tFar).
     RayHit intersect(const Vec3& origin, const Vec3& dir, double tNear = 0.0, double tFar = 1e30,

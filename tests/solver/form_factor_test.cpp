@@ -553,7 +553,7 @@ Scene litRoomWithABlocker() {
     return scene;
 }
 
-TEST(RayTracerPackets, Occluded8AnswersAsSingleRays) {
+TEST(RayTracerPackets, PacketsAnswerAsSingleRays) {
     // A packet of segments from one point (the solver's visibility samples of one pair) is
     // blocked exactly where the single-ray query says so, in the current scene and with an
     // object ignored.
@@ -565,16 +565,16 @@ TEST(RayTracerPackets, Occluded8AnswersAsSingleRays) {
     for (int trial = 0; trial < 256; ++trial) {
         const Element& a = el[hashPair(7, trial) % el.size()];
         const Vec3 from = a.centroid + a.normal * 1e-4;
-        Vec3 to[8];
-        const int count = 1 + static_cast<int>(hashPair(8, trial) % 8);
+        Vec3 to[16];
+        const int count = 1 + static_cast<int>(hashPair(8, trial) % 16);  // packets of 4, 8, 16
         for (int i = 0; i < count; ++i) {
             const Element& b = el[hashPair(trial, i) % el.size()];
             to[i] = b.centroid + b.normal * 1e-4;
         }
         for (const Visibility& v :
              {Visibility{}, Visibility{static_cast<int>(scene.objects.size()) - 1}}) {
-            bool blocked[8];
-            tracer.occluded8(from, to, count, blocked, v);
+            bool blocked[16];
+            tracer.occludedPacket(from, to, count, blocked, v);
             for (int i = 0; i < count; ++i) {
                 EXPECT_EQ(blocked[i], tracer.occluded(from, to[i], v))
                     << "trial " << trial << " ray " << i;
