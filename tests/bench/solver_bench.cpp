@@ -146,22 +146,53 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     passes(occlusionPass, rawBefore);
     passes(hitPass, hitBefore);
 
-    ProgressiveSolver& solver = lit->solver();
+    // The solve, timed to each threshold. A short solve is one burst of a shared machine's
+    // noise (cube-room's 0.4 s moved by ±10% between back-to-back runs), so solves under a
+    // second are repeated on fresh copies of the scene, five in all, and the median one is
+    // reported; their rays are the same (the solver does not depend on timing).
     const double thresholds[] = {0.1, 0.01, 0.001};
     const char* names[] = {"seconds_to_10pct", "seconds_to_1pct", "seconds_to_0.1pct"};
-    for (int k = 0; k < 3; ++k) r[names[k]] = nullptr;
-    for (int k = 0; k < 3; ++k) {
-        while (solver.unshotFraction() > thresholds[k] &&
-               solver.stats().seconds < options.maxSecondsPerScene) {
-            if (solver.step(1) == 0) break;
+    struct Solve {
+        double seconds[3] = {-1, -1, -1};
+        std::uint64_t shots[3] = {0, 0, 0};
+        SolverStats stats;
+        double unshot = 0;
+    };
+    auto solve = [&](ProgressiveSolver& solver) {
+        Solve run;
+        for (int k = 0; k < 3; ++k) {
+            while (solver.unshotFraction() > thresholds[k] &&
+                   solver.stats().seconds < options.maxSecondsPerScene) {
+                if (solver.step(1) == 0) break;
+            }
+            if (solver.unshotFraction() > thresholds[k]) break;
+            run.seconds[k] = solver.stats().seconds;
+            run.shots[k] = solver.stats().shots;
         }
-        if (solver.unshotFraction() > thresholds[k]) break;
-        r[names[k]] = solver.stats().seconds;
-        r[std::string("shots_to_") + (names[k] + 11)] = solver.stats().shots;
-    }
-    // Peak memory up to the end of the solve (the high-water mark includes the passes before
-    // it, as it always did), read before the passes after it allocate again.
+        run.stats = solver.stats();
+        run.unshot = solver.unshotFraction();
+        return run;
+    };
+    std::vector<Solve> solves{solve(lit->solver())};
+    // Peak memory up to the end of the first solve (the high-water mark includes the passes
+    // before it, as it always did), read before the repeats and the passes after it allocate.
     r["peak_rss_mib"] = peakResidentKiB() / 1024.0;
+    while (solves.size() < 5 && solves.front().stats.seconds < 1.0) {
+        auto again = LitScene::open(path, interactiveSolverOptions());
+        solves.push_back(solve(again->solver()));
+    }
+    nlohmann::json allSeconds = nlohmann::json::array();
+    for (const Solve& run : solves) allSeconds.push_back(run.stats.seconds);
+    r["solve_seconds_all"] = allSeconds;
+    std::sort(solves.begin(), solves.end(),
+              [](const Solve& a, const Solve& b) { return a.stats.seconds < b.stats.seconds; });
+    const Solve& mid = solves[solves.size() / 2];
+    for (int k = 0; k < 3; ++k) {
+        r[names[k]] = nullptr;
+        if (mid.seconds[k] < 0) continue;
+        r[names[k]] = mid.seconds[k];
+        r[std::string("shots_to_") + (names[k] + 11)] = mid.shots[k];
+    }
     passes(occlusionPass, rawAfter);
     passes(hitPass, hitAfter);
     std::vector<double> rawAll = rawBefore, hitAll = hitBefore;
@@ -175,7 +206,7 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     r["threads_seen"] = threadsSeen;
     r["raw_closest_hit_rays_per_s"] = rawHit;
 
-    const SolverStats& st = solver.stats();
+    const SolverStats& st = mid.stats;
     double solverRate = st.seconds > 0 ? st.rays / st.seconds : 0;
     r["solver_rays_per_s"] = solverRate;
     r["ratio_solver_to_raw"] = raw > 0 ? solverRate / raw : 0;
@@ -189,7 +220,7 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     r["ratio_solver_to_raw_mix"] = st.seconds > 0 ? rawMixSeconds / st.seconds : 0;
     r["shots"] = st.shots;
     r["stochastic_batches"] = st.stochasticBatches;
-    r["unshot_fraction"] = solver.unshotFraction();
+    r["unshot_fraction"] = mid.unshot;
     r["solver_seconds"] = st.seconds;
     return r;
 }
