@@ -114,7 +114,7 @@ namespace {
 /// The pair-seeded sampling shared by every point-to-patch estimate: exact unoccluded form
 /// factors of the patch's polygons clipped to the receiver's hemisphere, then `rays` samples
 /// stratified over them by form factor, each weighted by the point-to-point kernel relative
-/// to its sampling density. `visit(origin, targets, visible, rays)` writes each sample's
+/// to its sampling density. `visit(origin, targets, count, visible, rays)` writes each sample's
 /// visibility term (1 visible, 0 blocked; a difference of two such terms for
 /// formFactorChange) and counts the rays it traced; the result
 /// is unoccluded × Σ w·visit / Σ w (a ratio estimator, exact when nothing blocks and when
@@ -161,12 +161,16 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     auto& fanOf = sc.fanOf;
     double total = 0;
     const std::size_t count = P.outline.empty() ? P.elements.size() : 1;
-    if (polys.size() < count) polys.resize(count);
-    if (fans.size() < count) fans.resize(count);
-    f.resize(count);
-    normals.resize(count);
-    source.resize(count);
-    fanOf.resize(count);
+    // The scratch only grows: a pair sizes nothing and initializes nothing it does not use.
+    if (f.size() < count) {
+        polys.resize(count);
+        fans.resize(count);
+        f.resize(count);
+        normals.resize(count);
+        source.resize(count);
+        fanOf.resize(count);
+        sc.areaOverF.resize(count);
+    }
     for (std::size_t k = 0; k < count; ++k) {
         bool wasClipped = false;
         if (P.outline.empty()) {
@@ -196,12 +200,19 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     // Per sampled polygon, once: the weight factor A_k / F_k relative to the sampling density
     // (∝ F_k / A_k).
     auto& areaOverF = sc.areaOverF;
-    areaOverF.assign(count, -1.0);
-    auto& targets = sc.targets;
-    auto& weights = sc.weights;
-    targets.resize(static_cast<std::size_t>(rays));
-    weights.resize(static_cast<std::size_t>(rays));
-    std::size_t taken = 0;
+    std::fill_n(areaOverF.begin(), count, -1.0);
+    const std::size_t most = static_cast<std::size_t>(rays);
+    if (sc.targets.size() < most) {
+        sc.targets.resize(most);
+        sc.weights.resize(most);
+        sc.r4.resize(most);
+        sc.visible.resize(most);
+    }
+    Vec3* const targets = sc.targets.data();
+    double* const weights = sc.weights.data();
+    double* const r4 = sc.r4.data();
+    int* const visible = sc.visible.data();
+    int taken = 0;
     double wAll = 0;
     const double stratum = total / rays;
     // The samples' three numbers (the jitter within the sample's form-factor stratum and the
@@ -223,8 +234,6 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     // weight is the point-to-point kernel cos·cos/r² over the sampling density: d is
     // unnormalized, so the cosines carry a factor r² more. Numerator and r⁴ first; the
     // divisions after the loop, two at a time.
-    auto& r4 = sc.r4;
-    r4.resize(static_cast<std::size_t>(rays));
     auto addSample = [&](const Vec3& y, const Vec3& ny, double weightScale) {
         const Vec3 d = y - origin;
         const double dd = glm::dot(d, d);
@@ -273,14 +282,12 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
                       normals[k], areaOverF[k]);
         }
     }
-    for (std::size_t i = 0; i < taken; ++i) weights[i] /= r4[i];
-    for (std::size_t i = 0; i < taken; ++i) wAll += weights[i];
-    targets.resize(taken);
-    auto& visible = sc.visible;
-    visible.assign(taken, 0);
-    visit(origin, targets, visible, out.rays);
+    for (int i = 0; i < taken; ++i) weights[i] /= r4[i];
+    for (int i = 0; i < taken; ++i) wAll += weights[i];
+    std::fill_n(visible, taken, 0);
+    visit(origin, targets, taken, visible, out.rays);
     double wVisible = 0;
-    for (std::size_t i = 0; i < taken; ++i) wVisible += weights[i] * visible[i];
+    for (int i = 0; i < taken; ++i) wVisible += weights[i] * visible[i];
     out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;
     return out;
 }
@@ -292,8 +299,7 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
                                std::uint64_t seed, int maxRays, const Visibility& visibility) {
     return estimatePointToPatch(
         disc, tracer, x, n, patch, receiverKey, seed, maxRays,
-        [&](const Vec3& from, const std::vector<Vec3>& to, std::vector<int>& visible, int& rays) {
-            const int count = static_cast<int>(to.size());
+        [&](const Vec3& from, const Vec3* to, int count, int* visible, int& rays) {
             if (count < 2) {
                 for (int i = 0; i < count; ++i)
                     visible[i] = tracer.occluded(from, to[i], visibility) ? 0 : 1;
@@ -304,7 +310,7 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
             bool blocked[16];
             for (int i = 0; i < count; i += 16) {
                 const int m = std::min(16, count - i);
-                tracer.occludedPacket(from, to.data() + i, m, blocked, visibility);
+                tracer.occludedPacket(from, to + i, m, blocked, visibility);
                 for (int k = 0; k < m; ++k) visible[i + k] = blocked[k] ? 0 : 1;
             }
             rays += count;
@@ -317,8 +323,8 @@ PointToPatch formFactorChange(const Discretization& disc, const RayTracer& trace
                               const Visibility& after, const Visibility& changed) {
     return estimatePointToPatch(
         disc, tracer, x, n, patch, receiverKey, seed, maxRays,
-        [&](const Vec3& from, const std::vector<Vec3>& to, std::vector<int>& visible, int& rays) {
-            for (std::size_t i = 0; i < to.size(); ++i) {
+        [&](const Vec3& from, const Vec3* to, int count, int* visible, int& rays) {
+            for (int i = 0; i < count; ++i) {
                 // A sample that misses every changed object has the same visibility in both
                 // worlds: its terms cancel exactly.
                 ++rays;
