@@ -34,9 +34,10 @@ inline double atan2Lane(double y, double x) {
 
 double angleAtan2(double y, double x) { return atan2Lane(y, x); }
 
-__attribute__((target_clones("avx2", "default"))) double contourSum(const Vec3& x, const Vec3& n,
-                                                                    const Vec3* v,
-                                                                    std::size_t count) {
+__attribute__((target_clones("avx2", "default"))) double integrateContour(const Vec3& x,
+                                                                          const Vec3& n,
+                                                                          const Vec3* v,
+                                                                          std::size_t count) {
     // The vertices' offsets from x in coordinate arrays, the first repeated at the end: each
     // edge's term is an independent lane.
     constexpr std::size_t kMax = 16;

@@ -1,7 +1,7 @@
 #pragma once
 // The kernel of the analytic form factors: Lambert's contour sum over a polygon's edges.
 // Built with -fno-math-errno -fno-trapping-math (CMakeLists.txt), so GCC computes the edges
-// two at a time, and contourSum has an AVX2 clone chosen at load time (GCC target_clones)
+// two at a time, and integrateContour has an AVX2 clone chosen at load time (GCC target_clones)
 // that computes four at a time: a quad outline in one step. Neither contracts to FMA, so
 // both give the same bits.
 
@@ -19,6 +19,6 @@ double angleAtan2(double y, double x);
 /// (β_k the angle edge k subtends, γ̂_k the unit normal of the plane through x and the
 /// edge): 2π times the form factor from (x, n) to the polygon, signed by its winding. An
 /// edge through x adds nothing.
-double contourSum(const Vec3& x, const Vec3& n, const Vec3* v, std::size_t count);
+double integrateContour(const Vec3& x, const Vec3& n, const Vec3* v, std::size_t count);
 
 }  // namespace penumbra

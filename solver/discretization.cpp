@@ -125,7 +125,7 @@ void Discretization::finishElement(int e) {
     el.centroid = total > 0 ? c / total : poly[0];
 }
 
-void convexFanAreas(const std::vector<Vec3>& poly, std::vector<double>& cumulative) {
+void accumulateFanAreas(const std::vector<Vec3>& poly, std::vector<double>& cumulative) {
     cumulative.clear();
     double sum = 0;
     for (std::size_t i = 0; i + 2 < poly.size(); ++i)
@@ -150,10 +150,14 @@ void Discretization::finishPatch(int p) {
     for (int e : patch.elements)
         for (const Vec3& v : elementPolygon(e))
             patch.radius = std::max(patch.radius, glm::length(v - patch.centroid));
-    convexFanAreas(patch.outline, patch.outlineFans);
+    accumulateFanAreas(patch.outline, patch.outlineFans);
     const auto& o = patch.outline;
+    // o0 + o2 = o1 + o3, to the rounding of coordinates as large as the largest here.
+    double extent = 0;
+    for (const Vec3& v : o)
+        extent = std::max({extent, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
     patch.parallelogram =
-        o.size() == 4 && glm::length(o[0] + o[2] - o[1] - o[3]) <= 1e-12 * (1 + patch.radius);
+        o.size() == 4 && glm::length(o[0] + o[2] - o[1] - o[3]) <= 1e-12 * (1 + extent);
 }
 
 namespace {

@@ -34,7 +34,7 @@ struct Patch {
     /// front): form factors integrate one polygon instead of every element. Empty otherwise.
     std::vector<Vec3> outline;
     /// The outline's fan triangles (outline[0], outline[i+1], outline[i+2]): cumulative
-    /// doubled areas (convexFanAreas), for sampling points of it.
+    /// doubled areas (accumulateFanAreas), for sampling points of it.
     std::vector<double> outlineFans;
     /// The outline is a parallelogram (outline[0] + a·(outline[1] − outline[0]) +
     /// b·(outline[3] − outline[0]), a, b ∈ [0, 1]): a uniform point of it takes no search.
@@ -44,7 +44,7 @@ struct Patch {
 
 /// Cumulative doubled areas of the fan triangles (poly[0], poly[i+1], poly[i+2]) of a convex
 /// polygon: the table that picks a fan triangle by area for a uniform point of the polygon.
-void convexFanAreas(const std::vector<Vec3>& poly, std::vector<double>& cumulative);
+void accumulateFanAreas(const std::vector<Vec3>& poly, std::vector<double>& cumulative);
 
 /// A receiver. Vertices index ObjectSurface::worldPositions of its object, counter-clockwise
 /// seen from the front (the side `normal` points to).

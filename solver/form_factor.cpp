@@ -27,7 +27,7 @@ Vec3 polygonNormal(const std::vector<Vec3>& poly) {
 }
 
 /// Uniform point in a convex polygon: the fan triangle by area (r0 ∈ [0, 1]; `fans` from
-/// convexFanAreas), then a uniform point of it.
+/// accumulateFanAreas), then a uniform point of it.
 Vec3 samplePolygon(const std::vector<Vec3>& poly, const std::vector<double>& fans, double r0,
                    double r1, double r2) {
     double pick = r0 * fans.back();
@@ -46,33 +46,33 @@ std::uint64_t hashPair(std::uint64_t a, std::uint64_t b) {
 namespace {
 
 /// Lambert's contour integral over `polygon` (front side toward `pn`) clipped to the
-/// hemisphere above (x, n). `wasClipped` tells whether the horizon cut it; only then is the
-/// part above the horizon written to `clipped` (empty when nothing is seen) — otherwise the
-/// polygon itself is what x sees, and nothing is copied.
+/// hemisphere above (x, n). `usesClipped` tells where the part x sees is: true, in `clipped`
+/// (the horizon cut the polygon; empty when nothing is seen); false, the polygon itself (all
+/// of it above the horizon, nothing copied).
 double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon,
-                         const Vec3& pn, std::vector<Vec3>& clipped, bool& wasClipped) {
-    wasClipped = false;
+                         const Vec3& pn, std::vector<Vec3>& clipped, bool& usesClipped) {
+    usesClipped = false;
     const std::size_t m = polygon.size();
     if (m < 3) {
-        wasClipped = true;
+        usesClipped = true;
         clipped.clear();
         return 0;
     }
     // One-sided: the point must be in front of the polygon.
     if (glm::dot(x - polygon[0], pn) <= 0) {
-        wasClipped = true;
+        usesClipped = true;
         clipped.clear();
         return 0;
     }
     bool below = false;
     for (std::size_t i = 0; i < m; ++i) below = below || glm::dot(polygon[i] - x, n) < 0;
-    if (!below) return std::abs(contourSum(x, n, polygon.data(), m)) / (2 * M_PI);
+    if (!below) return std::abs(integrateContour(x, n, polygon.data(), m)) / (2 * M_PI);
 
     // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman); each
     // vertex's height is computed once. The output has a vertex per kept vertex and per sign
     // change: at most m + ⌊m/2⌋ (signs alternating, as rounding can make them for a polygon
     // lying in the horizon plane).
-    wasClipped = true;
+    usesClipped = true;
     clipped.resize(m + m / 2 + 1);
     Vec3* out = clipped.data();
     std::size_t count = 0;
@@ -90,15 +90,15 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
         return 0;
     }
     clipped.resize(count);
-    return std::abs(contourSum(x, n, out, count)) / (2 * M_PI);
+    return std::abs(integrateContour(x, n, out, count)) / (2 * M_PI);
 }
 
 }  // namespace
 
 double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon) {
     thread_local std::vector<Vec3> clipped;
-    bool wasClipped = false;
-    return clippedFormFactor(x, n, polygon, polygonNormal(polygon), clipped, wasClipped);
+    bool usesClipped = false;
+    return clippedFormFactor(x, n, polygon, polygonNormal(polygon), clipped, usesClipped);
 }
 
 int visibilityRayCount(double fUnoccluded, int maxRays) {
@@ -125,7 +125,7 @@ struct PairScratch {
     std::vector<double> f;                 ///< per polygon: its unoccluded form factor
     std::vector<Vec3> polygon;
     std::vector<Vec3> normals;  ///< per polygon: unit normal (the plane's, clipping keeps it)
-    std::vector<std::vector<double>> fans;          ///< per clipped polygon: its fan areas
+    std::vector<std::vector<double>> fans;          ///< per polygon: fan areas, when computed
     std::vector<const std::vector<Vec3>*> source;   ///< per polygon: what is sampled
     std::vector<const std::vector<double>*> fanOf;  ///< per polygon: its fans, once known
     std::vector<double> areaOverF;
@@ -172,22 +172,22 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         sc.areaOverF.resize(count);
     }
     for (std::size_t k = 0; k < count; ++k) {
-        bool wasClipped = false;
+        bool usesClipped = false;
         if (P.outline.empty()) {
             const Element& el = disc.elements()[P.elements[k]];
             const auto& pos = disc.objects()[el.object].worldPositions;
             sc.polygon.clear();
             for (int v : el.vertices) sc.polygon.push_back(pos[v]);
             normals[k] = el.normal;
-            total += f[k] = clippedFormFactor(x, n, sc.polygon, el.normal, polys[k], wasClipped);
-            if (!wasClipped) polys[k].swap(sc.polygon);
+            total += f[k] = clippedFormFactor(x, n, sc.polygon, el.normal, polys[k], usesClipped);
+            if (!usesClipped) polys[k].swap(sc.polygon);
             source[k] = &polys[k];
             fanOf[k] = nullptr;
         } else {
             normals[k] = P.normal;
-            total += f[k] = clippedFormFactor(x, n, P.outline, P.normal, polys[k], wasClipped);
-            source[k] = wasClipped ? &polys[k] : &P.outline;
-            fanOf[k] = wasClipped || P.outlineFans.empty() ? nullptr : &P.outlineFans;
+            total += f[k] = clippedFormFactor(x, n, P.outline, P.normal, polys[k], usesClipped);
+            source[k] = usesClipped ? &polys[k] : &P.outline;
+            fanOf[k] = usesClipped || P.outlineFans.empty() ? nullptr : &P.outlineFans;
         }
     }
     out.unoccluded = total;
@@ -215,11 +215,15 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     int taken = 0;
     double wAll = 0;
     const double stratum = total / rays;
-    // The samples' three numbers (the jitter within the sample's form-factor stratum and the
-    // two of a uniform point in the polygon) follow the R3 Kronecker sequence, s·(1/φ, 1/φ²,
-    // 1/φ³) mod 1 with φ⁴ = φ + 1 (Roberts 2018), rotated mod 1 by a pair-seeded offset
-    // (Cranley–Patterson): each sample is uniform, the pair's samples are spread evenly, and
-    // a sample costs three additions instead of three hashes.
+    // A sample's numbers follow Kronecker sequences q_s = (q_0 + s·α) mod 1, each started at a
+    // pair-seeded offset (a Cranley–Patterson rotation): every sample is uniform, the pair's
+    // samples are spread evenly, and a sample costs an addition per number instead of a hash.
+    // The steps: the golden ratio's 1/φ for a lone coordinate (the best spread in one
+    // dimension) and R2's (1/ρ, 1/ρ²), ρ³ = ρ + 1 (Roberts 2018), for a pair. (R3's steps were
+    // used first: its second one, 0.671, is so near 2/3 that 8 to 40 samples bunch into three
+    // bands along that coordinate, worse than random numbers for an edge across it.)
+    constexpr double kGolden = 0.61803398874989485, kR2x = 0.75487766624669276,
+                     kR2y = 0.56984029099805327;
     const std::uint64_t h =
         hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch));
     constexpr double kUnit = 0x1.0p-21;
@@ -227,8 +231,10 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     double q0 = static_cast<double>(h >> 43) * kUnit;
     double q1 = static_cast<double>((h >> 22) & kMask) * kUnit;
     double q2 = static_cast<double>((h >> 1) & kMask) * kUnit;
-    constexpr double kG0 = 0.81917251339616443, kG1 = 0.67104360670378921,
-                     kG2 = 0.54970047790197026;
+    auto advance = [](double& q, double step) {
+        q += step;
+        q -= q >= 1 ? 1.0 : 0.0;
+    };
     // Leave the source surface along its normal (toward x, which is in front of it), so rays
     // grazing the source plane do not hit the source itself in float precision. Each sample's
     // weight is the point-to-point kernel cos·cos/r² over the sampling density: d is
@@ -245,26 +251,20 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         ++taken;
     };
     if (count == 1 && source[0] == &P.outline && P.parallelogram) {
-        // The whole of a parallelogram outline is seen: its point (a, b) with a stratified by
-        // sample (the jitter q0) and b from the sequence, no search and no square root.
+        // The whole of a parallelogram outline is seen: its point (a, b), a stratified by
+        // sample (jitter q0, step 1/ρ) and b by the golden-ratio sequence (q1): a lattice-like
+        // set even along both sides, with no search and no square root.
         const Vec3 o = P.outline[0], eu = P.outline[1] - o, ev = P.outline[3] - o;
         const double aOverF = P.area / f[0];
         for (int s = 0; s < rays; ++s) {
-            if (s > 0) {
-                q0 += kG0, q1 += kG1;
-                q0 -= q0 >= 1 ? 1.0 : 0.0;
-                q1 -= q1 >= 1 ? 1.0 : 0.0;
-            }
+            if (s > 0) advance(q0, kR2x), advance(q1, kGolden);
             addSample(o + ((s + q0) / rays) * eu + q1 * ev, normals[0], aOverF);
         }
     } else {
+        // The jitter within the stratum by the golden-ratio sequence (q0), the point in the
+        // chosen polygon by R2 (q1, q2).
         for (int s = 0; s < rays; ++s) {
-            if (s > 0) {
-                q0 += kG0, q1 += kG1, q2 += kG2;
-                q0 -= q0 >= 1 ? 1.0 : 0.0;
-                q1 -= q1 >= 1 ? 1.0 : 0.0;
-                q2 -= q2 >= 1 ? 1.0 : 0.0;
-            }
+            if (s > 0) advance(q0, kGolden), advance(q1, kR2x), advance(q2, kR2y);
             double u = (s + q0) * stratum;
             // The polygon by form factor; polygons with nothing above the horizon are never
             // taken.
@@ -273,7 +273,7 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
             while (!(f[k] > 0)) --k;  // rounding past the last polygon seen; total > 0 bounds it
             if (areaOverF[k] < 0) {
                 if (!fanOf[k]) {
-                    convexFanAreas(*source[k], fans[k]);
+                    accumulateFanAreas(*source[k], fans[k]);
                     fanOf[k] = &fans[k];
                 }
                 areaOverF[k] = 0.5 * fanOf[k]->back() / f[k];

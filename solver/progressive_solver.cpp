@@ -30,8 +30,8 @@ bool isZero(const Rgb& c) { return c.x == 0 && c.y == 0 && c.z == 0; }
 /// Deterministic uniform numbers in [0, 1) for one stochastic ray: SplitMix64 (Steele,
 /// Lea, Flood 2014), a Weyl sequence through a 64-bit mixer, seeded per ray by hashPair so
 /// a ray's numbers do not depend on which thread traces it. Each 64-bit output gives three
-/// numbers of 21 bits (steps of 4.8e-7, finer than the float rays they place): a ray's six or
-/// so numbers cost two mixes instead of six.
+/// numbers of 21 bits (steps of 4.8e-7, about four float ulps at 1: far below an element or a
+/// ray's angular spread): a ray's six or so numbers cost two mixes instead of six.
 struct RayRandom {
     std::uint64_t state;
     std::uint64_t word = 0;

@@ -376,6 +376,42 @@ TEST(Discretization, CylinderCoarseAndFine) {
     checkCylinder(0.4, 0.9, 12, 0.5, 0.1, Vec3(-1, 0.5, 2), 0);
 }
 
+TEST(Discretization, ParallelogramOutlinesAndTheirFans) {
+    // The form factors sample a parallelogram outline directly and any other outline by its
+    // fan triangles. Quads (also tilted and far from the origin), box faces and the back
+    // sheet of a two-sided quad are parallelograms; a cylinder's disk caps are not. Every
+    // outline's fans add up to twice its patch's area.
+    SceneObject far = test::makeQuad("far", 0.7, 0.3, "white", {1e4, -2e4, 3e4}, {20, 35, 50});
+    SceneObject box = makeShape("box", ShapeType::Box);
+    box.shape.size = Vec3(0.9, 0.45, 1.3);
+    box.transform.rotateDeg = Vec3(10, 20, 30);
+    SceneObject cylinder = makeShape("cylinder", ShapeType::Cylinder);
+    cylinder.shape.radius = 0.5;
+    cylinder.shape.height = 1.2;
+    cylinder.shape.segments = 20;
+    cylinder.transform.translate = Vec3(3, 0, 0);
+    SceneObject sheet = test::makeQuad("sheet", 0.8, 0.6, "both", {0, 2, 0});
+    Scene scene = sceneWith({far, box, cylinder, sheet}, 100, 100);
+    test::addMaterial(scene, "both", Rgb(0.5));
+    scene.materials.back().material.twoSided = true;
+    Discretization disc(scene);
+    int parallelograms[4] = {0, 0, 0, 0}, others[4] = {0, 0, 0, 0};
+    for (const Patch& P : disc.patches()) {
+        if (P.outline.empty()) continue;
+        ASSERT_FALSE(P.outlineFans.empty());
+        EXPECT_NEAR(P.outlineFans.back(), 2 * P.area, 1e-6 * P.area) << P.toString();
+        (P.parallelogram ? parallelograms : others)[P.object] += 1;
+    }
+    EXPECT_EQ(parallelograms[0], 1) << "the far, tilted quad";
+    EXPECT_EQ(others[0], 0);
+    EXPECT_EQ(parallelograms[1], 6) << "the box's faces";
+    EXPECT_EQ(others[1], 0);
+    EXPECT_EQ(others[2], 2) << "the cylinder's caps";
+    EXPECT_EQ(parallelograms[2], 0);
+    EXPECT_EQ(parallelograms[3], 2) << "the two-sided quad's front and back sheets";
+    EXPECT_EQ(others[3], 0);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Transforms
 

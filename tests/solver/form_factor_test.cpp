@@ -434,6 +434,37 @@ TEST(FormFactor, CurvedPatchesBehindABlockerMatchQuadrature) {
     EXPECT_GE(checked, 6);
 }
 
+TEST(FormFactor, HalfBlockedLampIsEvenlySampledAlongBothSides) {
+    // The pattern must spread a pair's samples evenly along both sides of a parallelogram
+    // lamp, not only along the stratified one: the blocker's edge runs along each side in
+    // turn, at the solver's 16 rays per pair and at 32. Independent rays give an rms relative
+    // error of 1/sqrt(N) here (half visible); the pattern must do better by half.
+    const double truth = 0.5 * kLampF;
+    const SceneObject blockers[] = {halfBlocker(),
+                                    test::makeQuad("half-z", 0.8, 0.4, "black", {0, 0.25, -0.2})};
+    for (const SceneObject& blocker : blockers) {
+        OcclusionScene s({blocker});
+        for (int maxRays : {16, 32}) {
+            const int keys = 128;
+            double sum = 0, sumSq = 0;
+            for (std::uint64_t key = 0; key < keys; ++key) {
+                const PointToPatch ff = s.at(key, 1, maxRays);
+                ASSERT_EQ(ff.rays, maxRays);
+                const double ratio = ff.visible / truth;
+                sum += ratio;
+                sumSq += (ratio - 1) * (ratio - 1);
+            }
+            const double mean = sum / keys, rms = std::sqrt(sumSq / keys);
+            EXPECT_NEAR(mean, 1.0, 0.05) << blocker.id << ", " << maxRays << " rays";
+            EXPECT_LE(rms, 0.5 / std::sqrt(double(maxRays)))
+                << blocker.id << ", " << maxRays << " rays: rms relative error " << rms
+                << " against " << 1 / std::sqrt(double(maxRays)) << " for independent rays";
+            ::testing::Test::RecordProperty(blocker.id + "_" + std::to_string(maxRays),
+                                            std::to_string(rms));
+        }
+    }
+}
+
 TEST(FormFactor, PatchPartlyBelowTheHorizonIsStillSeen) {
     // The receiver is 0.01 under the lamp near its +x edge, its normal tipped 80° toward +x:
     // only the strip x > 0.448 of the lamp is above its horizon, but that strip is close and
