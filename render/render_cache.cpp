@@ -602,16 +602,38 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
             const int want = tileCount[t];
             if (want == 0) continue;
             const int tx = static_cast<int>(t % tilesX), ty = static_cast<int>(t / tilesX);
-            CacheRandom draw{seed, 1 + drawStart[t]};  // after u0
+            // The tile's stretch of the stream: one draw per candidate (its tie-break), then
+            // two per request (its place in the pixel).
+            const std::uint64_t first = 1 + drawStart[t];  // after u0
             cand.clear();
+            double top = 0;
             for (int y = ty * T; y < std::min(mHeight, (ty + 1) * T); ++y)
                 for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
                     const double p = mEffective[y * mWidth + x];
-                    if (p > 0) cand.push_back({p + 1e-9 * draw.next(), y * mWidth + x});
+                    if (!(p > 0)) continue;
+                    cand.push_back({p, y * mWidth + x});
+                    top = std::max(top, p);
                 }
             const std::size_t take = std::min<std::size_t>(want, cand.size());
-            std::partial_sort(cand.begin(), cand.begin() + take, cand.end(),
-                              [](const auto& a, const auto& b) { return a.first > b.first; });
+            if (take == 1) {
+                // Most tiles take one: the first largest p + 1e-9·draw (as the partial sort
+                // below keeps it), whose draw in [0, 1) can lift only a p within 1e-9 of the
+                // top (2e-9 for rounding); the other candidates' draws are never computed.
+                std::size_t best = 0;
+                double bestKey = -1;
+                for (std::size_t c = 0; c < cand.size(); ++c) {
+                    if (cand[c].first + 2e-9 < top) continue;
+                    const double key = cand[c].first + 1e-9 * CacheRandom::at(seed, first + c);
+                    if (key > bestKey) best = c, bestKey = key;
+                }
+                cand[0] = {bestKey, cand[best].second};
+            } else {
+                for (std::size_t c = 0; c < cand.size(); ++c)
+                    cand[c].first += 1e-9 * CacheRandom::at(seed, first + c);
+                std::partial_sort(cand.begin(), cand.begin() + take, cand.end(),
+                                  [](const auto& a, const auto& b) { return a.first > b.first; });
+            }
+            CacheRandom draw{seed, first + cand.size()};
             for (std::size_t c = 0; c < take; ++c) {
                 const int k = cand[c].second;
                 const double jy = draw.next();  // y first, as requestSamplesSerial()
