@@ -96,6 +96,18 @@ double areaTimesFormFactor(const Discretization& disc, const RayTracer& tracer,
     return sum * area / (grid * grid);
 }
 
+/// A sphere "sphere" of material "white".
+SceneObject whiteSphere(double radius, int segments, const Vec3& centre) {
+    SceneObject sphere;
+    sphere.id = "sphere";
+    sphere.shape.type = ShapeType::Sphere;
+    sphere.shape.radius = radius;
+    sphere.shape.segments = segments;
+    sphere.material = "white";
+    sphere.transform.translate = centre;
+    return sphere;
+}
+
 /// The patch of object `object`; the scenes here make every object a single patch.
 int onlyPatchOf(const Discretization& disc, int object) {
     int found = -1;
@@ -159,14 +171,7 @@ TEST(FormFactor, UnoccludedIsSumOfElementPolygonFormFactors) {
     cyl.shape.segments = 24;
     cyl.material = "white";
     cyl.transform.translate = Vec3(-3, 0, 0);
-    SceneObject sphere;
-    sphere.id = "sphere";
-    sphere.shape.type = ShapeType::Sphere;
-    sphere.shape.radius = 0.4;
-    sphere.shape.segments = 16;
-    sphere.material = "white";
-    sphere.transform.translate = Vec3(0, 0, 3);
-    scene.objects = {quad, box, cyl, sphere};
+    scene.objects = {quad, box, cyl, whiteSphere(0.4, 16, Vec3(0, 0, 3))};
     Discretization disc(scene);
     RayTracer tracer(disc);
 
@@ -393,14 +398,8 @@ TEST(FormFactor, CurvedPatchesBehindABlockerMatchQuadrature) {
     // quadrature without it.
     Scene scene = test::emptyScene(0.3, 0.12);
     test::addMaterial(scene, "white", Rgb(0.5));
-    SceneObject sphere;
-    sphere.id = "sphere";
-    sphere.shape.type = ShapeType::Sphere;
-    sphere.shape.radius = 0.4;
-    sphere.shape.segments = 16;
-    sphere.material = "white";
-    sphere.transform.translate = Vec3(0, 1.2, 0);
-    scene.objects = {sphere, test::makeQuad("half", 0.6, 1.2, "white", {-0.3, 0.5, 0})};
+    scene.objects = {whiteSphere(0.4, 16, Vec3(0, 1.2, 0)),
+                     test::makeQuad("half", 0.6, 1.2, "white", {-0.3, 0.5, 0})};
     Discretization disc(scene);
     RayTracer tracer(disc);
     const Vec3 x(0.0), n(0, 1, 0);
