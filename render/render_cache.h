@@ -11,7 +11,6 @@
 // camera (the visible points feed the EPI), requestSamples() for the shader, and optionally
 // interpolatedImage() for a plain (edge-unaware) reconstruction.
 
-
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <memory>

@@ -38,10 +38,8 @@ struct RayRandom {
     int left = 0;
     double next() {
         if (left == 0) {
-            std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-            z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-            z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-            word = z ^ (z >> 31);
+            word = splitmix64(state);
+            state += 0x9e3779b97f4a7c15ull;
             left = 3;
         }
         const double u = static_cast<double>(word >> 43) * 0x1.0p-21;
