@@ -222,3 +222,54 @@ TEST(EdgeFinder, PerObjectParallelSilhouettesAndSharpEdgesEqualTheSerialLists) {
     EXPECT_GT(silhouettes, 1000);
     EXPECT_GT(sharp, 100);
 }
+
+TEST(EdgeFinder, CoherentSilhouettesEqualTraversalsAlongACameraPath) {
+    // The same objects in two finders, one keeping per-object candidate cubes between calls and
+    // one traversing the trees every time; the eye orbits smoothly (cubes reused), stops (a
+    // cube of one point), jumps (no cube), and an object moves under it (its object-space eye
+    // jumps while the world eye moves smoothly).
+    Scene scene = primitives();
+    Discretization disc(scene);
+    EdgeFinder coherent(disc);
+    EdgeFinderOptions plainOptions;
+    plainOptions.coherentSilhouettes = false;
+    EdgeFinder plain(disc, plainOptions);
+    std::vector<std::vector<WorldEdge>> a, b;
+    std::vector<Vec3> path;
+    for (int i = 0; i < 40; ++i) {
+        const double angle = 0.01 * i;
+        path.push_back(Vec3(3.0 * std::cos(angle), 1.2 + 0.002 * i, 3.0 * std::sin(angle)));
+    }
+    for (int i = 0; i < 3; ++i) path.push_back(path.back());  // still
+    path.push_back(Vec3(-2.5, 0.8, 1.0));                     // a jump
+    for (int i = 1; i < 30; ++i)
+        path.push_back(path.back() + Vec3(0.004, -0.001, 0.003) * double(i));
+    std::size_t total = 0;
+    for (std::size_t i = 0; i < path.size(); ++i) {
+        if (i == 55) {
+            // Move the sphere: its trees stay, its object-space eye jumps.
+            Mat4 shift(1.0);
+            shift[3] = glm::dvec4(0.2, 0.0, -0.1, 1.0);
+            const Mat4 moved = shift * disc.objects()[1].worldFromObject;
+            coherent.notifyObjectMoved(1, moved);
+            plain.notifyObjectMoved(1, moved);
+        }
+        coherent.findSilhouettes(path[i], a);
+        plain.findSilhouettes(path[i], b, i % 2 == 0);
+        ASSERT_EQ(a.size(), b.size());
+        for (std::size_t o = 0; o < a.size(); ++o) {
+            EXPECT_TRUE(sameEdges(a[o], b[o])) << "eye " << i << " object " << o;
+            total += a[o].size();
+        }
+        // And, before the move, eq. 1 in world space on the transformed faces, edge by edge.
+        if (i % 10 != 0 || i >= 55) continue;
+        for (const auto& list : a)
+            for (const WorldEdge& w : list) {
+                EXPECT_TRUE(worldSilhouette(coherent.tree(w.object).mesh(),
+                                            disc.objects()[w.object].worldFromObject, w.edge,
+                                            path[i]))
+                    << "eye " << i << " edge " << w.edge;
+            }
+    }
+    EXPECT_GT(total, 1000u);
+}

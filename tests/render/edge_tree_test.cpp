@@ -308,3 +308,71 @@ TEST(EdgeTree, ManyArmadillosSilhouettesEqualBruteForce) {
         bruteMs);
     RecordProperty("silhouette_ms_median", std::to_string(ms[4]));
 }
+
+namespace {
+
+/// Every eye of many cubes (corners, centre, random points; cubes from a point's size to a
+/// tenth of the mesh, outside and inside its bounds): the cube's candidates tested from the
+/// eye, after the boundary edges, are findSilhouettes' list itself (same ids, same order),
+/// and that list is the brute force over every edge.
+void checkCubeCandidates(const std::string& file) {
+    std::string path = meshPath(file);
+    if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " absent (scripts/setup.sh)";
+    auto mesh = std::make_shared<EdgeMesh>(EdgeMesh::fromTriMesh(loadMeshFile(path)));
+    EdgeTree tree(mesh);
+    const Box3 b = mesh->bounds();
+    const double size = glm::length(b.hi - b.lo);
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> u(0, 1);
+    int cubes = 0, eyes = 0;
+    std::size_t candidateSum = 0, silhouetteSum = 0;
+    for (const Vec3& centre : randomEyes(b, 12, 5)) {
+        for (double relative : {0.0, 1e-4, 3e-3, 0.1}) {
+            const double h = relative * size;
+            std::vector<EdgeTree::SilhouetteRecord> candidates;
+            tree.findSilhouetteCandidates(centre, h, candidates);
+            ++cubes;
+            std::vector<Vec3> inCube = {centre};
+            for (int k = 0; k < 8; ++k)
+                inCube.push_back(centre + h * Vec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1));
+            for (int k = 0; k < 3; ++k)
+                inCube.push_back(centre + h * Vec3(2 * u(rng) - 1, 2 * u(rng) - 1, 2 * u(rng) - 1));
+            for (const Vec3& eye : inCube) {
+                std::vector<int> expected;
+                tree.findSilhouettes(eye, expected);
+                const auto& boundary = mesh->boundaryEdges();
+                std::vector<int> got(boundary.begin(), boundary.end());
+                EdgeTree::silhouettesAmong(eye, candidates, got);
+                ASSERT_EQ(got, expected) << file << " cube " << cubes << " (half-width " << h
+                                         << "), " << candidates.size() << " candidates";
+                std::vector<int> brute;
+                for (int e = 0; e < static_cast<int>(mesh->edges().size()); ++e)
+                    if (mesh->isSilhouette(e, eye)) brute.push_back(e);
+                std::sort(got.begin(), got.end());
+                EXPECT_EQ(got, brute) << file << " cube " << cubes;
+                ++eyes;
+            }
+            if (relative == 3e-3 && glm::length(centre - b.centre()) > 0.5 * size) {
+                std::vector<int> atCentre;
+                tree.findSilhouettes(centre, atCentre);
+                candidateSum += candidates.size();
+                silhouetteSum += atCentre.size();
+            }
+        }
+    }
+    EXPECT_EQ(eyes, cubes * 12);
+    // Small cubes seen from outside: few candidates beyond the silhouettes themselves (a
+    // cube that kept everything would also pass the checks above).
+    ASSERT_GT(silhouetteSum, 0u);
+    EXPECT_LT(candidateSum, 3 * silhouetteSum)
+        << candidateSum << " candidates for " << silhouetteSum << " silhouettes";
+}
+
+}  // namespace
+
+TEST(EdgeTree, ArmadilloCubeCandidatesGiveTheTraversalsSilhouettes) {
+    checkCubeCandidates("armadillo.off");
+}
+TEST(EdgeTree, BunnyCubeCandidatesGiveTheTraversalsSilhouettes) {
+    checkCubeCandidates("bunny00.off");
+}
