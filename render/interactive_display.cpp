@@ -154,6 +154,7 @@ InteractiveDisplay::InteractiveDisplay(const InteractiveDisplay& source,
       mEdges(source.mEdges),
       mEpi(options.width, options.height, options.epi),
       mShadowEdges(source.mShadowEdges),
+      mShadowOrder(source.mShadowOrder),
       mShadowsStale(source.mShadowsStale) {}
 
 InteractiveDisplay::~InteractiveDisplay() = default;
@@ -218,6 +219,7 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
             t = Clock::now();
             if (mShadowsStale) {
                 mShadowEdges = mEdges.findShadowEdges();
+                mShadowOrder = orderByPenumbra(mShadowEdges, mShadowScratch);
                 mShadowsStale = false;
                 mLastShadowUpdateMs = msSince(t);
                 st.times.shadowMs = mLastShadowUpdateMs;
@@ -227,11 +229,16 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
         // Silhouettes, sharp edges and shadow edges projected in that order (findSilhouettes,
         // findSharpEdges, mShadowEdges concatenated), less the edges that cannot mark the EPI.
         t = Clock::now();
-        std::vector<const std::vector<WorldEdge>*> lists;
+        std::vector<std::span<const WorldEdge>> lists;
         lists.reserve(mSilhouettes.size() + mSharpEdges.size() + 1);
-        for (const auto& list : mSilhouettes) lists.push_back(&list);
-        for (const auto& list : mSharpEdges) lists.push_back(&list);
-        if (mOptions.shadowEdges) lists.push_back(&mShadowEdges);
+        for (const auto& list : mSilhouettes) lists.emplace_back(list);
+        for (const auto& list : mSharpEdges) lists.emplace_back(list);
+        // Shadow edges by penumbra: those too soft to mark from any depth of this view are
+        // not projected at all (armadillo-field: 74k of 190k).
+        if (mOptions.shadowEdges)
+            lists.emplace_back(mShadowEdges.data(),
+                               penumbraPrefix(mShadowOrder, camera, mOptions.nearPlane,
+                                              mOptions.maxPenumbraPixels));
         projectEpiEdges(lists, camera, mOptions.nearPlane, mScreenEdges, mProjectScratch, true,
                         mOptions.maxPenumbraPixels);
         st.times.projectMs = msSince(t);
@@ -713,11 +720,20 @@ std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const 
 void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
                      const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
                      std::vector<ScreenEdge>& scratch, bool parallel, double maxPenumbraPixels) {
+    std::vector<std::span<const WorldEdge>> spans;
+    spans.reserve(lists.size());
+    for (const std::vector<WorldEdge>* list : lists) spans.emplace_back(*list);
+    projectEpiEdges(spans, camera, nearPlane, out, scratch, parallel, maxPenumbraPixels);
+}
+
+void projectEpiEdges(const std::vector<std::span<const WorldEdge>>& lists, const CameraRays& camera,
+                     double nearPlane, std::vector<ScreenEdge>& out,
+                     std::vector<ScreenEdge>& scratch, bool parallel, double maxPenumbraPixels) {
     const int W = camera.width(), H = camera.height();
     // Global index n of the concatenation: list l holds [listStart[l], listStart[l + 1]).
     std::vector<std::size_t> listStart(lists.size() + 1, 0);
     for (std::size_t l = 0; l < lists.size(); ++l)
-        listStart[l + 1] = listStart[l] + lists[l]->size();
+        listStart[l + 1] = listStart[l] + lists[l].size();
     const std::size_t total = listStart.back();
     constexpr std::size_t kChunk = 4096;
     const std::size_t chunks = (total + kChunk - 1) / kChunk;
@@ -732,8 +748,7 @@ void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
         for (std::size_t n = lo; n < hi; ++n) {
             while (n >= listStart[l + 1]) ++l;
             ScreenEdge& s = scratch[m];
-            if (projectEdge((*lists[l])[n - listStart[l]], camera, nearPlane, maxPenumbraPixels,
-                            s) &&
+            if (projectEdge(lists[l][n - listStart[l]], camera, nearPlane, maxPenumbraPixels, s) &&
                 edgeMayMark(s, W, H)) {
                 ++m;
             }
@@ -757,6 +772,84 @@ void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
     } else {
         for (std::size_t c = 0; c < chunks; ++c) gather(c);
     }
+}
+
+namespace {
+
+/// orderByPenumbra's bucket of an edge.
+int penumbraBucket(const WorldEdge& e) {
+    const double m = std::min(e.penumbraA, e.penumbraB);
+    const bool finiteEnds = std::isfinite(e.a.x) && std::isfinite(e.a.y) && std::isfinite(e.a.z) &&
+                            std::isfinite(e.b.x) && std::isfinite(e.b.y) && std::isfinite(e.b.z);
+    if (!finiteEnds || !(m > 0) || !std::isfinite(m)) return 0;
+    // m in [2^x, 2^(x+1)), x = ilogb(m), exactly.
+    return std::clamp(std::ilogb(m) + 32, 1, PenumbraOrder::kBuckets - 1);
+}
+
+}  // namespace
+
+PenumbraOrder orderByPenumbra(std::vector<WorldEdge>& edges, std::vector<WorldEdge>& scratch) {
+    constexpr int K = PenumbraOrder::kBuckets;
+    constexpr std::size_t kChunk = 8192;
+    const std::size_t n = edges.size();
+    const std::size_t chunks = (n + kChunk - 1) / kChunk;
+    std::vector<std::uint8_t> bucket(n);
+    std::vector<std::size_t> count(chunks * K, 0);
+    std::vector<Box3> boxes(chunks);
+    // Per chunk: each edge's bucket, the chunk's bucket counts and box.
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        for (std::size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i) {
+            const int k = penumbraBucket(edges[i]);
+            bucket[i] = static_cast<std::uint8_t>(k);
+            ++count[c * K + k];
+            if (k > 0) boxes[c].extend(edges[i].a), boxes[c].extend(edges[i].b);
+        }
+    });
+    // Offsets, bucket-major and chunks in order (so each bucket keeps the input order), then
+    // the scatter.
+    PenumbraOrder order;
+    std::size_t at = 0;
+    for (int k = 0; k < K; ++k) {
+        order.start[k] = at;
+        for (std::size_t c = 0; c < chunks; ++c) {
+            const std::size_t here = count[c * K + k];
+            count[c * K + k] = at;
+            at += here;
+        }
+    }
+    order.start[K] = at;
+    for (const Box3& b : boxes) order.bounds.extend(b);
+    scratch.resize(n);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        for (std::size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i)
+            scratch[count[c * K + bucket[i]]++] = edges[i];
+    });
+    edges.swap(scratch);
+    return order;
+}
+
+std::size_t penumbraPrefix(const PenumbraOrder& order, const CameraRays& camera, double nearPlane,
+                           double maxPenumbraPixels) {
+    constexpr int K = PenumbraOrder::kBuckets;
+    const std::size_t all = order.start[K];
+    if (!(maxPenumbraPixels > 0) || order.start[2] == all) return all;
+    // The largest view depth of the bounded edges' endpoints: a linear function's maximum
+    // over the box is at a corner. projectEdge drops an edge when both penumbrae exceed
+    // limit × max(depth, nearPlane) at their ends, which is at most limit × deepest; a bucket
+    // whose narrowest penumbra exceeds that (with a margin for rounding) is dropped whole.
+    const Box3& b = order.bounds;
+    double deepest = nearPlane;
+    for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 p(corner & 1 ? b.hi.x : b.lo.x, corner & 2 ? b.hi.y : b.lo.y,
+                     corner & 4 ? b.hi.z : b.lo.z);
+        deepest = std::max(deepest, glm::dot(p - camera.origin(), camera.forward()));
+    }
+    if (!std::isfinite(deepest)) return all;
+    const double widest =
+        maxPenumbraPixels / camera.pixelsPerUnit() * deepest * (1.0 + 1e-9) + 1e-300;
+    for (int k = 2; k < K; ++k)
+        if (std::ldexp(1.0, k - 32) > widest) return order.start[k];
+    return all;
 }
 
 // ---------------------------------------------------------------------------------------------

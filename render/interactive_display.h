@@ -24,8 +24,10 @@
 // "Total" of Table 2 with the shader in another process; `shadeMs` is the synchronous shading
 // of the frame's requests on the same cores (0 in asynchronous mode).
 
+#include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -176,6 +178,16 @@ struct ConvergedReferenceOptions {
     int shadowMaxRefinedPerAxis = 16;
     int shadowDecisionPerAxis = 4;
     std::string toString() const;
+};
+
+/// Shadow edges in order of their narrower penumbra, for projectEpiEdges' penumbra test:
+/// bucket k ≥ 2 holds the edges with min(penumbraA, penumbraB) in [2^(k−32), 2^(k−31)) (the
+/// last one everything wider), bucket 0 those with a zero, non-finite or non-finite-ended
+/// one (always projected), bucket 1 the narrower rest.
+struct PenumbraOrder {
+    static constexpr int kBuckets = 64;
+    std::array<std::size_t, kBuckets + 1> start{};  ///< bucket k is [start[k], start[k + 1])
+    Box3 bounds;                                    ///< every finite endpoint of the bucketed edges
 };
 
 /// The display for one Discretization/RayTracer and the ProgressiveSolver over them. Not
@@ -338,7 +350,9 @@ private:
     EdgeFinder mEdges;
     EdgePointImage mEpi;
 
-    std::vector<WorldEdge> mShadowEdges;  ///< cached world shadow edges
+    std::vector<WorldEdge> mShadowEdges;  ///< cached world shadow edges, by penumbra
+    PenumbraOrder mShadowOrder;           ///< mShadowEdges' buckets
+    std::vector<WorldEdge> mShadowScratch;
     bool mShadowsStale = true;
     double mLastShadowUpdateMs = 0;
     std::vector<ScreenEdge> mScreenEdges;  ///< the last frame's edges that may mark the EPI
@@ -363,10 +377,25 @@ std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const 
 /// allocations kept, as `scratch`'s, working space). An EdgePointImage of the camera's size
 /// built from `out` equals one built from projectEdges' result bit for bit. Chunks of edges in
 /// parallel (oneTBB) unless `parallel` is false.
+void projectEpiEdges(const std::vector<std::span<const WorldEdge>>& lists, const CameraRays& camera,
+                     double nearPlane, std::vector<ScreenEdge>& out,
+                     std::vector<ScreenEdge>& scratch, bool parallel = true,
+                     double maxPenumbraPixels = 0);
+/// The same over whole vectors.
 void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
                      const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
                      std::vector<ScreenEdge>& scratch, bool parallel = true,
                      double maxPenumbraPixels = 0);
+
+/// Reorders `edges` into penumbra buckets, each in its former order (chunks in parallel;
+/// `scratch` is working space).
+PenumbraOrder orderByPenumbra(std::vector<WorldEdge>& edges, std::vector<WorldEdge>& scratch);
+/// How many leading edges of a list ordered by orderByPenumbra projectEdge can keep for this
+/// camera: every edge after them is wider than maxPenumbraPixels at both ends at any depth of
+/// `order.bounds` in front of the near plane, so projectEdge would drop it. All of them when
+/// maxPenumbraPixels ≤ 0.
+std::size_t penumbraPrefix(const PenumbraOrder& order, const CameraRays& camera, double nearPlane,
+                           double maxPenumbraPixels);
 
 /// Root mean square difference over all pixels and channels (linear values). Throws
 /// std::invalid_argument when the sizes differ.

@@ -145,5 +145,72 @@ TEST(ProjectEdges, ParallelProjectionEqualsTheSerialOneLessUnmarkableEdges) {
     EXPECT_EQ(full.reconstruct(true).pixels, fast.reconstruct(true).pixels);
 }
 
+TEST(ProjectEdges, EdgesAfterThePenumbraPrefixAreAllDroppedAndTheOrderKeepsEveryEdge) {
+    // Soft shadow edges with penumbrae from 1e-4 to 10 m (log-uniform), hard ones, and a few
+    // with a non-finite end or width, seen by cameras inside and outside their bounds.
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<WorldEdge> edges;
+    for (int i = 0; i < 20000; ++i) {
+        WorldEdge e;
+        e.a = Vec3(8 * u(rng) - 4, 3 * u(rng), 8 * u(rng) - 4);
+        e.b = e.a + 0.05 * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+        e.kind = EdgeKind::Shadow;
+        e.edge = i;
+        if (i % 10 != 0) {
+            e.penumbraA = std::pow(10.0, -4 + 5 * u(rng));
+            e.penumbraB = std::pow(10.0, -4 + 5 * u(rng));
+        }
+        if (i % 997 == 0) e.a.x = std::nan("");
+        if (i % 1009 == 0) e.penumbraB = HUGE_VAL;
+        edges.push_back(e);
+    }
+    std::vector<WorldEdge> ordered = edges, scratch;
+    const PenumbraOrder order = orderByPenumbra(ordered, scratch);
+    // A permutation, each bucket in the input order.
+    ASSERT_EQ(ordered.size(), edges.size());
+    ASSERT_EQ(order.start[PenumbraOrder::kBuckets], edges.size());
+    std::vector<int> seen(edges.size(), 0);
+    for (int k = 0; k < PenumbraOrder::kBuckets; ++k)
+        for (std::size_t i = order.start[k]; i < order.start[k + 1]; ++i) {
+            ++seen[ordered[i].edge];
+            if (i > order.start[k]) {
+                EXPECT_LT(ordered[i - 1].edge, ordered[i].edge);
+            }
+            const double m = std::min(ordered[i].penumbraA, ordered[i].penumbraB);
+            if (k >= 2 && k + 1 < PenumbraOrder::kBuckets) {
+                EXPECT_GE(m, std::ldexp(1.0, k - 32));
+                EXPECT_LT(m, std::ldexp(1.0, k - 31));
+            }
+        }
+    for (int n : seen) ASSERT_EQ(n, 1);
+    int cameras = 0;
+    std::size_t skipped = 0;
+    for (const Vec3& position : {Vec3(0, 2, 12), Vec3(0.5, 1, 0.3), Vec3(-20, 30, 5)}) {
+        for (double pixels : {0.0, 0.5, 2.0, 40.0}) {
+            Camera c;
+            c.position = position;
+            c.lookAt = Vec3(0, 0.5, 0);
+            c.up = Vec3(0, 1, 0);
+            c.fovDeg = 50;
+            const CameraRays camera(c, 320, 240);
+            const std::size_t prefix = penumbraPrefix(order, camera, 1e-3, pixels);
+            ASSERT_LE(prefix, ordered.size());
+            if (!(pixels > 0)) {
+                EXPECT_EQ(prefix, ordered.size());
+            }
+            // Everything after the prefix is what projectEdge drops.
+            const std::vector<WorldEdge> rest(ordered.begin() + static_cast<std::ptrdiff_t>(prefix),
+                                              ordered.end());
+            EXPECT_TRUE(projectEdges(rest, camera, 1e-3, pixels).empty())
+                << "camera " << cameras << ", " << pixels << " pixels";
+            skipped += ordered.size() - prefix;
+            ++cameras;
+        }
+    }
+    // Not vacuous: the prefixes leave out many edges.
+    EXPECT_GT(skipped, edges.size() / 2);
+}
+
 }  // namespace
 }  // namespace penumbra
