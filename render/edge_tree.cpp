@@ -577,8 +577,7 @@ void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::ve
     }
 }
 
-void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth,
-                                        std::vector<SilhouetteRecord>& out,
+void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth, std::vector<int>& out,
                                         EdgeTreeStats* stats) const {
     if (mRecords.empty()) return;
     const double h = std::max(0.0, halfWidth);
@@ -629,7 +628,7 @@ void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth,
             const bool mixed1 = mixed(r.n1, r.d1, side1);
             // Both faces on one fixed side over the whole cube: never a silhouette there.
             if (!mixed0 && !mixed1 && side0 == side1) continue;
-            out.push_back(r);
+            out.push_back(i);
         }
         tested += last - node.begin;
         if (node.child >= 0) {
@@ -643,11 +642,13 @@ void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth,
     }
 }
 
-void EdgeTree::silhouettesAmong(const Vec3& eye, const std::vector<SilhouetteRecord>& candidates,
-                                std::vector<int>& out) {
+void EdgeTree::silhouettesAmong(const Vec3& eye, const std::vector<int>& candidates,
+                                std::vector<int>& out) const {
     const double e[3] = {eye.x, eye.y, eye.z};
-    for (const SilhouetteRecord& r : candidates)
+    for (int i : candidates) {
+        const Record& r = mRecords[i];
         if (seenFrom(r.n0, r.d0, e) != seenFrom(r.n1, r.d1, e)) out.push_back(r.edge);
+    }
 }
 
 std::string EdgeTree::toString() const {
