@@ -464,9 +464,20 @@ bool edgeMayMark(const ScreenEdge& e, int width, int height) {
     // Lines y = k/2 crossed are k in [⌊2·ymin⌋ + 1, ⌊2·ymax⌋] (rasterizeEdge's kFirst, kLast
     // before clamping), lines x = k/2 likewise: none when both ends share a half-pixel cell.
     // (A degenerate edge is such a case.)
-    // (floorExact is std::floor bit for bit, without the libm call.)
-    if (detail::floorExact(2.0 * xmin) == detail::floorExact(2.0 * xmax) &&
-        detail::floorExact(2.0 * ymin) == detail::floorExact(2.0 * ymax)) {
+    // (floorExact is std::floor bit for bit, without the libm call. Below 2^50, where a
+    // truncation to integer is exact, the same floors without branches: whether an edge this
+    // small is kept follows no pattern, so a branch per floor mispredicted often.)
+    constexpr double kSmall = 1125899906842624.0;  // 2^50
+    if (std::max(std::max(-xmin, xmax), std::max(-ymin, ymax)) < 0.5 * kSmall) {
+        auto floorSmall = [](double v) {
+            const double t = static_cast<double>(static_cast<long long>(v));
+            return t - (t > v ? 1.0 : 0.0);
+        };
+        const bool sameColumn = floorSmall(2.0 * xmin) == floorSmall(2.0 * xmax);
+        const bool sameRow = floorSmall(2.0 * ymin) == floorSmall(2.0 * ymax);
+        if (sameColumn & sameRow) return false;
+    } else if (detail::floorExact(2.0 * xmin) == detail::floorExact(2.0 * xmax) &&
+               detail::floorExact(2.0 * ymin) == detail::floorExact(2.0 * ymax)) {
         return false;
     }
     // Outside the image. Crossings of lines x = c have x exact and y = a.y + t·d.y with
