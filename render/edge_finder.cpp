@@ -232,7 +232,7 @@ void EdgeFinder::appendSilhouettes(int o, const Vec3& eye, std::vector<int>& ids
         if (inCube()) {
             const auto& boundary = obj.tree->mesh().boundaryEdges();
             ids.assign(boundary.begin(), boundary.end());
-            obj.tree->silhouettesAmong(local, cache->candidates, ids);
+            EdgeTree::silhouettesAmong(local, cache->candidates, ids);
         } else {
             obj.tree->findSilhouettes(local, ids);
         }

@@ -208,7 +208,7 @@ private:
         double halfWidth = -1;  ///< < 0: no cube
         Vec3 lastEye{0.0};
         bool hasLast = false;
-        std::vector<int> candidates;  ///< EdgeTree::findSilhouetteCandidates' list
+        std::vector<EdgeTree::SilhouetteRecord> candidates;
     };
     /// Appends object `o`'s silhouettes from `eye` to `out`; `ids` is scratch. With a cache,
     /// from its candidates while the eye is in its cube (a new cube when the eye left it

@@ -577,7 +577,8 @@ void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::ve
     }
 }
 
-void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth, std::vector<int>& out,
+void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth,
+                                        std::vector<SilhouetteRecord>& out,
                                         EdgeTreeStats* stats) const {
     if (mRecords.empty()) return;
     const double h = std::max(0.0, halfWidth);
@@ -628,7 +629,7 @@ void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth, st
             const bool mixed1 = mixed(r.n1, r.d1, side1);
             // Both faces on one fixed side over the whole cube: never a silhouette there.
             if (!mixed0 && !mixed1 && side0 == side1) continue;
-            out.push_back(i);
+            out.push_back(r);
         }
         tested += last - node.begin;
         if (node.child >= 0) {
@@ -642,13 +643,11 @@ void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth, st
     }
 }
 
-void EdgeTree::silhouettesAmong(const Vec3& eye, const std::vector<int>& candidates,
-                                std::vector<int>& out) const {
+void EdgeTree::silhouettesAmong(const Vec3& eye, const std::vector<SilhouetteRecord>& candidates,
+                                std::vector<int>& out) {
     const double e[3] = {eye.x, eye.y, eye.z};
-    for (int i : candidates) {
-        const Record& r = mRecords[i];
+    for (const SilhouetteRecord& r : candidates)
         if (seenFrom(r.n0, r.d0, e) != seenFrom(r.n1, r.d1, e)) out.push_back(r.edge);
-    }
 }
 
 std::string EdgeTree::toString() const {

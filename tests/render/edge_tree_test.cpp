@@ -329,7 +329,7 @@ void checkCubeCandidates(const std::string& file) {
     for (const Vec3& centre : randomEyes(b, 12, 5)) {
         for (double relative : {0.0, 1e-4, 3e-3, 0.1}) {
             const double h = relative * size;
-            std::vector<int> candidates;
+            std::vector<EdgeTree::SilhouetteRecord> candidates;
             tree.findSilhouetteCandidates(centre, h, candidates);
             ++cubes;
             std::vector<Vec3> inCube = {centre};
@@ -342,7 +342,7 @@ void checkCubeCandidates(const std::string& file) {
                 tree.findSilhouettes(eye, expected);
                 const auto& boundary = mesh->boundaryEdges();
                 std::vector<int> got(boundary.begin(), boundary.end());
-                tree.silhouettesAmong(eye, candidates, got);
+                EdgeTree::silhouettesAmong(eye, candidates, got);
                 ASSERT_EQ(got, expected) << file << " cube " << cubes << " (half-width " << h
                                          << "), " << candidates.size() << " candidates";
                 std::vector<int> brute;
