@@ -186,59 +186,12 @@ void EdgeFinder::setLightAlive(int light, bool alive) {
 // Silhouettes and sharp edges
 
 void EdgeFinder::appendSilhouettes(int o, const Vec3& eye, std::vector<int>& ids,
-                                   std::vector<WorldEdge>& out, SilhouetteCache* cache) const {
+                                   std::vector<WorldEdge>& out) const {
     const Object& obj = mObjects[o];
     if (!obj.alive) return;
     ids.clear();
     // Object-space query (§6.5): the eye moves into the object, the tree stays.
-    const Vec3 local = apply(obj.objectFromWorld, eye);
-    if (!cache) {
-        obj.tree->findSilhouettes(local, ids);
-    } else {
-        if (cache->tree != obj.tree) {
-            *cache = SilhouetteCache{};
-            cache->tree = obj.tree;
-        }
-        const auto inCube = [&] {
-            const Vec3 d = glm::abs(local - cache->centre);
-            return cache->halfWidth >= 0 && std::max(d.x, std::max(d.y, d.z)) <= cache->halfWidth;
-        };
-        if (!inCube()) {
-            cache->halfWidth = -1;
-            cache->candidates.clear();
-            // A new cube when the eye moved smoothly since the last query: a step s at most
-            // kSmoothStep of the distance to the object. Its half-width is (6 + o mod 5)·s and
-            // it reaches three steps back, so a steady motion stays in it for 9 to 17 more
-            // calls, and objects that started together renew their cubes in different frames
-            // (a still eye gets a cube of its own point). The candidates cost about 2.5
-            // traversals once; each call in the cube tests only them, about 1.8 times the
-            // silhouettes on armadillo-field's orbit (0.5° a frame).
-            constexpr double kSmoothStep = 0.05;
-            if (cache->hasLast) {
-                const Vec3 step = local - cache->lastEye;
-                const double s = glm::length(step);
-                const Box3& b = obj.tree->mesh().bounds();
-                const double size = glm::length(b.hi - b.lo);
-                const double distance = glm::length(local - b.centre());
-                if (std::isfinite(s) && s <= kSmoothStep * distance) {
-                    const double reach = 6.0 + o % 5;
-                    cache->centre = local + (reach - 3.0) * step;
-                    cache->halfWidth = std::max(reach * s, 1e-9 * size);
-                    obj.tree->findSilhouetteCandidates(cache->centre, cache->halfWidth,
-                                                       cache->candidates);
-                }
-            }
-        }
-        if (inCube()) {
-            const auto& boundary = obj.tree->mesh().boundaryEdges();
-            ids.assign(boundary.begin(), boundary.end());
-            EdgeTree::silhouettesAmong(local, cache->candidates, ids);
-        } else {
-            obj.tree->findSilhouettes(local, ids);
-        }
-        cache->lastEye = local;
-        cache->hasLast = true;
-    }
+    obj.tree->findSilhouettes(apply(obj.objectFromWorld, eye), ids);
     const EdgeMesh& mesh = obj.tree->mesh();
     out.reserve(out.size() + ids.size());
     for (int id : ids)
@@ -256,11 +209,9 @@ void EdgeFinder::findSilhouettes(const Vec3& eye, std::vector<std::vector<WorldE
                                  bool parallel) const {
     const int n = static_cast<int>(mObjects.size());
     perObject.resize(mObjects.size());
-    if (mOptions.coherentSilhouettes) mSilhouetteCaches.resize(mObjects.size());
     auto one = [&](int o, std::vector<int>& ids) {
         perObject[o].clear();
-        appendSilhouettes(o, eye, ids, perObject[o],
-                          mOptions.coherentSilhouettes ? &mSilhouetteCaches[o] : nullptr);
+        appendSilhouettes(o, eye, ids, perObject[o]);
     };
     if (!parallel) {
         std::vector<int> ids;

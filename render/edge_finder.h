@@ -68,11 +68,6 @@ struct EdgeFinderOptions {
     /// Reference mode for tests: every receiver whose bounds meet an event is intersected
     /// whole, and no event is dropped as self-hidden (no front-to-back early outs).
     bool exhaustiveShadows = false;
-    /// Frame-to-frame coherence of the per-object silhouette query: while the eye moves
-    /// smoothly, each object keeps the candidate edges of a small cube of eyes ahead of it and
-    /// tests only those (EdgeTree::silhouettesAmong: the same edges in the same order). Off:
-    /// every call traverses the edge trees.
-    bool coherentSilhouettes = true;
 };
 
 class EdgeFinder {
@@ -200,21 +195,9 @@ private:
         std::vector<unsigned> computedAt;
     };
     struct Counters;
-    /// Per object, for the per-object findSilhouettes: the silhouette candidates of a cube of
-    /// eyes (object space) and the eye of the last query.
-    struct SilhouetteCache {
-        std::shared_ptr<const EdgeTree> tree;  ///< whose records `candidates` are
-        Vec3 centre{0.0};
-        double halfWidth = -1;  ///< < 0: no cube
-        Vec3 lastEye{0.0};
-        bool hasLast = false;
-        std::vector<EdgeTree::SilhouetteRecord> candidates;
-    };
-    /// Appends object `o`'s silhouettes from `eye` to `out`; `ids` is scratch. With a cache,
-    /// from its candidates while the eye is in its cube (a new cube when the eye left it
-    /// moving smoothly), else from the tree.
+    /// Appends object `o`'s silhouettes from `eye` to `out`; `ids` is scratch.
     void appendSilhouettes(int o, const Vec3& eye, std::vector<int>& ids,
-                           std::vector<WorldEdge>& out, SilhouetteCache* cache = nullptr) const;
+                           std::vector<WorldEdge>& out) const;
     /// Appends object `o`'s sharp edges with a front-facing adjacent face seen from `eye`.
     void appendFacingSharpEdges(int o, const Vec3& eye, std::vector<WorldEdge>& out) const;
     /// Rebuilds a pair's events, frames and boxes (not its edges).
@@ -250,8 +233,6 @@ private:
     std::vector<unsigned> mChangedAt;  ///< per object: the call that last saw it change
     Box3 mSceneBox;                    ///< every object and light; event regions are clipped to it
     EdgeFinderStats mStats;
-    /// Per object (the per-object findSilhouettes; each task touches only its own entry).
-    mutable std::vector<SilhouetteCache> mSilhouetteCaches;
 };
 
 /// An area light for an emitting planar object: the convex hull of its world vertices, counter-

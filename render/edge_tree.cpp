@@ -57,11 +57,6 @@ struct CellKeyHash {
     }
 };
 
-/// Eq. 1's side of a face from eye e, as findSilhouettes and silhouettesAmong compute it.
-inline bool seenFrom(const double n[3], double d, const double e[3]) {
-    return n[0] * e[0] + n[1] * e[1] + n[2] * e[2] - d > 0;
-}
-
 }  // namespace
 
 EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces,
@@ -515,7 +510,9 @@ void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, EdgeTreeS
         int last = node.child < 0 ? node.end : node.begin + node.stored;
         for (int i = node.begin; i < last; ++i) {
             const Record& r = mRecords[i];
-            if (seenFrom(r.n0, r.d0, e) != seenFrom(r.n1, r.d1, e)) out.push_back(r.edge);  // eq. 1
+            bool front0 = r.n0[0] * e[0] + r.n0[1] * e[1] + r.n0[2] * e[2] - r.d0 > 0;
+            bool front1 = r.n1[0] * e[0] + r.n1[1] * e[1] + r.n1[2] * e[2] - r.d1 > 0;
+            if (front0 != front1) out.push_back(r.edge);  // eq. 1
         }
         tested += last - node.begin;
         if (node.child >= 0) {
@@ -575,79 +572,6 @@ void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::ve
         stats->nodesVisited += visited;
         stats->edgesTested += tested;
     }
-}
-
-void EdgeTree::findSilhouetteCandidates(const Vec3& centre, double halfWidth,
-                                        std::vector<SilhouetteRecord>& out,
-                                        EdgeTreeStats* stats) const {
-    if (mRecords.empty()) return;
-    const double h = std::max(0.0, halfWidth);
-    const double c[3] = {centre.x, centre.y, centre.z};
-    // A plane n·x − d over the cube spans n·c − d ± h·Σ|n_k|. Rounding in eq. 1's sum is a few
-    // ulp of its terms; the slack (1e-9 of their magnitude) keeps every edge whose sides could
-    // come out different for some eye of the cube.
-    auto mixed = [&](const double n[3], double d, int& side) {
-        const double mid = n[0] * c[0] + n[1] * c[1] + n[2] * c[2] - d;
-        const double reach = h * (std::abs(n[0]) + std::abs(n[1]) + std::abs(n[2]));
-        const double slack =
-            1e-9 * (std::abs(n[0]) * (std::abs(c[0]) + h) + std::abs(n[1]) * (std::abs(c[1]) + h) +
-                    std::abs(n[2]) * (std::abs(c[2]) + h) + std::abs(d));
-        if (mid - reach > slack) {
-            side = 1;  // seen from every eye of the cube
-            return false;
-        }
-        if (mid + reach < -slack) {
-            side = 0;  // seen from none
-            return false;
-        }
-        return true;
-    };
-    long long visited = 0, tested = 0;
-    int stack[128];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const Node& node = mNodes[stack[--top]];
-        ++visited;
-        // findSilhouettes' node test with the cube as an interval eye: [N]·([e] − c) − [d].
-        double lo = 0, hi = 0, mag = 0;
-        for (int k = 0; k < 3; ++k) {
-            const double w0 = c[k] - h - node.c[k], w1 = c[k] + h - node.c[k];
-            const double p0 = node.nLo[k] * w0, p1 = node.nLo[k] * w1, p2 = node.nHi[k] * w0,
-                         p3 = node.nHi[k] * w1;
-            lo += std::min(std::min(p0, p1), std::min(p2, p3));
-            hi += std::max(std::max(p0, p1), std::max(p2, p3));
-            mag += std::max(std::abs(w0), std::abs(w1)) + std::abs(node.c[k]);
-        }
-        const double tol = 1e-9 * (mag + std::abs(node.dLo) + std::abs(node.dHi));
-        if (lo - node.dHi > tol || hi - node.dLo < -tol) continue;
-        const int last = node.child < 0 ? node.end : node.begin + node.stored;
-        for (int i = node.begin; i < last; ++i) {
-            const Record& r = mRecords[i];
-            int side0 = -1, side1 = -1;
-            const bool mixed0 = mixed(r.n0, r.d0, side0);
-            const bool mixed1 = mixed(r.n1, r.d1, side1);
-            // Both faces on one fixed side over the whole cube: never a silhouette there.
-            if (!mixed0 && !mixed1 && side0 == side1) continue;
-            out.push_back(r);
-        }
-        tested += last - node.begin;
-        if (node.child >= 0) {
-            stack[top++] = node.child;
-            stack[top++] = node.child + 1;
-        }
-    }
-    if (stats) {
-        stats->nodesVisited += visited;
-        stats->edgesTested += tested;
-    }
-}
-
-void EdgeTree::silhouettesAmong(const Vec3& eye, const std::vector<SilhouetteRecord>& candidates,
-                                std::vector<int>& out) {
-    const double e[3] = {eye.x, eye.y, eye.z};
-    for (const SilhouetteRecord& r : candidates)
-        if (seenFrom(r.n0, r.d0, e) != seenFrom(r.n1, r.d1, e)) out.push_back(r.edge);
 }
 
 std::string EdgeTree::toString() const {

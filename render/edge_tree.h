@@ -168,26 +168,6 @@ public:
     void findSilhouetteCandidates(const std::vector<Vec3>& region, std::vector<int>& out,
                                   EdgeTreeStats* stats = nullptr) const;
 
-    /// An interior edge's two face planes as the tree keeps them (face f is seen from x when
-    /// n_f·x − d_f > 0).
-    struct SilhouetteRecord {
-        double n0[3], d0;
-        double n1[3], d1;
-        int edge;
-    };
-    /// Appends the records of every interior edge that is a silhouette by eq. 1 from some eye
-    /// of the cube |eye − centre|∞ ≤ halfWidth (object space): nodes are tested with the cube
-    /// as an interval eye, records by each plane's exact range over the cube, with a slack
-    /// for rounding (a superset). Boundary edges are not records (findSilhouettes adds them).
-    void findSilhouetteCandidates(const Vec3& centre, double halfWidth,
-                                  std::vector<SilhouetteRecord>& out,
-                                  EdgeTreeStats* stats = nullptr) const;
-    /// Eq. 1 from `eye` over `candidates`, with findSilhouettes' own arithmetic: appends the
-    /// ids of the candidates that are silhouettes, in their order. For candidates of a cube
-    /// holding the eye, these and the boundary edges are exactly findSilhouettes' edges.
-    static void silhouettesAmong(const Vec3& eye, const std::vector<SilhouetteRecord>& candidates,
-                                 std::vector<int>& out);
-
     const EdgeMesh& mesh() const { return *mMesh; }
     const std::shared_ptr<const EdgeMesh>& meshPtr() const { return mMesh; }
     int nodeCount() const { return static_cast<int>(mNodes.size()); }
@@ -204,7 +184,11 @@ private:
         int child = -1;             ///< children child, child + 1; -1 for a leaf
     };
     /// An interior edge's two face planes, in tree order.
-    using Record = SilhouetteRecord;
+    struct Record {
+        double n0[3], d0;
+        double n1[3], d1;
+        int edge;
+    };
     /// An interior edge while the tree is built: the interval vector of its face normals.
     struct BuildItem {
         double lo[3], hi[3];
