@@ -50,15 +50,6 @@ Vec3 CameraRays::rayDirection(double px, double py) const {
     return glm::normalize(mForward + x * mRight + y * mUp);
 }
 
-std::optional<glm::dvec2> CameraRays::projectToPixel(const Vec3& world) const {
-    const Vec3 d = world - mOrigin;
-    const double depth = glm::dot(d, mForward);
-    if (!(depth > 0.0)) return std::nullopt;
-    const double x = glm::dot(d, mRight) / depth;
-    const double y = glm::dot(d, mUp) / depth;
-    return glm::dvec2((x / mTanHalfX + 1.0) * 0.5 * mWidth, (1.0 - y / mTanHalfY) * 0.5 * mHeight);
-}
-
 std::string CameraRays::toString() const {
     std::ostringstream out;
     out << "CameraRays{origin (" << mOrigin.x << ", " << mOrigin.y << ", " << mOrigin.z
