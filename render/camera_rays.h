@@ -26,20 +26,17 @@ public:
     /// Unit world-space direction of the ray through pixel coordinates (px, py).
     Vec3 rayDirection(double px, double py) const;
     /// Pixel coordinates (px, py) where a world point projects; empty when the point is not
-    /// in front of the camera. The result may lie outside the raster. (Inline: the render
-    /// cache projects every point each frame, and its caller computes the same view depth.)
+    /// in front of the camera. The result may lie outside the raster. One division (the
+    /// render cache projects every cached point each frame); inline, as its caller computes
+    /// the same view depth.
     std::optional<glm::dvec2> projectToPixel(const Vec3& world) const {
-        const Vec3 d = world - mOrigin;
-        const double depth = glm::dot(d, mForward);
+        const double depth = glm::dot(world - mOrigin, mForward);
         if (!(depth > 0.0)) return std::nullopt;
-        const double x = glm::dot(d, mRight) / depth;
-        const double y = glm::dot(d, mUp) / depth;
-        return glm::dvec2((x / mTanHalfX + 1.0) * 0.5 * mWidth,
-                          (1.0 - y / mTanHalfY) * 0.5 * mHeight);
+        return projectAtDepth(world, depth);
     }
     /// projectToPixel for a point whose view depth dot(world − origin, forward) is known and
-    /// positive, with the constants folded: one division (the edges' per-frame projection).
-    /// Agrees with projectToPixel to rounding.
+    /// positive: the view-space coordinates scaled to pixels (mPixelRight, mPixelUp) over the
+    /// depth.
     glm::dvec2 projectAtDepth(const Vec3& world, double depth) const {
         const Vec3 d = world - mOrigin;
         const double inv = 1.0 / depth;
