@@ -717,15 +717,6 @@ std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const 
     return out;
 }
 
-void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
-                     const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
-                     std::vector<ScreenEdge>& scratch, bool parallel, double maxPenumbraPixels) {
-    std::vector<std::span<const WorldEdge>> spans;
-    spans.reserve(lists.size());
-    for (const std::vector<WorldEdge>* list : lists) spans.emplace_back(*list);
-    projectEpiEdges(spans, camera, nearPlane, out, scratch, parallel, maxPenumbraPixels);
-}
-
 void projectEpiEdges(const std::vector<std::span<const WorldEdge>>& lists, const CameraRays& camera,
                      double nearPlane, std::vector<ScreenEdge>& out,
                      std::vector<ScreenEdge>& scratch, bool parallel, double maxPenumbraPixels) {

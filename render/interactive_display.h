@@ -372,18 +372,13 @@ private:
 std::vector<ScreenEdge> projectEdges(const std::vector<WorldEdge>& edges, const CameraRays& camera,
                                      double nearPlane = 1e-3, double maxPenumbraPixels = 0);
 
-/// projectEdges over the concatenation of `*lists[0]`, `*lists[1]`, … less the edges
+/// projectEdges over the concatenation of `lists[0]`, `lists[1]`, … less the edges
 /// edgeMayMark() rejects for the camera's raster, in input order, into `out` (overwritten;
 /// allocations kept, as `scratch`'s, working space). An EdgePointImage of the camera's size
 /// built from `out` equals one built from projectEdges' result bit for bit. Chunks of edges in
 /// parallel (oneTBB) unless `parallel` is false.
 void projectEpiEdges(const std::vector<std::span<const WorldEdge>>& lists, const CameraRays& camera,
                      double nearPlane, std::vector<ScreenEdge>& out,
-                     std::vector<ScreenEdge>& scratch, bool parallel = true,
-                     double maxPenumbraPixels = 0);
-/// The same over whole vectors.
-void projectEpiEdges(const std::vector<const std::vector<WorldEdge>*>& lists,
-                     const CameraRays& camera, double nearPlane, std::vector<ScreenEdge>& out,
                      std::vector<ScreenEdge>& scratch, bool parallel = true,
                      double maxPenumbraPixels = 0);
 

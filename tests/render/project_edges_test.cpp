@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <random>
+#include <span>
 #include <vector>
 
 #include "render/interactive_display.h"
@@ -60,7 +61,7 @@ TEST(ProjectEdges, SoftShadowEdgesWithAWidePenumbraAtBothEndsAreDropped) {
         EXPECT_TRUE(sameScreenEdge(kept[k], all[k + 1])) << "edge " << k + 1;
     // The parallel projection applies the same rule.
     std::vector<ScreenEdge> out, scratch;
-    const std::vector<const std::vector<WorldEdge>*> lists = {&edges};
+    const std::vector<std::span<const WorldEdge>> lists = {edges};
     projectEpiEdges(lists, camera, 1e-3, out, scratch, true, 3.0);
     ASSERT_EQ(out.size(), 4u);
     for (std::size_t k = 0; k < out.size(); ++k) EXPECT_TRUE(sameScreenEdge(out[k], kept[k]));
@@ -93,10 +94,10 @@ TEST(ProjectEdges, ParallelProjectionEqualsTheSerialOneLessUnmarkableEdges) {
             e.object = l;
             lists[l].push_back(e);
         }
-    std::vector<const std::vector<WorldEdge>*> pointers;
+    std::vector<std::span<const WorldEdge>> spans;
     std::vector<WorldEdge> all;
     for (const auto& list : lists) {
-        pointers.push_back(&list);
+        spans.emplace_back(list);
         all.insert(all.end(), list.begin(), list.end());
     }
     const double near = 0.05;
@@ -111,7 +112,7 @@ TEST(ProjectEdges, ParallelProjectionEqualsTheSerialOneLessUnmarkableEdges) {
     // Output and scratch reused with stale content, parallel and serial.
     std::vector<ScreenEdge> out(5), scratch(70000);
     for (bool parallel : {true, false, true}) {
-        projectEpiEdges(pointers, camera, near, out, scratch, parallel);
+        projectEpiEdges(spans, camera, near, out, scratch, parallel);
         ASSERT_EQ(out.size(), expected.size()) << "parallel " << parallel;
         int differing = 0;
         for (std::size_t k = 0; k < out.size(); ++k)
