@@ -615,6 +615,10 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
                     top = std::max(top, p);
                 }
             const std::size_t take = std::min<std::size_t>(want, cand.size());
+            // Candidate c's sort key: its priority and its tie-break draw.
+            auto keyOf = [&](std::size_t c) {
+                return cand[c].first + 1e-9 * CacheRandom::at(seed, first + c);
+            };
             if (take == 1) {
                 // Most tiles take one: the first largest p + 1e-9·draw (as the partial sort
                 // below keeps it), whose draw in [0, 1) can lift only a p within 1e-9 of the
@@ -623,13 +627,12 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
                 double bestKey = -1;
                 for (std::size_t c = 0; c < cand.size(); ++c) {
                     if (cand[c].first + 2e-9 < top) continue;
-                    const double key = cand[c].first + 1e-9 * CacheRandom::at(seed, first + c);
+                    const double key = keyOf(c);
                     if (key > bestKey) best = c, bestKey = key;
                 }
                 cand[0] = {bestKey, cand[best].second};
             } else {
-                for (std::size_t c = 0; c < cand.size(); ++c)
-                    cand[c].first += 1e-9 * CacheRandom::at(seed, first + c);
+                for (std::size_t c = 0; c < cand.size(); ++c) cand[c].first = keyOf(c);
                 std::partial_sort(cand.begin(), cand.begin() + take, cand.end(),
                                   [](const auto& a, const auto& b) { return a.first > b.first; });
             }
