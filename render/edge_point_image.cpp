@@ -589,17 +589,22 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
     const glm::dvec2 d = e.b - e.a;
     if (d.x == 0.0 && d.y == 0.0) return;  // degenerate: crosses nothing
 
-    // Perspective-correct depth along the edge: 1/z is affine in screen space.
+    // Perspective-correct depth along the edge: 1/z is affine in screen space, so at t
+    // z = zA·zB / (zB + t·(zA − zB)), and z > b exactly when zA·zB > b·(zB + t·(zA − zB))
+    // (both sides positive): the test needs no division. (An empty block's depth is +inf,
+    // which culls nothing.)
     const bool cull = mOptions.cullOccludedEdges && std::isfinite(e.depthA) &&
                       std::isfinite(e.depthB) && e.depthA > 0.0 && e.depthB > 0.0;
-    const double invA = cull ? 1.0 / e.depthA : 0.0;
-    const double invB = cull ? 1.0 / e.depthB : 0.0;
+    const double depthProduct = e.depthA * e.depthB;
+    const double depthStep = e.depthA - e.depthB;
+    // x and y are in [0, W] × [0, H] here (the callers' range checks), so a shift is the
+    // division by the block size.
     auto occluded = [&](double t, double x, double y) {
         if (!cull) return false;
-        const double z = 1.0 / (invA + t * (invB - invA));
-        const int bx = std::clamp(static_cast<int>(x) / 4, 0, mBlocksX - 1);
-        const int by = std::clamp(static_cast<int>(y) / 4, 0, mBlocksY - 1);
-        if (z > mBlockDepth[static_cast<size_t>(by) * mBlocksX + bx]) {
+        const int bx = std::min(static_cast<int>(x) >> 2, mBlocksX - 1);
+        const int by = std::min(static_cast<int>(y) >> 2, mBlocksY - 1);
+        const double block = mBlockDepth[static_cast<size_t>(by) * mBlocksX + bx];
+        if (depthProduct > block * (e.depthB + t * depthStep)) {
             ++culled;
             return true;
         }
@@ -651,8 +656,9 @@ void EdgePointImage::rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, in
         if (d.y != 0.0 && (rowLo > 0 || rowHi < H) && std::abs(d.y) > 1e-9 * std::abs(d.x)) {
             // Lines whose crossing may lie in the band's rows (a pixel of slack either side;
             // the row test below is exact).
-            const double xa = e.a.x + (rowLo - 1.0 - e.a.y) / d.y * d.x;
-            const double xb = e.a.x + (rowHi + 1.0 - e.a.y) / d.y * d.x;
+            const double slope = d.x / d.y;
+            const double xa = e.a.x + (rowLo - 1.0 - e.a.y) * slope;
+            const double xb = e.a.x + (rowHi + 1.0 - e.a.y) * slope;
             if (std::isfinite(xa) && std::isfinite(xb)) {
                 const double lo = std::clamp(detail::floorExact(2.0 * std::min(xa, xb)) - 1.0, -1.0,
                                              2.0 * W + 1.0);
