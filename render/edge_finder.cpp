@@ -31,6 +31,12 @@ double lightExtentAcross(const std::vector<Vec3>& light, const Vec3& normal) {
 
 Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
+/// apply() for an affine m (last row 0 0 0 1), inline and without the w row: the same sums
+/// in glm's order, (m0·x + m1·y) + (m2·z + m3), so the same bits.
+inline Vec3 applyAffine(const Mat4& m, const Vec3& p) {
+    return (Vec3(m[0]) * p.x + Vec3(m[1]) * p.y) + (Vec3(m[2]) * p.z + Vec3(m[3]));
+}
+
 /// Mesh edge `id` of object `o` in world space.
 WorldEdge meshWorldEdge(const Mat4& worldFromObject, const EdgeMesh& mesh, int id, EdgeKind kind,
                         int o) {
@@ -190,12 +196,22 @@ void EdgeFinder::appendSilhouettes(int o, const Vec3& eye, std::vector<int>& ids
     const Object& obj = mObjects[o];
     if (!obj.alive) return;
     ids.clear();
-    // Object-space query (§6.5): the eye moves into the object, the tree stays.
-    obj.tree->findSilhouettes(apply(obj.objectFromWorld, eye), ids);
-    const EdgeMesh& mesh = obj.tree->mesh();
+    thread_local std::vector<Vec3> ends;
+    ends.clear();
+    // Object-space query (§6.5): the eye moves into the object, the tree stays. The end
+    // points come with the ids, in the tree's order (a lookup through the mesh per edge
+    // missed the cache twice: most of the time of this conversion).
+    obj.tree->findSilhouettes(apply(obj.objectFromWorld, eye), ids, ends);
     out.reserve(out.size() + ids.size());
-    for (int id : ids)
-        out.push_back(meshWorldEdge(obj.worldFromObject, mesh, id, EdgeKind::Silhouette, o));
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+        WorldEdge w;
+        w.a = applyAffine(obj.worldFromObject, ends[2 * k]);
+        w.b = applyAffine(obj.worldFromObject, ends[2 * k + 1]);
+        w.kind = EdgeKind::Silhouette;
+        w.object = o;
+        w.edge = ids[k];
+        out.push_back(w);
+    }
 }
 
 std::vector<WorldEdge> EdgeFinder::findSilhouettes(const Vec3& eye) const {

@@ -355,6 +355,12 @@ EdgeTree::EdgeTree(std::shared_ptr<const EdgeMesh> mesh, int leafSize)
     buildNode(0, order, 0, static_cast<int>(order.size()));
     mItems.clear();
     mItems.shrink_to_fit();
+    mRecordEnds.reserve(2 * mRecords.size());
+    for (const Record& r : mRecords) {
+        const MeshEdge& e = m.edges()[r.edge];
+        mRecordEnds.push_back(m.positions()[e.v0]);
+        mRecordEnds.push_back(m.positions()[e.v1]);
+    }
 }
 
 void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) {
@@ -485,8 +491,8 @@ void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) 
 // ---------------------------------------------------------------------------------------------
 // EdgeTree traversal
 
-void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, EdgeTreeStats* stats) const {
-    for (int id : mMesh->boundaryEdges()) out.push_back(id);
+template <class Emit>
+void EdgeTree::traverseSilhouettes(const Vec3& eye, EdgeTreeStats* stats, Emit&& emit) const {
     if (mRecords.empty()) return;
     const double e[3] = {eye.x, eye.y, eye.z};
     long long visited = 0, tested = 0;
@@ -512,7 +518,7 @@ void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, EdgeTreeS
             const Record& r = mRecords[i];
             bool front0 = r.n0[0] * e[0] + r.n0[1] * e[1] + r.n0[2] * e[2] - r.d0 > 0;
             bool front1 = r.n1[0] * e[0] + r.n1[1] * e[1] + r.n1[2] * e[2] - r.d1 > 0;
-            if (front0 != front1) out.push_back(r.edge);  // eq. 1
+            if (front0 != front1) emit(i);  // eq. 1
         }
         tested += last - node.begin;
         if (node.child >= 0) {
@@ -524,6 +530,26 @@ void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, EdgeTreeS
         stats->nodesVisited += visited;
         stats->edgesTested += tested;
     }
+}
+
+void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, EdgeTreeStats* stats) const {
+    for (int id : mMesh->boundaryEdges()) out.push_back(id);
+    traverseSilhouettes(eye, stats, [&](int i) { out.push_back(mRecords[i].edge); });
+}
+
+void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, std::vector<Vec3>& ends,
+                               EdgeTreeStats* stats) const {
+    const EdgeMesh& m = *mMesh;
+    for (int id : m.boundaryEdges()) {
+        out.push_back(id);
+        ends.push_back(m.positions()[m.edges()[id].v0]);
+        ends.push_back(m.positions()[m.edges()[id].v1]);
+    }
+    traverseSilhouettes(eye, stats, [&](int i) {
+        out.push_back(mRecords[i].edge);
+        ends.push_back(mRecordEnds[2 * static_cast<std::size_t>(i)]);
+        ends.push_back(mRecordEnds[2 * static_cast<std::size_t>(i) + 1]);
+    });
 }
 
 void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::vector<int>& out,

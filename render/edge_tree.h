@@ -160,6 +160,11 @@ public:
     /// by eq. 1, boundary edges included; order unspecified.
     void findSilhouettes(const Vec3& eye, std::vector<int>& out,
                          EdgeTreeStats* stats = nullptr) const;
+    /// The same edges in the same order, each with its object-space end points (v0, v1)
+    /// appended to `ends`: read beside the tree's records, in their order, rather than
+    /// through the mesh's edge and vertex arrays at random.
+    void findSilhouettes(const Vec3& eye, std::vector<int>& out, std::vector<Vec3>& ends,
+                         EdgeTreeStats* stats = nullptr) const;
     /// Appends the ids of edges that may be a silhouette from some point of the convex
     /// polygon `region` (object space): internal nodes use the polygon's bounding box as an
     /// interval eye, leaves keep an edge unless both faces have every polygon vertex strictly
@@ -197,6 +202,9 @@ private:
         double centre(int k) const { return lo[k] + hi[k]; }
     };
     void buildNode(int slot, std::vector<int>& order, int begin, int end);
+    /// Eq. 1 over the tree: emit(record index) for each interior silhouette edge.
+    template <class Emit>
+    void traverseSilhouettes(const Vec3& eye, EdgeTreeStats* stats, Emit&& emit) const;
     std::vector<BuildItem> mItems;  ///< by edge id, during construction only
     double mRootSize = 0;           ///< mesh diagonal, during construction only
 
@@ -204,6 +212,7 @@ private:
     int mLeafSize;
     std::vector<Node> mNodes;
     std::vector<Record> mRecords;
+    std::vector<Vec3> mRecordEnds;  ///< per record: its edge's v0 and v1, object space
 };
 
 }  // namespace penumbra

@@ -98,6 +98,18 @@ void checkAgainstBruteForce(const std::string& file) {
         std::set<VertexPair> expected = brute.silhouettes(eye, &skip);
         std::vector<int> ids;
         tree.findSilhouettes(eye, ids);
+        // With end points: the same ids in the same order, each with its edge's two input
+        // vertices (looked up through the triangle file's own positions).
+        std::vector<int> idsWithEnds;
+        std::vector<Vec3> ends;
+        tree.findSilhouettes(eye, idsWithEnds, ends);
+        EXPECT_EQ(idsWithEnds, ids);
+        ASSERT_EQ(ends.size(), 2 * idsWithEnds.size());
+        for (std::size_t k = 0; k < idsWithEnds.size(); ++k) {
+            const MeshEdge& e = mesh->edges()[idsWithEnds[k]];
+            ASSERT_EQ(ends[2 * k], tri.positions[mesh->sourceVertex()[e.v0]]) << "edge " << k;
+            ASSERT_EQ(ends[2 * k + 1], tri.positions[mesh->sourceVertex()[e.v1]]) << "edge " << k;
+        }
         std::set<VertexPair> got = asPairs(*mesh, ids, skip);
         EXPECT_EQ(ids.size(), std::set<int>(ids.begin(), ids.end()).size()) << "duplicates";
         EXPECT_EQ(got, expected) << file << " eye " << eyeIndex << " (" << eye.x << ' ' << eye.y
