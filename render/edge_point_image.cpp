@@ -509,9 +509,21 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
     if (bands > 1) {
         mEdgeBands.resize(edges.size());
         mChunkBandCount.assign(chunks * bands, 0);
+        // The bands' first rows and each row's band, looked up: bandStart and bandOfRow cost
+        // 64-bit divisions, about ten per edge in this pass.
+        std::array<int, 17> rowStart{};
+        mRowBand.resize(static_cast<size_t>(mHeight));
+        for (int b = 0; b <= bands; ++b) rowStart[b] = bandStart(mHeight, bands, b);
+        for (int b = 0; b < bands; ++b)
+            std::fill(mRowBand.begin() + rowStart[b], mRowBand.begin() + rowStart[b + 1],
+                      static_cast<uint8_t>(b));
+        auto bandOf = [&](double y) {  // bandOfRow(mHeight, bands, y)
+            if (!(y > 0.0)) return 0;  // also NaN
+            if (!(y < mHeight)) return bands - 1;
+            return static_cast<int>(mRowBand[static_cast<size_t>(y)]);
+        };
         auto meets = [&](double ymin, double ymax, int b) {
-            return !(ymax < bandStart(mHeight, bands, b) - 1.0 ||
-                     ymin > bandStart(mHeight, bands, b + 1) + 1.0);
+            return !(ymax < rowStart[b] - 1.0 || ymin > rowStart[b + 1] + 1.0);
         };
         tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
             uint32_t* count = &mChunkBandCount[c * bands];
@@ -522,8 +534,8 @@ void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
                 if (!std::isnan(ymin) && !std::isnan(ymax)) {
                     // The bands meeting [ymin − 1, ymax + 1] are contiguous; search from the
                     // bands of rows a little outside it.
-                    lo = bandOfRow(mHeight, bands, ymin - 2.0);
-                    hi = bandOfRow(mHeight, bands, ymax + 2.0);
+                    lo = bandOf(ymin - 2.0);
+                    hi = bandOf(ymax + 2.0);
                     while (lo <= hi && !meets(ymin, ymax, lo)) ++lo;
                     while (hi >= lo && !meets(ymin, ymax, hi)) --hi;
                 }

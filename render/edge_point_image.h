@@ -250,6 +250,7 @@ private:
     // rasterizeEdges() scratch: per edge its bands (first, last), per chunk of edges and band
     // a count then an offset, and the edges of each band at mBandEdgeStart[band].
     std::vector<std::pair<uint8_t, uint8_t>> mEdgeBands;
+    std::vector<uint8_t> mRowBand;  ///< rasterizeEdges: each row's band
     std::vector<uint32_t> mChunkBandCount;
     std::vector<size_t> mBandEdgeStart;
     std::vector<uint32_t> mBandEdges;
