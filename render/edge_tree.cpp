@@ -491,11 +491,12 @@ void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) 
 // ---------------------------------------------------------------------------------------------
 // EdgeTree traversal
 
-template <class Emit>
-void EdgeTree::traverseSilhouettes(const Vec3& eye, EdgeTreeStats* stats, Emit&& emit) const {
-    if (mRecords.empty()) return;
+std::size_t EdgeTree::silhouetteRecords(const Vec3& eye, std::vector<int>& records,
+                                        EdgeTreeStats* stats) const {
+    if (mRecords.empty()) return 0;
     const double e[3] = {eye.x, eye.y, eye.z};
     long long visited = 0, tested = 0;
+    std::size_t found = 0;
     int stack[128];
     int top = 0;
     stack[top++] = 0;
@@ -514,11 +515,17 @@ void EdgeTree::traverseSilhouettes(const Vec3& eye, EdgeTreeStats* stats, Emit&&
         double tol = 1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi));
         if (lo - node.dHi > tol || hi - node.dLo < -tol) continue;  // all front or all back
         int last = node.child < 0 ? node.end : node.begin + node.stored;
+        // Every tested record is written and the count advances on silhouettes only: about a
+        // third of the tested edges are silhouettes, in no pattern a branch could predict.
+        const std::size_t room = found + static_cast<std::size_t>(last - node.begin);
+        if (records.size() < room) records.resize(std::max(room, 2 * records.size()));
+        int* out = records.data();
         for (int i = node.begin; i < last; ++i) {
             const Record& r = mRecords[i];
             bool front0 = r.n0[0] * e[0] + r.n0[1] * e[1] + r.n0[2] * e[2] - r.d0 > 0;
             bool front1 = r.n1[0] * e[0] + r.n1[1] * e[1] + r.n1[2] * e[2] - r.d1 > 0;
-            if (front0 != front1) emit(i);  // eq. 1
+            out[found] = i;
+            found += front0 != front1;  // eq. 1
         }
         tested += last - node.begin;
         if (node.child >= 0) {
@@ -530,11 +537,14 @@ void EdgeTree::traverseSilhouettes(const Vec3& eye, EdgeTreeStats* stats, Emit&&
         stats->nodesVisited += visited;
         stats->edgesTested += tested;
     }
+    return found;
 }
 
 void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, EdgeTreeStats* stats) const {
     for (int id : mMesh->boundaryEdges()) out.push_back(id);
-    traverseSilhouettes(eye, stats, [&](int i) { out.push_back(mRecords[i].edge); });
+    thread_local std::vector<int> records;
+    const std::size_t n = silhouetteRecords(eye, records, stats);
+    for (std::size_t k = 0; k < n; ++k) out.push_back(mRecords[records[k]].edge);
 }
 
 void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, std::vector<Vec3>& ends,
@@ -545,11 +555,14 @@ void EdgeTree::findSilhouettes(const Vec3& eye, std::vector<int>& out, std::vect
         ends.push_back(m.positions()[m.edges()[id].v0]);
         ends.push_back(m.positions()[m.edges()[id].v1]);
     }
-    traverseSilhouettes(eye, stats, [&](int i) {
+    thread_local std::vector<int> records;
+    const std::size_t n = silhouetteRecords(eye, records, stats);
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t i = static_cast<std::size_t>(records[k]);
         out.push_back(mRecords[i].edge);
-        ends.push_back(mRecordEnds[2 * static_cast<std::size_t>(i)]);
-        ends.push_back(mRecordEnds[2 * static_cast<std::size_t>(i) + 1]);
-    });
+        ends.push_back(mRecordEnds[2 * i]);
+        ends.push_back(mRecordEnds[2 * i + 1]);
+    }
 }
 
 void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::vector<int>& out,

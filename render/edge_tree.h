@@ -202,9 +202,10 @@ private:
         double centre(int k) const { return lo[k] + hi[k]; }
     };
     void buildNode(int slot, std::vector<int>& order, int begin, int end);
-    /// Eq. 1 over the tree: emit(record index) for each interior silhouette edge.
-    template <class Emit>
-    void traverseSilhouettes(const Vec3& eye, EdgeTreeStats* stats, Emit&& emit) const;
+    /// Eq. 1 over the tree: the record indices of the interior silhouette edges in
+    /// records[0, returned count) (`records` only grows; entries past the count are scratch).
+    std::size_t silhouetteRecords(const Vec3& eye, std::vector<int>& records,
+                                  EdgeTreeStats* stats) const;
     std::vector<BuildItem> mItems;  ///< by edge id, during construction only
     double mRootSize = 0;           ///< mesh diagonal, during construction only
 
