@@ -461,25 +461,6 @@ bool edgeMayMark(const ScreenEdge& e, int width, int height) {
     if (!finite2(e.a) || !finite2(e.b)) return false;
     const double xmin = std::min(e.a.x, e.b.x), xmax = std::max(e.a.x, e.b.x);
     const double ymin = std::min(e.a.y, e.b.y), ymax = std::max(e.a.y, e.b.y);
-    // Lines y = k/2 crossed are k in [⌊2·ymin⌋ + 1, ⌊2·ymax⌋] (rasterizeEdge's kFirst, kLast
-    // before clamping), lines x = k/2 likewise: none when both ends share a half-pixel cell.
-    // (A degenerate edge is such a case.)
-    // (floorExact is std::floor bit for bit, without the libm call. Below 2^50, where a
-    // truncation to integer is exact, the same floors without branches: whether an edge this
-    // small is kept follows no pattern, so a branch per floor mispredicted often.)
-    constexpr double kSmall = 1125899906842624.0;  // 2^50
-    if (std::max(std::max(-xmin, xmax), std::max(-ymin, ymax)) < 0.5 * kSmall) {
-        auto floorSmall = [](double v) {
-            const double t = static_cast<double>(static_cast<long long>(v));
-            return t - (t > v ? 1.0 : 0.0);
-        };
-        const bool sameColumn = floorSmall(2.0 * xmin) == floorSmall(2.0 * xmax);
-        const bool sameRow = floorSmall(2.0 * ymin) == floorSmall(2.0 * ymax);
-        if (sameColumn & sameRow) return false;
-    } else if (detail::floorExact(2.0 * xmin) == detail::floorExact(2.0 * xmax) &&
-               detail::floorExact(2.0 * ymin) == detail::floorExact(2.0 * ymax)) {
-        return false;
-    }
     // Outside the image. Crossings of lines x = c have x exact and y = a.y + t·d.y with
     // t in [0, 1] (the division of numbers ordered as c between the ends), so y lies between
     // a.y and fl(a.y + fl(b.y − a.y)), within 4 ulp of max(|a.y|, |b.y|) of [ymin, ymax];
@@ -489,9 +470,29 @@ bool edgeMayMark(const ScreenEdge& e, int width, int height) {
     const double slack = 1e-6 + 1e-9 * mag;
     // Marks need x in [0, W) on lines y = c (vertical lines k/2 for k in [0, 2W]) and y in
     // [0, H] on lines x = c (horizontal lines k/2 for k in [0, 2H]).
-    if (xmax < -slack || xmin > width + slack) return false;
-    if (ymax < -slack || ymin > height + slack) return false;
-    return true;
+    const bool inside = !(xmax < -slack) & !(xmin > width + slack) & !(ymax < -slack) &
+                        !(ymin > height + slack);
+    // Lines y = k/2 crossed are k in [⌊2·ymin⌋ + 1, ⌊2·ymax⌋] (rasterizeEdge's kFirst, kLast
+    // before clamping), lines x = k/2 likewise: none when both ends share a half-pixel cell.
+    // (A degenerate edge is such a case.) (floorExact is std::floor bit for bit, without the
+    // libm call.)
+    constexpr double kSmall = 1125899906842624.0;  // 2^50
+    if (mag < 0.5 * kSmall) {
+        // Below 2^50, where a truncation to integer is exact, the floors and the whole
+        // decision without branches: whether a tiny edge is kept follows no pattern, so each
+        // branch here mispredicted often.
+        auto floorSmall = [](double v) {
+            const double t = static_cast<double>(static_cast<long long>(v));
+            return t - (t > v ? 1.0 : 0.0);
+        };
+        const bool sameColumn = floorSmall(2.0 * xmin) == floorSmall(2.0 * xmax);
+        const bool sameRow = floorSmall(2.0 * ymin) == floorSmall(2.0 * ymax);
+        return !(sameColumn & sameRow) & inside;
+    }
+    if (detail::floorExact(2.0 * xmin) == detail::floorExact(2.0 * xmax) &&
+        detail::floorExact(2.0 * ymin) == detail::floorExact(2.0 * ymax))
+        return false;
+    return inside;
 }
 
 void EdgePointImage::rasterizeEdges(const std::vector<ScreenEdge>& edges) {
