@@ -470,8 +470,8 @@ bool edgeMayMark(const ScreenEdge& e, int width, int height) {
     const double slack = 1e-6 + 1e-9 * mag;
     // Marks need x in [0, W) on lines y = c (vertical lines k/2 for k in [0, 2W]) and y in
     // [0, H] on lines x = c (horizontal lines k/2 for k in [0, 2H]).
-    const bool inside = !(xmax < -slack) & !(xmin > width + slack) & !(ymax < -slack) &
-                        !(ymin > height + slack);
+    const bool inside =
+        !(xmax < -slack) & !(xmin > width + slack) & !(ymax < -slack) & !(ymin > height + slack);
     // Lines y = k/2 crossed are k in [⌊2·ymin⌋ + 1, ⌊2·ymax⌋] (rasterizeEdge's kFirst, kLast
     // before clamping), lines x = k/2 likewise: none when both ends share a half-pixel cell.
     // (A degenerate edge is such a case.) (floorExact is std::floor bit for bit, without the
