@@ -209,10 +209,8 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
     mProjPixel.resize(n);
     mProjDepth.resize(n);
     mProjAge.resize(n);
-    mProjPosition.resize(n);
     mPixelDepth.resize(pixels);
     mPixelAge.resize(pixels);
-    mPixelPosition.resize(pixels);
     mLuminance.resize(pixels);
     mLuminanceHi.resize(pixels);
     mRowCount.resize(static_cast<std::size_t>(mHeight) + 1);
@@ -242,7 +240,6 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
             mProjBand[i] = 0xFF;
             const auto p = camera.projectToPixel(position);
             if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
-            mProjPosition[i] = *p;
             mProjDepth[i] = glm::dot(position - camera.origin(), camera.forward());
             const int x = std::min(static_cast<int>(p->x), mWidth - 1);
             const int y = std::min(static_cast<int>(p->y), mHeight - 1);
@@ -298,7 +295,6 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
             cur = i;
             mPixelDepth[k] = d;
             mPixelAge[k] = mProjAge[i];
-            mPixelPosition[k] = mProjPosition[i];
         }
     });
 
@@ -372,9 +368,12 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
             const CachePoint& pt = mPoints[i];
             mVisible[i] = 1;
             mScreenOfPixel[k] = s;
-            // Position, depth and age from the pixel's z-buffer entry (read in order; only the
-            // point's colour and flag are a random access).
-            mScreen[s++] = {mPixelPosition[k], mPixelDepth[k], pt.colour, mPixelAge[k]};
+            // Depth and age from the pixel's z-buffer entry (read in order; the point and its
+            // flag are the random access). The position is projected again from the point's
+            // record, on the line its colour is read from, with the z-buffer's depth: the
+            // projection pass's value bit for bit, without writing and reading it per point.
+            mScreen[s++] = {camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k],
+                            pt.colour, mPixelAge[k]};
             // computePriority()'s luminance, while the colour is at hand.
             const double l = luminance(pt.colour);
             mLuminance[k] = l;

@@ -190,10 +190,8 @@ private:
     std::vector<int> mProjPixel;                 ///< per point: pixel, −1 off screen
     std::vector<double> mProjDepth;              ///< per point: view depth
     std::vector<int> mProjAge;                   ///< per point: age before this frame's increment
-    std::vector<glm::dvec2> mProjPosition;       ///< per point: projectToPixel (when on screen)
     std::vector<int> mPixelAge;                  ///< per pixel: that age of its z-buffer point
     std::vector<double> mPixelDepth;             ///< per pixel: depth of its z-buffer point
-    std::vector<glm::dvec2> mPixelPosition;      ///< per pixel: position of its z-buffer point
     std::vector<int> mFiltered;                  ///< per pixel: culling's output, swapped in
     std::vector<std::uint8_t> mRowBand;          ///< per row: its band
     std::vector<std::uint8_t> mProjBand;         ///< per point: band of rows (0xFF off screen)
