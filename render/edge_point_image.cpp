@@ -434,13 +434,15 @@ void EdgePointImage::filterDepth() {
             double maxDepth = -std::numeric_limits<double>::infinity();
             int count = 0;
             int pixels = 0;
+            // (Without branches: which pixels hold a point follows no pattern.)
+            constexpr double kNone = std::numeric_limits<double>::infinity();
             for (int y = by * 4; y < std::min(mHeight, by * 4 + 4); ++y) {
                 for (int x = bx * 4; x < std::min(mWidth, bx * 4 + 4); ++x) {
                     ++pixels;
-                    double d = mSampleDepth[index(x, y)];
-                    if (d == std::numeric_limits<double>::infinity()) continue;
-                    maxDepth = std::max(maxDepth, d);
-                    ++count;
+                    const double d = mSampleDepth[index(x, y)];
+                    const bool has = d != kNone;
+                    maxDepth = std::max(maxDepth, has ? d : -kNone);
+                    count += has;
                 }
             }
             float filtered = std::numeric_limits<float>::infinity();
