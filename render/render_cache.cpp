@@ -456,11 +456,16 @@ void RenderCache::applyInterpolationFeedback(const std::vector<float>& weights) 
     const double floor = std::clamp(mOptions.emptyFloor, 0.0, 1.0);
     const double scale = 1.0 / mOptions.feedbackWeight;
     tbb::parallel_for(0, mHeight, [&](int y) {
+        // Every pixel computes, the ones with a point keep theirs (a select, not a branch on
+        // scattered empty pixels).
+        const std::size_t row = static_cast<std::size_t>(y) * mWidth;
+        const int* __restrict screen = &mScreenOfPixel[row];
+        const float* __restrict weight = &weights[row];
+        double* __restrict priority = &mPriority[row];
         for (int x = 0; x < mWidth; ++x) {
-            const int k = y * mWidth + x;
-            if (mScreenOfPixel[k] >= 0) continue;
-            const double w = std::max(0.0, static_cast<double>(weights[k]));
-            mPriority[k] = floor + (1.0 - floor) / (1.0 + w * scale);
+            const double w = std::max(0.0, static_cast<double>(weight[x]));
+            const double fed = floor + (1.0 - floor) / (1.0 + w * scale);
+            priority[x] = screen[x] >= 0 ? priority[x] : fed;
         }
     });
 }
@@ -557,9 +562,10 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
                 int candidates = mTileCandidates[t];
                 for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
                     const std::size_t k = static_cast<std::size_t>(y) * mWidth + x;
-                    double p = mPriority[k];
-                    if (mRequested[k] > 0 && mFrame + 1 < mRequested[k] + mOptions.holdFrames)
-                        p = 0;
+                    // (A select: the held pixels are scattered.)
+                    const bool held = (mRequested[k] > 0) &
+                                      (mFrame + 1 < mRequested[k] + mOptions.holdFrames);
+                    const double p = held ? 0.0 : mPriority[k];
                     mEffective[k] = p;
                     sum += p;
                     candidates += p > 0;
