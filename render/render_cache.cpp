@@ -563,8 +563,8 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
                 for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
                     const std::size_t k = static_cast<std::size_t>(y) * mWidth + x;
                     // (A select: the held pixels are scattered.)
-                    const bool held = (mRequested[k] > 0) &
-                                      (mFrame + 1 < mRequested[k] + mOptions.holdFrames);
+                    const bool held =
+                        (mRequested[k] > 0) & (mFrame + 1 < mRequested[k] + mOptions.holdFrames);
                     const double p = held ? 0.0 : mPriority[k];
                     mEffective[k] = p;
                     sum += p;
