@@ -29,25 +29,29 @@ double lightExtentAcross(const std::vector<Vec3>& light, const Vec3& normal) {
     return hi - lo;
 }
 
-Vec3 apply(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
-
-/// apply() for an affine m (last row 0 0 0 1), inline and without the w row: the same sums
-/// in glm's order, (m0·x + m1·y) + (m2·z + m3), so the same bits.
-inline Vec3 applyAffine(const Mat4& m, const Vec3& p) {
+/// Vec3(m * dvec4(p, 1)) without the w row it would drop: glm's sums in glm's order,
+/// (m0·x + m1·y) + (m2·z + m3), so the same bits. Inline: silhouettes map every found edge.
+inline Vec3 apply(const Mat4& m, const Vec3& p) {
     return (Vec3(m[0]) * p.x + Vec3(m[1]) * p.y) + (Vec3(m[2]) * p.z + Vec3(m[3]));
+}
+
+/// Edge `id` of object `o` with object-space end points a, b, in world space.
+WorldEdge worldEdge(const Mat4& worldFromObject, const Vec3& a, const Vec3& b, int id,
+                    EdgeKind kind, int o) {
+    WorldEdge w;
+    w.a = apply(worldFromObject, a);
+    w.b = apply(worldFromObject, b);
+    w.kind = kind;
+    w.object = o;
+    w.edge = id;
+    return w;
 }
 
 /// Mesh edge `id` of object `o` in world space.
 WorldEdge meshWorldEdge(const Mat4& worldFromObject, const EdgeMesh& mesh, int id, EdgeKind kind,
                         int o) {
     const MeshEdge& e = mesh.edges()[id];
-    WorldEdge w;
-    w.a = apply(worldFromObject, mesh.positions()[e.v0]);
-    w.b = apply(worldFromObject, mesh.positions()[e.v1]);
-    w.kind = kind;
-    w.object = o;
-    w.edge = id;
-    return w;
+    return worldEdge(worldFromObject, mesh.positions()[e.v0], mesh.positions()[e.v1], id, kind, o);
 }
 
 /// Box–event tolerance relative to the box diagonal (reference mode): below ReceiverTree's
@@ -203,15 +207,9 @@ void EdgeFinder::appendSilhouettes(int o, const Vec3& eye, std::vector<int>& ids
     // missed the cache twice: most of the time of this conversion).
     obj.tree->findSilhouettes(apply(obj.objectFromWorld, eye), ids, ends);
     out.reserve(out.size() + ids.size());
-    for (std::size_t k = 0; k < ids.size(); ++k) {
-        WorldEdge w;
-        w.a = applyAffine(obj.worldFromObject, ends[2 * k]);
-        w.b = applyAffine(obj.worldFromObject, ends[2 * k + 1]);
-        w.kind = EdgeKind::Silhouette;
-        w.object = o;
-        w.edge = ids[k];
-        out.push_back(w);
-    }
+    for (std::size_t k = 0; k < ids.size(); ++k)
+        out.push_back(worldEdge(obj.worldFromObject, ends[2 * k], ends[2 * k + 1], ids[k],
+                                EdgeKind::Silhouette, o));
 }
 
 std::vector<WorldEdge> EdgeFinder::findSilhouettes(const Vec3& eye) const {
