@@ -310,6 +310,17 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
             {"steady_total_ms", res.steady.totalMs},
             {"steady_points_ms", res.steady.pointsMs},
             {"steady_shade_ms", res.steady.shadeMs},
+            {"steady_stages_ms",
+             {{"silhouette", res.steady.silhouetteMs},
+              {"shadow", res.steady.shadowMs},
+              {"project", res.steady.projectMs},
+              {"rasterize", res.steady.rasterizeMs},
+              {"points", res.steady.pointsMs},
+              {"reconstruct", res.steady.reconstructMs()},
+              {"complex_filter", res.steady.complexFilterMs},
+              {"smooth", res.steady.smoothMs},
+              {"request", res.steady.requestMs},
+              {"total", res.steady.totalMs}}},
             {"frames", std::move(frames)}};
     return res;
 }
