@@ -151,6 +151,10 @@ public:
 private:
     template <class Drop>
     std::size_t dropIf(Drop drop);
+    /// The slots insert() replaces for `count` new points, ascending: the `count` points
+    /// first by the key (visible in the last frame, birth frame, index), hidden before visible
+    /// and the oldest first.
+    std::vector<int> evictionSlots(std::size_t count) const;
     /// The plain serial reprojection (RenderCacheOptions::parallel false): the reference the
     /// parallel one must equal bit for bit.
     void reprojectSerial(const CameraRays& camera);

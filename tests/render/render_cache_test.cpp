@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <random>
 #include <set>
 #include <unordered_set>
@@ -416,6 +417,83 @@ TEST(RenderCache, NeverExceedsCapacityAndReplacesHiddenThenOldest) {
     std::set<int> last;
     for (int i = 50; i < 60; ++i) last.insert(b3[i].element);
     EXPECT_EQ(elements, last);
+}
+
+/// Replacement against a brute force over the whole cache: every point sorted by (visible in
+/// the last frame, older first, index), the first `victims` replaced, in ascending slot order,
+/// by the batch in its order. Random cameras hide points behind nearer ones and off screen.
+/// Every `idleEvery`-th step first reprojects `idleFrames` frames without new points, which
+/// spreads the ages. Returns (steps that replaced, of which those whose threshold age lay
+/// beyond the first histogram, 4,095 frames).
+std::pair<int, int> checkReplacementAgainstSort(int W, int H, std::size_t capacity, int steps,
+                                                int maxBatch, int idleEvery, int idleFrames) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(0, 1);
+    RenderCache cache(W, H, capacity);
+    auto cameraFor = [&](int k) {
+        return CameraRays(
+            cameraAt(Vec3(0.3 * std::sin(0.7 * k), 0.2 * std::cos(1.1 * k), 5), Vec3(0, 0, 0)), W,
+            H);
+    };
+    int object = 1;
+    int replacing = 0, beyond = 0;
+    for (int step = 0; step < steps; ++step) {
+        const CameraRays rays = cameraFor(step);
+        const int frames = idleEvery > 0 && step % idleEvery == idleEvery / 2 ? idleFrames : 1;
+        for (int f = 0; f < frames; ++f) cache.reproject(rays);
+        const std::size_t n = cache.size();
+        std::vector<int> order(n);
+        std::iota(order.begin(), order.end(), 0);
+        std::sort(order.begin(), order.end(), [&](int a, int b) {
+            if (cache.visible(a) != cache.visible(b)) return !cache.visible(a);
+            if (cache.age(a) != cache.age(b)) return cache.age(a) > cache.age(b);
+            return a < b;
+        });
+        std::vector<ShadedPoint> batch;
+        // The first batch fills the cache.
+        const std::size_t size =
+            step == 0 ? capacity : 1 + static_cast<std::size_t>(u(rng) * maxBatch);
+        for (std::size_t i = 0; i < size; ++i)
+            batch.push_back(pointOnRay(rays, u(rng) * W, u(rng) * H, 2 + 4 * u(rng), object));
+        const std::size_t free = cache.capacity() - n;
+        const std::size_t victims = batch.size() > free ? batch.size() - free : 0;
+        const int thresholdAge = victims > 0 ? cache.age(order[victims - 1]) : 0;
+        cache.insert(batch);
+        EXPECT_EQ(cache.size(), std::min(cache.capacity(), n + batch.size()));
+        std::vector<int> expected(order.begin(), order.begin() + victims);
+        std::sort(expected.begin(), expected.end());
+        for (std::size_t j = 0; j < victims; ++j) {
+            const CachePoint& p = cache.points()[expected[j]];
+            if (p.object != object || p.position != batch[free + j].position) {
+                ADD_FAILURE() << "step " << step << ": slot " << expected[j] << " holds object "
+                              << p.object << ", expected the batch's point " << free + j;
+                return {replacing, beyond};
+            }
+        }
+        std::size_t placed = 0;
+        for (const CachePoint& p : cache.points()) placed += p.object == object;
+        EXPECT_EQ(placed, batch.size()) << "step " << step;
+        replacing += victims > 0;
+        beyond += victims > 0 && thresholdAge >= 4095;
+        ++object;
+    }
+    return {replacing, beyond};
+}
+
+TEST(RenderCache, ReplacementEqualsSortingEveryPointByVisibilityAgeAndIndex) {
+    // A small cache whose points grow older than the age histogram reaches: the selection
+    // refines on birth frames.
+    const auto [replacing, beyond] = checkReplacementAgainstSort(12, 10, 150, 60, 40, 20, 4500);
+    EXPECT_GT(replacing, 30) << "the cache was full for most steps";
+    EXPECT_GT(beyond, 5) << "the threshold age lay beyond the histogram";
+}
+
+TEST(RenderCache, ReplacementOfALargeCacheEqualsSortingItsPoints) {
+    // More points than one chunk of the parallel selection (65,536), with whole batches of
+    // equal age: the tied points are shared out between chunks in index order.
+    const auto [replacing, beyond] = checkReplacementAgainstSort(64, 48, 200000, 12, 30000, 0, 0);
+    EXPECT_EQ(replacing, 11);
+    EXPECT_EQ(beyond, 0);
 }
 
 // ---------------------------------------------------------------------------------------------
