@@ -301,9 +301,7 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
     // on compact per-point and per-pixel arrays.
     const std::size_t n = mPoints.size();
     const std::size_t pixels = static_cast<std::size_t>(mWidth) * mHeight;
-    mProjPixel.resize(n);
-    mProjDepth.resize(n);
-    mProjAge.resize(n);
+    mProj.resize(n);
     mPixelDepth.resize(pixels);
     mPixelAge.resize(pixels);
     mLuminance.resize(pixels);
@@ -330,15 +328,15 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
         const std::size_t end = std::min(n, (c + 1) * kChunk);
         for (std::size_t i = c * kChunk; i != end; ++i) {
             const Vec3& position = mPosition[i];
-            mProjAge[i] = ageBefore(i);
-            mProjPixel[i] = -1;
+            ProjectedPoint& proj = mProj[i];
+            proj.age = ageBefore(i);
             mProjBand[i] = 0xFF;
             const auto p = camera.projectToPixel(position);
             if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
-            mProjDepth[i] = glm::dot(position - camera.origin(), camera.forward());
+            proj.depth = glm::dot(position - camera.origin(), camera.forward());
             const int x = std::min(static_cast<int>(p->x), mWidth - 1);
             const int y = std::min(static_cast<int>(p->y), mHeight - 1);
-            mProjPixel[i] = y * mWidth + x;
+            proj.pixel = y * mWidth + x;
             const std::uint8_t b = mRowBand[y];
             mProjBand[i] = b;
             ++count[b];
@@ -358,12 +356,19 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
         }
         mBandStart[b + 1] = at;
     }
+    // The entries carry what the z-buffer reads: a band's points are spread over the whole
+    // index range, so reading their projections through the point index pulled every cache
+    // line of the per-point arrays into every band.
     mBandPoints.resize(mBandStart[bands]);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
         std::uint32_t* slot = &mChunkBandCount[c * static_cast<std::size_t>(bands)];
         const std::size_t end = std::min(n, (c + 1) * kChunk);
         for (std::size_t i = c * kChunk; i != end; ++i)
-            if (mProjBand[i] != 0xFF) mBandPoints[slot[mProjBand[i]]++] = static_cast<int>(i);
+            if (mProjBand[i] != 0xFF) {
+                const ProjectedPoint& proj = mProj[i];
+                mBandPoints[slot[mProjBand[i]]++] = {proj.depth, proj.pixel, proj.age,
+                                                     static_cast<int>(i)};
+            }
     });
 
     // Z-buffer per band of rows: each band takes its points in index order, as the serial
@@ -377,19 +382,19 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
         std::fill(mPixelPoint.begin() + lo, mPixelPoint.begin() + hi, -1);
         std::fill(mPixelDepth.begin() + lo, mPixelDepth.begin() + hi, kNone);
         for (std::uint32_t j = mBandStart[band]; j != mBandStart[band + 1]; ++j) {
-            const int i = mBandPoints[j];
-            const int k = mProjPixel[i];
+            const BandEntry& e = mBandPoints[j];
+            const int k = e.pixel;
             int& cur = mPixelPoint[k];
-            const double d = mProjDepth[i];
+            const double d = e.depth;
             if (cur >= 0) {
                 const double dc = mPixelDepth[k];
                 if (!(d < dc * (1 - kSameSurface) ||
-                      (d <= dc * (1 + kSameSurface) && mProjAge[i] < mPixelAge[k])))
+                      (d <= dc * (1 + kSameSurface) && e.age < mPixelAge[k])))
                     continue;
             }
-            cur = i;
+            cur = e.point;
             mPixelDepth[k] = d;
-            mPixelAge[k] = mProjAge[i];
+            mPixelAge[k] = e.age;
         }
     });
 

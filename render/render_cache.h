@@ -191,9 +191,21 @@ private:
     std::vector<std::uint64_t> mRequested;  ///< per pixel, frame + 1 of the last request
 
     // Scratch of reprojectParallel(), kept between frames.
-    std::vector<int> mProjPixel;                 ///< per point: pixel, −1 off screen
-    std::vector<double> mProjDepth;              ///< per point: view depth
-    std::vector<int> mProjAge;                   ///< per point: age before this frame's increment
+    /// A point as the projection pass leaves it: view depth, pixel (only when on screen) and
+    /// age before this frame's increment.
+    struct ProjectedPoint {
+        double depth;
+        int pixel;
+        int age;
+    };
+    /// The same, with its point index, in a band's list for the z-buffer.
+    struct BandEntry {
+        double depth;
+        int pixel;
+        int age;
+        int point;
+    };
+    std::vector<ProjectedPoint> mProj;           ///< per point
     std::vector<int> mPixelAge;                  ///< per pixel: that age of its z-buffer point
     std::vector<double> mPixelDepth;             ///< per pixel: depth of its z-buffer point
     std::vector<int> mFiltered;                  ///< per pixel: culling's output, swapped in
@@ -201,7 +213,7 @@ private:
     std::vector<std::uint8_t> mProjBand;         ///< per point: band of rows (0xFF off screen)
     std::vector<std::uint32_t> mChunkBandCount;  ///< per chunk of points and band: count, then slot
     std::vector<std::uint32_t> mBandStart;       ///< per band: first entry in mBandPoints
-    std::vector<int> mBandPoints;                ///< on-screen points by band, in index order
+    std::vector<BandEntry> mBandPoints;          ///< on-screen points by band, in index order
     std::vector<double> mLuminance;    ///< per pixel: luminance of its point, 1e300 without
     std::vector<double> mLuminanceHi;  ///< the same, −1e300 without
     std::vector<int> mRowCount;        ///< per row: visible points (prefix sums)
