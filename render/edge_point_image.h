@@ -8,7 +8,9 @@
 //
 // Pixel coordinates: px grows right, py grows down; pixel (i, j) covers [i, i+1) × [j, j+1).
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <string>
@@ -41,6 +43,33 @@ struct ScreenPoint {
     Rgb colour{0.0};           ///< radiance, linear
     int age = 0;               ///< frames since shaded (carried for the render cache)
     std::string toString() const;
+};
+
+/// Whether the EPI keeps a point (§4.3): finite values, inside the width × height raster.
+inline bool epiKeepsPoint(const ScreenPoint& p, int width, int height) {
+    return std::isfinite(p.position.x) && std::isfinite(p.position.y) && std::isfinite(p.depth) &&
+           std::isfinite(p.colour.x) && std::isfinite(p.colour.y) && std::isfinite(p.colour.z) &&
+           p.position.x >= 0.0 && p.position.y >= 0.0 && p.position.x < width &&
+           p.position.y < height;
+}
+
+/// The 4-bit sample position (§4.3) of a kept point in its pixel: cx + 4·cy of the 4×4 cell.
+inline std::uint8_t epiSampleCode(const glm::dvec2& position) {
+    const int x = static_cast<int>(position.x);
+    const int y = static_cast<int>(position.y);
+    const int cx = std::min(3, static_cast<int>((position.x - x) * 4.0));
+    const int cy = std::min(3, static_cast<int>((position.y - y) * 4.0));
+    return static_cast<std::uint8_t>(cx + 4 * cy);
+}
+
+/// The EPI's per-pixel point arrays (row-major, width × height), for a producer that already
+/// holds at most one point per pixel to write in place of build()'s placement (the render
+/// cache, RenderCache::reproject(camera, EpiPointArrays)): per pixel the kept point's depth,
+/// colour and 4-bit position, or +inf, zero and 0xFF without one.
+struct EpiPointArrays {
+    double* depth = nullptr;
+    glm::vec3* colour = nullptr;
+    std::uint8_t* position = nullptr;
 };
 
 /// Milliseconds spent in each stage of the last build()/reconstruct() (Table 2's columns).
@@ -128,6 +157,13 @@ public:
     /// filtered depth, classifies pixels, stores the 10-bit edge codes and chooses each
     /// simple pixel's primary region (§5.1). Edges with non-finite endpoints are ignored.
     void build(const std::vector<ScreenEdge>& edges, const std::vector<ScreenPoint>& points);
+    /// The point arrays, for a producer to place the points (see EpiPointArrays); then
+    /// build(edges). Valid for the life of the EPI.
+    EpiPointArrays pointArrays() {
+        return {mSampleDepth.data(), mSampleColour.data(), mSamplePos.data()};
+    }
+    /// build() with the points already written through pointArrays() (every pixel).
+    void build(const std::vector<ScreenEdge>& edges);
 
     /// Reconstructs an image (radiance, linear) from the last build(). With useEdges:
     /// reachability over 5×5 (§5.2), renormalized peaked interpolation of the primary

@@ -197,10 +197,11 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     st.newSamples = mInsertedSinceFrame;
     mInsertedSinceFrame = 0;
 
-    // Reproject the cache to this camera (Walter et al. 1999).
-    const std::vector<ScreenPoint>& points = mCache.reproject(camera);
+    // Reproject the cache to this camera (Walter et al. 1999), its visible points written
+    // straight into the EPI's point arrays (§4.3).
+    mCache.reproject(camera, mEpi.pointArrays());
     st.frame = mCache.frame();
-    st.visiblePoints = points.size();
+    st.visiblePoints = mCache.visibleCount();
     st.times.pointsMs = msSince(t);
 
     // Edges (§6): silhouettes and forward-facing sharp edges per frame, shadow edges kept until
@@ -249,7 +250,7 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     st.screenEdges = mScreenEdges.size();
 
     // The edge-and-point image and its reconstruction (§4–5).
-    mEpi.build(mScreenEdges, points);
+    mEpi.build(mScreenEdges);
     Image image = clampedAtZero(mEpi.reconstruct(useEdges));
     const EpiStageTimes& epi = mEpi.stageTimes();
     st.times.pointsMs += epi.pointsMs;

@@ -185,6 +185,14 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
 
     // Replace first what was not visible in the last frame, then the oldest.
     const std::vector<int> slots = victims > 0 ? evictionSlots(victims) : std::vector<int>{};
+    // A pending screen point list reads the visible points' records: build it before one is
+    // overwritten (only when the hidden points do not suffice).
+    if (mScreenPending)
+        for (int slot : slots)
+            if (mVisible[slot]) {
+                buildScreenPoints();
+                break;
+            }
     std::size_t v = 0;
     for (std::size_t i = first; i < batch.size(); ++i) {
         std::size_t slot = mPoints.size();
@@ -207,20 +215,46 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
 // ---------------------------------------------------------------------------------------------
 // Reprojection and depth culling
 
-const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera) {
-    if (camera.width() != mWidth || camera.height() != mHeight) {
+namespace {
+
+void checkRaster(const CameraRays& camera, int width, int height) {
+    if (camera.width() != width || camera.height() != height) {
         throw std::invalid_argument("RenderCache::reproject: camera raster " +
                                     std::to_string(camera.width()) + "x" +
                                     std::to_string(camera.height()) + " differs from the cache's " +
-                                    std::to_string(mWidth) + "x" + std::to_string(mHeight));
+                                    std::to_string(width) + "x" + std::to_string(height));
     }
+}
+
+}  // namespace
+
+const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera) {
+    checkRaster(camera, mWidth, mHeight);
     ++mFrame;
     if (mOptions.parallel) {
-        reprojectParallel(camera);
+        reprojectParallel(camera, nullptr);
     } else {
         reprojectSerial(camera);
     }
     return mScreen;
+}
+
+void RenderCache::reproject(const CameraRays& camera, const EpiPointArrays& points) {
+    checkRaster(camera, mWidth, mHeight);
+    ++mFrame;
+    if (mOptions.parallel) {
+        reprojectParallel(camera, &points);
+        return;
+    }
+    // The serial reference: the list, then placed as EdgePointImage::build places it.
+    reprojectSerial(camera);
+    for (std::size_t k = 0; k < mScreenOfPixel.size(); ++k) {
+        const int s = mScreenOfPixel[k];
+        const bool kept = s >= 0 && epiKeepsPoint(mScreen[s], mWidth, mHeight);
+        points.depth[k] = kept ? mScreen[s].depth : std::numeric_limits<double>::infinity();
+        points.colour[k] = kept ? glm::vec3(mScreen[s].colour) : glm::vec3(0.0f);
+        points.position[k] = kept ? epiSampleCode(mScreen[s].position) : 0xFF;
+    }
 }
 
 void RenderCache::reprojectSerial(const CameraRays& camera) {
@@ -281,21 +315,29 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
         }
     }
 
-    // Visible points in pixel order (every point ages by a frame: ages count from mFrame).
+    // Visible points in pixel order (every point ages by a frame: ages count from mFrame),
+    // and per pixel the luminance and age the priority reads.
     std::fill(mVisible.begin(), mVisible.end(), 0);
     mScreen.clear();
+    mScreenPending = false;
     std::fill(mScreenOfPixel.begin(), mScreenOfPixel.end(), -1);
+    mLuminance.assign(mPixelPoint.size(), 1e300);
+    mLuminanceHi.assign(mPixelPoint.size(), -1e300);
+    mPixelAge.resize(mPixelPoint.size());
     for (std::size_t k = 0; k < mPixelPoint.size(); ++k) {
         const int i = mPixelPoint[k];
         if (i < 0) continue;
         mVisible[i] = 1;
         mScreenOfPixel[k] = static_cast<int>(mScreen.size());
         mScreen.push_back({position[i], depth[i], mPoints[i].colour, ageBefore(i)});
+        mLuminance[k] = mLuminanceHi[k] = luminance(mPoints[i].colour);
+        mPixelAge[k] = ageBefore(i);
     }
+    mVisibleCount = mScreen.size();
     computePriority();
 }
 
-void RenderCache::reprojectParallel(const CameraRays& camera) {
+void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArrays* epi) {
     // The same rules as reprojectSerial(), reorganized for two cores and for memory traffic:
     // the points (about 80 bytes each, a few per pixel) are read once; everything after works
     // on compact per-point and per-pixel arrays.
@@ -449,7 +491,13 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
     // Visible points in pixel order: offsets from the per-row counts, then rows in parallel.
     mRowCount[0] = 0;
     for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] += mRowCount[y];
-    mScreen.resize(static_cast<std::size_t>(mRowCount[mHeight]));
+    mVisibleCount = static_cast<std::size_t>(mRowCount[mHeight]);
+    mScreenPending = epi != nullptr;
+    if (epi)
+        mScreenCamera = camera;
+    else
+        mScreen.resize(mVisibleCount);
+    constexpr double kEmptyDepth = std::numeric_limits<double>::infinity();
     tbb::parallel_for(0, mHeight, [&](int y) {
         int s = mRowCount[y];
         for (int x = 0; x < mWidth; ++x) {
@@ -463,43 +511,65 @@ void RenderCache::reprojectParallel(const CameraRays& camera) {
                 mScreenOfPixel[k] = -1;
                 mLuminance[k] = 1e300;
                 mLuminanceHi[k] = -1e300;
+                if (epi) {
+                    epi->depth[k] = kEmptyDepth;
+                    epi->colour[k] = glm::vec3(0.0f);
+                    epi->position[k] = 0xFF;
+                }
                 continue;
             }
             const CachePoint& pt = mPoints[i];
             mVisible[i] = 1;
-            mScreenOfPixel[k] = s;
             // Depth and age from the pixel's z-buffer entry (read in order; the point and its
             // flag are the random access). The position is projected again from the point's
             // record, on the line its colour is read from, with the z-buffer's depth: the
             // projection pass's value bit for bit, without writing and reading it per point.
-            mScreen[s++] = {camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k],
-                            pt.colour, mPixelAge[k]};
+            const ScreenPoint p{camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k],
+                                pt.colour, mPixelAge[k]};
+            if (epi) {
+                // What EdgePointImage::build would place from the list (a NaN colour is not).
+                mScreenOfPixel[k] = i;
+                const bool kept = epiKeepsPoint(p, mWidth, mHeight);
+                epi->depth[k] = kept ? p.depth : kEmptyDepth;
+                epi->colour[k] = kept ? glm::vec3(p.colour) : glm::vec3(0.0f);
+                epi->position[k] = kept ? epiSampleCode(p.position) : 0xFF;
+            } else {
+                mScreenOfPixel[k] = s;
+                mScreen[s++] = p;
+            }
             // computePriority()'s luminance, while the colour is at hand.
             const double l = luminance(pt.colour);
             mLuminance[k] = l;
             mLuminanceHi[k] = l;
         }
     });
-    computePriority(true);
+    computePriority();
+}
+
+void RenderCache::buildScreenPoints() const {
+    // Rows in parallel from their offsets (reprojectParallel()'s row counts).
+    mScreen.resize(mVisibleCount);
+    tbb::parallel_for(0, mHeight, [&](int y) {
+        int s = mRowCount[y];
+        for (int x = 0; x < mWidth; ++x) {
+            const int k = y * mWidth + x;
+            const int i = mScreenOfPixel[k];
+            if (i < 0) continue;
+            mScreen[s] = {mScreenCamera->projectAtDepth(mPoints[i].position, mPixelDepth[k]),
+                          mPixelDepth[k], mPoints[i].colour, mPixelAge[k]};
+            mScreenOfPixel[k] = s++;
+        }
+    });
+    mScreenPending = false;
 }
 
 // ---------------------------------------------------------------------------------------------
 // Priority image and sample requests
 
-void RenderCache::computePriority(bool luminanceDone) {
+void RenderCache::computePriority() {
     // Luminance per pixel with sentinels where there is no point (1e300 for the minimum,
-    // −1e300 for the maximum: the loop's initial values, so they change nothing).
-    mLuminance.resize(mPriority.size());
-    mLuminanceHi.resize(mPriority.size());
-    if (!luminanceDone)
-        tbb::parallel_for(0, mHeight, [&](int y) {
-            for (int x = 0; x < mWidth; ++x) {
-                const int s = mScreenOfPixel[y * mWidth + x];
-                const double l = s < 0 ? 0.0 : luminance(mScreen[s].colour);
-                mLuminance[y * mWidth + x] = s < 0 ? 1e300 : l;
-                mLuminanceHi[y * mWidth + x] = s < 0 ? -1e300 : l;
-            }
-        });
+    // −1e300 for the maximum: the loop's initial values, so they change nothing), filled by
+    // the reprojection.
     // The 3×3 minimum and maximum, separably: per row, the column extremes over the rows
     // y − 1 … y + 1 inside the image (vectorized), then over x − 1 … x + 1 (min and max are
     // exact, so this equals a nine-point loop per pixel).
@@ -538,7 +608,7 @@ void RenderCache::computePriority(bool luminanceDone) {
                 if (x > 0) lo = std::min(lo, cl[x - 1]), hi = std::max(hi, ch[x - 1]);
                 if (x + 1 < W) lo = std::min(lo, cl[x + 1]), hi = std::max(hi, ch[x + 1]);
                 const double contrast = hi > 0 ? (hi - lo) / (hi + lo) : 0.0;
-                const double age = mScreen[s].age;
+                const double age = mPixelAge[k];
                 mPriority[k] =
                     std::min(0.99, mOptions.ageWeight * age / (age + mOptions.ageScale) +
                                        mOptions.contrastWeight * std::clamp(contrast, 0.0, 1.0));
@@ -759,6 +829,7 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
 // Plain interpolation
 
 Image RenderCache::interpolatedImage() const {
+    if (mScreenPending) buildScreenPoints();
     Image image(mWidth, mHeight);
     tbb::parallel_for(0, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
@@ -797,7 +868,9 @@ Image RenderCache::interpolatedImage() const {
 
 template <class Drop>
 std::size_t RenderCache::dropIf(Drop drop) {
-    // Compacts the record and the per-point arrays together, keeping the order.
+    // Compacts the record and the per-point arrays together, keeping the order (after
+    // building a pending screen point list, which reads points by index).
+    if (mScreenPending) buildScreenPoints();
     const std::size_t before = mPoints.size();
     std::size_t kept = 0;
     for (std::size_t i = 0; i < before; ++i) {
@@ -849,7 +922,7 @@ std::string CachePoint::toString() const {
 std::string RenderCache::toString() const {
     std::ostringstream s;
     s << "RenderCache{" << mWidth << "x" << mHeight << ", " << mPoints.size() << "/" << mCapacity
-      << " points, " << mScreen.size() << " visible, frame " << mFrame << "}";
+      << " points, " << mVisibleCount << " visible, frame " << mFrame << "}";
     return s.str();
 }
 

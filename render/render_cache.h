@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -100,8 +101,19 @@ public:
     /// survivors visible, then increments every point's age. Returns the visible points in
     /// row-major pixel order, at most one per pixel.
     const std::vector<ScreenPoint>& reproject(const CameraRays& camera);
+    /// The same reprojection, with the visible points written straight into an EPI's point
+    /// arrays (exactly as EdgePointImage::build would place screenPoints(), empty pixels
+    /// included) instead of into the screen point list, which screenPoints() then builds
+    /// only when asked: the list and its copy into the EPI were a fifth of the reprojection's
+    /// memory traffic. `points` must span this cache's raster.
+    void reproject(const CameraRays& camera, const EpiPointArrays& points);
     /// The visible points of the last reproject().
-    const std::vector<ScreenPoint>& screenPoints() const { return mScreen; }
+    const std::vector<ScreenPoint>& screenPoints() const {
+        if (mScreenPending) buildScreenPoints();
+        return mScreen;
+    }
+    /// How many points the last reproject() kept (screenPoints().size()).
+    std::size_t visibleCount() const { return mVisibleCount; }
     /// Per pixel (y·width + x): index into points() of its visible point, or −1. Valid until the
     /// next insert() or invalidation.
     const std::vector<int>& pixelPoints() const { return mPixelPoint; }
@@ -159,11 +171,17 @@ private:
     /// parallel one must equal bit for bit.
     void reprojectSerial(const CameraRays& camera);
     /// The parallel reprojection: one pass over the points (project, age, hide), a z-buffer
-    /// per band of rows, culling on pixel-indexed depths, output rows in parallel.
-    void reprojectParallel(const CameraRays& camera);
-    /// The priority image from the visible points; luminanceDone when reprojectParallel()
-    /// already filled mLuminance and mLuminanceHi.
-    void computePriority(bool luminanceDone = false);
+    /// per band of rows, culling on pixel-indexed depths, output rows in parallel: into the
+    /// screen point list, or with `epi` into its arrays (the list left pending).
+    void reprojectParallel(const CameraRays& camera, const EpiPointArrays* epi);
+    /// The priority image from the visible pixels' luminance (mLuminance, mLuminanceHi) and
+    /// ages (mPixelAge), which both reprojections fill.
+    void computePriority();
+    /// The screen point list of a reprojection that wrote an EPI's arrays instead: from the
+    /// visible pixels' points (mScreenOfPixel holds their indices until then), depths and
+    /// ages, and the frame's camera. insert() and the invalidations call it before they
+    /// overwrite or move a point it reads.
+    void buildScreenPoints() const;
     /// requestSamples() for a positive budget: the plain serial reference
     /// (RenderCacheOptions::parallel false) and the parallel one, equal bit for bit.
     std::vector<ShadeRequest> requestSamplesSerial(const CameraRays& camera, int budget);
@@ -184,9 +202,14 @@ private:
     int ageBefore(std::size_t i) const { return static_cast<int>(mFrame - 1 - mBorn[i]); }
     std::uint64_t mFrame = 0;
 
-    std::vector<int> mPixelPoint;           ///< per pixel, −1 when empty
-    std::vector<ScreenPoint> mScreen;       ///< visible points, row-major
-    std::vector<int> mScreenOfPixel;        ///< per pixel index into mScreen, −1 when empty
+    std::vector<int> mPixelPoint;  ///< per pixel, −1 when empty
+    /// Visible points, row-major; built on demand while mScreenPending.
+    mutable std::vector<ScreenPoint> mScreen;
+    /// Per pixel index into mScreen, −1 when empty (while mScreenPending: the point's index).
+    mutable std::vector<int> mScreenOfPixel;
+    mutable bool mScreenPending = false;
+    std::optional<CameraRays> mScreenCamera;  ///< the pending list's camera
+    std::size_t mVisibleCount = 0;
     std::vector<double> mPriority;          ///< per pixel
     std::vector<std::uint64_t> mRequested;  ///< per pixel, frame + 1 of the last request
 

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <random>
@@ -20,6 +21,7 @@
 #include <vector>
 
 #include "render/camera_rays.h"
+#include "render/edge_point_image.h"
 #include "render/point_shader.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
@@ -253,6 +255,95 @@ TEST(RenderCache, ParallelReprojectionEqualsSerialBitForBit) {
     }
     EXPECT_GT(requests, static_cast<std::size_t>(w * h));
     EXPECT_GT(checkedScreen, static_cast<std::size_t>(5 * w * h));
+}
+
+TEST(RenderCache, ReprojectionIntoTheEpiEqualsPlacingItsScreenPoints) {
+    // reproject(camera, EpiPointArrays) against reproject(camera) whose list EdgePointImage::
+    // build places: the same EPI (point arrays, classification, reconstruction) bit for bit,
+    // parallel and serial; the list built on demand equal to the one written at once, also
+    // when an insert then replaces visible points (a cache too small for its hidden points)
+    // and after an invalidation; the same priorities.
+    const int w = 64, h = 48;
+    RenderCacheOptions serialOptions;
+    serialOptions.parallel = false;
+    const std::size_t capacity = 2 * w * h;
+    RenderCache listed(w, h, capacity), intoEpi(w, h, capacity),
+        serial(w, h, capacity, serialOptions);
+    EdgePointImage epiListed(w, h), epiInto(w, h), epiSerial(w, h);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::size_t compared = 0, replacedVisible = 0;
+    for (int frame = 0; frame < 10; ++frame) {
+        const double a = 0.07 * frame;
+        const CameraRays rays(
+            cameraAt(Vec3(0.4 * std::sin(a), 1 + 0.1 * a, 3 - 0.1 * a), Vec3(0.1 * a, 1, 0)), w, h);
+        std::vector<ShadedPoint> batch;
+        for (int k = 0; k < w * h; ++k) {
+            const double t = u(rng) < 0.3 ? 2.5 + 0.02 * u(rng) : 5.0 + 0.04 * u(rng);
+            ShadedPoint p = pointOnRay(rays, u(rng) * (w + 10) - 5, u(rng) * (h + 10) - 5, t,
+                                       t < 3 ? 1 : 0, Rgb(u(rng), u(rng), 0.3));
+            if (k % 997 == 0) p.radiance.y = std::numeric_limits<double>::quiet_NaN();
+            batch.push_back(p);
+        }
+        for (RenderCache* c : {&listed, &intoEpi, &serial}) c->insert(batch);
+        std::vector<ScreenEdge> edges;
+        for (int e = 0; e < 20; ++e) {
+            ScreenEdge edge;
+            edge.a = {u(rng) * w, u(rng) * h};
+            edge.b = {u(rng) * w, u(rng) * h};
+            edge.depthA = edge.depthB = 2 + 4 * u(rng);
+            edges.push_back(edge);
+        }
+        epiListed.build(edges, listed.reproject(rays));
+        intoEpi.reproject(rays, epiInto.pointArrays());
+        epiInto.build(edges);
+        serial.reproject(rays, epiSerial.pointArrays());
+        epiSerial.build(edges);
+        ASSERT_EQ(intoEpi.visibleCount(), listed.screenPoints().size());
+        ASSERT_EQ(intoEpi.priority(), listed.priority()) << "frame " << frame;
+        ASSERT_EQ(serial.priority(), listed.priority()) << "frame " << frame;
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+                for (const EdgePointImage* epi : {&epiInto, &epiSerial}) {
+                    ASSERT_EQ(epi->samplePosition(x, y), epiListed.samplePosition(x, y))
+                        << "frame " << frame << " pixel " << x << "," << y;
+                    ASSERT_EQ(epi->sampleColour(x, y), epiListed.sampleColour(x, y));
+                    ASSERT_EQ(epi->pixelClass(x, y), epiListed.pixelClass(x, y));
+                }
+        const Image reference = epiListed.reconstruct(true);
+        for (EdgePointImage* epi : {&epiInto, &epiSerial}) {
+            const Image image = epi->reconstruct(true);
+            ASSERT_EQ(image.pixels, reference.pixels) << "frame " << frame;
+        }
+        // The list on demand: now, or after the next insert replaced visible points, or after
+        // an invalidation.
+        const std::vector<ScreenPoint> expected = listed.screenPoints();
+        if (frame % 3 == 1) {
+            std::vector<ShadedPoint> more = batch;  // hidden and visible points replaced
+            more.insert(more.end(), batch.begin(), batch.begin() + capacity / 4);
+            std::size_t hidden = 0;
+            for (std::size_t i = 0; i < intoEpi.size(); ++i) hidden += !intoEpi.visible(i);
+            replacedVisible += more.size() > hidden;
+            intoEpi.insert(more);
+            listed.insert(more);
+            serial.insert(more);
+        } else if (frame % 3 == 2) {
+            for (RenderCache* c : {&listed, &intoEpi, &serial})
+                c->invalidateRegion(Vec3(0, 1, 0), 0.5);
+        }
+        const std::vector<ScreenPoint>& built = intoEpi.screenPoints();
+        ASSERT_EQ(built.size(), expected.size()) << "frame " << frame;
+        for (std::size_t k = 0; k < built.size(); ++k)
+            ASSERT_TRUE(
+                built[k].position == expected[k].position && built[k].depth == expected[k].depth &&
+                (built[k].colour == expected[k].colour || std::isnan(expected[k].colour.y)) &&
+                built[k].age == expected[k].age)
+                << "frame " << frame << " point " << k << ": " << built[k].toString() << " vs "
+                << expected[k].toString();
+        compared += built.size();
+    }
+    EXPECT_GT(compared, static_cast<std::size_t>(5 * w * h));
+    EXPECT_GT(replacedVisible, 0u) << "an insert replaced visible points of a pending list";
 }
 
 // ---------------------------------------------------------------------------------------------
