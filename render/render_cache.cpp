@@ -447,42 +447,74 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
     const double margin = 1 + mOptions.depthMargin;
     mFiltered.resize(pixels);
     tbb::parallel_for(0, mHeight, [&](int y) {
-        const bool innerRow = rad == 1 && y > 0 && y + 1 < mHeight;
-        int survivors = 0;
-        for (int x = 0; x < mWidth; ++x) {
+        // Any pixel and radius: the point or −1 when culled.
+        auto cullAt = [&](int x) {
             const int k = y * mWidth + x;
-            mFiltered[k] = mPixelPoint[k];
-            if (mPixelPoint[k] < 0) continue;
+            if (mPixelPoint[k] < 0) return -1;
             const double self = mPixelDepth[k];
             int neighbours = 0, nearer = 0;
-            if (innerRow && x > 0 && x + 1 < mWidth) {
-                const double* up = &mPixelDepth[k - mWidth];
-                const double* mid = &mPixelDepth[k];
-                const double* down = &mPixelDepth[k + mWidth];
-                const double q[8] = {up[-1], up[0],    up[1],   mid[-1],
-                                     mid[1], down[-1], down[0], down[1]};
-                for (double d : q) {
-                    neighbours += d != kNone;
-                    nearer += d * margin < self;
-                }
-            } else {
-                for (int dy = -rad; dy <= rad; ++dy) {
-                    const int yy = y + dy;
-                    if (yy < 0 || yy >= mHeight) continue;
-                    for (int dx = -rad; dx <= rad; ++dx) {
-                        const int xx = x + dx;
-                        if ((dx == 0 && dy == 0) || xx < 0 || xx >= mWidth) continue;
-                        const int q = yy * mWidth + xx;
-                        if (mPixelPoint[q] < 0) continue;
-                        ++neighbours;
-                        nearer += mPixelDepth[q] * margin < self;
-                    }
+            for (int dy = -rad; dy <= rad; ++dy) {
+                const int yy = y + dy;
+                if (yy < 0 || yy >= mHeight) continue;
+                for (int dx = -rad; dx <= rad; ++dx) {
+                    const int xx = x + dx;
+                    if ((dx == 0 && dy == 0) || xx < 0 || xx >= mWidth) continue;
+                    const int q = yy * mWidth + xx;
+                    if (mPixelPoint[q] < 0) continue;
+                    ++neighbours;
+                    nearer += mPixelDepth[q] * margin < self;
                 }
             }
-            if (nearer > 0 && 2 * nearer >= neighbours)
-                mFiltered[k] = -1;
-            else
-                ++survivors;
+            return nearer > 0 && 2 * nearer >= neighbours ? -1 : mPixelPoint[k];
+        };
+        const std::size_t row = static_cast<std::size_t>(y) * mWidth;
+        int* __restrict filtered = &mFiltered[row];
+        int survivors = 0;
+        if (rad == 1 && y > 0 && y + 1 < mHeight && mWidth > 2) {
+            // Inner pixels of an inner row without branches, so the loop vectorizes (which
+            // pixels hold a point follows no pattern): an empty pixel's depth is +inf, so it
+            // counts as no neighbour, and it stays −1 whatever its counts.
+            const double* __restrict up = &mPixelDepth[row - mWidth];
+            const double* __restrict mid = &mPixelDepth[row];
+            const double* __restrict down = &mPixelDepth[row + mWidth];
+            const int* __restrict point = &mPixelPoint[row];
+            filtered[0] = cullAt(0);
+            survivors += filtered[0] >= 0;
+            const int W = mWidth;
+            // In doubles first (two loops of one element width each vectorize; one mixing
+            // doubles and ints did not): 1 where culled.
+            thread_local std::vector<double> cullRow;
+            cullRow.resize(static_cast<std::size_t>(W));
+            double* __restrict cull = cullRow.data();
+            for (int x = 1; x + 1 < W; ++x) {
+                const double self = mid[x];
+                const double neighbours =
+                    (up[x - 1] != kNone ? 1.0 : 0.0) + (up[x] != kNone ? 1.0 : 0.0) +
+                    (up[x + 1] != kNone ? 1.0 : 0.0) + (mid[x - 1] != kNone ? 1.0 : 0.0) +
+                    (mid[x + 1] != kNone ? 1.0 : 0.0) + (down[x - 1] != kNone ? 1.0 : 0.0) +
+                    (down[x] != kNone ? 1.0 : 0.0) + (down[x + 1] != kNone ? 1.0 : 0.0);
+                const double nearer = (up[x - 1] * margin < self ? 1.0 : 0.0) +
+                                      (up[x] * margin < self ? 1.0 : 0.0) +
+                                      (up[x + 1] * margin < self ? 1.0 : 0.0) +
+                                      (mid[x - 1] * margin < self ? 1.0 : 0.0) +
+                                      (mid[x + 1] * margin < self ? 1.0 : 0.0) +
+                                      (down[x - 1] * margin < self ? 1.0 : 0.0) +
+                                      (down[x] * margin < self ? 1.0 : 0.0) +
+                                      (down[x + 1] * margin < self ? 1.0 : 0.0);
+                cull[x] = nearer > 0 && 2 * nearer >= neighbours ? 1.0 : 0.0;
+            }
+            for (int x = 1; x + 1 < W; ++x) {
+                const int f = point[x] | -static_cast<int>(cull[x] != 0);  // −1 when culled
+                filtered[x] = f;
+                survivors += f >= 0;
+            }
+            filtered[mWidth - 1] = cullAt(mWidth - 1);
+            survivors += filtered[mWidth - 1] >= 0;
+        } else {
+            for (int x = 0; x < mWidth; ++x) {
+                filtered[x] = cullAt(x);
+                survivors += filtered[x] >= 0;
+            }
         }
         mRowCount[y + 1] = survivors;
     });
@@ -567,12 +599,11 @@ void RenderCache::buildScreenPoints() const {
 // Priority image and sample requests
 
 void RenderCache::computePriority() {
-    // Luminance per pixel with sentinels where there is no point (1e300 for the minimum,
-    // −1e300 for the maximum: the loop's initial values, so they change nothing), filled by
-    // the reprojection.
-    // The 3×3 minimum and maximum, separably: per row, the column extremes over the rows
-    // y − 1 … y + 1 inside the image (vectorized), then over x − 1 … x + 1 (min and max are
-    // exact, so this equals a nine-point loop per pixel).
+    // The reprojection filled the luminance per pixel with sentinels where there is no point
+    // (1e300 for the minimum, −1e300 for the maximum: the loop's initial values, so they
+    // change nothing). The 3×3 minimum and maximum, separably: per row, the column extremes
+    // over the rows y − 1 … y + 1 inside the image (vectorized), then over x − 1 … x + 1 (min
+    // and max are exact, so this equals a nine-point loop per pixel).
     tbb::parallel_for(tbb::blocked_range<int>(0, mHeight), [&](const tbb::blocked_range<int>& r) {
         const int W = mWidth;
         thread_local std::vector<double> columnLo, columnHi;
@@ -596,23 +627,31 @@ void RenderCache::computePriority() {
                     ch[x] = std::max(ch[x], h[x]);
                 }
             }
-            for (int x = 0; x < W; ++x) {
-                const int k = y * W + x;
-                const int s = mScreenOfPixel[k];
-                if (s < 0) {
-                    mPriority[k] = 1.0;  // no point: most wanted
-                    continue;
-                }
+            // Every pixel computes and the empty ones take 1 (no point: most wanted) by a
+            // select, so that the loop vectorizes: which pixels are empty follows no pattern.
+            const std::size_t row = static_cast<std::size_t>(y) * W;
+            const int* __restrict screen = &mScreenOfPixel[row];
+            const int* __restrict ages = &mPixelAge[row];
+            double* __restrict priority = &mPriority[row];
+            const double ageWeight = mOptions.ageWeight, ageScale = mOptions.ageScale;
+            const double contrastWeight = mOptions.contrastWeight;
+            auto prioritize = [&](int x, double lo, double hi) {
                 // Local luminance contrast over the 3×3 points (Walter et al. 2002).
-                double lo = cl[x], hi = ch[x];
-                if (x > 0) lo = std::min(lo, cl[x - 1]), hi = std::max(hi, ch[x - 1]);
-                if (x + 1 < W) lo = std::min(lo, cl[x + 1]), hi = std::max(hi, ch[x + 1]);
                 const double contrast = hi > 0 ? (hi - lo) / (hi + lo) : 0.0;
-                const double age = mPixelAge[k];
-                mPriority[k] =
-                    std::min(0.99, mOptions.ageWeight * age / (age + mOptions.ageScale) +
-                                       mOptions.contrastWeight * std::clamp(contrast, 0.0, 1.0));
-            }
+                const double age = ages[x];
+                const double p =
+                    std::min(0.99, ageWeight * age / (age + ageScale) +
+                                       contrastWeight * std::clamp(contrast, 0.0, 1.0));
+                priority[x] = screen[x] < 0 ? 1.0 : p;
+            };
+            // The extremes in the order of a left-to-right scan: cl[x], then x − 1, then x + 1.
+            prioritize(0, W > 1 ? std::min(cl[0], cl[1]) : cl[0],
+                       W > 1 ? std::max(ch[0], ch[1]) : ch[0]);
+            for (int x = 1; x + 1 < W; ++x)
+                prioritize(x, std::min(std::min(cl[x], cl[x - 1]), cl[x + 1]),
+                           std::max(std::max(ch[x], ch[x - 1]), ch[x + 1]));
+            if (W > 1)
+                prioritize(W - 1, std::min(cl[W - 1], cl[W - 2]), std::max(ch[W - 1], ch[W - 2]));
         }
     });
 }
