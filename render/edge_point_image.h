@@ -70,6 +70,7 @@ struct EpiPointArrays {
     double* depth = nullptr;
     glm::vec3* colour = nullptr;
     std::uint8_t* position = nullptr;
+    int width = 0, height = 0;  ///< the raster the arrays span
 };
 
 /// Milliseconds spent in each stage of the last build()/reconstruct() (Table 2's columns).
@@ -160,9 +161,10 @@ public:
     /// The point arrays, for a producer to place the points (see EpiPointArrays); then
     /// build(edges). Valid for the life of the EPI.
     EpiPointArrays pointArrays() {
-        return {mSampleDepth.data(), mSampleColour.data(), mSamplePos.data()};
+        return {mSampleDepth.data(), mSampleColour.data(), mSamplePos.data(), mWidth, mHeight};
     }
-    /// build() with the points already written through pointArrays() (every pixel).
+    /// build() with the points already written through pointArrays() (every pixel); the
+    /// stage times' pointsMs is then 0 (the producer's time).
     void build(const std::vector<ScreenEdge>& edges);
 
     /// Reconstructs an image (radiance, linear) from the last build(). With useEdges:

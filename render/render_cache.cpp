@@ -146,7 +146,9 @@ std::vector<int> RenderCache::evictionSlots(std::size_t count) const {
         at[1] = count;
     }
     const std::size_t scanChunk = age < kAges - 1 ? kChunk : n;
-    std::vector<int> slots(count + 1);
+    // A chunk writes each candidate before deciding to keep it, but only while its share is
+    // not full, so never past it.
+    std::vector<int> slots(count);
     const unsigned hiddenTaken = cls;  // 1: every hidden point is taken
     tbb::parallel_for(std::size_t(0), at.size() - 1, [&](std::size_t c) {
         std::size_t m = at[c], tie = ties[c];
@@ -161,7 +163,6 @@ std::vector<int> RenderCache::evictionSlots(std::size_t count) const {
             tie -= isTie;
         }
     });
-    slots.resize(count);
     return slots;
 }
 
@@ -189,7 +190,7 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
     // overwritten (only when the hidden points do not suffice).
     if (mScreenPending)
         for (int slot : slots)
-            if (mVisible[slot]) {
+            if (mVisible[slot] && mBorn[slot] < mFrame) {  // not one inserted since
                 buildScreenPoints();
                 break;
             }
@@ -241,6 +242,13 @@ const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera)
 
 void RenderCache::reproject(const CameraRays& camera, const EpiPointArrays& points) {
     checkRaster(camera, mWidth, mHeight);
+    if (points.width != mWidth || points.height != mHeight || !points.depth || !points.colour ||
+        !points.position) {
+        throw std::invalid_argument("RenderCache::reproject: EPI point arrays of " +
+                                    std::to_string(points.width) + "x" +
+                                    std::to_string(points.height) + " for the cache's " +
+                                    std::to_string(mWidth) + "x" + std::to_string(mHeight));
+    }
     ++mFrame;
     if (mOptions.parallel) {
         reprojectParallel(camera, &points);
@@ -907,12 +915,15 @@ Image RenderCache::interpolatedImage() const {
 
 template <class Drop>
 std::size_t RenderCache::dropIf(Drop drop) {
-    // Compacts the record and the per-point arrays together, keeping the order (after
-    // building a pending screen point list, which reads points by index).
-    if (mScreenPending) buildScreenPoints();
+    // Compacts the record and the per-point arrays together, keeping the order, from the
+    // first point dropped (after building a pending screen point list, which reads points by
+    // index; nothing changes when nothing is dropped, as in most frames of a drag preview).
     const std::size_t before = mPoints.size();
     std::size_t kept = 0;
-    for (std::size_t i = 0; i < before; ++i) {
+    while (kept < before && !drop(mPoints[kept])) ++kept;
+    if (kept == before) return 0;
+    if (mScreenPending) buildScreenPoints();
+    for (std::size_t i = kept + 1; i < before; ++i) {
         if (drop(mPoints[i])) continue;
         if (kept != i) {
             mPoints[kept] = std::move(mPoints[i]);

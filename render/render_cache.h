@@ -106,8 +106,11 @@ public:
     /// included) instead of into the screen point list, which screenPoints() then builds
     /// only when asked: the list and its copy into the EPI were a fifth of the reprojection's
     /// memory traffic. `points` must span this cache's raster.
+    /// Throws std::invalid_argument when the camera or `points` spans another raster.
     void reproject(const CameraRays& camera, const EpiPointArrays& points);
-    /// The visible points of the last reproject().
+    /// The visible points of the last reproject(). After reproject(camera, EpiPointArrays)
+    /// the first call builds the list, so (like interpolatedImage()) it writes the cache's
+    /// state although const: call it from the thread that owns the cache.
     const std::vector<ScreenPoint>& screenPoints() const {
         if (mScreenPending) buildScreenPoints();
         return mScreen;
@@ -213,9 +216,17 @@ private:
     std::vector<double> mPriority;          ///< per pixel
     std::vector<std::uint64_t> mRequested;  ///< per pixel, frame + 1 of the last request
 
+    // Per pixel, from the last reprojection: what the priority reads, and with mRowCount what
+    // a pending screen point list is built from (not scratch: both paths fill them).
+    std::vector<int> mPixelAge;       ///< age of its z-buffer point (meaningful where one survived)
+    std::vector<double> mPixelDepth;  ///< depth of its z-buffer point (parallel path)
+    std::vector<double> mLuminance;   ///< luminance of its point, 1e300 without
+    std::vector<double> mLuminanceHi;  ///< the same, −1e300 without
+    std::vector<int> mRowCount;        ///< per row: visible points (prefix sums; parallel path)
+
     // Scratch of reprojectParallel(), kept between frames.
-    /// A point as the projection pass leaves it: view depth, pixel (only when on screen) and
-    /// age before this frame's increment.
+    /// A point as the projection pass leaves it: view depth and pixel (both only when on
+    /// screen) and age before this frame's increment.
     struct ProjectedPoint {
         double depth;
         int pixel;
@@ -229,17 +240,12 @@ private:
         int point;
     };
     std::vector<ProjectedPoint> mProj;           ///< per point
-    std::vector<int> mPixelAge;                  ///< per pixel: that age of its z-buffer point
-    std::vector<double> mPixelDepth;             ///< per pixel: depth of its z-buffer point
     std::vector<int> mFiltered;                  ///< per pixel: culling's output, swapped in
     std::vector<std::uint8_t> mRowBand;          ///< per row: its band
     std::vector<std::uint8_t> mProjBand;         ///< per point: band of rows (0xFF off screen)
     std::vector<std::uint32_t> mChunkBandCount;  ///< per chunk of points and band: count, then slot
     std::vector<std::uint32_t> mBandStart;       ///< per band: first entry in mBandPoints
     std::vector<BandEntry> mBandPoints;          ///< on-screen points by band, in index order
-    std::vector<double> mLuminance;    ///< per pixel: luminance of its point, 1e300 without
-    std::vector<double> mLuminanceHi;  ///< the same, −1e300 without
-    std::vector<int> mRowCount;        ///< per row: visible points (prefix sums)
     // Scratch of requestSamplesParallel().
     std::vector<double> mEffective;    ///< per pixel: priority, 0 while held back
     std::vector<double> mTileSum;      ///< per tile: summed effective priority
