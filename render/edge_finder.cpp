@@ -670,6 +670,12 @@ void EdgeFinder::findDirtyEvents(int lightIndex, int blockerIndex, const Pair& p
 }
 
 std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
+    std::vector<WorldEdge> out;
+    findShadowEdges(out);
+    return out;
+}
+
+void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
     const int n = static_cast<int>(mObjects.size());
     ++mGeneration;
     mChangedAt.resize(n, 0);
@@ -777,14 +783,25 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
         mSeenAlive[o] = mObjects[o].alive;
         mSeenBounds[o] = mObjects[o].worldBounds;
     }
+    // Every pair's edges in map order, each event's in order: the lists' offsets, then the
+    // copies in parallel.
+    std::vector<const std::vector<WorldEdge>*> lists;
+    std::vector<std::size_t> offsets;
     std::size_t total = 0;
     for (const auto& [key, pair] : mPairs)
-        for (const auto& ee : pair.eventEdges) total += ee.size();
-    std::vector<WorldEdge> out;
-    out.reserve(total);
-    for (const auto& [key, pair] : mPairs)
-        for (const auto& ee : pair.eventEdges) out.insert(out.end(), ee.begin(), ee.end());
-    return out;
+        for (const auto& ee : pair.eventEdges)
+            if (!ee.empty()) {
+                lists.push_back(&ee);
+                offsets.push_back(total);
+                total += ee.size();
+            }
+    out.resize(total);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lists.size(), 256),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t i = range.begin(); i != range.end(); ++i)
+                              std::copy(lists[i]->begin(), lists[i]->end(),
+                                        out.begin() + static_cast<std::ptrdiff_t>(offsets[i]));
+                      });
 }
 
 // ---------------------------------------------------------------------------------------------

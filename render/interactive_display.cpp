@@ -219,7 +219,7 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
         if (mOptions.shadowEdges) {
             t = Clock::now();
             if (mShadowsStale) {
-                mShadowEdges = mEdges.findShadowEdges();
+                mEdges.findShadowEdges(mShadowEdges);
                 mShadowOrder = orderByPenumbra(mShadowEdges, mShadowScratch);
                 mShadowsStale = false;
                 mLastShadowUpdateMs = msSince(t);

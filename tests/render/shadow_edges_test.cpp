@@ -252,7 +252,17 @@ TEST(ShadowEdges, MovingABlockerRecomputesOnlyItsShadows) {
     EdgeFinder scratch(disc2);
     scratch.addLight(Light{{P}, -1});
     scratch.addLight(area);
+    // Into a reused list, longer than needed and full of other edges: the same edges.
+    std::vector<WorldEdge> reused(incremental.size() + 17);
+    for (WorldEdge& e : reused) e.a = Vec3(9, 9, 9), e.blocker = 99;
+    scratch.findShadowEdges(reused);
     std::vector<WorldEdge> fresh = scratch.findShadowEdges();
+    ASSERT_EQ(reused.size(), fresh.size());
+    for (std::size_t i = 0; i < fresh.size(); ++i)
+        ASSERT_TRUE(reused[i].a == fresh[i].a && reused[i].b == fresh[i].b &&
+                    reused[i].blocker == fresh[i].blocker && reused[i].edge == fresh[i].edge &&
+                    reused[i].object == fresh[i].object && reused[i].light == fresh[i].light)
+            << i;
     ASSERT_EQ(incremental.size(), fresh.size());
     for (std::size_t i = 0; i < fresh.size(); ++i) {
         EXPECT_LT(glm::length(incremental[i].a - fresh[i].a), 1e-9) << fresh[i].toString();
