@@ -1626,25 +1626,17 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             if (dense && mDense[i] && writeDenseMean(x, y)) continue;
             glm::vec3 sum = mWeight[i] > 0.0f ? mPrimary[i] : glm::vec3(0.0f);
             float total = mWeight[i] > 0.0f ? 1.0f : 0.0f;
-            const uint32_t reach = mReach[i] & 0xFFFFFFu;
-            if (innerRow && x >= 2 && x + 2 < mWidth) {
-                for (uint32_t bits = reach; bits; bits &= bits - 1) {
-                    const int k = std::countr_zero(bits);
-                    const size_t j = i + offset[k];
-                    if (!(mWeight[j] > 0.0f)) continue;
-                    sum += weight[k] * mPrimary[j];
-                    total += weight[k];
-                }
-            } else {
-                for (uint32_t bits = reach; bits; bits &= bits - 1) {
-                    const int k = std::countr_zero(bits);
+            const bool inner = innerRow && x >= 2 && x + 2 < mWidth;
+            for (uint32_t bits = mReach[i] & 0xFFFFFFu; bits; bits &= bits - 1) {
+                const int k = std::countr_zero(bits);
+                if (!inner) {
                     const int px = x + kBitCell[k] % 5 - 2, py = y + kBitCell[k] / 5 - 2;
                     if (px < 0 || py < 0 || px >= mWidth || py >= mHeight) continue;
-                    const size_t j = index(px, py);
-                    if (!(mWeight[j] > 0.0f)) continue;
-                    sum += weight[k] * mPrimary[j];
-                    total += weight[k];
                 }
+                const size_t j = i + offset[k];
+                if (!(mWeight[j] > 0.0f)) continue;
+                sum += weight[k] * mPrimary[j];
+                total += weight[k];
             }
             if (total > 0.0f) out.at(x, y) = Rgb(sum / total);
         }

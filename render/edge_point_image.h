@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <glm/glm.hpp>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -71,6 +72,15 @@ struct EpiPointArrays {
     glm::vec3* colour = nullptr;
     std::uint8_t* position = nullptr;
     int width = 0, height = 0;  ///< the raster the arrays span
+
+    /// Pixel k's sample: `p` when the EPI keeps it (epiKeepsPoint), else none (also for
+    /// nullptr).
+    void place(std::size_t k, const ScreenPoint* p) const {
+        const bool kept = p && epiKeepsPoint(*p, width, height);
+        depth[k] = kept ? p->depth : std::numeric_limits<double>::infinity();
+        colour[k] = kept ? glm::vec3(p->colour) : glm::vec3(0.0f);
+        position[k] = kept ? epiSampleCode(p->position) : 0xFF;
+    }
 };
 
 /// Milliseconds spent in each stage of the last build()/reconstruct() (Table 2's columns).

@@ -253,7 +253,6 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     mEpi.build(mScreenEdges);
     Image image = clampedAtZero(mEpi.reconstruct(useEdges));
     const EpiStageTimes& epi = mEpi.stageTimes();
-    st.times.pointsMs += epi.pointsMs;
     st.times.rasterizeMs = epi.depthFilterMs + epi.rasterizeMs + epi.classifyMs;
     st.times.reachabilityMs = epi.reachabilityMs;
     st.times.interpolateMs = epi.interpolateMs;

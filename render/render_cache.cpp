@@ -258,10 +258,7 @@ void RenderCache::reproject(const CameraRays& camera, const EpiPointArrays& poin
     reprojectSerial(camera);
     for (std::size_t k = 0; k < mScreenOfPixel.size(); ++k) {
         const int s = mScreenOfPixel[k];
-        const bool kept = s >= 0 && epiKeepsPoint(mScreen[s], mWidth, mHeight);
-        points.depth[k] = kept ? mScreen[s].depth : std::numeric_limits<double>::infinity();
-        points.colour[k] = kept ? glm::vec3(mScreen[s].colour) : glm::vec3(0.0f);
-        points.position[k] = kept ? epiSampleCode(mScreen[s].position) : 0xFF;
+        points.place(k, s >= 0 ? &mScreen[s] : nullptr);
     }
 }
 
@@ -537,7 +534,6 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
         mScreenCamera = camera;
     else
         mScreen.resize(mVisibleCount);
-    constexpr double kEmptyDepth = std::numeric_limits<double>::infinity();
     tbb::parallel_for(0, mHeight, [&](int y) {
         int s = mRowCount[y];
         for (int x = 0; x < mWidth; ++x) {
@@ -551,11 +547,7 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
                 mScreenOfPixel[k] = -1;
                 mLuminance[k] = 1e300;
                 mLuminanceHi[k] = -1e300;
-                if (epi) {
-                    epi->depth[k] = kEmptyDepth;
-                    epi->colour[k] = glm::vec3(0.0f);
-                    epi->position[k] = 0xFF;
-                }
+                if (epi) epi->place(k, nullptr);
                 continue;
             }
             const CachePoint& pt = mPoints[i];
@@ -569,10 +561,7 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
             if (epi) {
                 // What EdgePointImage::build would place from the list (a NaN colour is not).
                 mScreenOfPixel[k] = i;
-                const bool kept = epiKeepsPoint(p, mWidth, mHeight);
-                epi->depth[k] = kept ? p.depth : kEmptyDepth;
-                epi->colour[k] = kept ? glm::vec3(p.colour) : glm::vec3(0.0f);
-                epi->position[k] = kept ? epiSampleCode(p.position) : 0xFF;
+                epi->place(k, &p);
             } else {
                 mScreenOfPixel[k] = s;
                 mScreen[s++] = p;
