@@ -676,73 +676,67 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
 // EventCoverage
 
 void EventCoverage::reset(double hide) {
-    mPieces.clear();
+    mPending.clear();
+    mCount = 0;
     mLength = 0;
     mThreshold = HUGE_VAL;
     mDirty = false;
     mComputedAt = 0;
+    mBreaks.assign({0.0, 1.0});
+    mBest.assign(1, HUGE_VAL);
     hideS = hide;
 }
 
 void EventCoverage::add(double u0, double u1, double sMax) {
     if (!(u1 - u0 >= 1e-12)) return;
-    mPieces.push_back({u0, u1, sMax});
+    mPending.push_back({u0, u1, sMax});
+    ++mCount;
     mLength += u1 - u0;
     mDirty = true;
 }
 
 double EventCoverage::bound() const {
-    if (mDirty && mPieces.size() >= mComputedAt + std::max<std::size_t>(1, mComputedAt / 4))
+    if (mDirty && mCount >= mComputedAt + std::max<std::size_t>(1, mComputedAt / 4))
         return threshold();
     return mThreshold;
+}
+
+void EventCoverage::fold(const Piece& p) const {
+    // The index of break u, inserted if new: an interval it splits leaves its value to both
+    // halves; one beyond either end of the breaks is uncovered.
+    auto breakAt = [&](double u) {
+        const auto it = std::lower_bound(mBreaks.begin(), mBreaks.end(), u);
+        const std::size_t i = static_cast<std::size_t>(it - mBreaks.begin());
+        if (it != mBreaks.end() && *it == u) return i;
+        mBreaks.insert(it, u);
+        if (i == 0)
+            mBest.insert(mBest.begin(), HUGE_VAL);
+        else if (i + 1 == mBreaks.size())
+            mBest.push_back(HUGE_VAL);
+        else
+            mBest.insert(mBest.begin() + static_cast<std::ptrdiff_t>(i), mBest[i - 1]);
+        return i;
+    };
+    const std::size_t from = breakAt(p.u0);
+    const std::size_t to = breakAt(p.u1);  // after u0's insertion: u1 > u0 keeps `from`
+    for (std::size_t i = from; i < to; ++i) mBest[i] = std::min(mBest[i], p.sMax);
 }
 
 double EventCoverage::threshold() const {
     // Pieces shorter in total than [0, 1] cannot cover it: skip the sweep.
     if (!mDirty || mLength < 1 - 1e-9) return mThreshold;
     mDirty = false;
-    mComputedAt = mPieces.size();
-    // Per elementary interval between piece ends, the smallest sMax of a piece over it; the
-    // threshold is the largest of those (infinite where nothing covers).
-    std::vector<double>& breaks = mBreaks;
-    breaks.assign({0.0, 1.0});
-    for (const Piece& p : mPieces) {
-        breaks.push_back(p.u0);
-        breaks.push_back(p.u1);
-    }
-    std::sort(breaks.begin(), breaks.end());
-    breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
-    // Pieces in ascending sMax paint the intervals they cover that are still unpainted: the
-    // first to reach an interval is its smallest. `mNext[i]` skips painted runs (union–find
-    // with path halving), so each interval is painted once.
-    std::vector<double>& best = mBest;
-    best.assign(breaks.size(), HUGE_VAL);
-    std::sort(mPieces.begin(), mPieces.end(),
-              [](const Piece& a, const Piece& b) { return a.sMax < b.sMax; });
-    std::vector<int>& next = mNext;
-    next.resize(breaks.size() + 1);
-    for (std::size_t i = 0; i < next.size(); ++i) next[i] = static_cast<int>(i);
-    auto find = [&](int i) {
-        while (next[i] != i) {
-            next[i] = next[next[i]];
-            i = next[i];
-        }
-        return i;
-    };
-    for (const Piece& p : mPieces) {
-        int from =
-            static_cast<int>(std::lower_bound(breaks.begin(), breaks.end(), p.u0) - breaks.begin());
-        int to =
-            static_cast<int>(std::lower_bound(breaks.begin(), breaks.end(), p.u1) - breaks.begin());
-        for (int i = find(from); i < to; i = find(i)) {
-            best[i] = p.sMax;
-            next[i] = i + 1;
-        }
-    }
+    mComputedAt = mCount;
+    // Per elementary interval between piece ends, the smallest sMax of a piece over it (the
+    // envelope, brought up to date with the pieces since the last call); the threshold is the
+    // largest of those (infinite where nothing covers). Rebuilding it from every piece at each
+    // call (sorting the ends and the pieces) was a third of a shadow update after a move.
+    for (const Piece& p : mPending) fold(p);
+    mPending.clear();
     double t = -HUGE_VAL;
-    for (std::size_t i = 0; i + 1 < breaks.size(); ++i) {
-        if (breaks[i + 1] <= 0 || breaks[i] >= 1 || breaks[i + 1] - breaks[i] < 1e-12) continue;
-        t = std::max(t, best[i]);
+    for (std::size_t i = 0; i + 1 < mBreaks.size(); ++i) {
+        if (mBreaks[i + 1] <= 0 || mBreaks[i] >= 1 || mBreaks[i + 1] - mBreaks[i] < 1e-12) continue;
+        t = std::max(t, mBest[i]);
         if (t == HUGE_VAL) break;
     }
     mThreshold = t;

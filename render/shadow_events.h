@@ -9,8 +9,8 @@
 
 #include <cmath>
 #include <memory>
-#include <string>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "render/edge_tree.h"
@@ -94,13 +94,20 @@ private:
     struct Piece {
         double u0, u1, sMax;
     };
-    mutable std::vector<Piece> mPieces;  ///< threshold() sorts them by sMax
-    double mLength = 0;                  ///< total u length of the pieces
+    /// Folds a piece into the envelope: its ends become breaks, and every interval between
+    /// them takes the smaller of its value and the piece's sMax.
+    void fold(const Piece& p) const;
+    mutable std::vector<Piece> mPending;  ///< pieces not yet folded into the envelope
+    std::size_t mCount = 0;               ///< pieces added since reset()
+    double mLength = 0;                   ///< total u length of the pieces
     mutable double mThreshold = HUGE_VAL;
     mutable bool mDirty = false;
-    mutable std::size_t mComputedAt = 0;         ///< piece count at the last computation
-    mutable std::vector<double> mBreaks, mBest;  ///< scratch of threshold()
-    mutable std::vector<int> mNext;              ///< scratch of threshold()
+    mutable std::size_t mComputedAt = 0;  ///< piece count at the last computation
+    /// The envelope: every piece end and 0 and 1, ascending and distinct (mBreaks), and per
+    /// interval between neighbours the smallest sMax of a piece covering it (mBest; infinite
+    /// where none does). Built as the pieces come, so threshold() only scans it.
+    mutable std::vector<double> mBreaks{0.0, 1.0};
+    mutable std::vector<double> mBest{HUGE_VAL};
 };
 
 /// A bounding-volume hierarchy over an EdgeMesh's faces (object space) whose nodes also bound

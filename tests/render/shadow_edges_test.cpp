@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -435,4 +436,72 @@ TEST(ShadowEdges, FrontToBackEqualsExhaustiveClippingInRobotRoom) {
         fresh.notifyObjectMoved(o, t.worldFromObject());
     }
     expectSameShadowLines(a, fresh.findShadowEdges(), 1e-6, "incremental vs fresh");
+}
+
+namespace {
+
+/// EventCoverage::threshold from its definition, from scratch: every piece end, 0 and 1 cut
+/// u into elementary intervals; each interval inside [0, 1] and at least 1e-12 long takes the
+/// smallest sMax of the pieces covering it (infinite if none); the threshold is the largest.
+double coverageThresholdBruteForce(const std::vector<std::array<double, 3>>& pieces) {
+    std::vector<double> ends{0.0, 1.0};
+    std::vector<std::array<double, 3>> kept;
+    double length = 0;
+    for (const auto& p : pieces) {
+        if (!(p[1] - p[0] >= 1e-12)) continue;
+        kept.push_back(p);
+        length += p[1] - p[0];
+        ends.push_back(p[0]);
+        ends.push_back(p[1]);
+    }
+    if (length < 1 - 1e-9) return HUGE_VAL;  // cannot cover [0, 1]; never computed
+    std::sort(ends.begin(), ends.end());
+    ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
+    double t = -HUGE_VAL;
+    for (std::size_t i = 0; i + 1 < ends.size(); ++i) {
+        const double a = ends[i], b = ends[i + 1];
+        if (b <= 0 || a >= 1 || b - a < 1e-12) continue;
+        double best = HUGE_VAL;
+        for (const auto& p : kept)
+            if (p[0] <= a && p[1] >= b) best = std::min(best, p[2]);
+        t = std::max(t, best);
+    }
+    return t;
+}
+
+}  // namespace
+
+TEST(EventCoverage, ThresholdEqualsTheEnvelopeFromScratchAsPiecesArrive) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    EventCoverage coverage;
+    int finite = 0, checked = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+        coverage.reset(1 + 1e-7);
+        std::vector<std::array<double, 3>> pieces;
+        const int count = 1 + trial % 40;
+        // A few shared ends, so pieces meet exactly; some pieces reach beyond [0, 1]; some
+        // gaps are shorter than 1e-12 (ignored); some pieces are empty.
+        std::vector<double> grid;
+        for (int k = 0; k < 6; ++k) grid.push_back(unit(rng) * 1.2 - 0.1);
+        for (int k = 0; k < count; ++k) {
+            double u0 = unit(rng) < 0.3 ? grid[rng() % grid.size()] : unit(rng) * 1.2 - 0.1;
+            double u1 = unit(rng) < 0.3 ? grid[rng() % grid.size()] : u0 + unit(rng) * 0.6;
+            if (unit(rng) < 0.1) u1 = u0 + 5e-13;  // too short: ignored
+            if (unit(rng) < 0.1 && !pieces.empty()) u0 = pieces.back()[1] + 4e-13;  // tiny gap
+            const double s = unit(rng) < 0.2 ? 1.0 : 0.5 + 3 * unit(rng);
+            pieces.push_back({u0, u1, s});
+            coverage.add(u0, u1, s);
+            const double expected = coverageThresholdBruteForce(pieces);
+            // bound() is stale between its recomputations, never below the threshold.
+            EXPECT_GE(coverage.bound(), expected);
+            if (k % 3 == 0 || k + 1 == count) {
+                EXPECT_EQ(coverage.threshold(), expected) << "trial " << trial << " piece " << k;
+                ++checked;
+                finite += expected < HUGE_VAL;
+            }
+        }
+    }
+    EXPECT_GT(checked, 1000);
+    EXPECT_GT(finite, 200) << "most cases must cover [0, 1] to test anything";
 }
