@@ -44,6 +44,14 @@ struct WorldEdge {
     std::string toString() const;
 };
 
+/// Makes room in `list` for n elements, with half as much again to spare, when it has less:
+/// edge lists rebuilt after every move then keep their block (and its touched pages) while
+/// they grow a little.
+template <class T>
+void reserveWithRoom(std::vector<T>& list, std::size_t n) {
+    if (list.capacity() < n) list.reserve(n + n / 2);
+}
+
 /// Work counters (cumulative until resetStats()).
 struct EdgeFinderStats {
     long long eventRecomputations = 0;   ///< (light, blocker) pairs whose events were rebuilt

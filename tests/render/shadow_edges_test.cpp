@@ -505,3 +505,20 @@ TEST(EventCoverage, ThresholdEqualsTheEnvelopeFromScratchAsPiecesArrive) {
     EXPECT_GT(checked, 1000);
     EXPECT_GT(finite, 200) << "most cases must cover [0, 1] to test anything";
 }
+
+TEST(ShadowEdges, ReusedListsKeepTheirBlockWhileTheyGrowALittle) {
+    // The lists rebuilt after every move (findShadowEdges' output, orderByPenumbra's scratch)
+    // must not move to fresh memory when a move adds a few edges.
+    std::vector<WorldEdge> list;
+    reserveWithRoom(list, 1000);
+    list.resize(1000);
+    EXPECT_GE(list.capacity(), 1500u);
+    const WorldEdge* block = list.data();
+    for (std::size_t n : {1080u, 900u, 1400u, 1500u}) {
+        reserveWithRoom(list, n);
+        list.resize(n);
+        EXPECT_EQ(list.data(), block) << n << " edges";
+    }
+    reserveWithRoom(list, 1501);
+    EXPECT_GE(list.capacity(), 2251u);
+}
