@@ -798,7 +798,7 @@ void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
     // Room to grow by half: a move that adds edges (the first one after the initial
     // computation added 8% on armadillo-field) would otherwise move the list into a fresh
     // block, and first writes to 18 MB of fresh pages cost 40 ms of page faults here.
-    reserveWithRoom(out, total);
+    reserveForOverwrite(out, total);
     out.resize(total);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lists.size(), 256),
                       [&](const tbb::blocked_range<std::size_t>& range) {

@@ -44,12 +44,15 @@ struct WorldEdge {
     std::string toString() const;
 };
 
-/// Makes room in `list` for n elements, with half as much again to spare, when it has less:
-/// edge lists rebuilt after every move then keep their block (and its touched pages) while
-/// they grow a little.
+/// Makes room in `list` for n elements, with half as much again to spare, when it has less;
+/// for lists about to be overwritten whole: growing discards the contents instead of copying
+/// them. Edge lists rebuilt after every move then keep their block (and its touched pages)
+/// while they grow a little.
 template <class T>
-void reserveWithRoom(std::vector<T>& list, std::size_t n) {
-    if (list.capacity() < n) list.reserve(n + n / 2);
+void reserveForOverwrite(std::vector<T>& list, std::size_t n) {
+    if (list.capacity() >= n) return;
+    list.clear();
+    list.reserve(n + n / 2);
 }
 
 /// Work counters (cumulative until resetStats()).

@@ -810,7 +810,7 @@ PenumbraOrder orderByPenumbra(std::vector<WorldEdge>& edges, std::vector<WorldEd
     }
     order.start[K] = at;
     for (const Box3& b : boxes) order.bounds.extend(b);
-    reserveWithRoom(scratch, n);  // as findShadowEdges' list, which this swaps with
+    reserveForOverwrite(scratch, n);  // as findShadowEdges' list, which this swaps with
     scratch.resize(n);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
         for (std::size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i)

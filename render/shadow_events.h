@@ -77,7 +77,8 @@ bool isConcaveEdge(const EdgeMesh& mesh, int edge);
 /// clipping): the u range and largest s of every crossing piece found so far. threshold() is
 /// the smallest T such that pieces with s <= T cover every u in [0, 1] (gaps shorter than
 /// clipEvent resolves, 1e-12, ignored): surfaces all beyond T can never be the nearest, and
-/// with T <= 1 + 1e-7 the event is hidden (casts nothing).
+/// with T <= 1 + 1e-7 the event is hidden (casts nothing). A piece whose sMax is NaN covers
+/// nothing.
 class EventCoverage {
 public:
     void add(double u0, double u1, double sMax);

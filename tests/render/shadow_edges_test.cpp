@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <filesystem>
 #include <random>
@@ -442,8 +443,10 @@ namespace {
 
 /// EventCoverage::threshold from its definition, from scratch: every piece end, 0 and 1 cut
 /// u into elementary intervals; each interval inside [0, 1] and at least 1e-12 long takes the
-/// smallest sMax of the pieces covering it (infinite if none); the threshold is the largest.
-double coverageThresholdBruteForce(const std::vector<std::array<double, 3>>& pieces) {
+/// smallest sMax of the pieces covering it (infinite if none; a NaN sMax covers nothing); the
+/// threshold is the largest. `shortest` 0 counts every interval (no gap ignored).
+double coverageThresholdBruteForce(const std::vector<std::array<double, 3>>& pieces,
+                                   double shortest = 1e-12) {
     std::vector<double> ends{0.0, 1.0};
     std::vector<std::array<double, 3>> kept;
     double length = 0;
@@ -460,7 +463,7 @@ double coverageThresholdBruteForce(const std::vector<std::array<double, 3>>& pie
     double t = -HUGE_VAL;
     for (std::size_t i = 0; i + 1 < ends.size(); ++i) {
         const double a = ends[i], b = ends[i + 1];
-        if (b <= 0 || a >= 1 || b - a < 1e-12) continue;
+        if (b <= 0 || a >= 1 || b - a < shortest) continue;
         double best = HUGE_VAL;
         for (const auto& p : kept)
             if (p[0] <= a && p[1] >= b) best = std::min(best, p[2]);
@@ -475,7 +478,7 @@ TEST(EventCoverage, ThresholdEqualsTheEnvelopeFromScratchAsPiecesArrive) {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     EventCoverage coverage;
-    int finite = 0, checked = 0;
+    int finite = 0, checked = 0, gapsThatMattered = 0;
     for (int trial = 0; trial < 300; ++trial) {
         coverage.reset(1 + 1e-7);
         std::vector<std::array<double, 3>> pieces;
@@ -486,10 +489,11 @@ TEST(EventCoverage, ThresholdEqualsTheEnvelopeFromScratchAsPiecesArrive) {
         for (int k = 0; k < 6; ++k) grid.push_back(unit(rng) * 1.2 - 0.1);
         for (int k = 0; k < count; ++k) {
             double u0 = unit(rng) < 0.3 ? grid[rng() % grid.size()] : unit(rng) * 1.2 - 0.1;
+            if (unit(rng) < 0.15 && !pieces.empty()) u0 = pieces.back()[1] + 4e-13;  // tiny gap
             double u1 = unit(rng) < 0.3 ? grid[rng() % grid.size()] : u0 + unit(rng) * 0.6;
             if (unit(rng) < 0.1) u1 = u0 + 5e-13;  // too short: ignored
-            if (unit(rng) < 0.1 && !pieces.empty()) u0 = pieces.back()[1] + 4e-13;  // tiny gap
-            const double s = unit(rng) < 0.2 ? 1.0 : 0.5 + 3 * unit(rng);
+            double s = unit(rng) < 0.2 ? 1.0 : 0.5 + 3 * unit(rng);
+            if (unit(rng) < 0.03) s = std::nan("");  // covers nothing
             pieces.push_back({u0, u1, s});
             coverage.add(u0, u1, s);
             const double expected = coverageThresholdBruteForce(pieces);
@@ -498,27 +502,32 @@ TEST(EventCoverage, ThresholdEqualsTheEnvelopeFromScratchAsPiecesArrive) {
             if (k % 3 == 0 || k + 1 == count) {
                 EXPECT_EQ(coverage.threshold(), expected) << "trial " << trial << " piece " << k;
                 ++checked;
+                // A gap under 1e-12 that alone leaves [0, 1] uncovered.
+                gapsThatMattered +=
+                    expected < HUGE_VAL && coverageThresholdBruteForce(pieces, 0.0) == HUGE_VAL;
                 finite += expected < HUGE_VAL;
             }
         }
     }
     EXPECT_GT(checked, 1000);
     EXPECT_GT(finite, 200) << "most cases must cover [0, 1] to test anything";
+    EXPECT_GT(gapsThatMattered, 5) << "the 1e-12 rule must decide some cases";
 }
 
 TEST(ShadowEdges, ReusedListsKeepTheirBlockWhileTheyGrowALittle) {
     // The lists rebuilt after every move (findShadowEdges' output, orderByPenumbra's scratch)
-    // must not move to fresh memory when a move adds a few edges.
+    // must not move to fresh memory when a move adds a few edges. (Their contents are
+    // overwritten, so growing may discard them.)
     std::vector<WorldEdge> list;
-    reserveWithRoom(list, 1000);
+    reserveForOverwrite(list, 1000);
     list.resize(1000);
     EXPECT_GE(list.capacity(), 1500u);
     const WorldEdge* block = list.data();
     for (std::size_t n : {1080u, 900u, 1400u, 1500u}) {
-        reserveWithRoom(list, n);
+        reserveForOverwrite(list, n);
         list.resize(n);
         EXPECT_EQ(list.data(), block) << n << " edges";
     }
-    reserveWithRoom(list, 1501);
+    reserveForOverwrite(list, 1501);
     EXPECT_GE(list.capacity(), 2251u);
 }
