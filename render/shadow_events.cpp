@@ -713,8 +713,10 @@ void EventCoverage::fold(const Piece& p) const {
             mBest.insert(mBest.begin(), HUGE_VAL);
         else if (i + 1 == mBreaks.size())
             mBest.push_back(HUGE_VAL);
-        else
-            mBest.insert(mBest.begin() + static_cast<std::ptrdiff_t>(i), mBest[i - 1]);
+        else {
+            const double split = mBest[i - 1];  // the interval split keeps its value
+            mBest.insert(mBest.begin() + static_cast<std::ptrdiff_t>(i), split);
+        }
         return i;
     };
     const std::size_t from = breakAt(p.u0);
