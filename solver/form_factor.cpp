@@ -118,7 +118,8 @@ namespace {
 /// visibility term (1 visible, 0 blocked; a difference of two such terms for
 /// formFactorChange) and counts the rays it traced; the result
 /// is unoccluded × Σ w·visit / Σ w (a ratio estimator, exact when nothing blocks and when
-/// everything does).
+/// everything does). The weights are computed only when the samples' terms differ: when
+/// every term is the same v, the estimate is unoccluded × v whatever the weights.
 /// Per-thread scratch of estimatePointToPatch: one thread-local lookup per pair.
 struct PairScratch {
     std::vector<std::vector<Vec3>> polys;  ///< per polygon: its part above the horizon
@@ -129,7 +130,9 @@ struct PairScratch {
     std::vector<const std::vector<Vec3>*> source;   ///< per polygon: what is sampled
     std::vector<const std::vector<double>*> fanOf;  ///< per polygon: its fans, once known
     std::vector<double> areaOverF;
-    std::vector<Vec3> targets;
+    std::vector<Vec3> points;    ///< per sample: its point on the patch
+    std::vector<int> polygonOf;  ///< per sample: the polygon it was taken from
+    std::vector<Vec3> targets;   ///< per sample: the point off the surface, where its ray ends
     std::vector<double> weights;
     std::vector<double> r4;  ///< per sample: |d|⁴, the weight's denominator
     std::vector<int> visible;
@@ -203,17 +206,20 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     std::fill_n(areaOverF.begin(), count, -1.0);
     const std::size_t most = static_cast<std::size_t>(rays);
     if (sc.targets.size() < most) {
+        sc.points.resize(most);
+        sc.polygonOf.resize(most);
         sc.targets.resize(most);
         sc.weights.resize(most);
         sc.r4.resize(most);
         sc.visible.resize(most);
     }
+    Vec3* const points = sc.points.data();
+    int* const polygonOf = sc.polygonOf.data();
     Vec3* const targets = sc.targets.data();
     double* const weights = sc.weights.data();
     double* const r4 = sc.r4.data();
     int* const visible = sc.visible.data();
     int taken = 0;
-    double wAll = 0;
     const double stratum = total / rays;
     // A sample's numbers follow Kronecker sequences q_s = (q_0 + s·α) mod 1, each started at a
     // pair-seeded offset (a Cranley–Patterson rotation): every sample is uniform, the pair's
@@ -236,18 +242,16 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         q -= q >= 1 ? 1.0 : 0.0;
     };
     // Leave the source surface along its normal (toward x, which is in front of it), so rays
-    // grazing the source plane do not hit the source itself in float precision. Each sample's
-    // weight is the point-to-point kernel cos·cos/r² over the sampling density: d is
-    // unnormalized, so the cosines carry a factor r² more. Numerator and r⁴ first; the
-    // divisions after the loop, two at a time.
-    auto addSample = [&](const Vec3& y, const Vec3& ny, double weightScale) {
+    // grazing the source plane do not hit the source itself in float precision. A sample at
+    // the receiver's own point (d = 0) is not taken.
+    auto addSample = [&](const Vec3& y, std::size_t k) {
         const Vec3 d = y - origin;
         const double dd = glm::dot(d, d);
         if (!(dd > 0)) return;
-        weights[taken] =
-            std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(ny, d)) * weightScale;
+        points[taken] = y;
+        polygonOf[taken] = static_cast<int>(k);
         r4[taken] = dd * dd;
-        targets[taken] = y + ny * eps;
+        targets[taken] = y + normals[k] * eps;
         ++taken;
     };
     if (count == 1 && source[0] == &P.outline && P.parallelogram) {
@@ -255,10 +259,10 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         // sample (jitter q0, step 1/ρ) and b by the golden-ratio sequence (q1): a lattice-like
         // set even along both sides, with no search and no square root.
         const Vec3 o = P.outline[0], eu = P.outline[1] - o, ev = P.outline[3] - o;
-        const double aOverF = P.area / f[0];
+        areaOverF[0] = P.area / f[0];
         for (int s = 0; s < rays; ++s) {
             if (s > 0) advance(q0, kR2x), advance(q1, kGolden);
-            addSample(o + ((s + q0) / rays) * eu + q1 * ev, normals[0], aOverF);
+            addSample(o + ((s + q0) / rays) * eu + q1 * ev, 0);
         }
     } else {
         // The jitter within the stratum by the golden-ratio sequence (q0), the point in the
@@ -278,14 +282,35 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
                 }
                 areaOverF[k] = 0.5 * fanOf[k]->back() / f[k];
             }
-            addSample(samplePolygon(*source[k], *fanOf[k], std::min(u / f[k], 1.0), q1, q2),
-                      normals[k], areaOverF[k]);
+            addSample(samplePolygon(*source[k], *fanOf[k], std::min(u / f[k], 1.0), q1, q2), k);
         }
     }
-    for (int i = 0; i < taken; ++i) weights[i] /= r4[i];
-    for (int i = 0; i < taken; ++i) wAll += weights[i];
     std::fill_n(visible, taken, 0);
     visit(origin, targets, taken, visible, out.rays);
+    // Each sample's weight is the point-to-point kernel cos·cos/r² over the sampling density
+    // (A_k / F_k of its polygon): d is unnormalized, so the cosines carry a factor r² more.
+    auto weightOf = [&](int i) {
+        const Vec3 d = points[i] - origin;
+        const int k = polygonOf[i];
+        return std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(normals[k], d)) *
+               areaOverF[k] / r4[i];
+    };
+    // Every sample with the same term (all seen, the common case, or all blocked): the ratio
+    // estimate is that term once any weight is positive, and 0 when none is (every sample at
+    // the receiver's or the source's horizon, where the form factor is rounding).
+    bool same = true;
+    for (int i = 1; i < taken; ++i) same = same && visible[i] == visible[0];
+    if (same) {
+        for (int i = 0; i < taken; ++i)
+            if (weightOf(i) > 0) {
+                out.visible = total * visible[0];
+                return out;
+            }
+        return out;
+    }
+    for (int i = 0; i < taken; ++i) weights[i] = weightOf(i);
+    double wAll = 0;
+    for (int i = 0; i < taken; ++i) wAll += weights[i];
     double wVisible = 0;
     for (int i = 0; i < taken; ++i) wVisible += weights[i] * visible[i];
     out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;
