@@ -68,4 +68,32 @@ __attribute__((target_clones("avx2", "default"))) double integrateContour(const 
     return sum;
 }
 
+__attribute__((target_clones("avx", "default"))) void integrateContourLanes(
+    const Vec3* xs, const Vec3* ns, const Vec3* v, std::size_t count, double* sums) {
+    constexpr int L = kContourLanes;
+    double px[L], py[L], pz[L], nx[L], ny[L], nz[L], sum[L];
+    for (int l = 0; l < L; ++l) {
+        px[l] = xs[l].x, py[l] = xs[l].y, pz[l] = xs[l].z;
+        nx[l] = ns[l].x, ny[l] = ns[l].y, nz[l] = ns[l].z;
+        sum[l] = 0;
+    }
+    for (std::size_t i = 0; i < count; ++i) {
+        const Vec3& a = v[i];
+        const Vec3& b = v[i + 1 < count ? i + 1 : 0];
+        for (int l = 0; l < L; ++l) {
+            const double ax = a.x - px[l], ay = a.y - py[l], az = a.z - pz[l];
+            const double bx = b.x - px[l], by = b.y - py[l], bz = b.z - pz[l];
+            const double cx = ay * bz - az * by;
+            const double cy = az * bx - ax * bz;
+            const double cz = ax * by - ay * bx;
+            const double cl = std::sqrt(cx * cx + cy * cy + cz * cz);
+            const double d = ax * bx + ay * by + az * bz;
+            const double nc = nx[l] * cx + ny[l] * cy + nz[l] * cz;
+            const double t = atan2Lane(cl, d) * nc / (cl <= 0 ? 1.0 : cl);
+            sum[l] += cl <= 0 ? 0.0 : t;
+        }
+    }
+    for (int l = 0; l < L; ++l) sums[l] = sum[l];
+}
+
 }  // namespace penumbra

@@ -147,7 +147,7 @@ template <class Visit>
 PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& tracer,
                                   const Vec3& x, const Vec3& n, int patch,
                                   std::uint64_t receiverKey, std::uint64_t seed, int maxRays,
-                                  Visit&& visit) {
+                                  const double* wholeOutline, Visit&& visit) {
     PointToPatch out;
     const Patch& P = disc.patches()[patch];
     PairScratch& sc = pairScratch();
@@ -188,7 +188,11 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
             fanOf[k] = nullptr;
         } else {
             normals[k] = P.normal;
-            total += f[k] = clippedFormFactor(x, n, P.outline, P.normal, polys[k], usesClipped);
+            // wholeOutline: the form factor of the whole outline, known to be in front of x
+            // and above its horizon (formFactorsToPatch).
+            total += f[k] =
+                wholeOutline ? *wholeOutline
+                             : clippedFormFactor(x, n, P.outline, P.normal, polys[k], usesClipped);
             source[k] = usesClipped ? &polys[k] : &P.outline;
             fanOf[k] = usesClipped || P.outlineFans.empty() ? nullptr : &P.outlineFans;
         }
@@ -317,29 +321,74 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     return out;
 }
 
+/// The visibility of formFactorToPatch's samples: the segments from one point toward one patch
+/// as coherent packets.
+auto occlusionVisit(const RayTracer& tracer, const Visibility& visibility) {
+    return [&tracer, &visibility](const Vec3& from, const Vec3* to, int count, int* visible,
+                                  int& rays) {
+        if (count < 2) {
+            for (int i = 0; i < count; ++i)
+                visible[i] = tracer.occluded(from, to[i], visibility) ? 0 : 1;
+            rays += count;
+            return;
+        }
+        bool blocked[16];
+        for (int i = 0; i < count; i += 16) {
+            const int m = std::min(16, count - i);
+            tracer.occludedPacket(from, to + i, m, blocked, visibility);
+            for (int k = 0; k < m; ++k) visible[i + k] = blocked[k] ? 0 : 1;
+        }
+        rays += count;
+    };
+}
+
 }  // namespace
 
 PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
                                const Vec3& n, int patch, std::uint64_t receiverKey,
                                std::uint64_t seed, int maxRays, const Visibility& visibility) {
-    return estimatePointToPatch(
-        disc, tracer, x, n, patch, receiverKey, seed, maxRays,
-        [&](const Vec3& from, const Vec3* to, int count, int* visible, int& rays) {
-            if (count < 2) {
-                for (int i = 0; i < count; ++i)
-                    visible[i] = tracer.occluded(from, to[i], visibility) ? 0 : 1;
-                rays += count;
-                return;
-            }
-            // The samples of one pair leave one point toward one patch: coherent packets.
-            bool blocked[16];
-            for (int i = 0; i < count; i += 16) {
-                const int m = std::min(16, count - i);
-                tracer.occludedPacket(from, to + i, m, blocked, visibility);
-                for (int k = 0; k < m; ++k) visible[i + k] = blocked[k] ? 0 : 1;
-            }
-            rays += count;
-        });
+    return estimatePointToPatch(disc, tracer, x, n, patch, receiverKey, seed, maxRays, nullptr,
+                                occlusionVisit(tracer, visibility));
+}
+
+void formFactorsToPatch(const Discretization& disc, const RayTracer& tracer, int patch,
+                        const Receiver* receivers, int count, std::uint64_t seed, int maxRays,
+                        const Visibility& visibility, PointToPatch* out) {
+    const Patch& P = disc.patches()[patch];
+    const auto visit = occlusionVisit(tracer, visibility);
+    auto one = [&](int i, const double* whole) {
+        const Receiver& r = receivers[i];
+        out[i] =
+            estimatePointToPatch(disc, tracer, r.x, r.n, patch, r.key, seed, maxRays, whole, visit);
+    };
+    if (P.outline.size() < 3) {
+        for (int i = 0; i < count; ++i) one(i, nullptr);
+        return;
+    }
+    constexpr int L = kContourLanes;
+    const std::vector<Vec3>& outline = P.outline;
+    for (int base = 0; base < count; base += L) {
+        const int m = std::min(L, count - base);
+        Vec3 xs[L], ns[L];
+        bool whole[L];
+        for (int l = 0; l < L; ++l) {
+            // Unused lanes repeat the first receiver, so every lane computes finite numbers.
+            const Receiver& r = receivers[base + (l < m ? l : 0)];
+            xs[l] = r.x;
+            ns[l] = r.n;
+            // As clippedFormFactor decides: in front of the outline's plane, no vertex below
+            // the receiver's horizon. Other receivers take their own path.
+            bool below = false;
+            for (const Vec3& v : outline) below = below || glm::dot(v - r.x, r.n) < 0;
+            whole[l] = !(glm::dot(r.x - outline[0], P.normal) <= 0) && !below;
+        }
+        double sums[L];
+        integrateContourLanes(xs, ns, outline.data(), outline.size(), sums);
+        for (int l = 0; l < m; ++l) {
+            const double f = std::abs(sums[l]) / (2 * M_PI);
+            one(base + l, whole[l] ? &f : nullptr);
+        }
+    }
 }
 
 PointToPatch formFactorChange(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
@@ -347,7 +396,7 @@ PointToPatch formFactorChange(const Discretization& disc, const RayTracer& trace
                               std::uint64_t seed, int maxRays, const Visibility& before,
                               const Visibility& after, const Visibility& changed) {
     return estimatePointToPatch(
-        disc, tracer, x, n, patch, receiverKey, seed, maxRays,
+        disc, tracer, x, n, patch, receiverKey, seed, maxRays, nullptr,
         [&](const Vec3& from, const Vec3* to, int count, int* visible, int& rays) {
             for (int i = 0; i < count; ++i) {
                 // A sample that misses every changed object has the same visibility in both

@@ -47,6 +47,21 @@ PointToPatch formFactorToPatch(const Discretization& disc, const RayTracer& trac
                                const Vec3& n, int patch, std::uint64_t receiverKey,
                                std::uint64_t seed, int maxRays, const Visibility& visibility = {});
 
+/// A receiving point of formFactorsToPatch: the point, its unit normal and its key (the
+/// receiverKey of formFactorToPatch).
+struct Receiver {
+    Vec3 x, n;
+    std::uint64_t key = 0;
+};
+
+/// formFactorToPatch from each of `count` receivers to one patch, the same results bit for bit
+/// (out[i] for receivers[i]). For a planar patch, the unoccluded form factors of its whole
+/// outline come first, kContourLanes receivers at a time, then each receiver's samples and
+/// rays: a pair's contour sum no longer waits for the pair before it to finish tracing.
+void formFactorsToPatch(const Discretization& disc, const RayTracer& tracer, int patch,
+                        const Receiver* receivers, int count, std::uint64_t seed, int maxRays,
+                        const Visibility& visibility, PointToPatch* out);
+
 /// F(after) − F(before) for the same pair and the same pair-seeded samples as
 /// formFactorToPatch, where the two worlds differ only by the objects that `changed` admits
 /// (a Visibility::subset of the added and removed objects). Each sample is first traced

@@ -465,21 +465,42 @@ void ProgressiveSolver::shootPatch(int shooter) {
     } else {
         // By receiving patch: a task owns its patches' elements and unshot sums, so it applies
         // what it gathers at once, in the patch's element order (ascending, as the element
-        // loop above applies them), and the shot has no serial pass over the elements.
+        // loop above applies them), and the shot has no serial pass over the elements. The
+        // form factors of a patch's receivers are computed together (formFactorsToPatch: the
+        // same values as irradianceFrom's one at a time).
         auto& received = mImpl->patchReceived;
         received.assign(patches.size(), 0);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, patches.size(), 8),
-                          [&](const auto& range) {
-                              int traced = 0;
-                              for (std::size_t p = range.begin(); p != range.end(); ++p)
-                                  for (int e : patches[p].elements) {
-                                      const Rgb d = irradianceFrom(shooter, e, dB, {}, &traced);
-                                      if (isZero(d)) continue;
-                                      receive(e, d);
-                                      received[p] = 1;
-                                  }
-                              rays += static_cast<std::uint64_t>(traced);
-                          });
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, patches.size(), 8), [&](const auto& range) {
+                int traced = 0;
+                constexpr int kBatch = 16;
+                Receiver receivers[kBatch];
+                int receiving[kBatch];
+                PointToPatch ff[kBatch];
+                for (std::size_t p = range.begin(); p != range.end(); ++p) {
+                    const std::vector<int>& els = patches[p].elements;
+                    for (std::size_t i = 0; i < els.size();) {
+                        int m = 0;
+                        for (; i < els.size() && m < kBatch; ++i) {
+                            const int e = els[i];
+                            if (!mayReceive(shooter, e, {})) continue;
+                            const Element& el = mDisc.elements()[e];
+                            receivers[m] = {el.centroid, el.normal, static_cast<std::uint64_t>(e)};
+                            receiving[m++] = e;
+                        }
+                        formFactorsToPatch(mDisc, mTracer, shooter, receivers, m, mOptions.seed,
+                                           mOptions.maxRaysPerPair, {}, ff);
+                        for (int k = 0; k < m; ++k) {
+                            traced += ff[k].rays;
+                            const Rgb d = dB * ff[k].visible;
+                            if (isZero(d)) continue;
+                            receive(receiving[k], d);
+                            received[p] = 1;
+                        }
+                    }
+                }
+                rays += static_cast<std::uint64_t>(traced);
+            });
         for (std::size_t p = 0; p < patches.size(); ++p)
             if (received[p]) updatePriority(static_cast<int>(p));
     }
@@ -490,19 +511,25 @@ void ProgressiveSolver::shootPatch(int shooter) {
     mImpl->deterministicRays += rays;  // this shot's own, whatever else shares the tracer
 }
 
-Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
-                                      const Visibility& visibility, int* rays) const {
+bool ProgressiveSolver::mayReceive(int shooter, int e, const Visibility& visibility) const {
     const Patch& P = mDisc.patches()[shooter];
     const Element& el = mDisc.elements()[e];
-    if (el.patch == shooter) return Rgb(0.0);
+    if (el.patch == shooter) return false;
     // Only receivers present in the scene the form factor is evaluated in.
     if (visibility.world ? !(*visibility.world)[el.object] : !mDisc.objects()[el.object].alive)
-        return Rgb(0.0);
+        return false;
     // Cull pairs that cannot see each other: receiver behind the shooter's bounding plane or
     // shooter behind the receiver's plane.
     Vec3 toReceiver = el.centroid - P.centroid;
-    if (glm::dot(toReceiver, P.normal) < -P.radius) return Rgb(0.0);
-    if (glm::dot(-toReceiver, el.normal) < -P.radius) return Rgb(0.0);
+    if (glm::dot(toReceiver, P.normal) < -P.radius) return false;
+    if (glm::dot(-toReceiver, el.normal) < -P.radius) return false;
+    return true;
+}
+
+Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
+                                      const Visibility& visibility, int* rays) const {
+    if (!mayReceive(shooter, e, visibility)) return Rgb(0.0);
+    const Element& el = mDisc.elements()[e];
     PointToPatch ff = formFactorToPatch(mDisc, mTracer, el.centroid, el.normal, shooter,
                                         static_cast<std::uint64_t>(e), mOptions.seed,
                                         mOptions.maxRaysPerPair, visibility);

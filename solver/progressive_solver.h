@@ -180,6 +180,9 @@ private:
     /// `rays`, when given, is increased by the rays traced.
     Rgb irradianceFrom(int shooter, int e, const Rgb& dB, const Visibility& visibility = {},
                        int* rays = nullptr) const;
+    /// False for pairs that cannot exchange light under `visibility` (irradianceFrom's culls:
+    /// the shooter's own elements, receivers absent, either side behind the other).
+    bool mayReceive(int shooter, int e, const Visibility& visibility) const;
     /// dB · (F(after) − F(before)) for element e and `shooter`, tracing both worlds only for
     /// samples that meet an object `changed` admits (formFactorChange).
     Rgb irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,

@@ -656,5 +656,106 @@ TEST(RayTracerPackets, FirstHitsAnswerAsSingleFirstHits) {
     EXPECT_GT(backs, 0);
 }
 
+// ---------------------------------------------------------------------------------------------
+// Batched receivers: the same numbers as one pair at a time
+
+/// Uniform numbers in [0, 1) from a counter (SplitMix64), for reproducible random cases.
+struct Uniform {
+    std::uint64_t state;
+    double operator()() { return static_cast<double>(splitmix64(state++) >> 11) * 0x1.0p-53; }
+};
+
+TEST(FormFactorBatch, ContourLanesEqualTheContourSumPointByPoint) {
+    // Random convex polygons of 3 to 20 vertices (beyond the scalar sum's 16-edge chunks),
+    // seen from random points with random normals: each lane's sum has the scalar sum's bits.
+    Uniform u{11};
+    int checked = 0;
+    for (int trial = 0; trial < 200; ++trial) {
+        const std::size_t m = 3 + static_cast<std::size_t>(u() * 18);
+        std::vector<Vec3> poly(m);
+        const Vec3 c(u() * 4 - 2, u() * 4 - 2, u() * 4 - 2);
+        const double r = 0.1 + u() * 2;
+        for (std::size_t k = 0; k < m; ++k) {
+            const double a = 2 * M_PI * static_cast<double>(k) / static_cast<double>(m);
+            poly[k] = c + Vec3(r * std::cos(a), 0.3 * u(), r * std::sin(a));
+        }
+        Vec3 xs[kContourLanes], ns[kContourLanes];
+        for (int l = 0; l < kContourLanes; ++l) {
+            xs[l] = Vec3(u() * 6 - 3, u() * 6 - 3, u() * 6 - 3);
+            ns[l] = glm::normalize(Vec3(u() - 0.5, u() - 0.5, u() - 0.5));
+        }
+        if (trial % 10 == 0) xs[1] = poly[0];  // an edge through the point adds nothing
+        double sums[kContourLanes];
+        integrateContourLanes(xs, ns, poly.data(), m, sums);
+        for (int l = 0; l < kContourLanes; ++l) {
+            const double one = integrateContour(xs[l], ns[l], poly.data(), m);
+            EXPECT_TRUE(sameBits(sums[l], one))
+                << "trial " << trial << ", lane " << l << ", " << m << " vertices: " << sums[l]
+                << " in lanes, " << one << " alone";
+            ++checked;
+        }
+    }
+    EXPECT_EQ(checked, 200 * kContourLanes);
+}
+
+TEST(FormFactorBatch, ReceiversTogetherEqualEachPairAlone) {
+    // Every patch of a room with a blocking box and a sphere (planar outlines and curved
+    // patches), from every element centre and from random points with random normals: in
+    // front, behind, with the horizon cutting the patch, in batches of every length up to 9
+    // (the lanes' padding): the same unoccluded and visible form factors bit for bit, and
+    // the same rays.
+    Scene scene = litRoomWithABlocker();
+    scene.objects.push_back(whiteSphere(0.2, 12, Vec3(0.5, 0.3, -0.4)));
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    std::vector<Receiver> receivers;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+        const Element& el = disc.elements()[e];
+        receivers.push_back({el.centroid, el.normal, e});
+    }
+    Uniform u{5};
+    for (int k = 0; k < 300; ++k)
+        receivers.push_back({Vec3(u() * 1.4 - 0.7, u() * 1.4 - 0.7, u() * 1.4 - 0.7),
+                             glm::normalize(Vec3(u() - 0.5, u() - 0.5, u() - 0.5)),
+                             1000000u + static_cast<std::uint64_t>(k)});
+    int planar = 0, curved = 0, whole = 0, clipped = 0, behind = 0, occluded = 0;
+    std::vector<PointToPatch> together(receivers.size());
+    for (int p = 0; p < static_cast<int>(disc.patches().size()); ++p) {
+        const Patch& P = disc.patches()[p];
+        (P.outline.empty() ? curved : planar) += 1;
+        const int batch = 1 + p % 9;
+        for (std::size_t i = 0; i < receivers.size(); i += batch) {
+            const int m = static_cast<int>(std::min<std::size_t>(batch, receivers.size() - i));
+            formFactorsToPatch(disc, tracer, p, &receivers[i], m, 7, 16, {}, &together[i]);
+        }
+        for (std::size_t i = 0; i < receivers.size(); ++i) {
+            const Receiver& r = receivers[i];
+            const PointToPatch alone = formFactorToPatch(disc, tracer, r.x, r.n, p, r.key, 7, 16);
+            const PointToPatch& t = together[i];
+            ASSERT_TRUE(sameBits(t.unoccluded, alone.unoccluded) &&
+                        sameBits(t.visible, alone.visible) && t.rays == alone.rays)
+                << "patch " << p << ", receiver " << i << " at " << str(r.x) << ": together ("
+                << t.unoccluded << ", " << t.visible << ", " << t.rays << " rays), alone ("
+                << alone.unoccluded << ", " << alone.visible << ", " << alone.rays << " rays)";
+            if (P.outline.empty()) continue;
+            if (!(alone.unoccluded > 0)) {
+                ++behind;
+                continue;
+            }
+            bool below = false;
+            for (const Vec3& v : P.outline) below = below || glm::dot(v - r.x, r.n) < 0;
+            (below ? clipped : whole) += 1;
+            if (alone.visible < alone.unoccluded) ++occluded;
+        }
+    }
+    // The cases the batch treats apart all occur.
+    EXPECT_GT(planar, 0);
+    EXPECT_GT(curved, 0);
+    EXPECT_GT(whole, 100);
+    EXPECT_GT(clipped, 100);
+    EXPECT_GT(behind, 100);
+    EXPECT_GT(occluded, 10);
+}
+
 }  // namespace
 }  // namespace penumbra
