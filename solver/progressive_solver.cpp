@@ -130,10 +130,14 @@ public:
     /// normal and two tangents (frameAround's).
     void sample(RayRandom& rng, Vec3& point, Vec3& normal, Vec3& tx, Vec3& ty) const {
         // The first triangle whose cumulative area reaches the pick (the last if rounding
-        // leaves none), by bisection: large patches have dozens of triangles.
+        // leaves none). Large patches have dozens of triangles of about equal area, so the
+        // search starts where equal areas would put the pick and steps to the answer (a
+        // bisection's six dependent loads cost a tenth of large's batch set-up).
         const std::size_t last = mCumulative.size() - 1;
-        const double pick = rng.next() * mCumulative[last];
-        const std::size_t i = std::min(lowerBound(mCumulative.data(), last, pick), last);
+        const double r = rng.next(), pick = r * mCumulative[last];
+        std::size_t i = std::min(static_cast<std::size_t>(r * static_cast<double>(last + 1)), last);
+        while (i > 0 && !(mCumulative[i - 1] < pick)) --i;
+        while (i < last && mCumulative[i] < pick) ++i;
         const Triangle* t = &mTriangles[i];
         const double s = std::sqrt(rng.next()), r2 = rng.next();
         point = t->p0 + (s * (1 - r2)) * t->e1 + (s * r2) * t->e2;
