@@ -367,10 +367,14 @@ void ProgressiveSolver::ensureSizes() {
 
 void ProgressiveSolver::receive(int e, const Rgb& dH) {
     const Element& el = mDisc.elements()[e];
-    const Rgb dB = mDisc.patchMaterial(el.patch).reflectance * dH;
+    receive(e, el.patch, el.area, dH);
+}
+
+void ProgressiveSolver::receive(int e, int patch, double area, const Rgb& dH) {
+    const Rgb dB = mDisc.patchMaterial(patch).reflectance * dH;
     mElementH[e] += dH;
     mElementB[e] += dB;
-    mPatchUnshot[el.patch] += dB * (el.area / mDisc.patches()[el.patch].area);
+    mPatchUnshot[patch] += dB * (area / mDisc.patches()[patch].area);
 }
 
 void ProgressiveSolver::touchElement(int e) {
@@ -414,18 +418,17 @@ void ProgressiveSolver::receiveAll(const std::vector<Received>& list) {
     blockTouched.resize(blocks);
     tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t b) {
         blockTouched[b].clear();
-        // The entries' elements are anywhere in a large scene: prefetch a few ahead.
+        // The entries' elements are anywhere in a large scene: prefetch a few ahead. An entry
+        // carries its element's patch and area, so receive's sums need no element record.
         constexpr int kAhead = 12;
-        const auto& elements = mDisc.elements();
         for (int i = start[b]; i < start[b + 1]; ++i) {
             if (i + kAhead < start[b + 1]) {
                 const int ahead = list[bucketed[i + kAhead]].element;
-                __builtin_prefetch(&elements[ahead]);
                 __builtin_prefetch(&mElementH[ahead], 1);
                 __builtin_prefetch(&mElementB[ahead], 1);
             }
             const Received& r = list[bucketed[i]];
-            receive(r.element, r.irradiance);
+            receive(r.element, r.patch, r.area, r.irradiance);
             if (!touched[r.patch]) touched[r.patch] = 1, blockTouched[b].push_back(r.patch);
         }
     });
@@ -660,7 +663,7 @@ void ProgressiveSolver::shootStochasticBatch() {
                 const std::size_t k = shooterOf[i];
                 if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
                 if (hit.patch == shooters[k]) continue;
-                hits[g + static_cast<std::size_t>(i)] = {hit.element, hit.patch,
+                hits[g + static_cast<std::size_t>(i)] = {hit.element, hit.patch, hit.area,
                                                          carriedPerRay[k] / hit.area};
             }
         }
@@ -1245,12 +1248,12 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             };
             if (eb >= 0 && c.before[mDisc.elements()[eb].object] && receives(eb)) {
                 const Element& el = mDisc.elements()[eb];
-                out[2 * r] = {eb, el.patch, -carried / el.area};
+                out[2 * r] = {eb, el.patch, el.area, -carried / el.area};
             }
             if (ea >= 0 && receives(ea) &&
                 !(c.isGathered(j) && !c.before[mDisc.elements()[ea].object])) {
                 const Element& el = mDisc.elements()[ea];
-                out[2 * r + 1] = {ea, el.patch, carried / el.area};
+                out[2 * r + 1] = {ea, el.patch, el.area, carried / el.area};
             }
         }
     });

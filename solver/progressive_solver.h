@@ -189,6 +189,8 @@ private:
                          const Visibility& after, const Visibility& changed) const;
     /// Adds irradiance dH to element e (B += ρ dH) and its share to its patch's unshot.
     void receive(int e, const Rgb& dH);
+    /// receive() for an element whose patch and area the caller has at hand.
+    void receive(int e, int patch, double area, const Rgb& dH);
     void updatePriority(int patch);
     /// Marks the patch of element e for one heap update in updateTouchedPriorities().
     void touchElement(int e);
@@ -197,7 +199,8 @@ private:
     /// (element -1: nothing).
     struct Received {
         int element = -1;
-        int patch = -1;
+        int patch = -1;   ///< the element's patch
+        double area = 0;  ///< the element's area (from the hit's record: no element lookup)
         Rgb irradiance{0.0};
     };
     /// receive() and touchElement() for every entry in list order, then the heap updates;
