@@ -45,6 +45,16 @@ std::uint64_t hashPair(std::uint64_t a, std::uint64_t b) {
 
 namespace {
 
+/// Whether (x, n) sees all of `polygon` (front side toward `pn`, at least three vertices): x
+/// in front of its plane (one-sided) and no vertex below x's horizon. clippedFormFactor's and
+/// formFactorsToPatch's one test.
+bool seesWhole(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon, const Vec3& pn) {
+    if (glm::dot(x - polygon[0], pn) <= 0) return false;
+    bool below = false;
+    for (const Vec3& v : polygon) below = below || glm::dot(v - x, n) < 0;
+    return !below;
+}
+
 /// Lambert's contour integral over `polygon` (front side toward `pn`) clipped to the
 /// hemisphere above (x, n). `usesClipped` tells where the part x sees is: true, in `clipped`
 /// (the horizon cut the polygon; empty when nothing is seen); false, the polygon itself (all
@@ -58,15 +68,14 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
         clipped.clear();
         return 0;
     }
+    if (seesWhole(x, n, polygon, pn))
+        return std::abs(integrateContour(x, n, polygon.data(), m)) / (2 * M_PI);
     // One-sided: the point must be in front of the polygon.
     if (glm::dot(x - polygon[0], pn) <= 0) {
         usesClipped = true;
         clipped.clear();
         return 0;
     }
-    bool below = false;
-    for (std::size_t i = 0; i < m; ++i) below = below || glm::dot(polygon[i] - x, n) < 0;
-    if (!below) return std::abs(integrateContour(x, n, polygon.data(), m)) / (2 * M_PI);
 
     // Clip to the receiver's hemisphere, dot(p − x, n) ≥ 0 (Sutherland–Hodgman); each
     // vertex's height is computed once. The output has a vertex per kept vertex and per sign
@@ -134,7 +143,6 @@ struct PairScratch {
     std::vector<int> polygonOf;  ///< per sample: the polygon it was taken from
     std::vector<Vec3> targets;   ///< per sample: the point off the surface, where its ray ends
     std::vector<double> weights;
-    std::vector<double> r4;  ///< per sample: |d|⁴, the weight's denominator
     std::vector<int> visible;
 };
 
@@ -214,14 +222,12 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         sc.polygonOf.resize(most);
         sc.targets.resize(most);
         sc.weights.resize(most);
-        sc.r4.resize(most);
         sc.visible.resize(most);
     }
     Vec3* const points = sc.points.data();
     int* const polygonOf = sc.polygonOf.data();
     Vec3* const targets = sc.targets.data();
     double* const weights = sc.weights.data();
-    double* const r4 = sc.r4.data();
     int* const visible = sc.visible.data();
     int taken = 0;
     const double stratum = total / rays;
@@ -254,7 +260,6 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
         if (!(dd > 0)) return;
         points[taken] = y;
         polygonOf[taken] = static_cast<int>(k);
-        r4[taken] = dd * dd;
         targets[taken] = y + normals[k] * eps;
         ++taken;
     };
@@ -295,9 +300,10 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     // (A_k / F_k of its polygon): d is unnormalized, so the cosines carry a factor r² more.
     auto weightOf = [&](int i) {
         const Vec3 d = points[i] - origin;
+        const double dd = glm::dot(d, d);
         const int k = polygonOf[i];
         return std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(normals[k], d)) *
-               areaOverF[k] / r4[i];
+               areaOverF[k] / (dd * dd);
     };
     // Every sample with the same term (all seen, the common case, or all blocked): the ratio
     // estimate is that term once any weight is positive, and 0 when none is (every sample at
@@ -376,11 +382,8 @@ void formFactorsToPatch(const Discretization& disc, const RayTracer& tracer, int
             const Receiver& r = receivers[base + (l < m ? l : 0)];
             xs[l] = r.x;
             ns[l] = r.n;
-            // As clippedFormFactor decides: in front of the outline's plane, no vertex below
-            // the receiver's horizon. Other receivers take their own path.
-            bool below = false;
-            for (const Vec3& v : outline) below = below || glm::dot(v - r.x, r.n) < 0;
-            whole[l] = !(glm::dot(r.x - outline[0], P.normal) <= 0) && !below;
+            // Receivers that do not see the whole outline take their own path.
+            whole[l] = seesWhole(r.x, r.n, outline, P.normal);
         }
         double sums[L];
         integrateContourLanes(xs, ns, outline.data(), outline.size(), sums);
