@@ -1,5 +1,6 @@
 // penumbra-editor [SCENE] [--log LOG] [--play LOG] [--screenshot PNG --frames N] [--mode NAME]
 //                 [--display-divisor N] [--interactive-divisor N]
+//                 [--bench-drag ID [--frames N] [--record DIR] [--no-references]]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
 // 2 bad input or no display, with one line on stderr.
 
@@ -32,13 +33,18 @@ int main(int argc, char** argv) {
         ->check(CLI::PositiveNumber);
     app.add_option("--bench-drag", options.benchDrag,
                    "drag this object in a circle for --frames frames and print frame times");
+    app.add_option("--record", options.record,
+                   "with --bench-drag: write every image shown, its edit line and the "
+                   "references into this folder");
+    app.add_flag("!--no-references", options.benchReferences,
+                 "with --bench-drag: skip the reference renders (errors against references)");
     app.add_flag("--quiet", options.quiet, "no status lines on stderr");
     app.add_option("--display-divisor", options.displayDivisor,
                    "edge-and-point modes render the viewport at 1/N resolution (upscaled)")
         ->check(CLI::PositiveNumber);
     app.add_option("--interactive-divisor", options.interactiveDisplayDivisor,
-                   "edge-and-point modes while the view moves or an object is dragged: 0 picks "
-                   "a resolution from the frame time, 1 keeps full resolution, N renders 1/N")
+                   "edge-and-point modes while the view moves or an object is dragged: 1 keeps "
+                   "full resolution (default), N renders 1/N, 0 picks N from the frame time")
         ->check(CLI::NonNegativeNumber);
     std::string mode = "epi";
     app.add_option("--mode", mode,

@@ -1458,6 +1458,8 @@ Image EdgePointImage::reconstruct(bool useEdges) {
     mTimes.complexFilterMs = mTimes.smoothMs = 0.0;
     Image out(mWidth, mHeight);
 
+    // The smoothing passes mark the pixels they give a value (1), markHoles the rest.
+    mHole.assign(static_cast<size_t>(mWidth) * mHeight, 0);
     if (!useEdges) {
         auto start = std::chrono::steady_clock::now();
         interpolatePlain();
@@ -1467,6 +1469,7 @@ Image EdgePointImage::reconstruct(bool useEdges) {
             for (int x = 0; x < mWidth; ++x) out.at(x, y) = Rgb(mPlain[index(x, y)]);
         });
         mTimes.interpolateMs = millisecondsSince(start);
+        markHoles(false);
         return out;
     }
 
@@ -1497,7 +1500,30 @@ Image EdgePointImage::reconstruct(bool useEdges) {
         smoothEdgeFreeRegions(out);
         mTimes.smoothMs = millisecondsSince(start);
     }
+    markHoles(true);
     return out;
+}
+
+void EdgePointImage::markHoles(bool useEdges) {
+    // A pixel has a value from the points when its filter reached one (its own, or the plain
+    // 5×5 estimate that interpolatePrimary and the complex filter fall back to), or when the
+    // smoothing wrote it (mHole 1 on entry); the rest is a hole. A pixel of a simple pixel's
+    // secondary region takes a neighbour's colour only through anti-aliasing, which mixes it
+    // with the primary: with neither weight it is a hole too.
+    std::vector<size_t> rowHoles(static_cast<size_t>(mHeight), 0);
+    forRows(mOptions.parallel, mHeight, [&](int y) {
+        size_t holes = 0;
+        for (int x = 0; x < mWidth; ++x) {
+            const size_t i = index(x, y);
+            const bool reached =
+                mWeight[i] > 0.0f || (useEdges && mPlainWeight[i] > 0.0f) || mHole[i] != 0;
+            mHole[i] = reached ? 0 : 1;
+            holes += reached ? 0 : 1;
+        }
+        rowHoles[static_cast<size_t>(y)] = holes;
+    });
+    mHoleCount = 0;
+    for (size_t h : rowHoles) mHoleCount += h;
 }
 
 // ---- Edge-free smoothing ------------------------------------------------------------------
@@ -1587,6 +1613,7 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
         const glm::dvec4 sum = boxSum(x, y, mOptions.denseRadius);
         if (!(sum.w >= 1.5)) return false;
         out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
+        mHole[index(x, y)] = 1;  // written: not a hole (markHoles)
         return true;
     };
 
@@ -1598,7 +1625,10 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             const int d = mEdgeDistance[index(x, y)];
             if (d <= kRingDistance) continue;
             const glm::dvec4 sum = boxSum(x, y, std::min(d - 1, R));
-            if (sum.w >= 1.5) out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
+            if (sum.w >= 1.5) {
+                out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
+                mHole[index(x, y)] = 1;  // written: not a hole (markHoles)
+            }
         }
     });
 
@@ -1638,7 +1668,10 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
                 sum += weight[k] * mPrimary[j];
                 total += weight[k];
             }
-            if (total > 0.0f) out.at(x, y) = Rgb(sum / total);
+            if (total > 0.0f) {
+                out.at(x, y) = Rgb(sum / total);
+                mHole[i] = 1;  // written: not a hole (markHoles)
+            }
         }
     });
 

@@ -232,6 +232,12 @@ public:
     /// After reconstruct(): per pixel the total filter weight of the samples used, before
     /// renormalization (§5.3 prioritized sampling: low weight → high priority; 0 → none).
     const std::vector<float>& interpolationWeights() const { return mWeight; }
+    /// After reconstruct(): 1 for the pixels whose value came from no point at all (no sample
+    /// within the 5×5 filter and none in a smoothing box or ring): holes the caller fills
+    /// (InteractiveDisplay's fallback); they are black in the reconstruction.
+    const std::vector<uint8_t>& holes() const { return mHole; }
+    /// After reconstruct(): how many pixels holes() marks.
+    size_t holeCount() const { return mHoleCount; }
     /// After reconstruct(true): the pixel's primary colour (§5.3; a complex pixel's estimate),
     /// before anti-aliasing, the complex filter and smoothing.
     Rgb primaryColour(int x, int y) const { return Rgb(mPrimary[index(x, y)]); }
@@ -260,6 +266,8 @@ private:
     /// EpiOptions::smoothRadius: replaces the interpolation of empty pixels far from every
     /// edge by a wide average of the points.
     void smoothEdgeFreeRegions(Image& out);
+    /// holes() from the filter weights (and the smoothing's writes, already in mHole).
+    void markHoles(bool useEdges);
     void antiAlias(Image& out) const;
     void markDenseComplex();
     void filterComplexPixels(Image& out);
@@ -329,10 +337,12 @@ private:
     std::vector<glm::dvec4> mSummedArea;    ///< smoothing: summed-area table of (colour, 1)
     std::vector<uint8_t> mNearEdge;         ///< padded scratch: edges within 5 rows
     std::vector<float> mWeight;             ///< interpolation weight before renormalization
-    std::vector<int> mComplexPixels;        ///< §5.4 scratch: the complex pixels' indices
-    std::vector<uint16_t> mSubCode;  ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
-    std::vector<uint8_t> mFiltered;  ///< §5.4 scratch: complex pixels the filter runs on
-    std::vector<uint8_t> mSubType;   ///< §5.4 scratch: their neighbour types
+    std::vector<uint8_t> mHole;             ///< holes(): 1 where no point reached the pixel
+    size_t mHoleCount = 0;
+    std::vector<int> mComplexPixels;  ///< §5.4 scratch: the complex pixels' indices
+    std::vector<uint16_t> mSubCode;   ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
+    std::vector<uint8_t> mFiltered;   ///< §5.4 scratch: complex pixels the filter runs on
+    std::vector<uint8_t> mSubType;    ///< §5.4 scratch: their neighbour types
 };
 
 /// False only when EdgePointImage::build() would record no intersection of `e` with any

@@ -4,6 +4,7 @@
 //
 // Index: sRGB transfer function · Image · writing · reading
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,10 @@ namespace penumbra {
 double srgbEncode(double linear);
 /// Inverse of srgbEncode.
 double srgbDecode(double encoded);
+/// The 8-bit display value of a linear value: sRGB-encoded, clipped to [0, 1] (NaN → 0) and
+/// rounded, by table lookup (for whole frames: no pow per channel). Equals
+/// round(255 · srgbEncode(v)) except within a rounding error of a byte boundary.
+std::uint8_t srgbByte(double linear);
 
 /// A linear RGB image, row-major, top row first. For renders the unit is radiance
 /// (W/m²/sr = radiosity/π).

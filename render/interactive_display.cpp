@@ -67,7 +67,8 @@ std::string DisplayStageTimes::toString() const {
       << ", shadows " << shadowMs << ", project " << projectMs << "), rasterize " << rasterizeMs
       << ", points " << pointsMs << ", reach " << reachabilityMs << ", interp " << interpolateMs
       << ", aa " << antiAliasMs << ", complex " << complexFilterMs << ", smooth " << smoothMs
-      << ", request " << requestMs << ", total " << totalMs << ", shade " << shadeMs << "}";
+      << ", fill " << fillMs << ", request " << requestMs << ", total " << totalMs << ", shade "
+      << shadeMs << "}";
     return s.str();
 }
 
@@ -77,7 +78,8 @@ std::string DisplayFrameStats::toString() const {
       << silhouetteEdges << " sil + " << sharpEdges << " sharp + " << shadowEdges << " shadow -> "
       << screenEdges << " on screen, " << visiblePoints << " points, " << newSamples << " new ("
       << newSampleFraction << "), " << requestedSamples << " requested, pixels " << emptyPixels
-      << " empty / " << simplePixels << " simple / " << complexPixels << " complex"
+      << " empty / " << simplePixels << " simple / " << complexPixels << " complex, "
+      << unsampledPixels << " unsampled (" << unfilledPixels << " unfilled)"
       << (usedEdges ? "" : ", no edges") << "}";
     return s.str();
 }
@@ -138,16 +140,28 @@ InteractiveDisplay::InteractiveDisplay(const Discretization& disc, const RayTrac
                                        const SolverOptions& solverOptions,
                                        InteractiveDisplayOptions options)
     : mDisc(disc),
+      mTracer(tracer),
       mOptions(options),
       mShader(
           std::make_unique<PointShader>(disc, tracer, solverOptions, shaderOptionsFor(options))),
       mCache(options.width, options.height, capacityFor(options), cacheOptionsFor(options)),
       mEdges(disc, options.edges),
-      mEpi(options.width, options.height, options.epi) {}
+      mEpi(options.width, options.height, options.epi) {
+    startShown();
+}
+
+void InteractiveDisplay::startShown() {
+    elementShading(mShownTotal, mShownDirect);
+    mShownValid.assign(mShownTotal.size(), 0);
+    for (std::size_t e = 0; e < mShownValid.size(); ++e)
+        mShownValid[e] = mDisc.elementAlive(static_cast<int>(e)) ? 1 : 0;
+    noteAlive();
+}
 
 InteractiveDisplay::InteractiveDisplay(const InteractiveDisplay& source,
                                        InteractiveDisplayOptions options)
     : mDisc(source.mDisc),
+      mTracer(source.mTracer),
       mOptions(options),
       mShader(std::make_unique<PointShader>(*source.mShader, shaderOptionsFor(options))),
       mCache(options.width, options.height, capacityFor(options), cacheOptionsFor(options)),
@@ -155,7 +169,10 @@ InteractiveDisplay::InteractiveDisplay(const InteractiveDisplay& source,
       mEpi(options.width, options.height, options.epi),
       mShadowEdges(source.mShadowEdges),
       mShadowOrder(source.mShadowOrder),
-      mShadowsStale(source.mShadowsStale) {}
+      mShadowsStale(source.mShadowsStale) {
+    startShown();
+    setOccluder(source.mOccluder, source.mOccluderOnly, source.mOccluderFrames);
+}
 
 InteractiveDisplay::~InteractiveDisplay() = default;
 
@@ -187,7 +204,11 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     // points on elements whose H_direct changed (the moving shadow, a moved lamp's light).
     auto t = Clock::now();
     if (mShader->previewObject() >= 0 || mShader->directUpdatePending())
-        invalidateElementList(mShader->takeDirectUpdate());
+        if (!mShader->takeDirectUpdate().empty()) relightChanged();
+    // A preview left without an object taking its points (a cancelled drag): they go.
+    dropLeftPreview();
+    // Points behind a moving or new object, for this view, stay out of the image.
+    hideOccluded(camera);
     // Take the points the asynchronous workers finished.
     if (!mOptions.synchronous) {
         std::vector<ShadedPoint> done = mShader->takeResults();
@@ -259,6 +280,15 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     st.times.antiAliasMs = epi.antiAliasMs;
     st.times.complexFilterMs = epi.complexFilterMs;
     st.times.smoothMs = epi.smoothMs;
+    // Holes: pixels no point reached take the fallback, never black.
+    st.unsampledPixels = mEpi.holeCount();
+    st.unfilledPixels = st.unsampledPixels;
+    if (mOptions.fillHoles && st.unsampledPixels > 0) {
+        t = Clock::now();
+        fillHoles(camera, image);
+        st.unfilledPixels = 0;
+        st.times.fillMs = msSince(t);
+    }
     st.emptyPixels = mEpi.countPixels(PixelClass::Empty);
     st.simplePixels = mEpi.countPixels(PixelClass::Simple);
     st.complexPixels = mEpi.countPixels(PixelClass::Complex);
@@ -300,6 +330,19 @@ Image InteractiveDisplay::reconstructLast(bool useEdges) {
     return clampedAtZero(mEpi.reconstruct(useEdges));
 }
 
+void InteractiveDisplay::fillHoles(const CameraRays& camera, Image& image) const {
+    const std::vector<std::uint8_t>& holes = mEpi.holes();
+    const int w = mOptions.width;
+    tbb::parallel_for(tbb::blocked_range<int>(0, mOptions.height, 8),
+                      [&](const tbb::blocked_range<int>& rows) {
+                          for (int y = rows.begin(); y != rows.end(); ++y)
+                              for (int x = 0; x < w; ++x)
+                                  if (holes[static_cast<std::size_t>(y) * w + x])
+                                      image.at(x, y) = mShader->shadeFallback(
+                                          camera.origin(), camera.rayDirection(x + 0.5, y + 0.5));
+                      });
+}
+
 // ---------------------------------------------------------------------------------------------
 // Warm-up
 
@@ -334,53 +377,69 @@ std::size_t InteractiveDisplay::warmUp(const CameraRays& camera, double density)
 // ---------------------------------------------------------------------------------------------
 // Edits and solution updates
 
-std::vector<double> InteractiveDisplay::elementShading() const {
-    const std::vector<Rgb> direct = mShader->elementDirect();
+void InteractiveDisplay::elementShading(std::vector<Rgb>& total,
+                                        std::vector<double>& direct) const {
+    const std::vector<Rgb> d = mShader->elementDirect();
     const std::vector<Rgb> indirect = mShader->elementIndirect();
     const std::size_t n = mDisc.elements().size();
-    std::vector<double> out(n, 0.0);
+    total.assign(n, Rgb(0.0));
+    direct.assign(n, 0.0);
+    const double invPi = 1.0 / M_PI;
     for (std::size_t e = 0; e < n; ++e) {
         const Material& m = mDisc.elementMaterial(static_cast<int>(e));
-        Rgb h(0.0);
-        if (e < direct.size()) h += direct[e];
-        if (e < indirect.size()) h += indirect[e];
-        out[e] = luminance(m.emission + m.reflectance * h);
+        const Rgb hd = e < d.size() ? d[e] : Rgb(0.0);
+        const Rgb hi = e < indirect.size() ? indirect[e] : Rgb(0.0);
+        total[e] = (m.emission + m.reflectance * (hd + hi)) * invPi;
+        direct[e] = luminance(m.reflectance * hd) * invPi;
     }
-    return out;
 }
 
-std::size_t InteractiveDisplay::invalidateChangedShading(const std::vector<double>& before) {
-    const std::vector<double> after = elementShading();
+std::size_t InteractiveDisplay::relightChanged() {
+    std::vector<Rgb> total;
+    std::vector<double> direct;
+    elementShading(total, direct);
+    const std::size_t n = total.size();
     double mean = 0;
     std::size_t alive = 0;
-    for (std::size_t e = 0; e < after.size(); ++e)
+    for (std::size_t e = 0; e < n; ++e)
         if (mDisc.elementAlive(static_cast<int>(e))) {
-            mean += after[e];
+            mean += luminance(total[e]);
             ++alive;
         }
     mean = alive ? mean / static_cast<double>(alive) : 0.0;
-    std::unordered_set<int> changed;
-    for (std::size_t e = 0; e < after.size(); ++e) {
-        const double old = e < before.size() ? before[e] : 0.0;
-        const double scale = std::max({std::abs(old), std::abs(after[e]), 0.01 * mean});
-        if (std::abs(after[e] - old) > mOptions.invalidateThreshold * scale)
-            changed.insert(static_cast<int>(e));
+    const std::size_t known = mShownTotal.size();
+    std::vector<Rgb> delta(n, Rgb(0.0));
+    std::vector<std::uint8_t> stale(n, 0);
+    bool any = false;
+    for (std::size_t e = 0; e < std::min(n, known); ++e) {
+        const double before = luminance(mShownTotal[e]), after = luminance(total[e]);
+        const double scale = std::max({std::abs(before), std::abs(after), 0.01 * mean});
+        // Stale when the element's shading moved, or its direct light (a shadow moving across
+        // it, which the element's total may hide while the solver catches up).
+        const double change =
+            std::max(std::abs(after - before), std::abs(direct[e] - mShownDirect[e]));
+        stale[e] = change > mOptions.invalidateThreshold * scale;
+        // The element's change, added to its points where they reflect the element's shading.
+        if (mShownValid[e]) delta[e] = total[e] - mShownTotal[e];
+        any = any || stale[e] || delta[e] != Rgb(0.0);
     }
-    return changed.empty() ? 0 : mCache.invalidateElements(changed);
+    mShownTotal = std::move(total);
+    mShownDirect = std::move(direct);
+    // Elements of versions that appeared since: nothing cached reflects them yet.
+    mShownValid.resize(n, 0);
+    return any ? mCache.relight(delta, stale) : 0;
 }
 
 std::size_t InteractiveDisplay::updateSolution(const ProgressiveSolver& solver) {
-    const std::vector<double> before = elementShading();
     mShader->updateSolution(solver);
-    return invalidateChangedShading(before);
+    return relightChanged();
 }
 
 std::size_t InteractiveDisplay::updateSolution(const std::vector<Rgb>& irradiance,
                                                const std::vector<Rgb>* previewRadiosity,
                                                int previewObject) {
-    const std::vector<double> before = elementShading();
     mShader->updateSolution(irradiance, previewRadiosity, previewObject);
-    return invalidateChangedShading(before);
+    return relightChanged();
 }
 
 void InteractiveDisplay::syncLights() {
@@ -410,79 +469,170 @@ void InteractiveDisplay::syncEdges() {
     if (preview >= 0 && preview < mEdges.objectCount()) mEdges.setObjectAlive(preview, true);
 }
 
+std::size_t InteractiveDisplay::carryPoints(int from, int to) {
+    const int objects = static_cast<int>(mDisc.objects().size());
+    if (from < 0 || to < 0 || from == to || from >= objects || to >= objects) return 0;
+    const ObjectSurface& a = mDisc.objects()[from];
+    const ObjectSurface& b = mDisc.objects()[to];
+    // The same mesh at another place (a move): its points move with it. Otherwise (another
+    // shape, or a scale that changed the elements) they go.
+    if (!mDisc.sameElements(from, to)) return mCache.invalidateObjects({from});
+    const auto [firstA, countA] = mDisc.elementRange(from);
+    const int firstB = mDisc.elementRange(to).first;
+    const Mat4 toFromFrom = b.worldFromObject * glm::inverse(a.worldFromObject);
+    const std::size_t moved = mCache.carry(from, to, toFromFrom, firstB - firstA);
+    // The moved points show what the old elements showed (not the new ones' lighting).
+    const std::size_t n = mDisc.elements().size();
+    if (mShownTotal.size() < n) {
+        mShownTotal.resize(n, Rgb(0.0));
+        mShownDirect.resize(n, 0.0);
+        mShownValid.resize(n, 0);
+    }
+    for (int k = 0; k < countA; ++k) {
+        mShownTotal[firstB + k] = mShownTotal[firstA + k];
+        mShownDirect[firstB + k] = mShownDirect[firstA + k];
+        mShownValid[firstB + k] = 0;
+    }
+    return moved;
+}
+
+void InteractiveDisplay::setOccluder(int version, const Visibility& only, int frames) {
+    mOccluder = version;
+    mOccluderFrames = frames;
+    mOccluderOnly = only;
+    if (version >= 0 && only.subset < 0) {
+        // No subset of its own: a world filter admitting it alone.
+        mOccluderMask.assign(mDisc.objects().size(), 0);
+        mOccluderMask[version] = 1;
+        mOccluderOnly = Visibility{};
+        mOccluderOnly.world = &mOccluderMask;
+    }
+}
+
+std::size_t InteractiveDisplay::hideOccluded(const CameraRays& camera) {
+    const bool active = mOccluder >= 0 && mOccluder < static_cast<int>(mDisc.objects().size()) &&
+                        mOccluderFrames != 0;
+    if (!active) {
+        if (mHiding) mCache.setHidden({});
+        mHiding = false;
+        return 0;
+    }
+    if (mOccluderFrames > 0) --mOccluderFrames;
+    // The occluder's screen rectangle and nearest depth bound the points it can hide.
+    const ObjectSurface& s = mDisc.objects()[mOccluder];
+    const Vec3 eye = camera.origin(), forward = camera.forward();
+    double nearest = std::numeric_limits<double>::infinity();
+    glm::dvec2 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+    bool whole = false;
+    for (const Vec3& p : s.worldPositions) {
+        const double depth = glm::dot(p - eye, forward);
+        nearest = std::min(nearest, depth);
+        if (!(depth > mOptions.nearPlane)) {
+            whole = true;  // crosses the near plane: any pixel
+            continue;
+        }
+        const glm::dvec2 q = camera.projectAtDepth(p, depth);
+        lo = glm::min(lo, q);
+        hi = glm::max(hi, q);
+    }
+    if (whole) lo = glm::dvec2(-1e300), hi = glm::dvec2(1e300);
+    nearest = std::max(nearest, 0.0);
+    const RayTracer& tracer = mTracer;
+    const Visibility only = mOccluderOnly;
+    const int occluder = mOccluder;
+    mHiding = true;
+    return mCache.setHidden([&](const Vec3& position, int object) {
+        if (object == occluder) return false;
+        const double depth = glm::dot(position - eye, forward);
+        if (!(depth > nearest)) return false;
+        const glm::dvec2 q = camera.projectAtDepth(position, depth);
+        if (q.x < lo.x - 1 || q.y < lo.y - 1 || q.x > hi.x + 1 || q.y > hi.y + 1) return false;
+        return tracer.occluded(eye, position, only);
+    });
+}
+
 std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObjects,
                                               const ProgressiveSolver* solver) {
     // Work from before the edit is stale.
     mShader->cancelPending();
     if (!mOptions.synchronous) (void)mShader->takeResults();
 
-    const std::vector<double> before = elementShading();
-    const int knownObjects = mEdges.objectCount();
-
-    // Samples on the changed objects, and near added or removed geometry (contact shadows,
-    // points now inside a moved object).
-    std::unordered_set<int> objects(changedObjects.begin(), changedObjects.end());
-    std::size_t dropped = mCache.invalidateObjects(objects);
+    // Versions that entered and left: a moved object is both (the same document id), and
+    // its points move with it; a removed object's points go; an added one has none yet.
+    const int objects = static_cast<int>(mDisc.objects().size());
+    std::vector<int> entered, left;
     for (int o : changedObjects) {
-        if (o < 0 || o >= static_cast<int>(mDisc.objects().size())) continue;
-        const ObjectSurface& s = mDisc.objects()[o];
-        const bool geometry = o >= knownObjects || !s.alive;
-        if (!geometry || s.worldPositions.empty()) continue;
-        Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-        for (const Vec3& p : s.worldPositions) {
-            lo = glm::min(lo, p);
-            hi = glm::max(hi, p);
-        }
-        dropped += mCache.invalidateRegion(0.5 * (lo + hi), 0.5 * glm::length(hi - lo));
+        if (o < 0 || o >= objects) continue;
+        const bool known = o < static_cast<int>(mKnownAlive.size());
+        const bool wasAlive = known && mKnownAlive[o];
+        const bool alive = mDisc.objects()[o].alive;
+        if (alive && !wasAlive) entered.push_back(o);
+        if (!alive && wasAlive) left.push_back(o);
     }
+    std::size_t changed = 0;
+    for (int o : entered) {
+        const auto from = std::find_if(left.begin(), left.end(), [&](int u) {
+            return mDisc.objects()[u].id == mDisc.objects()[o].id;
+        });
+        if (from != left.end()) {
+            changed += carryPoints(*from, o);
+            left.erase(from);
+        } else if (mLeftPreview >= 0 && mDisc.objects()[mLeftPreview].id == mDisc.objects()[o].id) {
+            // The drag's last preview (clearPreview): the object rests a little further on.
+            changed += carryPoints(mLeftPreview, o);
+            mLeftPreview = -1;
+        }
+        // Points behind it (for the next frames' views) are hidden while its own arrive.
+        setOccluder(o, Visibility{}, kOccluderFrames);
+    }
+    if (!left.empty())
+        changed += mCache.invalidateObjects(std::unordered_set<int>(left.begin(), left.end()));
+    changed += dropLeftPreview();
+    // A material edit: the points on the object are stale (relightChanged adds the element's
+    // change meanwhile).
+    std::unordered_set<int> materials;
+    for (int o : changedObjects)
+        if (o >= 0 && o < objects && mDisc.objects()[o].alive &&
+            std::find(entered.begin(), entered.end(), o) == entered.end())
+            materials.insert(o);
+    if (!materials.empty()) changed += mCache.markStale(materials);
+    noteAlive();
 
     // Edge finder: new object versions, alive flags, lights; shadows recomputed next frame.
     syncEdges();
     syncLights();
     mShadowsStale = true;
 
-    // Direct lighting the change affects, then the solution; drop points whose element shading
-    // changed (Bala et al. §7.5).
+    // Direct lighting the change affects, then the solution; points on elements whose
+    // shading changed take the change and are re-shaded first (Bala et al. §7.5).
     mShader->refreshDirect(changedObjects);
     if (solver) mShader->updateSolution(*solver);
-    dropped += invalidateChangedShading(before);
-    return dropped;
+    return changed + relightChanged();
 }
 
-std::size_t InteractiveDisplay::invalidateVersion(int version) {
-    if (version < 0 || version >= static_cast<int>(mDisc.objects().size())) return 0;
-    std::size_t dropped = mCache.invalidateObjects({version});
-    const ObjectSurface& s = mDisc.objects()[version];
-    if (s.worldPositions.empty()) return dropped;
-    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-    for (const Vec3& p : s.worldPositions) {
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
-    }
-    return dropped + mCache.invalidateRegion(0.5 * (lo + hi), 0.5 * glm::length(hi - lo));
-}
-
-std::size_t InteractiveDisplay::invalidateElementList(const std::vector<int>& elements) {
-    if (elements.empty()) return 0;
-    return mCache.invalidateElements(std::unordered_set<int>(elements.begin(), elements.end()));
+void InteractiveDisplay::noteAlive() {
+    mKnownAlive.resize(mDisc.objects().size());
+    for (std::size_t o = 0; o < mDisc.objects().size(); ++o)
+        mKnownAlive[o] = mDisc.objects()[o].alive ? 1 : 0;
 }
 
 std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility& previewOnly,
                                            const ProgressiveSolver* solver) {
     mShader->cancelPending();
     if (!mOptions.synchronous) (void)mShader->takeResults();
-    const auto t0 = Clock::now();
+    dropLeftPreview();
     const int old = mShader->previewObject();
-    // Without a solver the element shading only changes through H_direct (the element list).
-    const std::vector<double> before = solver ? elementShading() : std::vector<double>{};
-    // A drag's first preview is its origin where it was (beginDrag): nothing moved.
-    const bool atOrigin = old < 0 && previewVersion == mShader->dragOrigin();
-    std::size_t dropped = atOrigin ? 0 : invalidateVersion(old) + invalidateVersion(previewVersion);
-    const double t1 = msSince(t0);
-    // The moving shadow: elements whose preview-world direct lighting changed (with
-    // backgroundPreview: none yet, renderFrame drops them when the estimate is done).
-    dropped += invalidateElementList(mShader->setPreview(previewVersion, previewOnly));
-    const double t2 = msSince(t0);
+    // The dragged object's points move with it, from the last preview or, at a drag's first
+    // move, from its origin (a first preview at the origin moves nothing).
+    const int from = old >= 0 ? old : mShader->dragOrigin();
+    std::size_t changed = 0;
+    if (from >= 0 && previewVersion >= 0) {
+        changed += carryPoints(from, previewVersion);
+    } else if (old >= 0) {
+        changed += mCache.invalidateObjects({old});
+    }
+    // The moving shadow: with backgroundPreview the estimate comes later (renderFrame).
+    (void)mShader->setPreview(previewVersion, previewOnly);
     // Its silhouettes (object-space queries: the version reuses the object's edge tree) and,
     // when on, the shadows it casts now.
     syncEdges();
@@ -490,14 +640,9 @@ std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility&
     // A lamp moved: the edge finder's light follows it.
     syncLights();
     if (solver) mShader->updateSolution(*solver);
-    const double t3 = msSince(t0);
-    if (solver) dropped += invalidateChangedShading(before);
-    if (std::getenv("PENUMBRA_DISPLAY_TRACE"))
-        std::fprintf(stderr,
-                     "InteractiveDisplay::setPreview: invalidate %.1f, shader %.1f, solution "
-                     "%.1f, shading %.1f ms\n",
-                     t1, t2 - t1, t3 - t2, msSince(t0) - t3);
-    return dropped;
+    // What it hides in this view stays out of the image.
+    setOccluder(previewVersion, previewOnly, -1);
+    return changed + relightChanged();
 }
 
 std::size_t InteractiveDisplay::clearPreview(const ProgressiveSolver* solver) {
@@ -505,35 +650,46 @@ std::size_t InteractiveDisplay::clearPreview(const ProgressiveSolver* solver) {
     if (old < 0) return 0;
     mShader->cancelPending();
     if (!mOptions.synchronous) (void)mShader->takeResults();
-    const std::vector<double> before = elementShading();
-    std::size_t dropped = invalidateVersion(old);
-    dropped += invalidateElementList(mShader->clearPreview());
+    // Its points wait for the next notifyChanged: an unselect that adds the object back at a
+    // newer place than the display previewed carries them there; otherwise they go.
+    dropLeftPreview();
+    mLeftPreview = old;
+    (void)mShader->clearPreview();
     syncEdges();
     mShadowsStale = true;
     if (solver) mShader->updateSolution(*solver);
-    dropped += invalidateChangedShading(before);
-    return dropped;
+    setOccluder(-1, {}, 0);
+    noteAlive();
+    return relightChanged();
+}
+
+std::size_t InteractiveDisplay::dropLeftPreview() {
+    const int left = mLeftPreview;
+    mLeftPreview = -1;
+    return left >= 0 ? mCache.invalidateObjects({left}) : 0;
 }
 
 void InteractiveDisplay::beginDrag(int origin, const Visibility& originOnly) {
     mShader->cancelPending();
     mShader->beginDrag(origin, originOnly);
+    noteAlive();
 }
 
 std::size_t InteractiveDisplay::endDrag(int added, const ProgressiveSolver* solver) {
     mShader->cancelPending();
     if (!mOptions.synchronous) (void)mShader->takeResults();
-    const std::vector<double> before = elementShading();
     const int old = mShader->previewObject();
-    std::size_t dropped = invalidateVersion(added);
-    if (old != added) dropped += invalidateVersion(old);
-    dropped += invalidateElementList(mShader->endDrag(added));
+    // The preview version is the object now: its points stay (moved there if it was another).
+    std::size_t changed = old != added ? carryPoints(old, added) : 0;
+    (void)mShader->endDrag(added);
     syncEdges();
     syncLights();
     mShadowsStale = true;
     if (solver) mShader->updateSolution(*solver);
-    dropped += invalidateChangedShading(before);
-    return dropped;
+    // Its subset goes with the drag: a filter admitting it hides what it covers a while.
+    setOccluder(added, Visibility{}, kOccluderFrames);
+    noteAlive();
+    return changed + relightChanged();
 }
 
 std::size_t InteractiveDisplay::catchUpFrom(const InteractiveDisplay& source,
@@ -542,26 +698,30 @@ std::size_t InteractiveDisplay::catchUpFrom(const InteractiveDisplay& source,
         throw std::invalid_argument("InteractiveDisplay::catchUpFrom: another Discretization");
     mShader->cancelPending();
     if (!mOptions.synchronous) (void)mShader->takeResults();
-    const std::vector<double> before = elementShading();
     std::unordered_set<int> objects(changedObjects.begin(), changedObjects.end());
+    objects.insert(mShader->previewObject());
+    objects.insert(source.mShader->previewObject());
     std::size_t dropped = mCache.invalidateObjects(objects);
-    for (int o : changedObjects) dropped += invalidateVersion(o);
-    dropped += invalidateVersion(mShader->previewObject());
-    dropped += invalidateVersion(source.mShader->previewObject());
     mShader->copyDirectFrom(*source.mShader);
     syncEdges();
     syncLights();
     mShadowsStale = true;
-    dropped += invalidateChangedShading(before);
-    return dropped;
+    setOccluder(source.mOccluder, source.mOccluderOnly, source.mOccluderFrames);
+    noteAlive();
+    return dropped + relightChanged();
 }
 
 // ---------------------------------------------------------------------------------------------
 // Reference
 
 Image InteractiveDisplay::renderReference(const CameraRays& camera, int samplesPerAxis) const {
+    return renderShaderReference(*mShader, camera, samplesPerAxis);
+}
+
+Image renderShaderReference(const PointShader& shader, const CameraRays& camera,
+                            int samplesPerAxis) {
     if (samplesPerAxis < 1)
-        throw std::invalid_argument("InteractiveDisplay::renderReference: samplesPerAxis < 1");
+        throw std::invalid_argument("renderShaderReference: samplesPerAxis < 1");
     const int w = camera.width(), h = camera.height(), s = samplesPerAxis;
     Image image(w, h);
     tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
@@ -573,7 +733,7 @@ Image InteractiveDisplay::renderReference(const CameraRays& camera, int samplesP
                         const glm::dvec2 p(x + (i + 0.5) / s, y + (j + 0.5) / s);
                         ShadeRequest r{p, camera.origin(), camera.rayDirection(p.x, p.y),
                                        kReferenceFrame};
-                        sum += mShader->shade(r).radiance;
+                        sum += shader.shade(r).radiance;
                     }
                 // The pixel's mean, clamped after averaging as a frame is.
                 image.at(x, y) = glm::max(sum / static_cast<double>(s * s), Rgb(0.0));
@@ -875,6 +1035,19 @@ double displayRmse(const Image& a, const Image& b) {
             sum += d * d;
         }
     return std::sqrt(sum / (3.0 * static_cast<double>(a.pixels.size())));
+}
+
+double relativeDisplayRmse(const Image& a, const Image& reference) {
+    const double err = displayRmse(a, reference);
+    double sum = 0;
+    for (const Rgb& c : reference.pixels)
+        for (int k = 0; k < 3; ++k) {
+            const double v = std::isfinite(c[k]) ? std::clamp(srgbEncode(c[k]), 0.0, 1.0) : 0.0;
+            sum += v * v;
+        }
+    const double rms =
+        reference.pixels.empty() ? 0.0 : std::sqrt(sum / (3.0 * reference.pixels.size()));
+    return rms > 0 ? err / rms : 0.0;
 }
 
 double relativeImageRmse(const Image& a, const Image& reference) {

@@ -59,6 +59,7 @@ struct DisplayStageTimes {
     double antiAliasMs = 0;      ///< §5.3
     double complexFilterMs = 0;  ///< §5.4
     double smoothMs = 0;         ///< edge-free smoothing (EpiOptions::smoothRadius)
+    double fillMs = 0;           ///< the fallback for pixels no point reached (holes)
     double requestMs = 0;        ///< drawing the new sample requests from the priority image
     double totalMs = 0;          ///< the whole frame without synchronous shading
     double shadeMs = 0;          ///< synchronous shading of this frame's requests
@@ -80,6 +81,11 @@ struct DisplayFrameStats {
     double newSampleFraction = 0;      ///< newSamples / pixels
     std::size_t requestedSamples = 0;  ///< requests made at the end of this frame
     std::size_t emptyPixels = 0, simplePixels = 0, complexPixels = 0;
+    /// Pixels no cached point reached (EdgePointImage::holes): shown from the fallback
+    /// (InteractiveDisplayOptions::fillHoles), else black.
+    std::size_t unsampledPixels = 0;
+    /// Pixels shown without any value: the holes when the fallback is off, else 0.
+    std::size_t unfilledPixels = 0;
     bool usedEdges = true;
     std::string toString() const;
 };
@@ -132,6 +138,11 @@ struct InteractiveDisplayOptions {
     /// Near-plane distance (metres along the view axis) edges are clipped against.
     double nearPlane = 1e-3;
     bool shadowEdges = true;  ///< find shadow edges (silhouettes and sharp edges always)
+    /// Pixels no cached point reaches (after a move, where an object was, or a new view) are
+    /// shown from a cheap exact fallback rather than black: one primary ray in the displayed
+    /// world and the solution's irradiance blended per vertex (PointShader::shadeFallback, the
+    /// Gouraud view's shading). They keep the highest sampling priority, so points replace it.
+    bool fillHoles = true;
     /// A soft shadow edge (an area light's umbral or penumbral event) marks the EPI only where
     /// its penumbra is at most this many pixels wide at one of its ends (≤ 0: every shadow
     /// edge marks, as in the paper). The width is measured as if the receiver faced the
@@ -329,21 +340,43 @@ public:
     std::string toString() const;
 
 private:
-    /// Per element E + ρ·(H_direct + H_indirect) luminance from the shader's snapshots.
-    std::vector<double> elementShading() const;
-    /// Drops points on elements whose shading moved from `before` by more than the threshold.
-    std::size_t invalidateChangedShading(const std::vector<double>& before);
+    /// Per element from the shader's snapshots: the radiance (E + ρ·(H_direct + H_indirect))/π
+    /// and the luminance of its direct part ρ·H_direct/π.
+    void elementShading(std::vector<Rgb>& total, std::vector<double>& direct) const;
+    /// After the shader's lighting changed (a solution, an edit, a preview's estimate): adds
+    /// each element's change to the cached points on it (where they reflect the element's
+    /// shading) and marks stale those on elements whose shading or direct light moved by more
+    /// than invalidateThreshold (Bala et al. §7.5: they are re-shaded first, and keep the
+    /// estimate meanwhile instead of leaving a hole). Returns the points marked.
+    std::size_t relightChanged();
+    /// Moves the cached points of version `from` onto version `to` of the same object at its
+    /// new place (RenderCache::carry); drops them when the two are not the same mesh.
+    std::size_t carryPoints(int from, int to);
+    /// Points behind `version` (a moving or new object) are hidden from the frames' views,
+    /// for `frames` frames (-1: until replaced), tested against `only` (empty: a filter
+    /// admitting the version alone).
+    void setOccluder(int version, const Visibility& only, int frames);
+    /// The frame's hiding pass (RenderCache::setHidden): points whose ray from the eye meets
+    /// the occluder, among those in its screen rectangle and beyond its nearest depth.
+    std::size_t hideOccluded(const CameraRays& camera);
+    /// Remembers which versions are alive (notifyChanged tells moves from the difference).
+    void noteAlive();
+    /// The per-element baseline of a display whose points are all shaded from now on.
+    void startShown();
+    /// Drops the points of the preview clearPreview left, if no notifyChanged took them.
+    std::size_t dropLeftPreview();
     void syncLights();
     /// The edge finder follows the Discretization's versions and alive flags; the preview
     /// version counts as alive (its silhouettes, and shadows when they are on).
     void syncEdges();
-    /// Drops cached points on `version` and in its bounding sphere.
-    std::size_t invalidateVersion(int version);
-    /// Drops points on `elements` (element indices whose direct lighting changed).
-    std::size_t invalidateElementList(const std::vector<int>& elements);
+    /// Frames an added or dropped object hides what it covers while its own points arrive.
+    static constexpr int kOccluderFrames = 90;
     std::vector<ShadedPoint> shadeAll(const std::vector<ShadeRequest>& requests) const;
+    /// The last reconstruction's holes (EdgePointImage::holes) from the fallback.
+    void fillHoles(const CameraRays& camera, Image& image) const;
 
     const Discretization& mDisc;
+    const RayTracer& mTracer;
     InteractiveDisplayOptions mOptions;
     std::unique_ptr<PointShader> mShader;
     RenderCache mCache;
@@ -362,6 +395,23 @@ private:
     std::size_t mInsertedSinceFrame = 0;      ///< points inserted since the last frame started
     DisplayFrameStats mLast;
     mutable std::size_t mLastReferenceEdgePixels = 0;
+
+    // What the cached points show, per element (relightChanged): the radiance and direct
+    // luminance they were shaded or relit with, and whether the element's points reflect its
+    // shading (not those moved from another version).
+    std::vector<Rgb> mShownTotal;
+    std::vector<double> mShownDirect;
+    std::vector<std::uint8_t> mShownValid;
+    std::vector<std::uint8_t> mKnownAlive;  ///< per version, at the last noteAlive
+    // The object points are hidden behind (setOccluder), and how.
+    int mOccluder = -1;
+    int mOccluderFrames = 0;
+    Visibility mOccluderOnly;
+    std::vector<std::uint8_t> mOccluderMask;
+    bool mHiding = false;  ///< the cache has hidden points
+    /// The preview clearPreview ended, whose points the next notifyChanged carries to the
+    /// object's new version or drops (-1 none).
+    int mLeftPreview = -1;
 };
 
 /// Clips world edges to the camera's near plane (view depth ≥ nearPlane) and projects them to
@@ -392,6 +442,14 @@ PenumbraOrder orderByPenumbra(std::vector<WorldEdge>& edges, std::vector<WorldEd
 std::size_t penumbraPrefix(const PenumbraOrder& order, const CameraRays& camera, double nearPlane,
                            double maxPenumbraPixels);
 
+/// Every pixel of `camera` shaded with `shader` (synchronously, on the calling thread and
+/// oneTBB): samplesPerAxis² samples per pixel on a regular sub-pixel grid, box-filtered, each
+/// pixel clamped at 0 after averaging as a display frame is. Deterministic. What
+/// InteractiveDisplay::renderReference does with its own shader; benchmarks use it for
+/// references of other scene states. Throws std::invalid_argument for samplesPerAxis < 1.
+Image renderShaderReference(const PointShader& shader, const CameraRays& camera,
+                            int samplesPerAxis = 2);
+
 /// Root mean square difference over all pixels and channels (linear values). Throws
 /// std::invalid_argument when the sizes differ.
 double imageRmse(const Image& a, const Image& b);
@@ -401,5 +459,8 @@ double relativeImageRmse(const Image& a, const Image& reference);
 /// to [0, 1] as writePng stores it, so bright emitters do not dominate. In [0, 1]. Throws
 /// std::invalid_argument when the sizes differ.
 double displayRmse(const Image& a, const Image& b);
+/// displayRmse(a, reference) over the RMS of the reference's displayed values (0 when they
+/// are all 0): "within 1%" of an image is a value ≤ 0.01.
+double relativeDisplayRmse(const Image& a, const Image& reference);
 
 }  // namespace penumbra

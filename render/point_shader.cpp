@@ -152,6 +152,10 @@ struct PointShader::State {
     std::vector<Light> lights;
     std::vector<std::vector<Rgb>> vertexIndirect;  ///< per object, per mesh vertex
     std::vector<Rgb> elementIndirect;              ///< per element
+    /// Per object, per mesh vertex: H_direct in the displayed world (the preview's change
+    /// included), blended as vertexIndirect, for shadeFallback(): with it the whole
+    /// irradiance as the Gouraud view shows it.
+    std::vector<std::vector<Rgb>> vertexDirect;
     // Drag preview.
     int previewObject = -1;
     Visibility previewOnly;                  ///< subset admitting only the preview object
@@ -804,8 +808,11 @@ void PointShader::updateSolution(const std::vector<Rgb>& H,
 void PointShader::rebuildIndirect() {
     const std::vector<Rgb>& H = mElementH;
     const std::size_t n = std::min(H.size(), mDisc.elements().size());
-    if (mElementDirect.size() < n) {
+    // Every element's direct light, also of versions newer than the solution (a preview, an
+    // object just added): the fallback shows them lit by it.
+    if (mElementDirect.size() < mDisc.elements().size()) {
         const std::size_t old = mElementDirect.size();
+        const std::size_t n = mDisc.elements().size();
         mElementDirect.resize(n, Rgb(0.0));
         const std::vector<int> emitters = emitterPatches(mDisc);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(old, n, 64), [&](const auto& r) {
@@ -824,11 +831,30 @@ void PointShader::rebuildIndirect() {
     const int preview = next->previewObject;
     next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
     for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementDirect[e];
-    if (preview >= 0 && !mLastPreviewRadiosity.empty() && mLastPreviewObject == preview) {
+    // While a drag moves on faster than the solver's buffer follows, the buffer is for where
+    // the object was a moment ago (an earlier version of the same mesh): its elements' values
+    // move with it, so the object keeps its light instead of going black until the solver
+    // catches up; the rest of the scene keeps the buffer's changes.
+    std::vector<Rgb> moved;
+    const bool lagging = preview >= 0 && !mLastPreviewRadiosity.empty() &&
+                         mLastPreviewObject != preview &&
+                         mDisc.sameElements(mLastPreviewObject, preview);
+    if (lagging) {
+        moved = mLastPreviewRadiosity;
+        moved.resize(std::max(moved.size(), mDisc.elements().size()), Rgb(0.0));
+        const auto [from, count] = mDisc.elementRange(mLastPreviewObject);
+        const int to = mDisc.elementRange(preview).first;
+        for (int k = 0; k < count; ++k) {
+            moved[to + k] = moved[from + k];
+            moved[from + k] = Rgb(0.0);
+        }
+    }
+    if (preview >= 0 && !mLastPreviewRadiosity.empty() &&
+        (mLastPreviewObject == preview || lagging)) {
         // George et al.'s temporary buffer T holds ρ·ΔH (and the preview object's whole ρ·H):
         // the irradiance shown is H + T/ρ, of which the preview world's H_direct is traced.
-        const std::vector<Rgb>& T = mLastPreviewRadiosity;
-        for (std::size_t e = 0; e < n && e < T.size(); ++e) {
+        const std::vector<Rgb>& T = lagging ? moved : mLastPreviewRadiosity;
+        for (std::size_t e = 0; e < next->elementIndirect.size() && e < T.size(); ++e) {
             if (isZero(T[e])) continue;
             const Rgb rho = mDisc.elementMaterial(static_cast<int>(e)).reflectance;
             for (int c = 0; c < 3; ++c)
@@ -839,12 +865,38 @@ void PointShader::rebuildIndirect() {
         for (int e : mPreviewElements)
             if (e < static_cast<int>(n) && e < static_cast<int>(mPreviewDirectDelta.size()))
                 next->elementIndirect[e] -= mPreviewDirectDelta[e];
-    next->vertexIndirect.resize(mDisc.objects().size());
-    tbb::parallel_for(std::size_t(0), mDisc.objects().size(), [&](std::size_t o) {
-        if (mDisc.objects()[o].alive || static_cast<int>(o) == preview)
-            next->vertexIndirect[o] =
-                mDisc.vertexValues(static_cast<int>(o), next->elementIndirect);
+    // Indirect light is never negative. The difference is, where the solution lags the
+    // display's direct light: an object just added or dropped after a drag, whose elements
+    // the solver has not reached yet (H_e still 0), would show as black instead of lit by its
+    // direct light.
+    for (Rgb& h : next->elementIndirect) h = glm::max(h, Rgb(0.0));
+    // The fallback's direct part: H_direct in the displayed world, blended per vertex again
+    // only for the objects whose elements' values changed since the last snapshot (the
+    // solution changes far more often than the direct light).
+    std::vector<Rgb> direct(mElementDirect);
+    direct.resize(mDisc.elements().size(), Rgb(0.0));
+    if (preview >= 0)
+        for (int e : mPreviewElements)
+            if (e < static_cast<int>(direct.size()) &&
+                e < static_cast<int>(mPreviewDirectDelta.size()))
+                direct[e] += mPreviewDirectDelta[e];
+    const std::size_t objects = mDisc.objects().size();
+    std::vector<std::uint8_t> directChanged(objects, 0);
+    for (std::size_t e = 0; e < direct.size(); ++e)
+        if (e >= mVertexDirectOf.size() || direct[e] != mVertexDirectOf[e])
+            directChanged[mDisc.elements()[e].object] = 1;
+    const auto previous = state();
+    next->vertexIndirect.resize(objects);
+    next->vertexDirect.resize(objects);
+    tbb::parallel_for(std::size_t(0), objects, [&](std::size_t o) {
+        if (!mDisc.objects()[o].alive && static_cast<int>(o) != preview) return;
+        next->vertexIndirect[o] = mDisc.vertexValues(static_cast<int>(o), next->elementIndirect);
+        const bool known = o < previous->vertexDirect.size() && !previous->vertexDirect[o].empty();
+        next->vertexDirect[o] = known && !directChanged[o]
+                                    ? previous->vertexDirect[o]
+                                    : mDisc.vertexValues(static_cast<int>(o), direct);
     });
+    mVertexDirectOf = std::move(direct);
     publish(std::move(next));
 }
 
@@ -1078,6 +1130,26 @@ ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request)
     const Rgb emission = hit.backFace ? Rgb(0.0) : material.emission;
     out.radiance = (emission + material.reflectance * h) * glm::one_over_pi<double>();
     return out;
+}
+
+Rgb PointShader::shadeFallback(const Vec3& origin, const Vec3& direction) const {
+    const auto st = state();
+    const RayHit hit = traceWith(*st, origin, direction);
+    if (hit.object < 0 || hit.element < 0) return Rgb(0.0);
+    const Element& el = mDisc.elements()[hit.element];
+    if (hit.backFace && !mDisc.objects()[el.object].twoSided) return Rgb(0.0);
+    const Material& material = mDisc.elementMaterial(hit.element);
+    Rgb h(0.0);
+    if (el.object < static_cast<int>(st->vertexDirect.size()) &&
+        !st->vertexDirect[el.object].empty() && !st->vertexIndirect[el.object].empty() &&
+        hit.weights.size() == el.vertices.size()) {
+        const auto& vd = st->vertexDirect[el.object];
+        const auto& vi = st->vertexIndirect[el.object];
+        for (std::size_t i = 0; i < hit.weights.size(); ++i)
+            h += hit.weights[i] * (vd[el.vertices[i]] + vi[el.vertices[i]]);
+    }
+    const Rgb emission = hit.backFace ? Rgb(0.0) : material.emission;
+    return glm::max(emission + material.reflectance * h, Rgb(0.0)) * glm::one_over_pi<double>();
 }
 
 // ---------------------------------------------------------------------------------------------

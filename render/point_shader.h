@@ -237,6 +237,11 @@ public:
 
     /// Shades one request on the calling thread. Deterministic in (seed, request).
     ShadedPoint shade(const ShadeRequest& request) const;
+    /// The display's cheap fallback for a pixel no sample reaches: the nearest hit of the ray
+    /// in the displayed world (the scene and the preview object) shaded with the radiosity
+    /// solution's irradiance blended per vertex, as the Gouraud view shows it (no shadow rays:
+    /// one ray). Radiance, W/m²/sr; 0 for a miss, a back face, or before updateSolution().
+    Rgb shadeFallback(const Vec3& origin, const Vec3& direction) const;
     /// Direct irradiance (W/m²) at x with unit normal n on object `receiver` from all lights,
     /// estimated with stratified shadow rays whose pattern depends on `key`:
     /// H = Σ_L E_L·(F_L − (A_L/N)·Σ_i K(x, y_i)·(1 − V(x, y_i))), the analytic unoccluded form
@@ -341,6 +346,8 @@ private:
     std::vector<Rgb> mElementDirect;         ///< H_direct(e); written only while paused/idle
     std::vector<Rgb> mElementH;              ///< the last solver snapshot's H_e
     std::vector<Rgb> mLastPreviewRadiosity;  ///< its preview buffer (empty: none)
+    /// The per-element direct light the published vertexDirect blends (rebuildIndirect).
+    std::vector<Rgb> mVertexDirectOf;
     int mLastPreviewObject = -1;
     bool mHasSolution = false;
     /// Drag (beginDrag): the origin H_direct still includes, and a subset admitting it.

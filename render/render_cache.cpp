@@ -51,6 +51,7 @@ RenderCache::RenderCache(int width, int height, std::size_t capacity, RenderCach
     mPosition.reserve(capacity);
     mBorn.reserve(capacity);
     mVisible.reserve(capacity);
+    mFlags.reserve(capacity);
     mPixelPoint.assign(pixels, -1);
     mScreenOfPixel.assign(pixels, -1);
     mPriority.assign(pixels, 1.0);
@@ -202,6 +203,7 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
             mPosition.emplace_back();
             mBorn.emplace_back();
             mVisible.emplace_back();
+            mFlags.emplace_back();
         } else {
             slot = static_cast<std::size_t>(slots[v++]);
             mPoints[slot] = toCache(batch[i]);
@@ -209,6 +211,7 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
         mPosition[slot] = batch[i].position;
         mBorn[slot] = mFrame;  // age 0 in the next reprojection
         mVisible[slot] = 1;    // new points count as visible
+        mFlags[slot] = 0;
     }
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
 }
@@ -270,6 +273,7 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
 
     // Project every point to the new camera.
     for (std::size_t i = 0; i < n; ++i) {
+        if (mFlags[i] & kHiddenFlag) continue;  // behind a moving object (setHidden)
         const auto p = camera.projectToPixel(mPosition[i]);
         if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
         position[i] = *p;
@@ -290,7 +294,7 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
         }
         const double dc = depth[cur];
         if (depth[i] < dc * (1 - kSameSurface) ||
-            (depth[i] <= dc * (1 + kSameSurface) && ageBefore(i) < ageBefore(cur)))
+            (depth[i] <= dc * (1 + kSameSurface) && pointAge(i) < pointAge(cur)))
             cur = static_cast<int>(i);
     }
 
@@ -334,9 +338,9 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
         if (i < 0) continue;
         mVisible[i] = 1;
         mScreenOfPixel[k] = static_cast<int>(mScreen.size());
-        mScreen.push_back({position[i], depth[i], mPoints[i].colour, ageBefore(i)});
+        mScreen.push_back({position[i], depth[i], mPoints[i].colour, pointAge(i)});
         mLuminance[k] = mLuminanceHi[k] = luminance(mPoints[i].colour);
-        mPixelAge[k] = ageBefore(i);
+        mPixelAge[k] = pointAge(i);
     }
     mVisibleCount = mScreen.size();
     computePriority();
@@ -376,8 +380,9 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
         for (std::size_t i = c * kChunk; i != end; ++i) {
             const Vec3& position = mPosition[i];
             ProjectedPoint& proj = mProj[i];
-            proj.age = ageBefore(i);
+            proj.age = pointAge(i);
             mProjBand[i] = 0xFF;
+            if (mFlags[i] & kHiddenFlag) continue;  // behind a moving object (setHidden)
             const auto p = camera.projectToPixel(position);
             if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
             proj.depth = glm::dot(position - camera.origin(), camera.forward());
@@ -639,7 +644,8 @@ void RenderCache::computePriority() {
                 const double p =
                     std::min(0.99, ageWeight * age / (age + ageScale) +
                                        contrastWeight * std::clamp(contrast, 0.0, 1.0));
-                priority[x] = screen[x] < 0 ? 1.0 : p;
+                // Empty pixels and stale points (their lighting changed) first.
+                priority[x] = screen[x] < 0 || age >= kStaleAge ? 1.0 : p;
             };
             // The extremes in the order of a left-to-right scan: cl[x], then x − 1, then x + 1.
             prioritize(0, W > 1 ? std::min(cl[0], cl[1]) : cl[0],
@@ -919,6 +925,7 @@ std::size_t RenderCache::dropIf(Drop drop) {
             mPosition[kept] = mPosition[i];
             mBorn[kept] = mBorn[i];
             mVisible[kept] = mVisible[i];
+            mFlags[kept] = mFlags[i];
         }
         ++kept;
     }
@@ -926,6 +933,7 @@ std::size_t RenderCache::dropIf(Drop drop) {
     mPosition.resize(kept);
     mBorn.resize(kept);
     mVisible.resize(kept);
+    mFlags.resize(kept);
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
     return before - kept;
 }
@@ -945,6 +953,76 @@ std::size_t RenderCache::invalidateElements(const std::unordered_set<int>& eleme
 
 void RenderCache::clear() {
     dropIf([](const CachePoint&) { return true; });
+}
+
+std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
+                                 const std::vector<std::uint8_t>& stale) {
+    if (mScreenPending) buildScreenPoints();  // it reads the colours
+    const std::size_t n = mPoints.size();
+    std::vector<std::size_t> counts((n + 8191) / 8192, 0);
+    tbb::parallel_for(std::size_t(0), counts.size(), [&](std::size_t c) {
+        std::size_t changed = 0;
+        for (std::size_t i = c * 8192; i < std::min(n, (c + 1) * 8192); ++i) {
+            CachePoint& p = mPoints[i];
+            if (p.element < 0) continue;
+            const auto e = static_cast<std::size_t>(p.element);
+            if (e < delta.size()) p.colour += delta[e];
+            if (e < stale.size() && stale[e]) {
+                mFlags[i] |= kStaleFlag;
+                ++changed;
+            }
+        }
+        counts[c] = changed;
+    });
+    std::size_t total = 0;
+    for (std::size_t c : counts) total += c;
+    return total;
+}
+
+std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromFrom,
+                               int elementOffset) {
+    if (mScreenPending) buildScreenPoints();  // it reads the positions
+    std::size_t moved = 0;
+    for (std::size_t i = 0; i < mPoints.size(); ++i) {
+        CachePoint& p = mPoints[i];
+        if (p.object != fromObject) continue;
+        p.position = Vec3(toFromFrom * glm::dvec4(p.position, 1.0));
+        p.object = toObject;
+        p.element += elementOffset;
+        mPosition[i] = p.position;
+        mFlags[i] |= kStaleFlag;
+        ++moved;
+    }
+    return moved;
+}
+
+std::size_t RenderCache::markStale(const std::unordered_set<int>& objects) {
+    std::size_t marked = 0;
+    for (std::size_t i = 0; i < mPoints.size(); ++i)
+        if (objects.count(mPoints[i].object)) {
+            mFlags[i] |= kStaleFlag;
+            ++marked;
+        }
+    return marked;
+}
+
+std::size_t RenderCache::setHidden(
+    const std::function<bool(const Vec3& position, int object)>& hidden) {
+    const std::size_t n = mPoints.size();
+    std::vector<std::size_t> counts((n + 4095) / 4096, 0);
+    tbb::parallel_for(std::size_t(0), counts.size(), [&](std::size_t c) {
+        std::size_t here = 0;
+        for (std::size_t i = c * 4096; i < std::min(n, (c + 1) * 4096); ++i) {
+            const bool h = hidden && hidden(mPosition[i], mPoints[i].object);
+            mFlags[i] =
+                static_cast<std::uint8_t>((mFlags[i] & ~kHiddenFlag) | (h ? kHiddenFlag : 0));
+            here += h;
+        }
+        counts[c] = here;
+    });
+    std::size_t total = 0;
+    for (std::size_t c : counts) total += c;
+    return total;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@
 // interpolatedImage() for a plain (edge-unaware) reconstruction.
 
 #include <cstdint>
+#include <functional>
 #include <glm/glm.hpp>
 #include <memory>
 #include <optional>
@@ -149,6 +150,34 @@ public:
     std::size_t invalidateElements(const std::unordered_set<int>& elements);
     void clear();
 
+    // -- Keeping points across an edit (instead of dropping them) ----------------------------
+    // A point whose lighting changed keeps an estimate of its new colour and is marked stale:
+    // its pixel has the highest sampling priority (as an empty one) and a fresh point at the
+    // same depth replaces it in the z-buffer, so the shader re-shades changed regions first
+    // while nothing goes black meanwhile.
+
+    /// Adds delta[e] to the colour of every point on element e (elements beyond delta: none)
+    /// and marks stale the points on the elements with stale[e] != 0. Returns the points
+    /// marked.
+    std::size_t relight(const std::vector<Rgb>& delta, const std::vector<std::uint8_t>& stale);
+    /// A rigid move of an object's points: every point on `fromObject` moves by `toFromFrom`
+    /// (world to world), now lies on `toObject` and element + elementOffset (the version built
+    /// from the same mesh at the new place), and is stale. Returns how many moved.
+    std::size_t carry(int fromObject, int toObject, const Mat4& toFromFrom, int elementOffset);
+    /// Marks stale every point on one of `objects`. Returns how many.
+    std::size_t markStale(const std::unordered_set<int>& objects);
+    /// Whether point i is stale (relight, carry, markStale) and not yet replaced.
+    bool stale(std::size_t i) const { return (mFlags[i] & kStaleFlag) != 0; }
+    /// Points for which `hidden(position, object)` holds are left out of every reprojection
+    /// until the next setHidden (they stay cached): those behind an object that moved in front
+    /// of them, for this view. An empty function shows every point again. Called in parallel
+    /// (oneTBB). Returns how many are hidden.
+    std::size_t setHidden(const std::function<bool(const Vec3& position, int object)>& hidden);
+    /// Whether point i is hidden by the last setHidden.
+    bool hidden(std::size_t i) const { return (mFlags[i] & kHiddenFlag) != 0; }
+    /// A stale point's age as the priority and the z-buffer see it (above any real age).
+    static constexpr int kStaleAge = 1 << 24;
+
     const std::vector<CachePoint>& points() const { return mPoints; }
     /// Frames reprojected since point i was shaded.
     int age(std::size_t i) const { return static_cast<int>(mFrame - mBorn[i]); }
@@ -203,6 +232,12 @@ private:
     /// Age during the current reprojection (mFrame already counts it), as the frame's screen
     /// points carry it: 0 in a point's first.
     int ageBefore(std::size_t i) const { return static_cast<int>(mFrame - 1 - mBorn[i]); }
+    /// ageBefore, or kStaleAge for a stale point.
+    int pointAge(std::size_t i) const {
+        return (mFlags[i] & kStaleFlag) ? kStaleAge : ageBefore(i);
+    }
+    static constexpr std::uint8_t kStaleFlag = 1, kHiddenFlag = 2;
+    std::vector<std::uint8_t> mFlags;  ///< per point: kStaleFlag, kHiddenFlag
     std::uint64_t mFrame = 0;
 
     std::vector<int> mPixelPoint;  ///< per pixel, −1 when empty

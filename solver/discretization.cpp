@@ -783,4 +783,20 @@ std::vector<int> Discretization::subdivideElement(int element) {
     return result;
 }
 
+std::pair<int, int> Discretization::elementRange(int object) const {
+    int lo = std::numeric_limits<int>::max(), hi = -1;
+    for (int e : mObjects[object].faceElement)
+        if (e >= 0) lo = std::min(lo, e), hi = std::max(hi, e);
+    return hi < 0 ? std::pair<int, int>{0, 0} : std::pair<int, int>{lo, hi - lo + 1};
+}
+
+bool Discretization::sameElements(int a, int b) const {
+    const int n = static_cast<int>(mObjects.size());
+    if (a < 0 || b < 0 || a >= n || b >= n) return false;
+    const ObjectSurface& x = mObjects[a];
+    const ObjectSurface& y = mObjects[b];
+    return x.id == y.id && x.faceElement.size() == y.faceElement.size() &&
+           elementRange(a).second == elementRange(b).second && elementRange(a).second > 0;
+}
+
 }  // namespace penumbra

@@ -114,6 +114,13 @@ public:
     /// Per-vertex value of an object: the area-weighted mean of `elementValue` over the
     /// elements around each vertex (for Gouraud display and export).
     std::vector<Rgb> vertexValues(int object, const std::vector<Rgb>& elementValue) const;
+    /// The elements of an object version, [first, first + count) (a version's elements are
+    /// appended together); {0, 0} for none.
+    std::pair<int, int> elementRange(int object) const;
+    /// Whether versions `a` and `b` are the same mesh of one document object, element for
+    /// element (a move or a rotation; not a scale that changed the elements): element
+    /// first(a) + k of one is element first(b) + k of the other.
+    bool sameElements(int a, int b) const;
 
     /// Splits an element into four (quads into quads, triangles into triangles), keeping the
     /// mesh conforming by inserting edge midpoints into neighbours. Returns the new element

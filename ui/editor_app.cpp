@@ -202,33 +202,42 @@ int EditorApp::run() {
                 mCaptureNow = true;
             }
         }
-        if (mBenchFrame >= mOptions.frames && mOptions.frames > 0) break;
+        if (mBenchPhase == 4) break;
         if (mOptions.screenshot.empty() && mOptions.benchDrag.empty() && mOptions.frames > 0 &&
             mFrame >= mOptions.frames)
             break;
     }
-    if (!mOptions.benchDrag.empty()) {
-        // Frame-time figures of the drag.
-        std::vector<double> w = mStats.workMs, p = mStats.periodMs, im = mStats.imageMs;
+    if (!mOptions.benchDrag.empty() && mBench) {
+        // Frame-time figures from the select to the end of the window after the drop, then
+        // what the images showed.
+        const FrameStats& stats = mBenchPhase >= 3 ? mBenchWindowStats : mStats;
+        std::vector<double> w = stats.workMs, p = stats.periodMs, im = stats.imageMs;
         std::sort(im.begin(), im.end());
-        const double imageMedian = im.empty() ? 0 : im[im.size() / 2];
-        const double imageP95 = im.empty() ? 0 : im[im.size() * 95 / 100];
-        if (!w.empty()) {
-            std::sort(w.begin(), w.end());
-            std::sort(p.begin(), p.end());
-            double sumP = 0;
-            for (double v : p) sumP += v;
-            std::printf(
-                "{\"frames\":%zu,\"work_ms_median\":%.2f,\"work_ms_p95\":%.2f,"
-                "\"period_ms_median\":%.2f,\"period_ms_p95\":%.2f,\"fps\":%.1f,"
-                "\"viewport_images\":%d,\"viewport_images_per_s\":%.1f,\"mode\":\"%s\","
-                "\"image_ms_median\":%.2f,\"image_ms_p95\":%.2f,"
-                "\"drag_start_frames\":%d,\"drag_start_ms\":%.0f}\n",
-                w.size(), w[w.size() / 2], w[w.size() * 95 / 100], p[p.size() / 2],
-                p[p.size() * 95 / 100], 1000.0 * p.size() / sumP, mStats.imagesShown,
-                1000.0 * mStats.imagesShown / sumP, toString(mMode), imageMedian, imageP95,
-                mStats.dragStartFrames, mStats.dragStartMs);
-        }
+        std::sort(w.begin(), w.end());
+        std::sort(p.begin(), p.end());
+        double sumP = 0;
+        for (double v : p) sumP += v;
+        auto at = [](const std::vector<double>& v, double q) {
+            return v.empty() ? 0.0 : v[static_cast<std::size_t>(q * (v.size() - 1))];
+        };
+        nlohmann::json report = {
+            {"frames", w.size()},
+            {"work_ms_median", at(w, 0.5)},
+            {"work_ms_p95", at(w, 0.95)},
+            {"period_ms_median", at(p, 0.5)},
+            {"period_ms_p95", at(p, 0.95)},
+            {"fps", sumP > 0 ? 1000.0 * p.size() / sumP : 0.0},
+            {"viewport_images", stats.imagesShown},
+            {"viewport_images_per_s", sumP > 0 ? 1000.0 * stats.imagesShown / sumP : 0.0},
+            {"mode", toString(mMode)},
+            {"viewport", {mViewportW, mViewportH}},
+            {"image_ms_median", at(im, 0.5)},
+            {"image_ms_p95", at(im, 0.95)},
+            {"drag_start_frames", stats.dragStartFrames},
+            {"drag_start_ms", stats.dragStartMs}};
+        report.update(mBench->analyse());
+        std::printf("%s\n", report.dump().c_str());
+        std::fflush(stdout);
     }
     return status;
 }
@@ -988,6 +997,8 @@ void EditorApp::uploadImage() {
     }
     mShown = img;
     ++mStats.imagesShown;
+    if (mBench && (mBenchPhase == 1 || mBenchPhase == 2))
+        mBench->shown(img, glfwGetTime(), mViewportW, mViewportH);
     if (mBenchFrame > 0 && mStats.dragStartFrames < 0 && img->previewVersion >= 0 &&
         img->previewVersion != mBenchOrigin) {
         mStats.dragStartFrames = mBenchFrame;
@@ -1023,11 +1034,12 @@ void EditorApp::writeScreenshot(const std::string& path) {
 
 void EditorApp::stepBenchmark() {
     if (!mRunner) return;
+    const double now = glfwGetTime();
     const auto doc = mRunner->document();
     const ObjectSummary* o = doc ? doc->find(mOptions.benchDrag) : nullptr;
-    if (mBenchFrame == 0) {
+    if (mBenchPhase == 0) {
         // Start once the scene is lit (at most 120 s), as a user would.
-        if (o && !mRunner->quiescent() && glfwGetTime() < 120) return;
+        if (o && !mRunner->quiescent() && now < 120) return;
         if (!o) {
             std::cerr << "penumbra-editor: --bench-drag: unknown object '" << mOptions.benchDrag
                       << "'\n";
@@ -1038,16 +1050,44 @@ void EditorApp::stepBenchmark() {
         for (const EditCommand& c : mDrag.begin(o->id, o->transform)) submit(c);
         mStats = FrameStats{};
         mBenchOrigin = o->version;
-        mBenchStart = glfwGetTime();
+        mBenchStart = now;
+        DragBenchOptions bench;
+        bench.scene = mScenePath;
+        bench.object = o->id;
+        bench.recordDir = mOptions.record;
+        if (!mOptions.benchReferences) bench.dragReferences = 0, bench.scene.clear();
+        mBench = std::make_unique<DragBench>(bench);
+        mBench->started(now, o->transform);
+        mBenchPhase = 1;
     }
-    ++mBenchFrame;
-    Transform t = mDrag.start();
-    const double a = 2.0 * M_PI * mBenchFrame / 120.0;
-    t.translate += Vec3(0.3 * std::sin(a), 0.0, 0.3 * (1.0 - std::cos(a)));
-    if (auto c = mDrag.update(t)) mRunner->submitCoalescing(*c);
-    mLastInteraction = glfwGetTime();
-    if (mBenchFrame >= mOptions.frames)
-        for (const EditCommand& c : mDrag.end()) submit(c);
+    if (mBenchPhase == 1) {
+        ++mBenchFrame;
+        Transform t = mDrag.start();
+        const double a = 2.0 * M_PI * mBenchFrame / 120.0;
+        t.translate += Vec3(0.3 * std::sin(a), 0.0, 0.3 * (1.0 - std::cos(a)));
+        if (auto c = mDrag.update(t)) mRunner->submitCoalescing(*c);
+        mLastInteraction = now;
+        if (mBenchFrame >= mOptions.frames) {
+            const Transform final = mDrag.current();
+            for (const EditCommand& c : mDrag.end()) submit(c);
+            mBench->dropped(now, final);
+            mBenchPhase = 2;
+        }
+    } else if (mBenchPhase == 2) {
+        if (mBench->afterDropDone(now)) {
+            mBenchWindowStats = mStats;
+            mBenchSettleStart = now;
+            mBenchPhase = 3;
+        }
+    } else if (mBenchPhase == 3) {
+        // The settled image: lighting converged and the display's cache full (at most 60 s).
+        const bool settled = mRunner->quiescent() && mShown && mShown == mRunner->image();
+        if (settled || now - mBenchSettleStart > 60) {
+            if (!settled) std::cerr << "penumbra-editor: --bench-drag: not settled after 60 s\n";
+            mBench->settled(mShown);
+            mBenchPhase = 4;
+        }
+    }
 }
 
 }  // namespace penumbra

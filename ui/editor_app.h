@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "edit/edit_log.h"
+#include "ui/drag_bench.h"
 #include "ui/drag_controller.h"
 #include "ui/file_dialog.h"
 #include "ui/gizmo.h"
@@ -39,14 +40,18 @@ struct EditorOptions {
     int playEvery = 3;      ///< frames per replayed log line
     double maxFps = 60;     ///< frame loop cap (Xvfb has no vertical sync)
     std::string benchDrag;  ///< object id: drag it in a circle for `frames` frames, print timings
+    /// --bench-drag: write every image shown (and the references) with its edit line here.
+    std::string record;
+    /// --bench-drag: reference renders of a few images' states (seconds each); off: none.
+    bool benchReferences = true;
     bool quiet = false;
     /// The viewport's initial display mode (View ▸ Mode). Edge-and-point by default; the
     /// viewport shows Gouraud until the display has been built (seconds in large scenes).
     ViewMode mode = ViewMode::EdgeAndPoint;
     int displayDivisor = 1;  ///< display modes render viewport / d pixels (SessionRunnerOptions)
-    /// Display modes while interacting: 0 auto, 1 off, d ≥ 2 fixed (SessionRunnerOptions::
-    /// interactiveDisplayDivisor).
-    int interactiveDisplayDivisor = 0;
+    /// Display modes while interacting: 1 full resolution (default), d ≥ 2 a reduced display,
+    /// 0 automatic (SessionRunnerOptions::interactiveDisplayDivisor).
+    int interactiveDisplayDivisor = 1;
 };
 
 /// No window could be opened (no DISPLAY, no GL 3.3 core context).
@@ -204,8 +209,14 @@ private:
     bool mCaptureNow = false;
     double mCaptureWaitStart = -1;
     int mBenchFrame = -1;
-    int mBenchOrigin = -1;   ///< the dragged object's version at the select
-    double mBenchStart = 0;  ///< glfwGetTime() at the select
+    /// --bench-drag: 0 waits for the scene to settle, 1 drags, 2 the window after the drop,
+    /// 3 waits for the settled image, 4 done.
+    int mBenchPhase = 0;
+    double mBenchSettleStart = 0;
+    std::unique_ptr<DragBench> mBench;
+    FrameStats mBenchWindowStats;  ///< frame figures from the select to the window's end
+    int mBenchOrigin = -1;         ///< the dragged object's version at the select
+    double mBenchStart = 0;        ///< glfwGetTime() at the select
 };
 
 }  // namespace penumbra

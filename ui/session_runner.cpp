@@ -429,6 +429,11 @@ bool SessionRunner::renderIteration() {
         doc = mDocument;
         dragged = mSolver.selected;
     }
+    // The dragged object's transform in the state rendered (the structure is held shared).
+    mRenderDragged = mSession->selected();
+    if (!mRenderDragged.empty())
+        for (const SceneObject& o : mSession->scene().objects)
+            if (o.id == mRenderDragged) mRenderDraggedTransform = o.transform;
     int highlight = -1;
     if (const ObjectSummary* o = doc ? doc->find(view.highlight) : nullptr) highlight = o->version;
     // The dragged object is seen as its preview version.
@@ -491,9 +496,8 @@ bool SessionRunner::renderIteration() {
                                      light.previewVersion, highlight);
         if (view.mode == ViewMode::OutOfDate && pendingValues) {
             // The pending |ΔB| interpolated like the image, as a red tint.
-            const ViewportRender pending =
-                renderViewport(disc, mSession->tracer(), *pendingValues, view.camera, w, h,
-                               light.previewVersion);
+            const ViewportRender pending = renderViewport(disc, mSession->tracer(), *pendingValues,
+                                                          view.camera, w, h, light.previewVersion);
             tintPending(img->render.rgba, pending.radiance, light.pendingScale / M_PI);
             img->note = "red: pending unshot / redistribution |dB| (full at 5% of mean B)";
         }
@@ -515,6 +519,8 @@ bool SessionRunner::renderIteration() {
     if (loading)
         img->note = std::string(viewModeLabel(view.mode)) + " display loading: Gouraud meanwhile";
     img->previewVersion = light.previewVersion;
+    img->dragged = mRenderDragged;
+    img->draggedTransform = mRenderDraggedTransform;
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mImage = std::move(img);
     return true;
@@ -846,6 +852,8 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     img->stateSerial = light.serial;
     img->mode = view.mode;
     img->previewVersion = display->previewVersion();
+    img->dragged = mRenderDragged;
+    img->draggedTransform = mRenderDraggedTransform;
     img->settledFrames = last && last->mode == view.mode && last->viewSerial == view.serial &&
                                  last->stateSerial == light.serial
                              ? last->settledFrames + 1

@@ -59,6 +59,10 @@ struct ViewportImage {
     ViewMode mode = ViewMode::Gouraud;
     /// The drag preview version it shows (the dragged object's position), -1 none.
     int previewVersion = -1;
+    /// The object dragged in the state shown ("" when none) and its document transform there:
+    /// with the scene file, the edit that reproduces what the image shows.
+    std::string dragged;
+    Transform draggedTransform;
     /// Display modes: display frames rendered with this view and lighting (the cache fills).
     int settledFrames = 0;
     DisplayFrameStats display;   ///< display modes: the last frame's figures
@@ -131,10 +135,12 @@ struct SessionRunnerOptions {
     int displayDivisor = 1;          ///< display modes: viewport / d pixels (rounded to 4)
     double displayFrameMs = 30;      ///< display modes: at least this long between frames
     int settleFrames = 40;           ///< display modes: frames before quiescent()
-    /// Display modes while the view is interactive: a second display at viewport /
-    /// (displayDivisor · d) pixels; 0 picks d from the full display's frame time so a frame
-    /// takes about interactiveImageMs (2 ≤ d ≤ maxReducedDivisor); 1 turns it off.
-    int interactiveDisplayDivisor = 0;
+    /// Display modes while the view is interactive: 1 (the default) keeps the one display at
+    /// its resolution, a moving view or a drag costing samples per frame, not pixels; d ≥ 2
+    /// shows a second display at viewport / (displayDivisor · d) pixels instead; 0 picks d from
+    /// the full display's frame time so a frame takes about interactiveImageMs (2 ≤ d ≤
+    /// maxReducedDivisor).
+    int interactiveDisplayDivisor = 1;
     int referenceDivisor = 4;  ///< difference mode: reference at display / d pixels
     /// Linux nice increment of the solver, render and display-shading threads (threaded
     /// runners): the UI thread keeps its frame rate on a busy machine. 0 leaves them as is.
@@ -266,6 +272,9 @@ private:
     // Render-thread state.
     double mMsPerPixel = 0;        ///< running estimate of the render cost
     double mLastLoadingImage = 0;  ///< the last Gouraud image while the display is built
+    /// The selection and its transform in the state being rendered (ViewportImage::dragged).
+    std::string mRenderDragged;
+    Transform mRenderDraggedTransform;
     // The displays (created by the render thread; every call under mDisplayMutex). Slot 0
     // renders at displayDivisor; slot 1, while the view is interactive (camera moves, drags),
     // at a reduced resolution: an InteractiveDisplay's size is fixed, so each keeps its cache.

@@ -50,7 +50,7 @@ bool usesInteractiveDisplay(ViewMode mode) {
 std::vector<std::uint8_t> encodeDisplay(const Image& radiance) {
     std::vector<std::uint8_t> rgba(radiance.pixels.size() * 4);
     for (std::size_t i = 0; i < radiance.pixels.size(); ++i) {
-        for (int c = 0; c < 3; ++c) rgba[4 * i + c] = toByte(encoded(radiance.pixels[i][c]));
+        for (int c = 0; c < 3; ++c) rgba[4 * i + c] = srgbByte(radiance.pixels[i][c]);
         rgba[4 * i + 3] = 255;
     }
     return rgba;

@@ -1,0 +1,296 @@
+// Index: helpers · DragBench (images, recording, analysis, references)
+
+#include "ui/drag_bench.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "edit/edit_session.h"
+#include "edit/lit_scene.h"
+#include "render/camera_rays.h"
+#include "render/interactive_display.h"
+#include "render/point_shader.h"
+
+namespace penumbra {
+
+namespace {
+
+/// The displayed bytes of a radiance image (srgbByte, as the viewport shows it).
+std::shared_ptr<const std::vector<std::uint8_t>> displayedBytes(const Image& image) {
+    auto out = std::make_shared<std::vector<std::uint8_t>>(image.pixels.size() * 3);
+    for (std::size_t k = 0; k < image.pixels.size(); ++k)
+        for (int c = 0; c < 3; ++c) (*out)[3 * k + c] = srgbByte(image.pixels[k][c]);
+    return out;
+}
+
+/// relativeDisplayRmse on displayed bytes: RMS difference over the RMS of `reference`.
+double relativeError(const std::vector<std::uint8_t>& a,
+                     const std::vector<std::uint8_t>& reference) {
+    if (a.size() != reference.size() || a.empty()) return -1;
+    double diff = 0, ref = 0;
+    for (std::size_t k = 0; k < a.size(); ++k) {
+        const double d = (double(a[k]) - double(reference[k])) / 255.0;
+        const double r = double(reference[k]) / 255.0;
+        diff += d * d;
+        ref += r * r;
+    }
+    return ref > 0 ? std::sqrt(diff / ref) : 0.0;
+}
+
+nlohmann::json transformJson(const Transform& t) {
+    return {{"translate", {t.translate.x, t.translate.y, t.translate.z}},
+            {"rotate_deg", {t.rotateDeg.x, t.rotateDeg.y, t.rotateDeg.z}},
+            {"scale", {t.scale.x, t.scale.y, t.scale.z}}};
+}
+
+/// The edit line (DESIGN.md edit log) that puts `id` where `t` says.
+std::string transformLine(const std::string& id, const Transform& t) {
+    TransformCommand c;
+    c.id = id;
+    c.translate = t.translate;
+    c.rotateDeg = t.rotateDeg;
+    c.scale = t.scale;
+    return formatEditCommand(EditCommand(c));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Images and recording.
+
+DragBench::DragBench(DragBenchOptions options) : mOptions(std::move(options)) {
+    if (!mOptions.recordDir.empty()) std::filesystem::create_directories(mOptions.recordDir);
+    mWorker = std::thread([this] { workerLoop(); });
+}
+
+DragBench::~DragBench() {
+    {
+        std::lock_guard<std::mutex> lock(mMutex);
+        mStop = true;
+    }
+    mWake.notify_all();
+    if (mWorker.joinable()) mWorker.join();
+}
+
+void DragBench::dropped(double now, const Transform& final) {
+    mDrop = now;
+    mDropped = true;
+    mFinal = final;
+    // Images so far: their times relative to the drop.
+    for (DragBenchImage& e : mImages) e.seconds -= now - mStart;
+}
+
+void DragBench::shown(const std::shared_ptr<const ViewportImage>& image, double now, int viewW,
+                      int viewH) {
+    if (!image) return;
+    DragBenchImage e;
+    e.afterDrop = mDropped;
+    e.seconds = mDropped ? now - mDrop : now - mStart;
+    e.width = image->render.radiance.width;
+    e.height = image->render.radiance.height;
+    // The display rounds its size down to a multiple of 4 (SessionRunner::displayOptions).
+    e.reduced = image->reduced || e.width < viewW / 4 * 4 || e.height < viewH / 4 * 4;
+    e.unsampled = image->display.unsampledPixels;
+    e.unfilled = image->display.unfilledPixels;
+    e.dragged = image->dragged;
+    e.transform = image->dragged.empty() ? mFinal : image->draggedTransform;
+    e.camera = image->camera;
+    mImages.push_back(std::move(e));
+    queue(mImages.back(), image);
+}
+
+void DragBench::settled(const std::shared_ptr<const ViewportImage>& image) {
+    if (!image) return;
+    mSettled.width = image->render.radiance.width;
+    mSettled.height = image->render.radiance.height;
+    mSettled.transform = mFinal;
+    mSettled.camera = image->camera;
+    mSettled.afterDrop = true;
+    mSettled.seconds = -1;  // marks the settled image in the index
+    queue(mSettled, image);
+}
+
+void DragBench::queue(DragBenchImage& entry, std::shared_ptr<const ViewportImage> image) {
+    std::string line;
+    if (!mOptions.recordDir.empty()) {
+        char name[32];
+        std::snprintf(name, sizeof name, "image-%04d.png", mRecorded++);
+        entry.file = (std::filesystem::path(mOptions.recordDir) / name).string();
+        line = nlohmann::json{{"image", name},
+                              {"phase", &entry == &mSettled ? "settled"
+                                        : entry.afterDrop   ? "after-drop"
+                                                            : "drag"},
+                              {"seconds", entry.seconds},
+                              {"width", entry.width},
+                              {"height", entry.height},
+                              {"reduced", entry.reduced},
+                              {"unsampled_pixels", entry.unsampled},
+                              {"unfilled_pixels", entry.unfilled},
+                              {"log", transformLine(mOptions.object, entry.transform)}}
+                   .dump();
+    }
+    std::lock_guard<std::mutex> lock(mMutex);
+    mJobs.push_back({&entry, std::move(image), std::move(line)});
+    mWake.notify_all();
+}
+
+void DragBench::drain() {
+    std::unique_lock<std::mutex> lock(mMutex);
+    mDone.wait(lock, [&] { return mJobs.empty() && !mBusy; });
+}
+
+void DragBench::workerLoop() {
+    const std::string index =
+        mOptions.recordDir.empty()
+            ? std::string()
+            : (std::filesystem::path(mOptions.recordDir) / "index.jsonl").string();
+    std::string lines;
+    for (;;) {
+        Job job;
+        {
+            std::unique_lock<std::mutex> lock(mMutex);
+            mWake.wait(lock, [&] { return mStop || !mJobs.empty(); });
+            if (mJobs.empty()) return;
+            job = std::move(mJobs.front());
+            mJobs.pop_front();
+            mBusy = true;
+        }
+        auto bytes = displayedBytes(job.image->render.radiance);
+        if (!job.indexLine.empty()) {
+            try {
+                writePng(job.image->render.radiance, job.entry->file);
+                lines += job.indexLine + "\n";
+                writeFileAtomically(index, lines);
+            } catch (const std::exception& e) {
+                std::cerr << "penumbra-editor: --record: " << e.what() << "\n";
+            }
+        }
+        std::lock_guard<std::mutex> lock(mMutex);
+        job.entry->shown = std::move(bytes);
+        mBusy = false;
+        mDone.notify_all();
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Analysis.
+
+nlohmann::json DragBench::analyse() {
+    drain();
+    nlohmann::json out;
+    std::size_t maxUnsampled = 0, maxUnfilled = 0, reduced = 0, drag = 0;
+    double maxUnsampledFraction = 0, maxUnfilledFraction = 0;
+    for (const DragBenchImage& e : mImages) {
+        const double pixels = double(e.width) * e.height;
+        maxUnsampled = std::max(maxUnsampled, e.unsampled);
+        maxUnfilled = std::max(maxUnfilled, e.unfilled);
+        maxUnsampledFraction = std::max(maxUnsampledFraction, e.unsampled / pixels);
+        maxUnfilledFraction = std::max(maxUnfilledFraction, e.unfilled / pixels);
+        reduced += e.reduced ? 1 : 0;
+        drag += e.afterDrop ? 0 : 1;
+    }
+    out["images"] = mImages.size();
+    out["drag_images"] = drag;
+    out["max_unsampled_fraction"] = maxUnsampledFraction;
+    out["max_unfilled_fraction"] = maxUnfilledFraction;
+    out["max_unfilled_pixels"] = maxUnfilled;
+    out["reduced_share"] = mImages.empty() ? 0.0 : double(reduced) / mImages.size();
+
+    // After the drop, against the settled image: when does it stay within the tolerance?
+    double settleSeconds = -1, windowEnd = -1;
+    if (mSettled.shown) {
+        for (DragBenchImage& e : mImages)
+            if (e.afterDrop && e.width == mSettled.width && e.height == mSettled.height)
+                e.settledError = relativeError(*e.shown, *mSettled.shown);
+        for (auto it = mImages.rbegin(); it != mImages.rend() && it->afterDrop; ++it) {
+            if (!(it->settledError >= 0 && it->settledError <= mOptions.settledTolerance)) break;
+            settleSeconds = it->seconds;
+        }
+        double best = 1e300;
+        for (const DragBenchImage& e : mImages)
+            if (e.afterDrop && std::abs(e.seconds - mOptions.afterDropSeconds) < best) {
+                best = std::abs(e.seconds - mOptions.afterDropSeconds);
+                windowEnd = e.settledError;
+            }
+    }
+    out["settle_ms"] = settleSeconds >= 0 ? settleSeconds * 1e3 : -1.0;
+    out["settled_error_at_window_end"] = windowEnd;
+    out["settled_tolerance"] = mOptions.settledTolerance;
+    nlohmann::json after = nlohmann::json::array();
+    for (const DragBenchImage& e : mImages)
+        if (e.afterDrop)
+            after.push_back({{"ms", e.seconds * 1e3}, {"settled_error", e.settledError}});
+    out["after_drop"] = std::move(after);
+
+    // References of a few states: spread over the drag, the first image after the drop, the
+    // one at the window's end, the settled image.
+    std::vector<DragBenchImage*> chosen;
+    std::vector<DragBenchImage*> dragImages, afterImages;
+    for (DragBenchImage& e : mImages) (e.afterDrop ? afterImages : dragImages).push_back(&e);
+    const int k = std::min<int>(mOptions.dragReferences, static_cast<int>(dragImages.size()));
+    for (int i = 0; i < k; ++i)
+        chosen.push_back(dragImages[(dragImages.size() - 1) * (i + 1) / (k + 1) + 0]);
+    if (!afterImages.empty()) {
+        chosen.push_back(afterImages.front());
+        DragBenchImage* last = afterImages.front();
+        for (DragBenchImage* e : afterImages)
+            if (std::abs(e->seconds - mOptions.afterDropSeconds) <
+                std::abs(last->seconds - mOptions.afterDropSeconds))
+                last = e;
+        if (last != afterImages.front()) chosen.push_back(last);
+    }
+    if (mSettled.shown) chosen.push_back(&mSettled);
+    nlohmann::json references = nlohmann::json::array();
+    if (!chosen.empty() && !mOptions.scene.empty()) {
+        const SolverOptions solverOptions = interactiveSolverOptions();
+        auto session = EditSession::open(mOptions.scene, solverOptions);
+        session->converge(1e-3);
+        int at = 0;
+        for (DragBenchImage* e : chosen) {
+            std::cerr << "penumbra-editor: --bench-drag: reference " << ++at << "/" << chosen.size()
+                      << "\n";
+            TransformCommand move;
+            move.id = mOptions.object;
+            move.translate = e->transform.translate;
+            move.rotateDeg = e->transform.rotateDeg;
+            move.scale = e->transform.scale;
+            session->apply(EditCommand(move));
+            session->converge(1e-3);
+            PointShaderOptions so = displayShaderOptions();
+            so.threads = 0;
+            so.recordTriples = false;
+            PointShader shader(session->discretization(), session->tracer(), solverOptions, so);
+            shader.updateSolution(session->solver());
+            const Image reference =
+                renderShaderReference(shader, CameraRays(e->camera, e->width, e->height),
+                                      mOptions.referenceSamplesPerAxis);
+            e->referenceError = relativeError(*e->shown, *displayedBytes(reference));
+            nlohmann::json entry = {{"phase", e == &mSettled ? "settled"
+                                              : e->afterDrop ? "after-drop"
+                                                             : "drag"},
+                                    {"ms", e == &mSettled ? -1.0 : e->seconds * 1e3},
+                                    {"error", e->referenceError},
+                                    {"transform", transformJson(e->transform)}};
+            if (!mOptions.recordDir.empty()) {
+                char name[40];
+                std::snprintf(name, sizeof name, "reference-%02d.png", at);
+                writePng(reference, (std::filesystem::path(mOptions.recordDir) / name).string());
+                entry["reference"] = name;
+                entry["image"] = std::filesystem::path(e->file).filename().string();
+            }
+            references.push_back(std::move(entry));
+        }
+    }
+    out["references"] = std::move(references);
+    double maxDrag = -1;
+    for (const DragBenchImage& e : mImages)
+        if (!e.afterDrop) maxDrag = std::max(maxDrag, e.referenceError);
+    out["max_drag_reference_error"] = maxDrag;
+    out["settled_reference_error"] = mSettled.referenceError;
+    return out;
+}
+
+}  // namespace penumbra
