@@ -1,0 +1,149 @@
+// The render cache keeping its points across an edit instead of dropping them (the drag
+// issue): relight adds each element's change and marks stale points, which the priority ranks
+// first and a fresh point replaces in the z-buffer; carry moves an object's points rigidly
+// onto its new version; setHidden leaves points out of the reprojection without dropping
+// them. Each against a brute-force expectation over every point.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
+#include <vector>
+
+#include "render/camera_rays.h"
+#include "render/render_cache.h"
+
+namespace penumbra {
+namespace {
+
+Camera frontCamera() {
+    Camera c;
+    c.position = Vec3(0, 0, 5);
+    c.lookAt = Vec3(0, 0, 0);
+    c.up = Vec3(0, 1, 0);
+    c.fovDeg = 50;
+    return c;
+}
+
+/// One point per pixel centre at distance `t` along its ray, element = pixel index + offset.
+std::vector<ShadedPoint> layer(const CameraRays& rays, double t, int object, int elementOffset,
+                               Rgb colour) {
+    std::vector<ShadedPoint> out;
+    for (int y = 0; y < rays.height(); ++y)
+        for (int x = 0; x < rays.width(); ++x) {
+            ShadedPoint p;
+            p.pixel = {x + 0.5, y + 0.5};
+            p.position = rays.origin() + t * rays.rayDirection(x + 0.5, y + 0.5);
+            p.radiance = colour;
+            p.object = object;
+            p.element = elementOffset + y * rays.width() + x;
+            out.push_back(p);
+        }
+    return out;
+}
+
+TEST(RenderCacheKeep, RelightAddsEachElementsChangeAndStalePixelsComeFirst) {
+    const CameraRays rays(frontCamera(), 16, 16);
+    RenderCache cache(16, 16, 1024);
+    cache.insert(layer(rays, 5.0, 0, 0, Rgb(0.5)));
+    cache.reproject(rays);
+    // Every tenth element changes by +0.1 in red, every seventh is stale.
+    std::vector<Rgb> delta(256, Rgb(0.0));
+    std::vector<std::uint8_t> stale(256, 0);
+    std::size_t expectedStale = 0;
+    for (int e = 0; e < 256; ++e) {
+        if (e % 10 == 0) delta[e] = Rgb(0.1, 0.0, 0.0);
+        stale[e] = e % 7 == 0;
+        expectedStale += stale[e];
+    }
+    EXPECT_EQ(cache.relight(delta, stale), expectedStale);
+    for (std::size_t i = 0; i < cache.size(); ++i) {
+        const CachePoint& p = cache.points()[i];
+        EXPECT_NEAR(p.colour.x, p.element % 10 == 0 ? 0.6 : 0.5, 1e-12) << p.toString();
+        EXPECT_EQ(cache.stale(i), p.element % 7 == 0) << p.toString();
+    }
+    // The next frame: stale pixels have priority 1, like empty ones; the others less.
+    cache.reproject(rays);
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x) {
+            const double priority = cache.priority()[y * 16 + x];
+            if ((y * 16 + x) % 7 == 0) {
+                EXPECT_EQ(priority, 1.0) << "stale pixel " << x << ", " << y;
+            } else {
+                EXPECT_LT(priority, 1.0) << "fresh pixel " << x << ", " << y;
+            }
+        }
+    // A fresh point at the same depth replaces a stale one in the z-buffer; a stale one does
+    // not replace a fresh one.
+    std::vector<ShadedPoint> fresh = layer(rays, 5.0, 0, 0, Rgb(0.9));
+    cache.insert({fresh[0], fresh[1]});  // pixel 0 is stale, pixel 1 is not
+    const std::vector<ScreenPoint>& shown = cache.reproject(rays);
+    ASSERT_FALSE(shown.empty());
+    EXPECT_NEAR(shown[0].colour.x, 0.9, 1e-12) << "the fresh point wins over the stale one";
+    EXPECT_NEAR(shown[1].colour.x, 0.9, 1e-12) << "the younger point wins as before";
+    EXPECT_LT(cache.priority()[0], 1.0) << "its pixel is no longer first";
+}
+
+TEST(RenderCacheKeep, CarryMovesAnObjectsPointsRigidlyOntoItsNewVersion) {
+    const CameraRays rays(frontCamera(), 12, 12);
+    RenderCache cache(12, 12, 1024);
+    cache.insert(layer(rays, 4.0, 3, 1000, Rgb(0.4)));  // the object, version 3
+    cache.insert(layer(rays, 6.0, 1, 0, Rgb(0.2)));     // the wall behind it
+    const std::vector<CachePoint> before = cache.points();
+    const Mat4 move =
+        glm::translate(Mat4(1.0), Vec3(0.3, -0.2, 0.5)) * glm::rotate(Mat4(1.0), 0.4, Vec3(0, 1, 0));
+    EXPECT_EQ(cache.carry(3, 7, move, 500), 144u);
+    ASSERT_EQ(cache.size(), before.size());
+    for (std::size_t i = 0; i < cache.size(); ++i) {
+        const CachePoint& was = before[i];
+        const CachePoint& now = cache.points()[i];
+        if (was.object != 3) {
+            EXPECT_EQ(now.position, was.position);
+            EXPECT_EQ(now.object, was.object);
+            EXPECT_FALSE(cache.stale(i));
+            continue;
+        }
+        const Vec3 expected = Vec3(move * glm::dvec4(was.position, 1.0));
+        EXPECT_LT(glm::length(now.position - expected), 1e-12);
+        EXPECT_EQ(now.object, 7);
+        EXPECT_EQ(now.element, was.element + 500);
+        EXPECT_EQ(now.colour, was.colour) << "the colour stays until re-shaded";
+        EXPECT_TRUE(cache.stale(i));
+    }
+    // The reprojection sees the moved points where they are now.
+    const std::vector<ScreenPoint>& shown = cache.reproject(rays);
+    std::size_t moved = 0;
+    for (const ScreenPoint& p : shown) moved += p.colour.x == 0.4;
+    EXPECT_GT(moved, 0u);
+}
+
+TEST(RenderCacheKeep, HiddenPointsSkipTheReprojectionAndComeBack) {
+    const CameraRays rays(frontCamera(), 10, 10);
+    RenderCache cache(10, 10, 1024);
+    cache.insert(layer(rays, 6.0, 1, 0, Rgb(0.2)));
+    // Hide the left half (x < 0 in world space) of the wall.
+    const std::size_t hidden =
+        cache.setHidden([](const Vec3& position, int) { return position.x < 0; });
+    std::size_t expected = 0;
+    for (const CachePoint& p : cache.points()) expected += p.position.x < 0;
+    EXPECT_EQ(hidden, expected);
+    ASSERT_GT(hidden, 0u);
+    const std::vector<ScreenPoint>& shown = cache.reproject(rays);
+    EXPECT_EQ(shown.size(), cache.size() - hidden);
+    for (const ScreenPoint& p : shown) EXPECT_GE(p.position.x, 5.0) << "left half hidden";
+    for (std::size_t i = 0; i < cache.size(); ++i)
+        EXPECT_EQ(cache.hidden(i), cache.points()[i].position.x < 0);
+    // The serial reference agrees.
+    RenderCacheOptions serial;
+    serial.parallel = false;
+    RenderCache reference(10, 10, 1024, serial);
+    reference.insert(layer(rays, 6.0, 1, 0, Rgb(0.2)));
+    reference.setHidden([](const Vec3& position, int) { return position.x < 0; });
+    EXPECT_EQ(reference.reproject(rays).size(), shown.size());
+    // Nothing was dropped: an empty function shows every point again.
+    EXPECT_EQ(cache.setHidden({}), 0u);
+    EXPECT_EQ(cache.reproject(rays).size(), cache.size());
+}
+
+}  // namespace
+}  // namespace penumbra
