@@ -65,10 +65,10 @@ std::string DisplayStageTimes::toString() const {
     s.precision(3);
     s << "DisplayStageTimes{edges " << findEdgesMs << " ms (silhouettes " << silhouetteMs
       << ", shadows " << shadowMs << ", project " << projectMs << "), rasterize " << rasterizeMs
-      << ", points " << pointsMs << ", reach " << reachabilityMs << ", interp " << interpolateMs
-      << ", aa " << antiAliasMs << ", complex " << complexFilterMs << ", smooth " << smoothMs
-      << ", fill " << fillMs << ", request " << requestMs << ", total " << totalMs << ", shade "
-      << shadeMs << "}";
+      << ", points " << pointsMs << " (relight " << relightMs << ", hide " << hideMs << "), reach "
+      << reachabilityMs << ", interp " << interpolateMs << ", aa " << antiAliasMs << ", complex "
+      << complexFilterMs << ", smooth " << smoothMs << ", fill " << fillMs << ", request "
+      << requestMs << ", total " << totalMs << ", shade " << shadeMs << "}";
     return s.str();
 }
 
@@ -205,13 +205,22 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     auto t = Clock::now();
     if (mShader->previewObject() >= 0 || mShader->directUpdatePending())
         if (!mShader->takeDirectUpdate().empty()) relightChanged();
+    st.times.relightMs = msSince(t);
     // A preview left without an object taking its points (a cancelled drag): they go.
     dropLeftPreview();
     // Points behind a moving or new object, for this view, stay out of the image.
+    const auto hideStart = Clock::now();
     hideOccluded(camera);
+    st.times.hideMs = msSince(hideStart);
     // Take the points the asynchronous workers finished.
     if (!mOptions.synchronous) {
         std::vector<ShadedPoint> done = mShader->takeResults();
+        // Requested before the dragged object moved on: a hit on a version no longer shown
+        // goes (the rest of the scene is as it was; its light changes come as relights).
+        const int preview = mShader->previewObject();
+        std::erase_if(done, [&](const ShadedPoint& p) {
+            return p.object >= 0 && p.object != preview && !mDisc.objects()[p.object].alive;
+        });
         mCache.insert(done);
         mInsertedSinceFrame += done.size();
     }
@@ -497,6 +506,7 @@ std::size_t InteractiveDisplay::carryPoints(int from, int to) {
 }
 
 void InteractiveDisplay::setOccluder(int version, const Visibility& only, int frames) {
+    if (version != mOccluder) mHiddenFor = -1;  // test every point again
     mOccluder = version;
     mOccluderFrames = frames;
     mOccluderOnly = only;
@@ -518,6 +528,20 @@ std::size_t InteractiveDisplay::hideOccluded(const CameraRays& camera) {
         return 0;
     }
     if (mOccluderFrames > 0) --mOccluderFrames;
+    // Hidden points stay hidden while neither the view nor the occluder moves: points shaded
+    // since are what the eye sees first, never behind it.
+    const bool sameView = mHiddenFor == mOccluder && mHiddenWidth == camera.width() &&
+                          mHiddenHeight == camera.height() && mHiddenEye == camera.origin() &&
+                          mHiddenForward == camera.forward() && mHiddenRight == camera.right() &&
+                          mHiddenUp == camera.up();
+    if (mHiding && sameView) return 0;
+    mHiddenFor = mOccluder;
+    mHiddenWidth = camera.width();
+    mHiddenHeight = camera.height();
+    mHiddenEye = camera.origin();
+    mHiddenForward = camera.forward();
+    mHiddenRight = camera.right();
+    mHiddenUp = camera.up();
     // The occluder's screen rectangle and nearest depth bound the points it can hide.
     const ObjectSurface& s = mDisc.objects()[mOccluder];
     const Vec3 eye = camera.origin(), forward = camera.forward();
@@ -618,8 +642,9 @@ void InteractiveDisplay::noteAlive() {
 
 std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility& previewOnly,
                                            const ProgressiveSolver* solver) {
-    mShader->cancelPending();
-    if (!mOptions.synchronous) (void)mShader->takeResults();
+    // Requests and results stay: a drag moves positions faster than they are shaded, and
+    // dropping them at every move left the display without new points for the whole drag.
+    // Those that hit an earlier preview are dropped when taken (renderFrame).
     dropLeftPreview();
     const int old = mShader->previewObject();
     // The dragged object's points move with it, from the last preview or, at a drag's first
@@ -659,7 +684,7 @@ std::size_t InteractiveDisplay::clearPreview(const ProgressiveSolver* solver) {
     mShadowsStale = true;
     if (solver) mShader->updateSolution(*solver);
     setOccluder(-1, {}, 0);
-    noteAlive();
+    // (Not noteAlive: the notifyChanged that follows must see the object come back.)
     return relightChanged();
 }
 

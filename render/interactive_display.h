@@ -54,6 +54,8 @@ struct DisplayStageTimes {
     double projectMs = 0;        ///<   of which near-plane clipping and projection
     double rasterizeMs = 0;      ///< EPI: depth filter, edge rasterization, classification
     double pointsMs = 0;         ///< cache insert + reprojection + EPI point placement
+    double relightMs = 0;        ///<   of which relighting after a preview's estimate
+    double hideMs = 0;           ///<   of which hiding the points behind a moving object
     double reachabilityMs = 0;   ///< §5.2
     double interpolateMs = 0;    ///< §5.3
     double antiAliasMs = 0;      ///< §5.3
@@ -99,6 +101,9 @@ struct DisplayFrameStats {
 inline PointShaderOptions displayShaderOptions() {
     PointShaderOptions o;
     o.clampNegative = false;
+    // The display's edge finder finds its shadow events from the lights and blockers
+    // themselves; recording who blocked each shadow ray cost a closest hit per blocked ray.
+    o.recordTriples = false;
     return o;
 }
 
@@ -248,38 +253,49 @@ public:
 
     // -- Edits and solution updates ------------------------------------------------------------
 
+    // What the cache keeps across a change (the drag issue): a point is dropped only when its
+    // surface is gone (a removed object; a version replaced by another shape). A moved
+    // object's points move with it (carryPoints); a point whose element's shading changed
+    // takes the element's change and is marked stale (relightChanged: re-shaded first, shown
+    // meanwhile); points behind a moved or new object are hidden from the frames, not dropped
+    // (setOccluder). Pixels no point reaches take the fallback (fillHoles).
+
     /// Snapshots the solver's solution for the indirect part (PointShader::updateSolution) and
-    /// drops cached points on elements whose shading changed by more than the threshold.
-    /// Returns the points dropped.
+    /// relights the cached points whose element shading changed (relightChanged). Returns the
+    /// points marked stale.
     std::size_t updateSolution(const ProgressiveSolver& solver);
     /// The same from copies of the solver's arrays (PointShader::updateSolution overload).
     std::size_t updateSolution(const std::vector<Rgb>& irradiance,
                                const std::vector<Rgb>* previewRadiosity = nullptr,
                                int previewObject = -1);
     /// After an edit changed `changedObjects` (Discretization object versions added, removed,
-    /// or with a new material; EditResult's added/removed/materialChanged): drops cached
-    /// points on them and in their bounding spheres, brings the edge finder up to date
+    /// or with a new material; EditResult's added/removed/materialChanged): a version that
+    /// replaced another of the same object (a move) takes its points; a removed object's
+    /// points go; an added object hides what it covers for kOccluderFrames frames; points on
+    /// an object with a new material are stale. Then brings the edge finder up to date
     /// (syncWith, lights of emitting objects), recomputes the direct lighting the change
-    /// affects (PointShader::refreshDirect(changed)), takes the solver's solution when given
-    /// (updateSolution, dropping points whose element shading changed) and marks the shadow
-    /// edges for recomputation at the next frame (only stale light–blocker pairs are redone).
-    /// Pending asynchronous requests and results from before the edit are discarded. Returns the
-    /// cached points dropped.
+    /// affects (PointShader::refreshDirect(changed)), takes the solver's solution when given,
+    /// relights (relightChanged) and marks the shadow edges for recomputation at the next
+    /// frame (only stale light–blocker pairs are redone). Pending asynchronous requests and
+    /// results from before the edit are discarded. Returns the points moved, dropped or marked.
     std::size_t notifyChanged(const std::vector<int>& changedObjects,
                               const ProgressiveSolver* solver = nullptr);
     /// Drag preview (George et al.'s temporary buffer): shows `previewVersion`, the dead object
     /// version the solver previews (ProgressiveSolver::previewObject(): the dragged object at
     /// its current position), lit by the solver's previewRadiosity() and casting its shadows
     /// (PointShader::setPreview; `previewOnly` a RayTracer subset admitting only it, kept
-    /// alive by the caller until the next setPreview/clearPreview). Drops cached points on the
-    /// previous preview version, in both versions' bounding spheres and on elements whose
-    /// direct lighting the move changed (the moving shadow); takes the solver's solution when
-    /// given (without one, the next updateSolution brings the preview buffer and drops what
-    /// it changed). Call like notifyChanged (asynchronous mode: shader paused). Returns the points
-    /// dropped.
+    /// alive by the caller until the next setPreview/clearPreview). The previous preview's
+    /// points (or, at a drag's first move, the origin's) move with the object; what it covers
+    /// in the frames' views is hidden while it is previewed; takes the solver's solution when
+    /// given and relights (with backgroundPreview the moving shadow's estimate comes later,
+    /// in renderFrame). Requests in flight stay (results on an earlier preview are dropped
+    /// when taken). Call like notifyChanged (asynchronous mode: shader paused). Returns the
+    /// points moved or marked.
     std::size_t setPreview(int previewVersion, const Visibility& previewOnly = {},
                            const ProgressiveSolver* solver = nullptr);
-    /// Ends the preview (call before notifyChanged of the unselect). Returns the points dropped.
+    /// Ends the preview (call before notifyChanged of the unselect): its points wait for that
+    /// notifyChanged, which carries them to the object's new version, or go at the next frame.
+    /// Returns the points marked.
     std::size_t clearPreview(const ProgressiveSolver* solver = nullptr);
     /// George et al.'s select, instead of notifyChanged({origin}) and a preview computed from
     /// scratch: `origin` was just removed from the scene and is previewed where it was, so
@@ -289,8 +305,9 @@ public:
     void beginDrag(int origin, const Visibility& originOnly = {});
     /// George et al.'s unselect after beginDrag, instead of clearPreview and
     /// notifyChanged({added}): `added` (the preview version) is alive in the scene again; the
-    /// last change becomes part of H_direct (PointShader::endDrag), points on it and on the
-    /// elements whose direct light changed are dropped. Returns the points dropped.
+    /// last change becomes part of H_direct (PointShader::endDrag); the object's points stay
+    /// (stale) and hide what it covers for kOccluderFrames frames; relights. Returns the points
+    /// marked.
     std::size_t endDrag(int added, const ProgressiveSolver* solver = nullptr);
     /// The origin of the drag in progress, -1 for none.
     int dragOrigin() const { return mShader->dragOrigin(); }
@@ -299,10 +316,10 @@ public:
     int directJobPreview() const { return mShader->directJobPreview(); }
     /// Brings this display up to date with `source` (another display over the same scene that
     /// saw every edit) after this one missed edits that changed `changedObjects`: drops points
-    /// on them, in their bounds and on both displays' preview versions, follows the edge finder
-    /// (syncWith), takes the source's direct light, solution and preview
-    /// (PointShader::copyDirectFrom: nothing recomputed) and drops points whose element
-    /// shading changed. Call with both shaders paused. Returns the points dropped.
+    /// on them and on both displays' preview versions, follows the edge finder (syncWith),
+    /// takes the source's direct light, solution and preview (PointShader::copyDirectFrom:
+    /// nothing recomputed) and relights. Call with both shaders paused. Returns the points
+    /// dropped or marked.
     std::size_t catchUpFrom(const InteractiveDisplay& source,
                             const std::vector<int>& changedObjects);
     /// The preview version shown, -1 for none.
@@ -409,6 +426,10 @@ private:
     Visibility mOccluderOnly;
     std::vector<std::uint8_t> mOccluderMask;
     bool mHiding = false;  ///< the cache has hidden points
+    // The occluder and view the hidden points were found for.
+    int mHiddenFor = -1;
+    int mHiddenWidth = 0, mHiddenHeight = 0;
+    Vec3 mHiddenEye{0.0}, mHiddenForward{0.0}, mHiddenRight{0.0}, mHiddenUp{0.0};
     /// The preview clearPreview ended, whose points the next notifyChanged carries to the
     /// object's new version or drops (-1 none).
     int mLeftPreview = -1;

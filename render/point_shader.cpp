@@ -796,6 +796,7 @@ void PointShader::updateSolution(const ProgressiveSolver& solver) {
 void PointShader::updateSolution(const std::vector<Rgb>& H,
                                  const std::vector<Rgb>* previewRadiosity, int previewObject) {
     mElementH = H;
+    if (!previewRadiosity && !mLastPreviewRadiosity.empty()) rememberDropped();
     if (previewRadiosity)
         mLastPreviewRadiosity = *previewRadiosity;
     else
@@ -803,6 +804,29 @@ void PointShader::updateSolution(const std::vector<Rgb>& H,
     mLastPreviewObject = previewRadiosity ? previewObject : -1;
     mHasSolution = true;
     rebuildIndirect();
+}
+
+void PointShader::rememberDropped() {
+    // The drag ended: the object is alive again at its last preview's place (or a little
+    // further on: the same mesh), and its buffer T = ρ·H estimates its irradiance there.
+    mDroppedObject = -1;
+    mDroppedH.clear();
+    const int from = mLastPreviewObject;
+    if (from < 0 || from >= static_cast<int>(mDisc.objects().size())) return;
+    for (int o = 0; o < static_cast<int>(mDisc.objects().size()); ++o) {
+        if (!mDisc.objects()[o].alive || !mDisc.sameElements(from, o)) continue;
+        const auto [first, count] = mDisc.elementRange(from);
+        mDroppedH.assign(static_cast<std::size_t>(count), Rgb(0.0));
+        for (int k = 0; k < count; ++k) {
+            const int e = first + k;
+            if (e >= static_cast<int>(mLastPreviewRadiosity.size())) break;
+            const Rgb rho = mDisc.elementMaterial(e).reflectance;
+            for (int c = 0; c < 3; ++c)
+                if (rho[c] > 0) mDroppedH[k][c] = mLastPreviewRadiosity[e][c] / rho[c];
+        }
+        mDroppedObject = o;
+        return;
+    }
 }
 
 void PointShader::rebuildIndirect() {
@@ -831,6 +855,26 @@ void PointShader::rebuildIndirect() {
     const int preview = next->previewObject;
     next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
     for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementDirect[e];
+    // An object just dropped after a drag: until the solver's redistribution reaches its
+    // elements, its last preview buffer's irradiance stands in (the larger of the two), so it
+    // does not show lit by its direct light alone; forgotten once the solution has caught up
+    // (nine tenths of the estimate) or the object is gone.
+    if (mDroppedObject >= 0) {
+        const auto [first, count] = mDisc.elementRange(mDroppedObject);
+        double solved = 0, estimated = 0;
+        for (int k = 0; k < count && k < static_cast<int>(mDroppedH.size()); ++k) {
+            const std::size_t e = static_cast<std::size_t>(first + k);
+            const Rgb h = e < n ? H[e] : Rgb(0.0);
+            solved += luminance(h);
+            estimated += luminance(mDroppedH[k]);
+            if (e < next->elementIndirect.size())
+                next->elementIndirect[e] = glm::max(h, mDroppedH[k]) - mElementDirect[e];
+        }
+        if (!mDisc.objects()[mDroppedObject].alive || solved >= 0.9 * estimated) {
+            mDroppedObject = -1;
+            mDroppedH.clear();
+        }
+    }
     // While a drag moves on faster than the solver's buffer follows, the buffer is for where
     // the object was a moment ago (an earlier version of the same mesh): its elements' values
     // move with it, so the object keeps its light instead of going black until the solver

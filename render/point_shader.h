@@ -333,6 +333,9 @@ private:
     void dropDirectJob();
     /// The indirect snapshot from mElementH and the stored preview buffer.
     void rebuildIndirect();
+    /// At the first solution after a drag: mDroppedH from the last preview buffer, for the
+    /// alive version of the same object.
+    void rememberDropped();
     void recordTriple(const ShadowTriple& t) const;
     void workerLoop();
 
@@ -348,6 +351,10 @@ private:
     std::vector<Rgb> mLastPreviewRadiosity;  ///< its preview buffer (empty: none)
     /// The per-element direct light the published vertexDirect blends (rebuildIndirect).
     std::vector<Rgb> mVertexDirectOf;
+    /// An object just dropped after a drag (-1 none) and, per element of it, the irradiance
+    /// its last preview buffer estimated: shown until the solver's solution catches up.
+    int mDroppedObject = -1;
+    std::vector<Rgb> mDroppedH;
     int mLastPreviewObject = -1;
     bool mHasSolution = false;
     /// Drag (beginDrag): the origin H_direct still includes, and a subset admitting it.

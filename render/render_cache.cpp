@@ -957,7 +957,8 @@ void RenderCache::clear() {
 
 std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
                                  const std::vector<std::uint8_t>& stale) {
-    if (mScreenPending) buildScreenPoints();  // it reads the colours
+    // (A pending screen point list, built later, shows the relit colours: the points are the
+    // same, only their estimate is newer.)
     const std::size_t n = mPoints.size();
     std::vector<std::size_t> counts((n + 8191) / 8192, 0);
     tbb::parallel_for(std::size_t(0), counts.size(), [&](std::size_t c) {

@@ -13,6 +13,7 @@
 #include "render/camera_rays.h"
 #include "render/interactive_display.h"
 #include "render/point_shader.h"
+#include "solver/ray_tracer.h"
 
 namespace penumbra {
 
@@ -111,6 +112,17 @@ void DragBench::settled(const std::shared_ptr<const ViewportImage>& image) {
     mSettled.afterDrop = true;
     mSettled.seconds = -1;  // marks the settled image in the index
     queue(mSettled, image);
+}
+
+void DragBench::settledAgain(const std::shared_ptr<const ViewportImage>& image) {
+    if (!image) return;
+    mSettledAgain.width = image->render.radiance.width;
+    mSettledAgain.height = image->render.radiance.height;
+    mSettledAgain.afterDrop = true;
+    mSettledAgain.seconds = -1;
+    std::lock_guard<std::mutex> lock(mMutex);
+    mJobs.push_back({&mSettledAgain, image, ""});
+    mWake.notify_all();
 }
 
 void DragBench::queue(DragBenchImage& entry, std::shared_ptr<const ViewportImage> image) {
@@ -217,6 +229,9 @@ nlohmann::json DragBench::analyse() {
             }
     }
     out["settle_ms"] = settleSeconds >= 0 ? settleSeconds * 1e3 : -1.0;
+    out["settled_noise"] = mSettled.shown && mSettledAgain.shown
+                               ? relativeError(*mSettledAgain.shown, *mSettled.shown)
+                               : -1.0;
     out["settled_error_at_window_end"] = windowEnd;
     out["settled_tolerance"] = mOptions.settledTolerance;
     nlohmann::json after = nlohmann::json::array();
@@ -264,15 +279,35 @@ nlohmann::json DragBench::analyse() {
             so.recordTriples = false;
             PointShader shader(session->discretization(), session->tracer(), solverOptions, so);
             shader.updateSolution(session->solver());
+            const CameraRays rays(e->camera, e->width, e->height);
             const Image reference =
-                renderShaderReference(shader, CameraRays(e->camera, e->width, e->height),
-                                      mOptions.referenceSamplesPerAxis);
-            e->referenceError = relativeError(*e->shown, *displayedBytes(reference));
+                renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis);
+            const auto referenceBytes = displayedBytes(reference);
+            e->referenceError = relativeError(*e->shown, *referenceBytes);
+            // The dragged object's own pixels (where the reference's primary ray meets it):
+            // solid and in the right place, or not.
+            const int version = session->objectVersion(mOptions.object);
+            std::vector<std::uint8_t> a, b;
+            for (int y = 0; y < e->height; ++y)
+                for (int x = 0; x < e->width; ++x) {
+                    const RayHit hit = session->tracer().intersect(
+                        rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
+                    if (hit.object != version) continue;
+                    const std::size_t k = 3 * (static_cast<std::size_t>(y) * e->width + x);
+                    for (int c = 0; c < 3; ++c) {
+                        a.push_back((*e->shown)[k + c]);
+                        b.push_back((*referenceBytes)[k + c]);
+                    }
+                }
+            e->objectError = relativeError(a, b);
+            e->objectPixels = a.size() / 3;
             nlohmann::json entry = {{"phase", e == &mSettled ? "settled"
                                               : e->afterDrop ? "after-drop"
                                                              : "drag"},
                                     {"ms", e == &mSettled ? -1.0 : e->seconds * 1e3},
                                     {"error", e->referenceError},
+                                    {"object_error", e->objectError},
+                                    {"object_pixels", e->objectPixels},
                                     {"transform", transformJson(e->transform)}};
             if (!mOptions.recordDir.empty()) {
                 char name[40];
@@ -289,6 +324,10 @@ nlohmann::json DragBench::analyse() {
     for (const DragBenchImage& e : mImages)
         if (!e.afterDrop) maxDrag = std::max(maxDrag, e.referenceError);
     out["max_drag_reference_error"] = maxDrag;
+    double maxObject = -1;
+    for (const DragBenchImage& e : mImages)
+        if (!e.afterDrop) maxObject = std::max(maxObject, e.objectError);
+    out["max_drag_object_error"] = maxObject;
     out["settled_reference_error"] = mSettled.referenceError;
     return out;
 }

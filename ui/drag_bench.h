@@ -58,7 +58,10 @@ struct DragBenchImage {
     /// the errors compare, as the user sees it.
     std::shared_ptr<const std::vector<std::uint8_t>> shown;
     double referenceError = -1;  ///< relativeDisplayRmse against its reference, -1: none
-    double settledError = -1;    ///< relativeDisplayRmse against the settled image
+    /// The same over the pixels where the reference shows the dragged object, and how many.
+    double objectError = -1;
+    std::size_t objectPixels = 0;
+    double settledError = -1;  ///< relativeDisplayRmse against the settled image
 };
 
 class DragBench {
@@ -81,10 +84,14 @@ public:
     bool afterDropDone(double now) const {
         return mDropped && now - mDrop >= mOptions.afterDropSeconds;
     }
-    /// An image the viewport shows from now on, at viewport size `viewW` × `viewH`.
+    /// An image the viewport shows from now on; `viewW` × `viewH` is the display's full
+    /// resolution (the viewport's, or its --display-divisor share).
     void shown(const std::shared_ptr<const ViewportImage>& image, double now, int viewW, int viewH);
     /// The settled image (the runner quiescent after the drop), or nullptr after a timeout.
     void settled(const std::shared_ptr<const ViewportImage>& image);
+    /// A later settled image of the same state: how far two settled images of the display
+    /// differ (its points' noise and their replacement), the floor under settled errors.
+    void settledAgain(const std::shared_ptr<const ViewportImage>& image);
 
     /// Computes the errors (references included: seconds each) and the figures, as JSON:
     /// images, max_unsampled_fraction, max_unfilled_fraction, reduced_share,
@@ -108,6 +115,7 @@ private:
     Transform mFinal;
     std::deque<DragBenchImage> mImages;  ///< stable addresses: the thread fills them in
     DragBenchImage mSettled;             ///< width 0: none
+    DragBenchImage mSettledAgain;
     int mRecorded = 0;
 
     // The bench's thread: displayed bytes and recorded PNGs, so the frame loop does not wait.

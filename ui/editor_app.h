@@ -37,8 +37,11 @@ struct EditorOptions {
     std::string screenshot;  ///< PNG written after `frames` frames, then exit
     int frames = 0;
     int width = 1280, height = 720;
-    int playEvery = 3;      ///< frames per replayed log line
-    double maxFps = 60;     ///< frame loop cap (Xvfb has no vertical sync)
+    int playEvery = 3;   ///< frames per replayed log line
+    double maxFps = 60;  ///< frame loop cap (Xvfb has no vertical sync)
+    /// The cap under a software GL (Mesa's llvmpipe, as under Xvfb): there the window's own
+    /// drawing runs on the CPU cores the display and the solver need.
+    double softwareGlMaxFps = 40;
     std::string benchDrag;  ///< object id: drag it in a circle for `frames` frames, print timings
     /// --bench-drag: write every image shown (and the references) with its edit line here.
     std::string record;
@@ -110,6 +113,10 @@ public:
     double gizmoSize(const Vec3& pivot) const;
     bool playing() const { return mPlayNext < mPlay.size(); }
     const FrameStats& frameStats() const { return mStats; }
+    /// --bench-drag: the images seen so far (nullptr before the select), and whether the
+    /// benchmark has its settled image (run() then prints DragBench::analyse()).
+    DragBench* dragBench() { return mBench.get(); }
+    bool dragBenchDone() const { return mBenchPhase == 4; }
     ViewMode viewMode() const { return mMode; }
     /// Switches the viewport's display mode (View ▸ Mode); difference mode asks for a reference.
     void setViewMode(ViewMode mode);
@@ -210,7 +217,7 @@ private:
     double mCaptureWaitStart = -1;
     int mBenchFrame = -1;
     /// --bench-drag: 0 waits for the scene to settle, 1 drags, 2 the window after the drop,
-    /// 3 waits for the settled image, 4 done.
+    /// 3 waits for the settled image, 5 a second one, 4 done.
     int mBenchPhase = 0;
     double mBenchSettleStart = 0;
     std::unique_ptr<DragBench> mBench;

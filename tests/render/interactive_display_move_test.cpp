@@ -83,8 +83,8 @@ TEST(InteractiveDisplayMove, PointsBehindTheMovedObjectAreExactlyThoseItCoversFr
         }
         const Vec3 d = p.position - rays.origin();
         const double distance = glm::length(d);
-        const RayHit hit = s.session->tracer().intersect(rays.origin(), d / distance, 0.0,
-                                                         distance * (1 - 1e-6), subset.visibility());
+        const RayHit hit = s.session->tracer().intersect(
+            rays.origin(), d / distance, 0.0, distance * (1 - 1e-6), subset.visibility());
         const bool expected = hit.object == preview;
         behind += expected;
         // A point within a hair of the slab's surface may go either way.

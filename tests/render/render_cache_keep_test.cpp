@@ -90,8 +90,8 @@ TEST(RenderCacheKeep, CarryMovesAnObjectsPointsRigidlyOntoItsNewVersion) {
     cache.insert(layer(rays, 4.0, 3, 1000, Rgb(0.4)));  // the object, version 3
     cache.insert(layer(rays, 6.0, 1, 0, Rgb(0.2)));     // the wall behind it
     const std::vector<CachePoint> before = cache.points();
-    const Mat4 move =
-        glm::translate(Mat4(1.0), Vec3(0.3, -0.2, 0.5)) * glm::rotate(Mat4(1.0), 0.4, Vec3(0, 1, 0));
+    const Mat4 move = glm::translate(Mat4(1.0), Vec3(0.3, -0.2, 0.5)) *
+                      glm::rotate(Mat4(1.0), 0.4, Vec3(0, 1, 0));
     EXPECT_EQ(cache.carry(3, 7, move, 500), 144u);
     ASSERT_EQ(cache.size(), before.size());
     for (std::size_t i = 0; i < cache.size(); ++i) {
