@@ -73,7 +73,9 @@ nlohmann::json dragAndCheck(const std::string& scene, const std::string& object,
             << r["phase"] << " image at " << r["ms"] << " ms: the dragged object's pixels";
         ++checked;
     }
-    if (kReferences) EXPECT_GE(checked, 3) << "references showing the object";
+    if (kReferences) {
+        EXPECT_GE(checked, 3) << "references showing the object";
+    }
     return report;
 }
 
