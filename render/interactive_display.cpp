@@ -542,35 +542,30 @@ std::size_t InteractiveDisplay::hideOccluded(const CameraRays& camera) {
     mHiddenForward = camera.forward();
     mHiddenRight = camera.right();
     mHiddenUp = camera.up();
-    // The occluder's screen rectangle and nearest depth bound the points it can hide.
+    // The occluder's bounding sphere, seen from the eye, bounds the points it can hide: a cone
+    // of directions and the sphere's nearest depth (a point in front of it, or outside the
+    // cone, is not tested).
     const ObjectSurface& s = mDisc.objects()[mOccluder];
-    const Vec3 eye = camera.origin(), forward = camera.forward();
-    double nearest = std::numeric_limits<double>::infinity();
-    glm::dvec2 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-    bool whole = false;
-    for (const Vec3& p : s.worldPositions) {
-        const double depth = glm::dot(p - eye, forward);
-        nearest = std::min(nearest, depth);
-        if (!(depth > mOptions.nearPlane)) {
-            whole = true;  // crosses the near plane: any pixel
-            continue;
-        }
-        const glm::dvec2 q = camera.projectAtDepth(p, depth);
-        lo = glm::min(lo, q);
-        hi = glm::max(hi, q);
-    }
-    if (whole) lo = glm::dvec2(-1e300), hi = glm::dvec2(1e300);
-    nearest = std::max(nearest, 0.0);
+    const Vec3 eye = camera.origin();
+    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+    for (const Vec3& p : s.worldPositions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    const Vec3 centre = 0.5 * (lo + hi);
+    const double radius = 0.5 * glm::length(hi - lo);
+    const double distance = glm::length(centre - eye);
+    const bool inside = !(distance > radius);  // the eye in the sphere: every direction
+    const Vec3 axis = inside ? Vec3(0.0) : (centre - eye) / distance;
+    const double cosCone =
+        inside ? -1.0 : std::sqrt(std::max(0.0, 1.0 - (radius / distance) * (radius / distance)));
+    const double nearest = inside ? 0.0 : distance - radius;
     const RayTracer& tracer = mTracer;
     const Visibility only = mOccluderOnly;
     const int occluder = mOccluder;
     mHiding = true;
     return mCache.setHidden([&](const Vec3& position, int object) {
         if (object == occluder) return false;
-        const double depth = glm::dot(position - eye, forward);
-        if (!(depth > nearest)) return false;
-        const glm::dvec2 q = camera.projectAtDepth(position, depth);
-        if (q.x < lo.x - 1 || q.y < lo.y - 1 || q.x > hi.x + 1 || q.y > hi.y + 1) return false;
+        const Vec3 d = position - eye;
+        const double length = glm::length(d);
+        if (!(length > nearest) || glm::dot(d, axis) < cosCone * length) return false;
         return tracer.occluded(eye, position, only);
     });
 }

@@ -11,11 +11,12 @@
 // One frame (renderFrame):
 //   1. shaded points: synchronous mode inserts the points shaded at the end of the previous
 //      frame (already in the cache); asynchronous mode takes whatever the workers finished;
-//   2. the cache reprojects its points to the frame's camera (visible ScreenPoints);
+//   2. the cache reprojects its points to the frame's camera (visible ScreenPoints), less those
+//      behind an object that moved in front of them (hideOccluded);
 //   3. edges: silhouettes and forward-facing sharp edges from the eye (per frame), shadow edges
 //      (kept, recomputed only after notifyChanged), clipped to the near plane and projected;
 //   4. EdgePointImage::build + reconstruct(useEdges) (useEdges false: the render-cache baseline
-//      "cache" from the same points);
+//      "cache" from the same points); pixels no point reached (holes) from a one-ray fallback;
 //   5. new sample requests (a fraction of the pixels, default 2%) from the cache's priority image;
 //      synchronous mode shades them at once (oneTBB, deterministic in the requests) and inserts
 //      them so they appear in the next frame; asynchronous mode submits them to the workers.
