@@ -868,7 +868,8 @@ void PointShader::rebuildIndirect() {
             solved += luminance(h);
             estimated += luminance(mDroppedH[k]);
             if (e < next->elementIndirect.size())
-                next->elementIndirect[e] = glm::max(h, mDroppedH[k]) - mElementDirect[e];
+                next->elementIndirect[e] =
+                    glm::max(glm::max(h, mDroppedH[k]) - mElementDirect[e], Rgb(0.0));
         }
         if (!mDisc.objects()[mDroppedObject].alive || solved >= 0.9 * estimated) {
             mDroppedObject = -1;
@@ -909,11 +910,24 @@ void PointShader::rebuildIndirect() {
         for (int e : mPreviewElements)
             if (e < static_cast<int>(n) && e < static_cast<int>(mPreviewDirectDelta.size()))
                 next->elementIndirect[e] -= mPreviewDirectDelta[e];
-    // Indirect light is never negative. The difference is, where the solution lags the
-    // display's direct light: an object just added or dropped after a drag, whose elements
-    // the solver has not reached yet (H_e still 0), would show as black instead of lit by its
-    // direct light.
-    for (Rgb& h : next->elementIndirect) h = glm::max(h, Rgb(0.0));
+    // The dragged object, and versions newer than the solution: their H comes from an
+    // estimate (the buffer, a lagging buffer moved with the object) or not at all yet, and
+    // H_indirect = estimate − H_direct(e) below 0 would darken them to black where the
+    // estimate lags their direct light: no indirect light there instead. Elsewhere the
+    // difference stays as it is, negative or not (it is what keeps the subtraction consistent
+    // with the solver's direct shots: the solver's H_e of a small element may be 0).
+    auto clampRange = [&](int first, int count) {
+        for (int e = std::max(first, 0);
+             e < first + count && e < static_cast<int>(next->elementIndirect.size()); ++e)
+            next->elementIndirect[e] = glm::max(next->elementIndirect[e], Rgb(0.0));
+    };
+    if (mOptions.clampIndirect) {
+        clampRange(0, static_cast<int>(next->elementIndirect.size()));
+    } else if (preview >= 0) {
+        const auto [first, count] = mDisc.elementRange(preview);
+        clampRange(first, count);
+    }
+    clampRange(static_cast<int>(n), static_cast<int>(next->elementIndirect.size()) - static_cast<int>(n));
     // The fallback's direct part: H_direct in the displayed world, blended per vertex again
     // only for the objects whose elements' values changed since the last snapshot (the
     // solution changes far more often than the direct light).

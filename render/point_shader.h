@@ -112,6 +112,14 @@ struct PointShaderOptions {
     /// radiance from the blocked-part estimate's noise). Off for converged references, where
     /// the clamp's bias would not average away.
     bool clampNegative = true;
+    /// Clamp every element's H_indirect = H_e − H_direct(e) at 0. While the solver
+    /// redistributes after an edit, H_e lags the display's direct light on the elements the
+    /// edit touched (a moved object, its old and new shadow, an object just added) and the
+    /// difference shows as dark patches; the editor's displays clamp it. Off, the difference
+    /// stays as it is (consistent with the solver's direct shots on a converged solution, where
+    /// a small element's H_e may be 0); the dragged object and versions newer than the solution
+    /// are clamped either way.
+    bool clampIndirect = false;
     int threads = 2;     ///< worker threads for asynchronous shading
     int batchSize = 64;  ///< requests a worker takes at a time
     bool recordTriples = true;

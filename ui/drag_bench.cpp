@@ -301,6 +301,16 @@ nlohmann::json DragBench::analyse() {
                 }
             e->objectError = relativeError(a, b);
             e->objectPixels = a.size() / 3;
+            // Pixels that show something else (the background through a hole, the object
+            // elsewhere): a channel off by more than a fifth of the range, far beyond what a
+            // lagging light gives.
+            std::size_t wrong = 0;
+            for (std::size_t k = 0; k + 2 < a.size(); k += 3) {
+                int off = 0;
+                for (int c = 0; c < 3; ++c) off = std::max(off, std::abs(int(a[k + c]) - int(b[k + c])));
+                wrong += off > 51;
+            }
+            e->objectWrong = a.empty() ? -1.0 : double(wrong) / double(a.size() / 3);
             nlohmann::json entry = {{"phase", e == &mSettled ? "settled"
                                               : e->afterDrop ? "after-drop"
                                                              : "drag"},
@@ -308,6 +318,7 @@ nlohmann::json DragBench::analyse() {
                                     {"error", e->referenceError},
                                     {"object_error", e->objectError},
                                     {"object_pixels", e->objectPixels},
+                                    {"object_wrong_fraction", e->objectWrong},
                                     {"transform", transformJson(e->transform)}};
             if (!mOptions.recordDir.empty()) {
                 char name[40];
@@ -328,6 +339,10 @@ nlohmann::json DragBench::analyse() {
     for (const DragBenchImage& e : mImages)
         if (!e.afterDrop) maxObject = std::max(maxObject, e.objectError);
     out["max_drag_object_error"] = maxObject;
+    double maxWrong = -1;
+    for (const DragBenchImage& e : mImages)
+        if (!e.afterDrop) maxWrong = std::max(maxWrong, e.objectWrong);
+    out["max_drag_object_wrong_fraction"] = maxWrong;
     out["settled_reference_error"] = mSettled.referenceError;
     return out;
 }

@@ -61,6 +61,9 @@ struct DragBenchImage {
     /// The same over the pixels where the reference shows the dragged object, and how many.
     double objectError = -1;
     std::size_t objectPixels = 0;
+    /// Of those pixels, the share showing something else than the object (a channel off by
+    /// more than 51 of 255): holes, background through it, the object elsewhere.
+    double objectWrong = -1;
     double settledError = -1;  ///< relativeDisplayRmse against the settled image
 };
 

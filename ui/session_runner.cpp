@@ -643,6 +643,8 @@ InteractiveDisplayOptions SessionRunner::displayOptions(int slot, const ViewRequ
     // the edit's exclusive section.
     options.shader.backgroundPreview = true;
     options.shader.workerNice = mOptions.threaded ? mOptions.backgroundNice : 0;
+    // Edits come while the solver redistributes: no dark patches where its H lags.
+    options.shader.clampIndirect = true;
     if (slot == 1) {
         // Interaction: shadow edges are not worth their cost (tens of thousands of them in
         // robot-room, recomputed at every drag position); a few more samples per (smaller)

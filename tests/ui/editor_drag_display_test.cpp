@@ -3,8 +3,9 @@
 // display has been built in the background; then what a user sees while dragging an object
 // (the --bench-drag path: select, one position per frame, unselect) and while orbiting the
 // camera: no image with a pixel left without a value, none below the viewport's resolution,
-// and the dragged object's pixels close to a reference render of the transform each image
-// shows (a converged solve of that state, every pixel shaded). Frame counts and times depend
+// and the dragged object's pixels matching a reference render of the transform each image
+// shows (a converged solve of that state, every pixel shaded): its light may lag, but its
+// pixels must show it, not the background or another place. Frame counts and times depend
 // on the machine's load: printed, not asserted.
 
 #include <gtest/gtest.h>
@@ -35,7 +36,7 @@ constexpr bool kReferences = !kSanitized;
 /// Drags `object` of `scene` for `frames` frames, waits for the settled image, and checks
 /// every image shown; returns the analysis (references included).
 nlohmann::json dragAndCheck(const std::string& scene, const std::string& object, int frames,
-                            double maxObjectError) {
+                            double maxWrongFraction) {
     EditorOptions options;
     options.scene = kSource + "/scenes/" + scene;
     options.quiet = true;
@@ -45,7 +46,7 @@ nlohmann::json dragAndCheck(const std::string& scene, const std::string& object,
     options.benchReferences = kReferences;
     EditorApp app(options);
     EXPECT_TRUE(test::runUntil(
-        app, [&] { return app.dragBenchDone(); }, 240))
+        app, [&] { return app.dragBenchDone(); }, 240, 40))
         << "the drag did not settle";
     DragBench* bench = app.dragBench();
     if (!bench) return {};
@@ -66,12 +67,17 @@ nlohmann::json dragAndCheck(const std::string& scene, const std::string& object,
         report["settled_error_at_window_end"].get<double>());
     int checked = 0;
     for (const auto& r : report["references"]) {
-        std::printf("  %s at %.0f ms: error %.4f, object %.4f over %zu pixels\n",
-                    r["phase"].get<std::string>().c_str(), r["ms"].get<double>(),
-                    r["error"].get<double>(), r["object_error"].get<double>(),
-                    r["object_pixels"].get<std::size_t>());
+        std::printf(
+            "  %s at %.0f ms: error %.4f, object %.4f over %zu pixels, %.4f of them "
+            "wrong\n",
+            r["phase"].get<std::string>().c_str(), r["ms"].get<double>(), r["error"].get<double>(),
+            r["object_error"].get<double>(), r["object_pixels"].get<std::size_t>(),
+            r["object_wrong_fraction"].get<double>());
         if (r["object_pixels"].get<std::size_t>() < 50) continue;
-        EXPECT_LT(r["object_error"].get<double>(), maxObjectError)
+        // Solid and where it is: its light may lag (the solver's preview buffer), but most of
+        // its pixels show it (a vanished or see-through object shows the background in most
+        // of them; a fast drag's stale colours are off by more than a fifth in some).
+        EXPECT_LT(r["object_wrong_fraction"].get<double>(), maxWrongFraction)
             << r["phase"] << " image at " << r["ms"] << " ms: the dragged object's pixels";
         ++checked;
     }
@@ -119,12 +125,12 @@ TEST(EditorDragDisplay, DefaultViewIsEdgeAndPointAndADragShowsTheMoveWithinFewFr
 
 TEST(EditorDragDisplay, CubeRoomDragShowsEveryPixelAtFullResolutionAndTheTableWhereItIs) {
     if (kSanitized) GTEST_SKIP() << "left to the Release run";
-    dragAndCheck("cube-room.json", "table-top", 90, 0.2);
+    dragAndCheck("cube-room.json", "table-top", 90, 0.25);
 }
 
 TEST(EditorDragDisplay, RobotRoomDragShowsEveryPixelAtFullResolutionAndTheBodyWhereItIs) {
     if (kSanitized) GTEST_SKIP() << "left to the Release run";
-    dragAndCheck("robot-room.json", "robot-body", 60, 0.2);
+    dragAndCheck("robot-room.json", "robot-body", 60, 0.25);
 }
 
 TEST(EditorDragDisplay, OrbitingTheCameraKeepsEveryPixelAtFullResolution) {
