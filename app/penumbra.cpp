@@ -180,6 +180,8 @@ nlohmann::json frameJson(const DisplayFrameStats& f) {
             {"anti_alias_ms", t.antiAliasMs},
             {"complex_filter_ms", t.complexFilterMs},
             {"smooth_ms", t.smoothMs},
+            {"fill_ms", t.fillMs},
+            {"hide_ms", t.hideMs},
             {"request_ms", t.requestMs},
             {"shade_ms", t.shadeMs},
             {"new_samples", f.newSamples},
@@ -191,7 +193,9 @@ nlohmann::json frameJson(const DisplayFrameStats& f) {
             {"screen_edges", f.screenEdges},
             {"empty_pixels", f.emptyPixels},
             {"simple_pixels", f.simplePixels},
-            {"complex_pixels", f.complexPixels}};
+            {"complex_pixels", f.complexPixels},
+            {"unsampled_pixels", f.unsampledPixels},
+            {"unfilled_pixels", f.unfilledPixels}};
 }
 
 /// `render --mode epi|cache|reference`: the interactive display (Bala et al. 2003) over an
