@@ -337,6 +337,7 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
 struct ReplayArgs {
     ReplayOptions options;
     std::string report, check;
+    double tolerance = 1e-9;  ///< --check: relative tolerance of the lighting checksum
     int threads = 0;
     double stochasticBelow = interactiveSolverOptions().stochasticBelow;
     std::uint64_t seed = 1;
@@ -358,7 +359,7 @@ int runReplayCommand(ReplayArgs& a) {
     writeReport(a.report, report);
     // On a mismatch the one line naming the edit is all that goes to stderr.
     if (!a.check.empty()) {
-        if (auto mismatch = compareReplayReports(report, golden, a.check)) {
+        if (auto mismatch = compareReplayReports(report, golden, a.check, a.tolerance)) {
             std::fprintf(stderr, "penumbra: %s\n", mismatch->c_str());
             return 1;
         }
@@ -475,6 +476,11 @@ int main(int argc, char** argv) {
     replayCmd->add_option("--report", replay.report, "write a JSON report");
     replayCmd->add_option("--check", replay.check,
                           "compare with a golden report; exit 1 naming the first differing edit");
+    replayCmd
+        ->add_option("--tolerance", replay.tolerance,
+                     "--check: relative tolerance of each edit's lighting checksum (default "
+                     "1e-9; shots must match exactly)")
+        ->check(CLI::Range(0.0, 1.0));
     replayCmd->add_option("--seed", replay.seed, "seed of the pair-seeded sample patterns");
     replayCmd->add_option("--threads", replay.threads, "worker threads (default: all cores)")
         ->check(CLI::NonNegativeNumber);

@@ -215,7 +215,8 @@ nlohmann::json readReplayReport(const std::string& path) {
 
 std::optional<std::string> compareReplayReports(const nlohmann::json& report,
                                                 const nlohmann::json& golden,
-                                                const std::string& goldenName) {
+                                                const std::string& goldenName,
+                                                double checksumTolerance) {
     const nlohmann::json& ours = report.at("edits");
     const nlohmann::json& theirs = golden.at("edits");
     auto name = [](const nlohmann::json& e) {
@@ -244,9 +245,13 @@ std::optional<std::string> compareReplayReports(const nlohmann::json& report,
             return prefix + "shots: " + a["shots"].dump() + " here, " + g["shots"].dump() +
                    " in the golden report";
         const double ca = a.at("checksum").get<double>(), cg = g.at("checksum").get<double>();
-        if (!(std::abs(ca - cg) <= 1e-9 * std::max(std::abs(ca), std::abs(cg))))
+        if (!(std::abs(ca - cg) <= checksumTolerance * std::max(std::abs(ca), std::abs(cg)))) {
+            std::ostringstream tolerance;
+            tolerance << checksumTolerance;
             return prefix + "checksum: " + number(a["checksum"]) + " here, " +
-                   number(g["checksum"]) + " in the golden report (relative tolerance 1e-9)";
+                   number(g["checksum"]) + " in the golden report (relative tolerance " +
+                   tolerance.str() + ")";
+        }
         if (a.contains("error_rms") && g.contains("error_rms") && a["error_rms"].is_number() &&
             g["error_rms"].is_number()) {
             const double ea = a["error_rms"].get<double>(), eg = g["error_rms"].get<double>();

@@ -49,11 +49,13 @@ nlohmann::json runReplay(const ReplayOptions& options);
 nlohmann::json readReplayReport(const std::string& path);
 
 /// Compares a replay report with a golden one: per edit the op and shots exactly, checksum
-/// within relative 1e-9, error_rms within 1e-6 when both have it, and the number of edits.
-/// Returns one line naming the first differing edit (line, op, field, both values), or
-/// nullopt when they agree. `goldenName` names the golden report in the message.
+/// within relative `checksumTolerance` (default 1e-9), error_rms within 1e-6 when both have
+/// it, and the number of edits. Returns one line naming the first differing edit (line, op,
+/// field, both values), or nullopt when they agree. `goldenName` names the golden report in
+/// the message.
 std::optional<std::string> compareReplayReports(const nlohmann::json& report,
                                                 const nlohmann::json& golden,
-                                                const std::string& goldenName);
+                                                const std::string& goldenName,
+                                                double checksumTolerance = 1e-9);
 
 }  // namespace penumbra

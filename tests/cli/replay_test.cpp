@@ -201,6 +201,14 @@ TEST_F(ReplayCli, CheckAgainstAGoldenReport) {
     EXPECT_EQ(lineCount(changed.err), 1) << changed.err;
     EXPECT_NE(changed.err.find("line 4 (transform crate)"), std::string::npos) << changed.err;
     EXPECT_NE(changed.err.find("checksum"), std::string::npos) << changed.err;
+    // --tolerance admits it (a floating-point difference is no regression); a tighter one not.
+    const RunResult tolerated =
+        replay(args + "--check " + quoted(path("changed.json")) + " --tolerance 1e-5");
+    EXPECT_EQ(tolerated.exitStatus, 0) << tolerated.err;
+    const RunResult tighter =
+        replay(args + "--check " + quoted(path("changed.json")) + " --tolerance 1e-7");
+    EXPECT_EQ(tighter.exitStatus, 1) << tighter.err;
+    EXPECT_NE(tighter.err.find("relative tolerance 1e-07"), std::string::npos) << tighter.err;
 
     // So are different shots, and the first difference wins.
     golden["edits"][1]["shots"] = 6;
