@@ -927,7 +927,8 @@ void PointShader::rebuildIndirect() {
         const auto [first, count] = mDisc.elementRange(preview);
         clampRange(first, count);
     }
-    clampRange(static_cast<int>(n), static_cast<int>(next->elementIndirect.size()) - static_cast<int>(n));
+    clampRange(static_cast<int>(n),
+               static_cast<int>(next->elementIndirect.size()) - static_cast<int>(n));
     // The fallback's direct part: H_direct in the displayed world, blended per vertex again
     // only for the objects whose elements' values changed since the last snapshot (the
     // solution changes far more often than the direct light).

@@ -307,7 +307,8 @@ nlohmann::json DragBench::analyse() {
             std::size_t wrong = 0;
             for (std::size_t k = 0; k + 2 < a.size(); k += 3) {
                 int off = 0;
-                for (int c = 0; c < 3; ++c) off = std::max(off, std::abs(int(a[k + c]) - int(b[k + c])));
+                for (int c = 0; c < 3; ++c)
+                    off = std::max(off, std::abs(int(a[k + c]) - int(b[k + c])));
                 wrong += off > 51;
             }
             e->objectWrong = a.empty() ? -1.0 : double(wrong) / double(a.size() / 3);

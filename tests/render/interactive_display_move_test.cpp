@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "edit/edit_session.h"
+#include "lit_room_display.h"
 #include "render/camera_rays.h"
 #include "render/interactive_display.h"
 #include "solver/discretization.h"
@@ -20,13 +21,7 @@ namespace {
 
 constexpr int kSize = 80;
 
-InteractiveDisplayOptions displayOptions() {
-    InteractiveDisplayOptions o;
-    o.width = o.height = kSize;
-    o.synchronous = true;
-    o.sampleFraction = 0.05;
-    return o;
-}
+InteractiveDisplayOptions displayOptions() { return test::litRoomDisplayOptions(kSize); }
 
 struct Scene3 {
     std::unique_ptr<EditSession> session;

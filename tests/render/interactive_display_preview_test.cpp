@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "edit/edit_session.h"
+#include "lit_room_display.h"
 #include "render/camera_rays.h"
 #include "render/interactive_display.h"
 #include "solver/discretization.h"
@@ -21,13 +22,7 @@ namespace {
 constexpr int kSize = 80;
 const Vec3 kNewPlace = test::kLitRoomSlabDragTarget;
 
-InteractiveDisplayOptions displayOptions() {
-    InteractiveDisplayOptions o;
-    o.width = o.height = kSize;
-    o.synchronous = true;
-    o.sampleFraction = 0.05;
-    return o;
-}
+InteractiveDisplayOptions displayOptions() { return test::litRoomDisplayOptions(kSize); }
 
 /// Warm-up at every pixel, then a few frames so the reconstruction uses settled points.
 Image settle(InteractiveDisplay& display) {
