@@ -191,13 +191,21 @@ std::vector<ShadedPoint> InteractiveDisplay::shadeAll(
 }
 
 Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
+    beginFrame(camera, useEdges);
+    Image image = reconstructFrame();
+    finishFrame(camera, image);
+    return image;
+}
+
+void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
     if (camera.width() != mOptions.width || camera.height() != mOptions.height)
         throw std::invalid_argument(
             "InteractiveDisplay::renderFrame: camera raster " + std::to_string(camera.width()) +
             "x" + std::to_string(camera.height()) + " differs from the display's " +
             std::to_string(mOptions.width) + "x" + std::to_string(mOptions.height));
-    const auto frameStart = Clock::now();
-    DisplayFrameStats st;
+    mFrameStart = Clock::now();
+    mFrame = DisplayFrameStats{};
+    DisplayFrameStats& st = mFrame;
     st.usedEdges = useEdges;
 
     // A finished estimate of the drag preview's direct light (backgroundPreview): drop the
@@ -278,10 +286,21 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
         mScreenEdges.clear();
     }
     st.screenEdges = mScreenEdges.size();
+    st.times.totalMs = msSince(mFrameStart);
+}
 
-    // The edge-and-point image and its reconstruction (§4–5).
+Image InteractiveDisplay::reconstructFrame() {
+    // The edge-and-point image and its reconstruction (§4–5): the EPI's own arrays only.
+    const auto t = Clock::now();
     mEpi.build(mScreenEdges);
-    Image image = clampedAtZero(mEpi.reconstruct(useEdges));
+    Image image = clampedAtZero(mEpi.reconstruct(mFrame.usedEdges));
+    mFrame.times.totalMs += msSince(t);
+    return image;
+}
+
+void InteractiveDisplay::finishFrame(const CameraRays& camera, Image& image) {
+    const auto finishStart = Clock::now();
+    DisplayFrameStats& st = mFrame;
     const EpiStageTimes& epi = mEpi.stageTimes();
     st.times.rasterizeMs = epi.depthFilterMs + epi.rasterizeMs + epi.classifyMs;
     st.times.reachabilityMs = epi.reachabilityMs;
@@ -292,8 +311,8 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     // Holes: pixels no point reached take the fallback, never black.
     st.unsampledPixels = mEpi.holeCount();
     st.unfilledPixels = st.unsampledPixels;
+    auto t = Clock::now();
     if (mOptions.fillHoles && st.unsampledPixels > 0) {
-        t = Clock::now();
         fillHoles(camera, image);
         st.unfilledPixels = 0;
         st.times.fillMs = msSince(t);
@@ -320,7 +339,7 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
     st.requestedSamples = requests.size();
     if (!mOptions.synchronous && !requests.empty()) mShader->submit(requests);
     st.times.requestMs = msSince(t);
-    st.times.totalMs = msSince(frameStart);
+    st.times.totalMs += msSince(finishStart);
     st.newSampleFraction = static_cast<double>(st.newSamples) / pixels;
 
     // Synchronous mode: shade now, visible from the next frame on.
@@ -332,7 +351,6 @@ Image InteractiveDisplay::renderFrame(const CameraRays& camera, bool useEdges) {
         st.times.shadeMs = msSince(t);
     }
     mLast = st;
-    return image;
 }
 
 Image InteractiveDisplay::reconstructLast(bool useEdges) {

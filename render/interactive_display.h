@@ -26,6 +26,7 @@
 // of the frame's requests on the same cores (0 in asynchronous mode).
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -236,6 +237,16 @@ public:
     /// reconstructed radiance (W/m²/sr, linear). Throws std::invalid_argument on a size
     /// mismatch.
     Image renderFrame(const CameraRays& camera, bool useEdges = true);
+    /// renderFrame in its three steps, for a caller that lets edits in while the image is
+    /// reconstructed (the editor's render thread: an edit waits for a step, not a frame).
+    /// beginFrame (steps 1–3: points, hiding, edges) and finishFrame (holes filled, requests;
+    /// the stats of lastFrame()) read the structure and the cache like renderFrame and must not
+    /// overlap an edit; reconstructFrame (step 4, the EPI's own arrays) may: notifyChanged,
+    /// setPreview, clearPreview, endDrag and updateSolution never touch the EPI. Call them in
+    /// order, one frame at a time.
+    void beginFrame(const CameraRays& camera, bool useEdges = true);
+    Image reconstructFrame();
+    void finishFrame(const CameraRays& camera, Image& image);
     /// Reconstructs the last frame's EPI again without finding edges or requesting samples:
     /// `useEdges` true or false on exactly the same points and edges (for epi vs cache).
     Image reconstructLast(bool useEdges);
@@ -312,6 +323,19 @@ public:
     std::size_t endDrag(int added, const ProgressiveSolver* solver = nullptr);
     /// The origin of the drag in progress, -1 for none.
     int dragOrigin() const { return mShader->dragOrigin(); }
+    /// The object whose cover hides points from the frames (a moving, new or dropped object),
+    /// -1 for none; and whether its hiding test still filters the whole scene for it (no
+    /// RayTracer subset of its own: after notifyChanged and endDrag).
+    int occluder() const { return mOccluder; }
+    bool occluderNeedsSubset() const {
+        return mOccluder >= 0 && mOccluderOnly.subset < 0 && mOccluderFrames != 0;
+    }
+    /// Gives occluder() `version` a subset admitting it alone (the caller keeps it alive while
+    /// occluder() is `version`): the hiding test traces the one object instead of filtering
+    /// every hit in the scene. The points already hidden stay hidden.
+    void setOccluderSubset(int version, const Visibility& only) {
+        if (version == mOccluder && only.subset >= 0) mOccluderOnly = only;
+    }
     /// The preview version whose background estimate is queued or running (its subset must
     /// stay alive meanwhile), -1 for none (PointShader::directJobPreview).
     int directJobPreview() const { return mShader->directJobPreview(); }
@@ -412,6 +436,8 @@ private:
     std::vector<ScreenEdge> mProjectScratch;  ///< projectEpiEdges' working space
     std::size_t mInsertedSinceFrame = 0;      ///< points inserted since the last frame started
     DisplayFrameStats mLast;
+    DisplayFrameStats mFrame;  ///< the frame between beginFrame and finishFrame
+    std::chrono::steady_clock::time_point mFrameStart;
     mutable std::size_t mLastReferenceEdgePixels = 0;
 
     // What the cached points show, per element (relightChanged): the radiance and direct

@@ -913,15 +913,22 @@ void EditorApp::drawViewport() {
     ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(0, 0));
     ImGui::Begin("Viewport", nullptr,
                  ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoMove |
-                     ImGuiWindowFlags_NoBringToFrontOnFocus | ImGuiWindowFlags_NoSavedSettings);
+                     ImGuiWindowFlags_NoBringToFrontOnFocus | ImGuiWindowFlags_NoSavedSettings |
+                     ImGuiWindowFlags_NoBackground);
     const ImVec2 origin = ImGui::GetCursorScreenPos();
     const ImVec2 size = ImGui::GetContentRegionAvail();
     mViewportX = static_cast<int>(origin.x), mViewportY = static_cast<int>(origin.y);
     mViewportW = std::max(0, static_cast<int>(size.x));
     mViewportH = std::max(0, static_cast<int>(size.y));
-    if (mShown && mTextureW > 0)
+    if (mShown && mTextureW > 0) {
+        // The image is opaque and covers the window (drawn without a background): without
+        // blending. Under a software rasterizer the viewport's pixels are most of the UI's cost.
+        ImDrawList* draw = ImGui::GetWindowDrawList();
+        draw->AddCallback([](const ImDrawList*, const ImDrawCmd*) { glDisable(GL_BLEND); },
+                          nullptr);
         ImGui::Image(reinterpret_cast<ImTextureID>(static_cast<intptr_t>(mTexture)), size);
-    else
+        draw->AddCallback(ImDrawCallback_ResetRenderState, nullptr);
+    } else
         ImGui::InvisibleButton("##viewport",
                                ImVec2(std::max(size.x, 1.0f), std::max(size.y, 1.0f)));
     const bool hovered = ImGui::IsWindowHovered();

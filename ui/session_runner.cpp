@@ -352,6 +352,24 @@ bool SessionRunner::solverIteration() {
                 mOldSubsets.erase(mOldSubsets.begin() + static_cast<std::ptrdiff_t>(k));
             }
         }
+        // Objects that hide points behind them trace a subset of their own, not a filter
+        // over the whole scene; kept while a display hides behind them.
+        for (DisplaySlot& slot : mSlots) {
+            if (!slot.display || !slot.display->occluderNeedsSubset()) continue;
+            const int occluder = slot.display->occluder();
+            auto it = std::find_if(mOccluderSubsets.begin(), mOccluderSubsets.end(),
+                                   [&](const auto& s) { return s.first == occluder; });
+            if (it == mOccluderSubsets.end())
+                it = mOccluderSubsets.emplace(
+                    mOccluderSubsets.end(), occluder,
+                    RayTracer::SubsetHandle(mSession->tracer(), {occluder}));
+            slot.display->setOccluderSubset(occluder, it->second.visibility());
+        }
+        std::erase_if(mOccluderSubsets, [&](const auto& s) {
+            for (const DisplaySlot& slot : mSlots)
+                if (slot.display && slot.display->occluder() == s.first) return false;
+            return true;
+        });
         // The drag's origin subset lives while a display may still use it.
         if (preview < 0) {
             bool used = false;
@@ -442,7 +460,7 @@ bool SessionRunner::renderIteration() {
     // The display modes show Gouraud until their display lands (built in the background).
     bool loading = false;
     if (usesInteractiveDisplay(view.mode)) {
-        if (displayLanded(view)) return renderDisplay(view, light, last, highlight);
+        if (displayLanded(view)) return renderDisplay(view, light, last, highlight, structure);
         loading = true;
     }
     const bool need = !last || last->stateSerial != light.serial ||
@@ -711,13 +729,14 @@ bool SessionRunner::displayLanded(const ViewRequest& view) {
 }
 
 bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
-                                  const std::shared_ptr<const ViewportImage>& last, int highlight) {
+                                  const std::shared_ptr<const ViewportImage>& last, int highlight,
+                                  std::shared_lock<std::shared_mutex>& structure) {
     // Frames run continuously (the cache keeps improving), at most one per displayFrameMs.
     const double now = nowSeconds();
     if (now - mLastDisplayFrame < mOptions.displayFrameMs * 1e-3) return false;
     mLastDisplayFrame = now;
     auto img = std::make_shared<ViewportImage>();
-    std::lock_guard<std::mutex> displayLock(mDisplayMutex);
+    std::unique_lock<std::mutex> displayLock(mDisplayMutex);
     // Interactive views (camera moves, drags) render a second, smaller display, and the full
     // one again when the interaction stops; each switch waits until the other display is up
     // to date (the solver thread catches it up between shots).
@@ -788,11 +807,32 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     InteractiveDisplay* display = slot.display.get();
     const int w = display->width(), h = display->height();
     const CameraRays rays(view.camera, w, h);
+    int shownPreview = -1;
     try {
         const double r0 = nowSeconds();
-        img->render.radiance = display->renderFrame(rays, view.mode != ViewMode::Cache);
+        // The frame in its steps: edits wait for the first (points, edges), not for the
+        // reconstruction, which touches only the display's edge-and-point image.
+        display->beginFrame(rays, view.mode != ViewMode::Cache);
+        shownPreview = display->previewVersion();
+        // The selection outline of the state the frame shows (the preview version while
+        // dragged; it is in the display only through the preview subset), drawn after encoding.
+        std::vector<std::uint8_t> outline;
+        if (highlight >= 0 && view.mode != ViewMode::Difference) {
+            outline.assign(static_cast<std::size_t>(w) * h * 4, 0);
+            outlineSelection(mSession->discretization(), mSession->tracer(), view.camera, w, h,
+                             highlight, outline, mPreviewVersion, mPreviewSubset.visibility());
+        }
+        displayLock.unlock();
+        structure.unlock();
+        img->render.radiance = display->reconstructFrame();
+        structure.lock();
+        displayLock.lock();
+        display->finishFrame(rays, img->render.radiance);
         img->display = display->lastFrame();
         img->render.rgba = encodeDisplay(img->render.radiance);
+        for (std::size_t i = 0; i < outline.size(); i += 4)
+            if (outline[i] | outline[i + 1] | outline[i + 2])
+                std::copy_n(&outline[i], 3, &img->render.rgba[i]);
         if (view.mode == ViewMode::EdgesOverlay) {
             blendEdges(img->render.rgba, display->edgeImage());
         } else if (view.mode == ViewMode::SamplesOverlay) {
@@ -832,12 +872,6 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                                     : "no reference for this view: View > Compute reference";
             }
         }
-        // The selection outline, as the Gouraud view draws it (the preview version while
-        // dragged; it is in the display only through the preview subset).
-        if (highlight >= 0 && view.mode != ViewMode::Difference)
-            outlineSelection(mSession->discretization(), mSession->tracer(), view.camera, w, h,
-                             highlight, img->render.rgba, mPreviewVersion,
-                             mPreviewSubset.visibility());
         img->renderMs = (nowSeconds() - r0) * 1e3;
         slot.frameMs = slot.frameMs > 0 ? 0.7 * slot.frameMs + 0.3 * img->renderMs : img->renderMs;
         ++slot.frames;
@@ -853,7 +887,7 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     img->viewSerial = view.serial;
     img->stateSerial = light.serial;
     img->mode = view.mode;
-    img->previewVersion = display->previewVersion();
+    img->previewVersion = shownPreview;
     img->dragged = mRenderDragged;
     img->draggedTransform = mRenderDraggedTransform;
     img->settledFrames = last && last->mode == view.mode && last->viewSerial == view.serial &&

@@ -222,9 +222,11 @@ private:
     bool displayLanded(const ViewRequest& view);
     /// The options of display slot 0 (full) or 1 (reduced) for `view`.
     InteractiveDisplayOptions displayOptions(int slot, const ViewRequest& view) const;
-    /// renderIteration for the display modes (structure held shared).
+    /// renderIteration for the display modes (`structure` held shared: released while the
+    /// frame's image is reconstructed, so that an edit waits for a frame step, not a frame).
     bool renderDisplay(const ViewRequest& view, const Light& light,
-                       const std::shared_ptr<const ViewportImage>& last, int highlight);
+                       const std::shared_ptr<const ViewportImage>& last, int highlight,
+                       std::shared_lock<std::shared_mutex>& structure);
     void publishDocument();
     void publishLight();
     void publishSolver(double solverMs);
@@ -323,6 +325,9 @@ private:
     /// Previous previews' subsets a display's background estimate still traces
     /// (InteractiveDisplay::directJobPreview), released at a later edit.
     std::vector<std::pair<int, RayTracer::SubsetHandle>> mOldSubsets;
+    /// Subsets of the objects the displays hide points behind (InteractiveDisplay::occluder),
+    /// by version; same thread and lock as mPreviewSubset.
+    std::vector<std::pair<int, RayTracer::SubsetHandle>> mOccluderSubsets;
     /// The drag's origin (the version selected) alone, for the displays' drag estimates.
     RayTracer::SubsetHandle mOriginSubset;
     Image mReference;  ///< difference mode
