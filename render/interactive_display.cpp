@@ -644,7 +644,19 @@ std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObj
     // shading changed take the change and are re-shaded first (Bala et al. §7.5).
     mShader->refreshDirect(changedObjects);
     if (solver) mShader->updateSolution(*solver);
-    return changed + relightChanged();
+    changed += relightChanged();
+    for (int o : entered) trustShown(o);
+    return changed;
+}
+
+void InteractiveDisplay::trustShown(int object) {
+    // From now on the object rests: the points shaded on it reflect the shading relightChanged
+    // just recorded, and later changes (the solver catching up with it) are added to them. (A
+    // drag's preview versions are not trusted: their shading lags the moves, and adding its
+    // swings turned the moving object black.)
+    const auto [first, count] = mDisc.elementRange(object);
+    for (int k = 0; k < count; ++k)
+        if (static_cast<std::size_t>(first + k) < mShownValid.size()) mShownValid[first + k] = 1;
 }
 
 void InteractiveDisplay::noteAlive() {
@@ -727,7 +739,9 @@ std::size_t InteractiveDisplay::endDrag(int added, const ProgressiveSolver* solv
     // Its subset goes with the drag: a filter admitting it hides what it covers a while.
     setOccluder(added, Visibility{}, kOccluderFrames);
     noteAlive();
-    return changed + relightChanged();
+    changed += relightChanged();
+    trustShown(added);
+    return changed;
 }
 
 std::size_t InteractiveDisplay::catchUpFrom(const InteractiveDisplay& source,

@@ -394,6 +394,9 @@ private:
     /// Moves the cached points of version `from` onto version `to` of the same object at its
     /// new place (RenderCache::carry); drops them when the two are not the same mesh.
     std::size_t carryPoints(int from, int to);
+    /// After relightChanged: the elements of `object` (a version that came to rest) take the
+    /// later changes of their shading (relightChanged adds them to their points).
+    void trustShown(int object);
     /// Points behind `version` (a moving or new object) are hidden from the frames' views,
     /// for `frames` frames (-1: until replaced), tested against `only` (empty: a filter
     /// admitting the version alone).

@@ -688,18 +688,43 @@ std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, 
         budget =
             static_cast<int>(std::lround(mOptions.sampleFraction * static_cast<double>(pixels)));
     if (budget <= 0) return {};
-    return mOptions.parallel ? requestSamplesParallel(camera, budget)
-                             : requestSamplesSerial(camera, budget);
+    // What an edit changed first (Bala et al. §7.5: re-shaded before anything else): carried
+    // points (no estimate of their new lighting), then stale ones (an estimate), each pass as
+    // many requests as its pixels not waiting, drawn among them alone; the rest of the budget
+    // over every pixel as usual (the pixels just requested wait).
+    std::size_t count[3] = {0, 0, 0};
+    for (std::size_t k = 0; k < pixels; ++k) count[held(k) ? 0 : pixelTier(k)] += 1;
+    // Per pass, the pixels it draws among (tier ≥ the pass's), less those already requested.
+    const std::size_t among[3] = {pixels, count[1] + count[2], count[2]};
+    std::vector<ShadeRequest> out;
+    for (int tier : {2, 1, 0}) {
+        const std::size_t open = among[tier] > out.size() ? among[tier] - out.size() : 0;
+        const int take = static_cast<int>(std::min<std::size_t>(budget, open));
+        if (take <= 0) continue;
+        std::vector<ShadeRequest> pass = mOptions.parallel
+                                             ? requestSamplesParallel(camera, take, tier)
+                                             : requestSamplesSerial(camera, take, tier);
+        budget -= static_cast<int>(pass.size());
+        out.insert(out.end(), pass.begin(), pass.end());
+        if (budget <= 0) break;
+    }
+    return out;
 }
 
-std::vector<ShadeRequest> RenderCache::requestSamplesSerial(const CameraRays& camera, int budget) {
+std::uint64_t RenderCache::frameSeed(int tier) const {
+    return hashPair(tier == 0 ? mOptions.seed : mOptions.seed ^ (0x57A1E5EEDULL * tier), mFrame);
+}
+
+std::vector<ShadeRequest> RenderCache::requestSamplesSerial(const CameraRays& camera, int budget,
+                                                            int tier) {
     const std::size_t pixels = mPriority.size();
     std::vector<ShadeRequest> out;
 
-    // Effective priority: pixels requested in the last holdFrames frames wait.
+    // Effective priority: pixels requested in the last holdFrames frames wait; only those of
+    // tier ≥ `tier` count.
     std::vector<double> pr(mPriority);
     for (std::size_t k = 0; k < pixels; ++k)
-        if (mRequested[k] > 0 && mFrame + 1 < mRequested[k] + mOptions.holdFrames) pr[k] = 0;
+        if (held(k) || pixelTier(k) < tier) pr[k] = 0;
 
     // Tiles: summed priority, then a systematic sample of `budget` positions over the sums.
     const int T = std::max(1, mOptions.tileSize);
@@ -709,7 +734,7 @@ std::vector<ShadeRequest> RenderCache::requestSamplesSerial(const CameraRays& ca
         for (int x = 0; x < mWidth; ++x) tileSum[(y / T) * tilesX + x / T] += pr[y * mWidth + x];
     const double total = std::accumulate(tileSum.begin(), tileSum.end(), 0.0);
     if (!(total > 0)) return out;
-    CacheRandom rng{hashPair(mOptions.seed, mFrame)};
+    CacheRandom rng{frameSeed(tier)};
     std::vector<int> tileCount(tileSum.size(), 0);
     {
         const double u0 = rng.next();
@@ -752,8 +777,8 @@ std::vector<ShadeRequest> RenderCache::requestSamplesSerial(const CameraRays& ca
     return out;
 }
 
-std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& camera,
-                                                              int budget) {
+std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& camera, int budget,
+                                                              int tier) {
     // requestSamplesSerial() reorganized: the effective priorities, tile sums and each tile's
     // choice run in parallel; each tile draws its stretch of the frame's counter-based random
     // sequence from its offset (the order the serial loop consumes it in: u0, then per tile
@@ -775,9 +800,8 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
                 for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
                     const std::size_t k = static_cast<std::size_t>(y) * mWidth + x;
                     // (A select: the held pixels are scattered.)
-                    const bool held =
-                        (mRequested[k] > 0) & (mFrame + 1 < mRequested[k] + mOptions.holdFrames);
-                    const double p = held ? 0.0 : mPriority[k];
+                    const bool out = held(k) | (pixelTier(k) < tier);
+                    const double p = out ? 0.0 : mPriority[k];
                     mEffective[k] = p;
                     sum += p;
                     candidates += p > 0;
@@ -789,7 +813,7 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
     });
     const double total = std::accumulate(mTileSum.begin(), mTileSum.end(), 0.0);
     if (!(total > 0)) return {};
-    const std::uint64_t seed = hashPair(mOptions.seed, mFrame);
+    const std::uint64_t seed = frameSeed(tier);
     std::vector<int> tileCount(tiles, 0);
     {
         const double u0 = CacheRandom::at(seed, 0);
@@ -991,7 +1015,7 @@ std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromF
         p.object = toObject;
         p.element += elementOffset;
         mPosition[i] = p.position;
-        mFlags[i] |= kStaleFlag;
+        mFlags[i] |= kStaleFlag | kCarriedFlag;
         ++moved;
     }
     return moved;

@@ -133,7 +133,10 @@ public:
     /// Draws this frame's new sample requests from the priority image: `budget` requests
     /// (negative: sampleFraction × pixels), allocated to tiles in proportion to their summed
     /// priority by systematic sampling, then to each tile's highest-priority pixels, at a
-    /// jittered position inside the pixel. Rays come from `camera` (the frame's camera).
+    /// jittered position inside the pixel. What an edit changed comes first: as many of the
+    /// requests as there are carried pixels not waiting are drawn among them alone, then as
+    /// many as there are stale ones among those, the rest as above. Rays come from `camera`
+    /// (the frame's camera).
     std::vector<ShadeRequest> requestSamples(const CameraRays& camera, int budget = -1);
     /// Plain render-cache reconstruction of the last frame (no edges): a pixel with a point
     /// shows it, an empty one the distance-weighted mean of the points within 1, 2 or 3 pixels
@@ -175,8 +178,13 @@ public:
     std::size_t setHidden(const std::function<bool(const Vec3& position, int object)>& hidden);
     /// Whether point i is hidden by the last setHidden.
     bool hidden(std::size_t i) const { return (mFlags[i] & kHiddenFlag) != 0; }
-    /// A stale point's age as the priority and the z-buffer see it (above any real age).
+    /// Whether point i was carried (carry) and not yet replaced: stale, and with no estimate
+    /// of its new lighting (its colour is what it showed where it was).
+    bool carried(std::size_t i) const { return (mFlags[i] & kCarriedFlag) != 0; }
+    /// A stale point's age as the priority and the z-buffer see it (above any real age), and
+    /// a carried one's (above a stale one's: re-shaded first).
     static constexpr int kStaleAge = 1 << 24;
+    static constexpr int kCarriedAge = 2 * kStaleAge;
 
     const std::vector<CachePoint>& points() const { return mPoints; }
     /// Frames reprojected since point i was shaded.
@@ -216,8 +224,22 @@ private:
     void buildScreenPoints() const;
     /// requestSamples() for a positive budget: the plain serial reference
     /// (RenderCacheOptions::parallel false) and the parallel one, equal bit for bit.
-    std::vector<ShadeRequest> requestSamplesSerial(const CameraRays& camera, int budget);
-    std::vector<ShadeRequest> requestSamplesParallel(const CameraRays& camera, int budget);
+    /// Among the pixels of tier ≥ `tier` alone (the passes of requestSamples).
+    std::vector<ShadeRequest> requestSamplesSerial(const CameraRays& camera, int budget, int tier);
+    std::vector<ShadeRequest> requestSamplesParallel(const CameraRays& camera, int budget,
+                                                     int tier);
+    /// Pixel k was requested within the last holdFrames frames: it waits.
+    bool held(std::size_t k) const {
+        return (mRequested[k] > 0) & (mFrame + 1 < mRequested[k] + mOptions.holdFrames);
+    }
+    /// Which pass of requestSamples pixel k belongs to: 2 a carried point, 1 a stale one,
+    /// 0 any other (empty pixels included).
+    int pixelTier(std::size_t k) const {
+        return (mScreenOfPixel[k] >= 0) *
+               ((mPixelAge[k] >= kStaleAge) + (mPixelAge[k] >= kCarriedAge));
+    }
+    /// The random stream of this frame's requests in pass `tier`.
+    std::uint64_t frameSeed(int tier) const;
 
     int mWidth;
     int mHeight;
@@ -232,12 +254,14 @@ private:
     /// Age during the current reprojection (mFrame already counts it), as the frame's screen
     /// points carry it: 0 in a point's first.
     int ageBefore(std::size_t i) const { return static_cast<int>(mFrame - 1 - mBorn[i]); }
-    /// ageBefore, or kStaleAge for a stale point.
+    /// ageBefore, or kStaleAge for a stale point, kCarriedAge for a carried one.
     int pointAge(std::size_t i) const {
-        return (mFlags[i] & kStaleFlag) ? kStaleAge : ageBefore(i);
+        return (mFlags[i] & kCarriedFlag) ? kCarriedAge
+               : (mFlags[i] & kStaleFlag) ? kStaleAge
+                                          : ageBefore(i);
     }
-    static constexpr std::uint8_t kStaleFlag = 1, kHiddenFlag = 2;
-    std::vector<std::uint8_t> mFlags;  ///< per point: kStaleFlag, kHiddenFlag
+    static constexpr std::uint8_t kStaleFlag = 1, kHiddenFlag = 2, kCarriedFlag = 4;
+    std::vector<std::uint8_t> mFlags;  ///< per point: kStaleFlag, kHiddenFlag, kCarriedFlag
     std::uint64_t mFrame = 0;
 
     std::vector<int> mPixelPoint;  ///< per pixel, −1 when empty

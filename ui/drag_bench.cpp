@@ -149,7 +149,16 @@ void DragBench::queue(DragBenchImage& entry, std::shared_ptr<const ViewportImage
     mWake.notify_all();
 }
 
+void DragBench::windowDone() {
+    {
+        std::lock_guard<std::mutex> lock(mMutex);
+        mHold = false;
+    }
+    mWake.notify_all();
+}
+
 void DragBench::drain() {
+    windowDone();
     std::unique_lock<std::mutex> lock(mMutex);
     mDone.wait(lock, [&] { return mJobs.empty() && !mBusy; });
 }
@@ -164,7 +173,7 @@ void DragBench::workerLoop() {
         Job job;
         {
             std::unique_lock<std::mutex> lock(mMutex);
-            mWake.wait(lock, [&] { return mStop || !mJobs.empty(); });
+            mWake.wait(lock, [&] { return mStop || (!mHold && !mJobs.empty()); });
             if (mJobs.empty()) return;
             job = std::move(mJobs.front());
             mJobs.pop_front();

@@ -87,6 +87,9 @@ public:
     bool afterDropDone(double now) const {
         return mDropped && now - mDrop >= mOptions.afterDropSeconds;
     }
+    /// The measured window is over: the images held so far are converted and written now
+    /// (during the window the bench's thread would take the cores the editor is measured on).
+    void windowDone();
     /// An image the viewport shows from now on; `viewW` × `viewH` is the display's full
     /// resolution (the viewport's, or its --display-divisor share).
     void shown(const std::shared_ptr<const ViewportImage>& image, double now, int viewW, int viewH);
@@ -106,7 +109,7 @@ public:
 
 private:
     /// Queues `image` for `entry` (converted to displayed bytes, and written when recording,
-    /// on the bench's thread: the frame loop does not wait for either).
+    /// on the bench's thread once the window is over: the frame loop does not wait for either).
     void queue(DragBenchImage& entry, std::shared_ptr<const ViewportImage> image);
     /// Waits until every queued image is converted and written.
     void drain();
@@ -131,6 +134,7 @@ private:
     std::condition_variable mWake, mDone;
     std::deque<Job> mJobs;
     bool mBusy = false;
+    bool mHold = true;  ///< jobs wait until windowDone (or drain)
     bool mStop = false;
     std::thread mWorker;
 };

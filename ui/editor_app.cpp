@@ -1093,6 +1093,7 @@ void EditorApp::stepBenchmark() {
         }
     } else if (mBenchPhase == 2) {
         if (mBench->afterDropDone(now)) {
+            mBench->windowDone();
             mBenchWindowStats = mStats;
             mBenchSettleStart = now;
             mBenchPhase = 3;

@@ -11,7 +11,9 @@
 //   thread-safe) and write the solver's own arrays, which the render thread never reads;
 // - structural changes (edits: new object versions, tracer updates) take mStructure
 //   exclusively; rendering and picking take it shared. The frame loop therefore waits for
-//   nothing but, when picking, for an edit being applied.
+//   nothing but, when picking, for an edit being applied. A display frame releases it (and
+//   mDisplayMutex) while its edge-and-point image is reconstructed (InteractiveDisplay::
+//   reconstructFrame touches nothing an edit changes): an edit waits for a frame step.
 // View modes (ui/view_mode.h) other than Gouraud and out-of-date use an InteractiveDisplay
 // (Bala et al. 2003) owned by the render thread, shading asynchronously on its own workers:
 // the render thread renders a frame whenever it can (the cache reprojects on camera moves);

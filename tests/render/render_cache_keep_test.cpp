@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 #include <vector>
@@ -82,6 +83,66 @@ TEST(RenderCacheKeep, RelightAddsEachElementsChangeAndStalePixelsComeFirst) {
     EXPECT_NEAR(shown[0].colour.x, 0.9, 1e-12) << "the fresh point wins over the stale one";
     EXPECT_NEAR(shown[1].colour.x, 0.9, 1e-12) << "the younger point wins as before";
     EXPECT_LT(cache.priority()[0], 1.0) << "its pixel is no longer first";
+}
+
+/// The pixel a request falls in.
+int requestPixel(const ShadeRequest& r, int width) {
+    return static_cast<int>(std::floor(r.pixel.y)) * width +
+           static_cast<int>(std::floor(r.pixel.x));
+}
+
+TEST(RenderCacheKeep, CarriedThenStalePixelsAreRequestedBeforeAnyOther) {
+    // 32×32 pixels: the left columns show an object carried to a new version, a band of the
+    // wall behind is stale (relit), the rest fresh. Budgets below, between and above the
+    // tiers' sizes; the serial and parallel request drawers agree.
+    const int W = 32;
+    const CameraRays rays(frontCamera(), W, W);
+    std::vector<std::vector<ShadeRequest>> drawn[2];  // serial, parallel
+    for (bool parallel : {false, true}) {
+        RenderCacheOptions options;
+        options.parallel = parallel;
+        for (int budget : {40, 150, 400}) {
+            RenderCache cache(W, W, 4096, options);
+            std::vector<ShadedPoint> wall = layer(rays, 6.0, 1, 0, Rgb(0.3));
+            std::vector<ShadedPoint> object;
+            for (const ShadedPoint& p : layer(rays, 4.0, 2, 2000, Rgb(0.6)))
+                if (p.pixel.x < 8) object.push_back(p);  // 8 columns: 256 pixels
+            cache.insert(wall);
+            cache.insert(object);
+            cache.reproject(rays);
+            cache.reproject(rays);  // the points age: fresh pixels rank below 1
+            EXPECT_EQ(cache.carry(2, 5, Mat4(1.0), 100), object.size());
+            std::vector<Rgb> delta(2 * W * W, Rgb(0.0));
+            std::vector<std::uint8_t> stale(2 * W * W, 0);
+            std::size_t staleWall = 0;
+            for (int y = 20; y < 24; ++y)  // rows 20–23 beside the object: 96 pixels
+                for (int x = 8; x < W; ++x) stale[y * W + x] = 1, ++staleWall;
+            cache.relight(delta, stale);
+            cache.reproject(rays);
+            auto tier = [&](int k) {
+                const int x = k % W, y = k / W;
+                return x < 8 ? 2 : (y >= 20 && y < 24 ? 1 : 0);
+            };
+            const std::vector<ShadeRequest> requests = cache.requestSamples(rays, budget);
+            EXPECT_EQ(requests.size(), static_cast<std::size_t>(budget));
+            std::vector<int> perTier(3, 0);
+            for (const ShadeRequest& r : requests) ++perTier[tier(requestPixel(r, W))];
+            const int carried = static_cast<int>(object.size());
+            const int staleCount = static_cast<int>(staleWall);
+            EXPECT_EQ(perTier[2], std::min(budget, carried)) << "budget " << budget;
+            EXPECT_EQ(perTier[1], std::clamp(budget - carried, 0, staleCount))
+                << "budget " << budget;
+            EXPECT_EQ(perTier[0], std::max(0, budget - carried - staleCount))
+                << "budget " << budget;
+            drawn[parallel].push_back(requests);
+        }
+    }
+    ASSERT_EQ(drawn[0].size(), drawn[1].size());
+    for (std::size_t b = 0; b < drawn[0].size(); ++b) {
+        ASSERT_EQ(drawn[0][b].size(), drawn[1][b].size());
+        for (std::size_t i = 0; i < drawn[0][b].size(); ++i)
+            EXPECT_EQ(drawn[0][b][i].pixel, drawn[1][b][i].pixel) << "request " << i;
+    }
 }
 
 TEST(RenderCacheKeep, CarryMovesAnObjectsPointsRigidlyOntoItsNewVersion) {
