@@ -229,6 +229,11 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
         std::erase_if(done, [&](const ShadedPoint& p) {
             return p.object >= 0 && p.object != preview && !mDisc.objects()[p.object].alive;
         });
+        // Shaded before its element's last relight: the change is not in its colour.
+        for (ShadedPoint& p : done)
+            if (p.element >= 0 && static_cast<std::size_t>(p.element) < mChangedAt.size() &&
+                p.shading < mChangedAt[p.element])
+                p.stale = true;
         mCache.insert(done);
         mInsertedSinceFrame += done.size();
     }
@@ -450,6 +455,11 @@ std::size_t InteractiveDisplay::relightChanged() {
         if (mShownValid[e]) delta[e] = total[e] - mShownTotal[e];
         any = any || stale[e] || delta[e] != Rgb(0.0);
     }
+    // Points shaded before this on the elements that went stale are stale when they arrive.
+    const std::uint64_t serial = mShader->stateSerial();
+    mChangedAt.resize(n, 0);
+    for (std::size_t e = 0; e < std::min(n, known); ++e)
+        if (stale[e]) mChangedAt[e] = serial;
     mShownTotal = std::move(total);
     mShownDirect = std::move(direct);
     // Elements of versions that appeared since: nothing cached reflects them yet.

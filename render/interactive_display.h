@@ -440,6 +440,9 @@ private:
     std::size_t mInsertedSinceFrame = 0;      ///< points inserted since the last frame started
     DisplayFrameStats mLast;
     DisplayFrameStats mFrame;  ///< the frame between beginFrame and finishFrame
+    /// Per element: the shader state serial at the last relight that marked it stale; points
+    /// shaded with an older state arrive stale.
+    std::vector<std::uint64_t> mChangedAt;
     std::chrono::steady_clock::time_point mFrameStart;
     mutable std::size_t mLastReferenceEdgePixels = 0;
 

@@ -149,6 +149,7 @@ struct PointShader::Light {
 };
 
 struct PointShader::State {
+    std::uint64_t serial = 0;  ///< set by publish
     std::vector<Light> lights;
     std::vector<std::vector<Rgb>> vertexIndirect;  ///< per object, per mesh vertex
     std::vector<Rgb> elementIndirect;              ///< per element
@@ -217,10 +218,13 @@ std::shared_ptr<const PointShader::State> PointShader::state() const {
     return mState;
 }
 
-void PointShader::publish(std::shared_ptr<const State> state) {
+void PointShader::publish(std::shared_ptr<State> state) {
     std::lock_guard lock(mStateMutex);
+    state->serial = ++mStateSerial;
     mState = std::move(state);
 }
+
+std::uint64_t PointShader::stateSerial() const { return state()->serial; }
 
 Rgb PointShader::computeElementDirect(int e, const std::vector<int>& emitters) const {
     // The solver's irradianceFrom for the emitters' own shots: same culls, same pair seeds.
@@ -776,7 +780,7 @@ void PointShader::copyDirectFrom(const PointShader& source) {
     mPreviewElements = source.mPreviewElements;
     mDragOrigin = source.mDragOrigin;
     mOriginOnly = source.mOriginOnly;
-    publish(source.state());
+    publish(std::make_shared<State>(*source.state()));
     if (source.directUpdatePending()) queueDirectJob();
 }
 
@@ -1157,6 +1161,7 @@ ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request)
     ShadedPoint out;
     out.pixel = request.pixel;
     out.frame = request.frame;
+    out.shading = st.serial;
     const RayHit hit = traceWith(st, request.origin, request.direction);
     if (hit.object < 0 || hit.element < 0) {
         out.position = request.origin + request.direction * kMissDistance;

@@ -63,6 +63,10 @@ struct ShadedPoint {
     int object = -1;  ///< Discretization object index
     int element = -1;
     std::uint64_t frame = 0;  ///< the request's frame
+    /// The shader state it was shaded with (PointShader::stateSerial): a display that relit
+    /// its element since takes it as stale (the change is not in its colour).
+    std::uint64_t shading = 0;
+    bool stale = false;  ///< RenderCache::insert marks it stale (re-shaded first)
     bool hit() const { return object >= 0; }
     std::string toString() const;
 };
@@ -184,6 +188,9 @@ public:
     std::vector<Rgb> elementDirect() const;
     /// The indirect irradiance snapshot per element (W/m²).
     std::vector<Rgb> elementIndirect() const;
+    /// The serial of the state shading uses now (ShadedPoint::shading), growing with every
+    /// change of the lighting or the preview.
+    std::uint64_t stateSerial() const;
 
     // -- Drag preview (George et al.'s temporary buffer) -------------------------------------
 
@@ -307,7 +314,8 @@ private:
     struct State;
     struct DirectJob;
     std::shared_ptr<const State> state() const;
-    void publish(std::shared_ptr<const State> state);
+    /// Makes `state` the one shading uses from now on, numbered by the next serial.
+    void publish(std::shared_ptr<State> state);
     /// Σ_j E_j·F(e←j) with the solver's pair-seeded form factors, over `emitters` (the
     /// alive emitter patches, ascending: emitterPatches).
     Rgb computeElementDirect(int element, const std::vector<int>& emitters) const;
@@ -353,6 +361,7 @@ private:
     PointShaderOptions mOptions;
 
     mutable std::mutex mStateMutex;
+    std::uint64_t mStateSerial = 0;  ///< the last published state's (under mStateMutex)
     std::shared_ptr<const State> mState;
     std::vector<Rgb> mElementDirect;         ///< H_direct(e); written only while paused/idle
     std::vector<Rgb> mElementH;              ///< the last solver snapshot's H_e

@@ -211,7 +211,7 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
         mPosition[slot] = batch[i].position;
         mBorn[slot] = mFrame;  // age 0 in the next reprojection
         mVisible[slot] = 1;    // new points count as visible
-        mFlags[slot] = 0;
+        mFlags[slot] = batch[i].stale ? kStaleFlag : 0;
     }
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
 }

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 
 #include "edit/edit_session.h"
 #include "lit_room_display.h"
@@ -154,6 +155,42 @@ TEST(InteractiveDisplayMove, TheMovedObjectsPointsFollowItAndNoPixelIsLeftEmpty)
     EXPECT_EQ(bare.lastFrame().unfilledPixels, bare.lastFrame().unsampledPixels);
     EXPECT_EQ(bare.lastFrame().unfilledPixels, std::size_t(kSize * kSize));
     for (const Rgb& c : empty.pixels) EXPECT_EQ(luminance(c), 0.0);
+}
+
+TEST(InteractiveDisplayMove, PointsShadedBeforeTheirElementWasRelitArriveStale) {
+    // Asynchronous shading: requests shaded with the room half converged, taken after the
+    // solution moved on. Each arrives stale exactly when the relight marked its element (the
+    // element's older points, relit in place, tell which): the change is not in its colour.
+    auto session = std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{});
+    session->solve(6);
+    InteractiveDisplayOptions options = displayOptions();
+    options.synchronous = false;
+    options.sampleFraction = 0.3;
+    InteractiveDisplay display(session->discretization(), session->tracer(), SolverOptions{},
+                               options);
+    display.updateSolution(session->solver());
+    const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
+    display.warmUp(rays, 0.5);
+    display.renderFrame(rays);  // requests go to the workers
+    display.shader().waitIdle();
+    const std::size_t before = display.cache().size();
+    session->converge(1e-3);
+    display.updateSolution(session->solver());
+    display.renderFrame(rays);  // takes the results shaded with the older state
+    ASSERT_GT(display.cache().size(), before) << "results arrived";
+    std::map<int, bool> relit;  // element → its older points were marked stale
+    for (std::size_t i = 0; i < before; ++i)
+        relit[display.cache().points()[i].element] = display.cache().stale(i);
+    std::size_t compared = 0, stale = 0;
+    for (std::size_t i = before; i < display.cache().size(); ++i) {
+        const auto it = relit.find(display.cache().points()[i].element);
+        if (it == relit.end()) continue;
+        EXPECT_EQ(display.cache().stale(i), it->second) << display.cache().points()[i].toString();
+        ++compared;
+        stale += display.cache().stale(i);
+    }
+    EXPECT_GT(compared, 100u);
+    EXPECT_GT(stale, 0u) << "the solution moved on: some elements were relit";
 }
 
 TEST(InteractiveDisplayMove, TheFallbackIsTheSolutionBlendedPerVertex) {
