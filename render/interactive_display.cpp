@@ -203,7 +203,7 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
             "InteractiveDisplay::renderFrame: camera raster " + std::to_string(camera.width()) +
             "x" + std::to_string(camera.height()) + " differs from the display's " +
             std::to_string(mOptions.width) + "x" + std::to_string(mOptions.height));
-    mFrameStart = Clock::now();
+    const auto frameStart = Clock::now();
     mFrame = DisplayFrameStats{};
     DisplayFrameStats& st = mFrame;
     st.usedEdges = useEdges;
@@ -291,7 +291,7 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
         mScreenEdges.clear();
     }
     st.screenEdges = mScreenEdges.size();
-    st.times.totalMs = msSince(mFrameStart);
+    st.times.totalMs = msSince(frameStart);
 }
 
 Image InteractiveDisplay::reconstructFrame() {
@@ -662,8 +662,8 @@ std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObj
 void InteractiveDisplay::trustShown(int object) {
     // From now on the object rests: the points shaded on it reflect the shading relightChanged
     // just recorded, and later changes (the solver catching up with it) are added to them. (A
-    // drag's preview versions are not trusted: their shading lags the moves, and adding its
-    // swings turned the moving object black.)
+    // drag's preview versions are not trusted: their shading lags the moves, so adding its
+    // changes would darken the moving object by whatever the solver has not yet shot to it.)
     const auto [first, count] = mDisc.elementRange(object);
     for (int k = 0; k < count; ++k)
         if (static_cast<std::size_t>(first + k) < mShownValid.size()) mShownValid[first + k] = 1;

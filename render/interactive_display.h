@@ -26,7 +26,6 @@
 // of the frame's requests on the same cores (0 in asynchronous mode).
 
 #include <array>
-#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -443,7 +442,6 @@ private:
     /// Per element: the shader state serial at the last relight that marked it stale; points
     /// shaded with an older state arrive stale.
     std::vector<std::uint64_t> mChangedAt;
-    std::chrono::steady_clock::time_point mFrameStart;
     mutable std::size_t mLastReferenceEdgePixels = 0;
 
     // What the cached points show, per element (relightChanged): the radiance and direct

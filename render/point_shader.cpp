@@ -218,9 +218,15 @@ std::shared_ptr<const PointShader::State> PointShader::state() const {
     return mState;
 }
 
+namespace {
+/// State serials, one sequence for every shader: a state shared between two shaders
+/// (copyDirectFrom) keeps its number, still older than either's next.
+std::atomic<std::uint64_t> gStateSerial{0};
+}  // namespace
+
 void PointShader::publish(std::shared_ptr<State> state) {
+    state->serial = ++gStateSerial;
     std::lock_guard lock(mStateMutex);
-    state->serial = ++mStateSerial;
     mState = std::move(state);
 }
 
@@ -780,7 +786,10 @@ void PointShader::copyDirectFrom(const PointShader& source) {
     mPreviewElements = source.mPreviewElements;
     mDragOrigin = source.mDragOrigin;
     mOriginOnly = source.mOriginOnly;
-    publish(std::make_shared<State>(*source.state()));
+    {
+        std::lock_guard lock(mStateMutex);
+        mState = source.state();  // its serial stays: the same shading
+    }
     if (source.directUpdatePending()) queueDirectJob();
 }
 

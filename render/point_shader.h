@@ -361,7 +361,6 @@ private:
     PointShaderOptions mOptions;
 
     mutable std::mutex mStateMutex;
-    std::uint64_t mStateSerial = 0;  ///< the last published state's (under mStateMutex)
     std::shared_ptr<const State> mState;
     std::vector<Rgb> mElementDirect;         ///< H_direct(e); written only while paused/idle
     std::vector<Rgb> mElementH;              ///< the last solver snapshot's H_e

@@ -341,17 +341,11 @@ bool SessionRunner::solverIteration() {
         for (int i = 0; i < 2; ++i)
             if (mSlots[i].display && liveSlot(i) && !mSlots[i].behind)
                 applyDisplayEdits(mSlots[i], {}, false, previewMoved);
-        for (std::size_t k = 0; k < mOldSubsets.size();) {
-            bool used = false;
+        std::erase_if(mOldSubsets, [&](const auto& s) {
             for (const DisplaySlot& slot : mSlots)
-                used = used ||
-                       (slot.display && slot.display->directJobPreview() == mOldSubsets[k].first);
-            if (used) {
-                ++k;
-            } else {
-                mOldSubsets.erase(mOldSubsets.begin() + static_cast<std::ptrdiff_t>(k));
-            }
-        }
+                if (slot.display && slot.display->directJobPreview() == s.first) return false;
+            return true;
+        });
         // Objects that hide points behind them trace a subset of their own, not a filter
         // over the whole scene; kept while a display hides behind them.
         for (DisplaySlot& slot : mSlots) {
@@ -816,23 +810,26 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
         shownPreview = display->previewVersion();
         // The selection outline of the state the frame shows (the preview version while
         // dragged; it is in the display only through the preview subset), drawn after encoding.
-        std::vector<std::uint8_t> outline;
-        if (highlight >= 0 && view.mode != ViewMode::Difference) {
-            outline.assign(static_cast<std::size_t>(w) * h * 4, 0);
-            outlineSelection(mSession->discretization(), mSession->tracer(), view.camera, w, h,
-                             highlight, outline, mPreviewVersion, mPreviewSubset.visibility());
-        }
+        std::vector<int> objectAt;
+        if (highlight >= 0 && view.mode != ViewMode::Difference)
+            objectAt =
+                selectionPixels(mSession->discretization(), mSession->tracer(), view.camera, w, h,
+                                highlight, mPreviewVersion, mPreviewSubset.visibility());
         displayLock.unlock();
         structure.unlock();
-        img->render.radiance = display->reconstructFrame();
+        try {
+            img->render.radiance = display->reconstructFrame();
+        } catch (...) {
+            structure.lock();
+            displayLock.lock();
+            throw;
+        }
         structure.lock();
         displayLock.lock();
         display->finishFrame(rays, img->render.radiance);
         img->display = display->lastFrame();
         img->render.rgba = encodeDisplay(img->render.radiance);
-        for (std::size_t i = 0; i < outline.size(); i += 4)
-            if (outline[i] | outline[i + 1] | outline[i + 2])
-                std::copy_n(&outline[i], 3, &img->render.rgba[i]);
+        if (!objectAt.empty()) drawSelectionOutline(img->render.rgba, objectAt, w, h, highlight);
         if (view.mode == ViewMode::EdgesOverlay) {
             blendEdges(img->render.rgba, display->edgeImage());
         } else if (view.mode == ViewMode::SamplesOverlay) {

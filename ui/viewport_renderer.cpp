@@ -116,10 +116,22 @@ std::size_t outlineSelection(const Discretization& disc, const RayTracer& tracer
                              const Camera& camera, int width, int height, int version,
                              std::vector<std::uint8_t>& rgba, int previewVersion,
                              const Visibility& previewOnly) {
+    std::size_t found = 0;
+    const std::vector<int> objectAt = selectionPixels(disc, tracer, camera, width, height, version,
+                                                      previewVersion, previewOnly, &found);
+    if (!objectAt.empty()) drawSelectionOutline(rgba, objectAt, width, height, version);
+    return found;
+}
+
+std::vector<int> selectionPixels(const Discretization& disc, const RayTracer& tracer,
+                                 const Camera& camera, int width, int height, int version,
+                                 int previewVersion, const Visibility& previewOnly,
+                                 std::size_t* versionPixels) {
+    if (versionPixels) *versionPixels = 0;
     const auto& objects = disc.objects();
-    if (version < 0 || version >= static_cast<int>(objects.size())) return 0;
+    if (version < 0 || version >= static_cast<int>(objects.size())) return {};
     const auto& ws = objects[version].worldPositions;
-    if (ws.empty()) return 0;
+    if (ws.empty()) return {};
     const CameraRays rays(camera, width, height);
 
     // Screen rectangle of the bounding box, two pixels wider for the border.
@@ -139,7 +151,7 @@ std::size_t outlineSelection(const Discretization& disc, const RayTracer& tracer
         minY = std::min(minY, p->y), maxY = std::max(maxY, p->y);
     }
     if (inFront) {
-        if (maxX < 0 || maxY < 0 || minX > width || minY > height) return 0;
+        if (maxX < 0 || maxY < 0 || minX > width || minY > height) return {};
         x0 = std::clamp(static_cast<int>(std::floor(minX)) - 2, 0, width);
         y0 = std::clamp(static_cast<int>(std::floor(minY)) - 2, 0, height);
         x1 = std::clamp(static_cast<int>(std::ceil(maxX)) + 2, 0, width);
@@ -175,8 +187,8 @@ std::size_t outlineSelection(const Discretization& disc, const RayTracer& tracer
             }
         found += n;
     });
-    drawSelectionOutline(rgba, objectAt, width, height, version);
-    return found;
+    if (versionPixels) *versionPixels = found;
+    return objectAt;
 }
 
 }  // namespace penumbra

@@ -48,5 +48,12 @@ std::size_t outlineSelection(const Discretization& disc, const RayTracer& tracer
                              const Camera& camera, int width, int height, int version,
                              std::vector<std::uint8_t>& rgba, int previewVersion = -1,
                              const Visibility& previewOnly = {});
+/// outlineSelection's first step: per pixel, the version seen (-1 none or outside the
+/// version's screen rectangle); empty when the version is not on screen. `versionPixels`
+/// receives how many pixels show `version`.
+std::vector<int> selectionPixels(const Discretization& disc, const RayTracer& tracer,
+                                 const Camera& camera, int width, int height, int version,
+                                 int previewVersion = -1, const Visibility& previewOnly = {},
+                                 std::size_t* versionPixels = nullptr);
 
 }  // namespace penumbra

@@ -101,7 +101,7 @@ TEST(RenderCacheKeep, CarriedThenStalePixelsAreRequestedBeforeAnyOther) {
     for (bool parallel : {false, true}) {
         RenderCacheOptions options;
         options.parallel = parallel;
-        for (int budget : {40, 150, 400}) {
+        for (int budget : {40, 300, 400}) {
             RenderCache cache(W, W, 4096, options);
             std::vector<ShadedPoint> wall = layer(rays, 6.0, 1, 0, Rgb(0.3));
             std::vector<ShadedPoint> object;
