@@ -3,8 +3,8 @@
 // Built with -fno-math-errno -fno-trapping-math (CMakeLists.txt), so GCC computes the edges
 // two at a time, and integrateContour has an AVX2 clone chosen at load time (GCC target_clones)
 // that computes four at a time: a quad outline in one step. integrateContourLanes, four points
-// at once, has an AVX clone (this machine has AVX and FMA but not AVX2). None contracts to
-// FMA, so every version gives the same bits.
+// at once, has an AVX clone (for CPUs with AVX but not AVX2). None contracts to FMA, so every
+// version gives the same bits.
 
 #include <cstddef>
 

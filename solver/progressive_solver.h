@@ -41,12 +41,10 @@ struct SolverOptions {
     /// stochastic tail compares costs, not ray counts: a batch goes first once hitRayCost ×
     /// its rays is below a deterministic shot's mean ray count. A batch ray is a closest-hit
     /// ray (it enters the instance and finds the nearest triangle; an occlusion ray stops at
-    /// any hit: raw hit rays cost 2.7–2.9 occlusion rays on cube-room, 1.7–2.4 on the larger
-    /// scenes) and carries its own set-up (shooter, point, direction) and receiving. Measured
-    /// in the solver on cube-room, where the choice matters most: 117 ns a batch ray against
-    /// 39 ns a deterministic one (wall, 2 threads), so 3. Time to 0.1% unshot is flat for
-    /// costs 2.5–5 there (0.49–0.52 s); with 1 it was a third longer (an earlier measurement
-    /// under load: 1.87 s against 1.40 s with 3).
+    /// any hit) and carries its own set-up (shooter, point, direction) and receiving, so it
+    /// costs several deterministic rays; 3 is the ratio measured in the solver on cube-room,
+    /// where the choice matters most (docs/solver.md), and the time to converge is flat
+    /// around it.
     double hitRayCost = 3.0;
     /// A stochastic batch (propagation or redistribution) takes the strongest shooters up
     /// to about this many rays; the rest wait for the next batch.

@@ -2,8 +2,7 @@
 // ray throughput and their ratio, time to 10%, 1% and 0.1% unshot energy, and peak memory.
 // Each scene runs in a fresh child process (this executable, re-run) so its peak resident
 // memory is its own. Not a fork: a child forked after oneTBB started its workers inherits
-// none of them and runs every parallel loop on one thread (the table's figures before
-// 2026-11-25 were single-threaded for that reason).
+// none of them and runs every parallel loop on one thread.
 //
 // Index: measurements · Google Benchmark micro-benchmarks · table
 #include <benchmark/benchmark.h>
