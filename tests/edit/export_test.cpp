@@ -4,6 +4,7 @@
 #include "edit/export.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -106,9 +107,11 @@ protected:
         objectRadiance = {Rgb(0.2, 0.4, 0.6), Rgb(0.05, 0.1, 0.9)};
         for (const Element& e : disc->elements()) b.push_back(kPi * objectRadiance[e.object]);
 
+        // One directory per test process: CTest runs the tests of this fixture in parallel
+        // processes, whose random seeds (from the clock) can coincide.
+        const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
         dir = std::filesystem::path(::testing::TempDir()) /
-              ("penumbra_export_" +
-               std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+              ("penumbra_export_" + std::string(test->name()) + "_" + std::to_string(::getpid()));
         std::filesystem::create_directories(dir);
     }
     void TearDown() override { std::filesystem::remove_all(dir); }
