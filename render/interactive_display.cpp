@@ -473,9 +473,12 @@ std::size_t InteractiveDisplay::updateSolution(const ProgressiveSolver& solver) 
 }
 
 std::size_t InteractiveDisplay::updateSolution(const std::vector<Rgb>& irradiance,
+                                               const std::vector<Rgb>& fromEmission,
                                                const std::vector<Rgb>* previewRadiosity,
+                                               const std::vector<Rgb>* previewFromEmission,
                                                int previewObject) {
-    mShader->updateSolution(irradiance, previewRadiosity, previewObject);
+    mShader->updateSolution(irradiance, fromEmission, previewRadiosity, previewFromEmission,
+                            previewObject);
     return relightChanged();
 }
 

@@ -277,7 +277,9 @@ public:
     std::size_t updateSolution(const ProgressiveSolver& solver);
     /// The same from copies of the solver's arrays (PointShader::updateSolution overload).
     std::size_t updateSolution(const std::vector<Rgb>& irradiance,
+                               const std::vector<Rgb>& fromEmission,
                                const std::vector<Rgb>* previewRadiosity = nullptr,
+                               const std::vector<Rgb>* previewFromEmission = nullptr,
                                int previewObject = -1);
     /// After an edit changed `changedObjects` (Discretization object versions added, removed,
     /// or with a new material; EditResult's added/removed/materialChanged): a version that

@@ -637,6 +637,12 @@ std::vector<int> PointShader::setPreview(int object, const Visibility& previewOn
             lights.push_back(std::move(L));
     for (Light& L : lightsOf(object)) lights.push_back(std::move(L));
     next->lights = std::move(lights);
+    // Until the next solution snapshot blends the new version's light, it takes the light of
+    // the version it replaces (the previous position, or the drag's origin): the same mesh, so
+    // the same vertices. Without it the fallback of the pixels the object newly covers (no
+    // point there yet) would be black.
+    carryVertexLight(*next, old, object);
+    carryVertexLight(*next, mDragOrigin, object);
     mElementDirect.resize(mDisc.elements().size(), Rgb(0.0));
     publish(std::move(next));
 
@@ -653,6 +659,17 @@ std::vector<int> PointShader::setPreview(int object, const Visibility& previewOn
     auto job = makeDirectJob(-1);
     tbb::parallel_for(std::size_t(0), job->chunks, [&](std::size_t c) { runDirectChunk(*job, c); });
     return applyDirectJob(*job);
+}
+
+void PointShader::carryVertexLight(State& st, int from, int to) const {
+    if (from < 0 || from == to || !mDisc.sameElements(from, to)) return;
+    const std::size_t need = static_cast<std::size_t>(std::max(from, to)) + 1;
+    if (st.vertexDirect.size() < need) st.vertexDirect.resize(need);
+    if (st.vertexIndirect.size() < need) st.vertexIndirect.resize(need);
+    if (!st.vertexDirect[to].empty() && !st.vertexIndirect[to].empty()) return;
+    if (st.vertexDirect[from].empty() || st.vertexIndirect[from].empty()) return;
+    st.vertexDirect[to] = st.vertexDirect[from];
+    st.vertexIndirect[to] = st.vertexIndirect[from];
 }
 
 std::vector<int> PointShader::takeDirectUpdate() {
@@ -779,7 +796,8 @@ void PointShader::copyDirectFrom(const PointShader& source) {
     dropDirectJob();
     mElementDirect = source.mElementDirect;
     mElementH = source.mElementH;
-    mLastPreviewRadiosity = source.mLastPreviewRadiosity;
+    mElementHEmission = source.mElementHEmission;
+    mLastPreviewIndirect = source.mLastPreviewIndirect;
     mLastPreviewObject = source.mLastPreviewObject;
     mHasSolution = source.mHasSolution;
     mPreviewDirectDelta = source.mPreviewDirectDelta;
@@ -802,18 +820,34 @@ std::vector<Rgb> PointShader::elementIndirect() const { return state()->elementI
 
 void PointShader::updateSolution(const ProgressiveSolver& solver) {
     const bool preview = solver.previewObject() >= 0;
-    updateSolution(solver.irradiance(), preview ? &solver.previewRadiosity() : nullptr,
+    updateSolution(solver.irradiance(), solver.irradianceFromEmission(),
+                   preview ? &solver.previewRadiosity() : nullptr,
+                   preview ? &solver.previewRadiosityFromEmission() : nullptr,
                    solver.previewObject());
 }
 
-void PointShader::updateSolution(const std::vector<Rgb>& H,
-                                 const std::vector<Rgb>* previewRadiosity, int previewObject) {
+void PointShader::updateSolution(const std::vector<Rgb>& H, const std::vector<Rgb>& fromEmission,
+                                 const std::vector<Rgb>* previewRadiosity,
+                                 const std::vector<Rgb>* previewFromEmission, int previewObject) {
     mElementH = H;
-    if (!previewRadiosity && !mLastPreviewRadiosity.empty()) rememberDropped();
-    if (previewRadiosity)
-        mLastPreviewRadiosity = *previewRadiosity;
-    else
-        mLastPreviewRadiosity.clear();
+    mElementHEmission = fromEmission;
+    if (!previewRadiosity && !mLastPreviewIndirect.empty()) rememberDropped();
+    mLastPreviewIndirect.clear();
+    if (previewRadiosity) {
+        // George et al.'s buffer T holds ρ·ΔH; its reflected part (T − T_emission)/ρ is the
+        // indirect irradiance the preview adds.
+        const std::vector<Rgb>& T = *previewRadiosity;
+        mLastPreviewIndirect.assign(T.size(), Rgb(0.0));
+        for (std::size_t e = 0; e < T.size() && e < mDisc.elements().size(); ++e) {
+            const Rgb reflected =
+                previewFromEmission && e < previewFromEmission->size() ? T[e] - (*previewFromEmission)[e]
+                                                                       : T[e];
+            if (isZero(reflected)) continue;
+            const Rgb rho = mDisc.elementMaterial(static_cast<int>(e)).reflectance;
+            for (int c = 0; c < 3; ++c)
+                if (rho[c] > 0) mLastPreviewIndirect[e][c] = reflected[c] / rho[c];
+        }
+    }
     mLastPreviewObject = previewRadiosity ? previewObject : -1;
     mHasSolution = true;
     rebuildIndirect();
@@ -821,22 +855,19 @@ void PointShader::updateSolution(const std::vector<Rgb>& H,
 
 void PointShader::rememberDropped() {
     // The drag ended: the object is alive again at its last preview's place (or a little
-    // further on: the same mesh), and its buffer T = ρ·H estimates its irradiance there.
+    // further on: the same mesh), and its buffer's reflected part estimates its indirect
+    // irradiance there.
     mDroppedObject = -1;
-    mDroppedH.clear();
+    mDroppedIndirect.clear();
     const int from = mLastPreviewObject;
     if (from < 0 || from >= static_cast<int>(mDisc.objects().size())) return;
     for (int o = 0; o < static_cast<int>(mDisc.objects().size()); ++o) {
         if (!mDisc.objects()[o].alive || !mDisc.sameElements(from, o)) continue;
         const auto [first, count] = mDisc.elementRange(from);
-        mDroppedH.assign(static_cast<std::size_t>(count), Rgb(0.0));
-        for (int k = 0; k < count; ++k) {
-            const int e = first + k;
-            if (e >= static_cast<int>(mLastPreviewRadiosity.size())) break;
-            const Rgb rho = mDisc.elementMaterial(e).reflectance;
-            for (int c = 0; c < 3; ++c)
-                if (rho[c] > 0) mDroppedH[k][c] = mLastPreviewRadiosity[e][c] / rho[c];
-        }
+        mDroppedIndirect.assign(static_cast<std::size_t>(count), Rgb(0.0));
+        for (int k = 0; k < count && first + k < static_cast<int>(mLastPreviewIndirect.size());
+             ++k)
+            mDroppedIndirect[k] = mLastPreviewIndirect[first + k];
         mDroppedObject = o;
         return;
     }
@@ -844,7 +875,8 @@ void PointShader::rememberDropped() {
 
 void PointShader::rebuildIndirect() {
     const std::vector<Rgb>& H = mElementH;
-    const std::size_t n = std::min(H.size(), mDisc.elements().size());
+    const std::size_t n =
+        std::min({H.size(), mElementHEmission.size(), mDisc.elements().size()});
     // Every element's direct light, also of versions newer than the solution (a preview, an
     // object just added): the fallback shows them lit by it.
     if (mElementDirect.size() < mDisc.elements().size()) {
@@ -867,26 +899,28 @@ void PointShader::rebuildIndirect() {
     }
     const int preview = next->previewObject;
     next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
-    for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementDirect[e];
+    for (std::size_t e = 0; e < n; ++e)
+        next->elementIndirect[e] = H[e] - mElementHEmission[e];
     // An object just dropped after a drag: until the solver's redistribution reaches its
-    // elements, its last preview buffer's irradiance stands in (the larger of the two), so it
-    // does not show lit by its direct light alone; forgotten once the solution has caught up
-    // (nine tenths of the estimate) or the object is gone.
+    // elements, the indirect part of its last preview buffer's irradiance stands in (the
+    // larger of the two), so it does not show lit by its direct light alone; forgotten once
+    // the solution's indirect light has caught up (nine tenths of the estimate's) or the
+    // object is gone.
     if (mDroppedObject >= 0) {
         const auto [first, count] = mDisc.elementRange(mDroppedObject);
         double solved = 0, estimated = 0;
-        for (int k = 0; k < count && k < static_cast<int>(mDroppedH.size()); ++k) {
+        for (int k = 0; k < count && k < static_cast<int>(mDroppedIndirect.size()); ++k) {
             const std::size_t e = static_cast<std::size_t>(first + k);
-            const Rgb h = e < n ? H[e] : Rgb(0.0);
+            if (e >= next->elementIndirect.size()) break;
+            const Rgb h = e < n ? next->elementIndirect[e] : Rgb(0.0);
+            const Rgb& estimate = mDroppedIndirect[k];
             solved += luminance(h);
-            estimated += luminance(mDroppedH[k]);
-            if (e < next->elementIndirect.size())
-                next->elementIndirect[e] =
-                    glm::max(glm::max(h, mDroppedH[k]) - mElementDirect[e], Rgb(0.0));
+            estimated += luminance(estimate);
+            next->elementIndirect[e] = glm::max(glm::max(h, estimate), Rgb(0.0));
         }
         if (!mDisc.objects()[mDroppedObject].alive || solved >= 0.9 * estimated) {
             mDroppedObject = -1;
-            mDroppedH.clear();
+            mDroppedIndirect.clear();
         }
     }
     // While a drag moves on faster than the solver's buffer follows, the buffer is for where
@@ -894,11 +928,11 @@ void PointShader::rebuildIndirect() {
     // move with it, so the object keeps its light instead of going black until the solver
     // catches up; the rest of the scene keeps the buffer's changes.
     std::vector<Rgb> moved;
-    const bool lagging = preview >= 0 && !mLastPreviewRadiosity.empty() &&
+    const bool lagging = preview >= 0 && !mLastPreviewIndirect.empty() &&
                          mLastPreviewObject != preview &&
                          mDisc.sameElements(mLastPreviewObject, preview);
     if (lagging) {
-        moved = mLastPreviewRadiosity;
+        moved = mLastPreviewIndirect;
         moved.resize(std::max(moved.size(), mDisc.elements().size()), Rgb(0.0));
         const auto [from, count] = mDisc.elementRange(mLastPreviewObject);
         const int to = mDisc.elementRange(preview).first;
@@ -907,28 +941,19 @@ void PointShader::rebuildIndirect() {
             moved[from + k] = Rgb(0.0);
         }
     }
-    if (preview >= 0 && !mLastPreviewRadiosity.empty() &&
+    if (preview >= 0 && !mLastPreviewIndirect.empty() &&
         (mLastPreviewObject == preview || lagging)) {
-        // George et al.'s temporary buffer T holds ρ·ΔH (and the preview object's whole ρ·H):
-        // the irradiance shown is H + T/ρ, of which the preview world's H_direct is traced.
-        const std::vector<Rgb>& T = lagging ? moved : mLastPreviewRadiosity;
-        for (std::size_t e = 0; e < next->elementIndirect.size() && e < T.size(); ++e) {
-            if (isZero(T[e])) continue;
-            const Rgb rho = mDisc.elementMaterial(static_cast<int>(e)).reflectance;
-            for (int c = 0; c < 3; ++c)
-                if (rho[c] > 0) next->elementIndirect[e][c] += T[e][c] / rho[c];
-        }
+        // The reflected part of George et al.'s temporary buffer (the preview object's whole
+        // indirect irradiance, the change elsewhere) adds to the solution's.
+        const std::vector<Rgb>& T = lagging ? moved : mLastPreviewIndirect;
+        for (std::size_t e = 0; e < next->elementIndirect.size() && e < T.size(); ++e)
+            next->elementIndirect[e] += T[e];
     }
-    if (preview >= 0)
-        for (int e : mPreviewElements)
-            if (e < static_cast<int>(n) && e < static_cast<int>(mPreviewDirectDelta.size()))
-                next->elementIndirect[e] -= mPreviewDirectDelta[e];
-    // The dragged object, and versions newer than the solution: their H comes from an
-    // estimate (the buffer, a lagging buffer moved with the object) or not at all yet, and
-    // H_indirect = estimate − H_direct(e) below 0 would darken them to black where the
-    // estimate lags their direct light: no indirect light there instead. Elsewhere the
-    // difference stays as it is, negative or not (it is what keeps the subtraction consistent
-    // with the solver's direct shots: the solver's H_e of a small element may be 0).
+    // The dragged object, and versions newer than the solution: their indirect light comes
+    // from an estimate (the buffer, a lagging buffer moved with the object) or not at all
+    // yet, and may be below 0 where the estimate's negative shots ran ahead of its positive
+    // ones: no indirect light there instead. Elsewhere the difference stays as it is,
+    // negative or not (the solution's negative energy in a new shadow).
     auto clampRange = [&](int first, int count) {
         for (int e = std::max(first, 0);
              e < first + count && e < static_cast<int>(next->elementIndirect.size()); ++e)
@@ -1220,6 +1245,14 @@ Rgb PointShader::shadeFallback(const Vec3& origin, const Vec3& direction) const 
         const auto& vi = st->vertexIndirect[el.object];
         for (std::size_t i = 0; i < hit.weights.size(); ++i)
             h += hit.weights[i] * (vd[el.vertices[i]] + vi[el.vertices[i]]);
+    } else if (!hit.backFace) {
+        // A version no snapshot has blended yet: its direct light at the hit, sampled as a
+        // point's, and its element's indirect light when known. Dimmer than the truth at
+        // worst, never black.
+        h = directWith(*st, hit.position, el.normal, el.object,
+                       static_cast<std::uint64_t>(hit.element));
+        if (hit.element < static_cast<int>(st->elementIndirect.size()))
+            h += glm::max(st->elementIndirect[hit.element], Rgb(0.0));
     }
     const Rgb emission = hit.backFace ? Rgb(0.0) : material.emission;
     return glm::max(emission + material.reflectance * h, Rgb(0.0)) * glm::one_over_pi<double>();

@@ -11,9 +11,11 @@
 //     L(x) = (E + ρ·(H_direct(x) + H_indirect(x))) / π
 // H_direct(x) is computed per sample from every emitter as an area light with stratified
 // shadow rays (soft shadows); H_indirect is the radiosity solution's non-direct part,
-// H_e − H_direct(e), blended across elements from per-vertex values as the Gouraud renderer
-// does. H_direct(e) = Σ_j E_j·F(e←j) uses the same pair-seeded formFactorToPatch the solver
-// used when the emitters shot, so the subtraction removes exactly the direct share of H_e.
+// H_e − H_e,emission (ProgressiveSolver::irradianceFromEmission: the solver books what came
+// straight from emission apart, so the difference does not depend on whether the emitters'
+// redistribution after an edit is done yet), blended across elements from per-vertex values
+// as the Gouraud renderer does. The per-element direct light H_direct(e) = Σ_j E_j·F(e←j)
+// lights the fallback and the drag preview's estimates.
 
 #include <tbb/concurrent_queue.h>
 #include <tbb/concurrent_unordered_set.h>
@@ -116,13 +118,11 @@ struct PointShaderOptions {
     /// radiance from the blocked-part estimate's noise). Off for converged references, where
     /// the clamp's bias would not average away.
     bool clampNegative = true;
-    /// Clamp every element's H_indirect = H_e − H_direct(e) at 0. While the solver
-    /// redistributes after an edit, H_e lags the display's direct light on the elements the
-    /// edit touched (a moved object, its old and new shadow, an object just added) and the
-    /// difference shows as dark patches; the editor's displays clamp it. Off, the difference
-    /// stays as it is (consistent with the solver's direct shots on a converged solution, where
-    /// a small element's H_e may be 0); the dragged object and versions newer than the solution
-    /// are clamped either way.
+    /// Clamp every element's H_indirect at 0. While the solver redistributes after an edit, a
+    /// new shadow's negative shots can run ahead of the positive ones that follow them and the
+    /// difference would show as dark patches; the editor's displays clamp it. Off, the value
+    /// stays as it is (unbiased on a converged solution); the dragged object and versions
+    /// newer than the solution are clamped either way.
     bool clampIndirect = false;
     int threads = 2;     ///< worker threads for asynchronous shading
     int batchSize = 64;  ///< requests a worker takes at a time
@@ -172,17 +172,20 @@ public:
     /// elements whose shaft to some emitter patch meets a changed object's bounding sphere; a
     /// changed emitter triggers refreshDirect().
     void refreshDirect(const std::vector<int>& changedObjects);
-    /// Snapshots the solver's element irradiance: H_indirect(e) = H_e − H_direct(e) and its
+    /// Snapshots the solver's element irradiance: H_indirect(e) = H_e − H_e,emission and its
     /// per-vertex blend. Call from the thread that steps the solver, between steps; shading
     /// picks the new snapshot up at its next batch. `solver` must be over the same
     /// Discretization.
     void updateSolution(const ProgressiveSolver& solver);
-    /// The same from copies: `irradiance` = ProgressiveSolver::irradiance(), and while
-    /// `previewObject` ≥ 0 is the solver's previewObject(), `previewRadiosity` its
-    /// previewRadiosity() (null: none). Lets another thread update the display from a
-    /// published snapshot while the solver keeps shooting.
-    void updateSolution(const std::vector<Rgb>& irradiance,
-                        const std::vector<Rgb>* previewRadiosity = nullptr, int previewObject = -1);
+    /// The same from copies: `irradiance` = ProgressiveSolver::irradiance(), `fromEmission`
+    /// its irradianceFromEmission(), and while `previewObject` ≥ 0 is the solver's
+    /// previewObject(), `previewRadiosity` and `previewFromEmission` its previewRadiosity()
+    /// and previewRadiosityFromEmission() (null: none). Lets another
+    /// thread update the display from a published snapshot while the solver keeps shooting.
+    void updateSolution(const std::vector<Rgb>& irradiance, const std::vector<Rgb>& fromEmission,
+                        const std::vector<Rgb>* previewRadiosity = nullptr,
+                        const std::vector<Rgb>* previewFromEmission = nullptr,
+                        int previewObject = -1);
     /// H_direct(e) for every element (W/m²), as used by updateSolution() (with a preview set:
     /// in the world that includes the preview object).
     std::vector<Rgb> elementDirect() const;
@@ -203,10 +206,10 @@ public:
     /// preview world at element centroids with the point sampling of directIrradiance: for
     /// the object's elements, and the change the object makes for elements whose shaft to a
     /// light meets its bounding sphere (rays traced twice only where the object blocks). From the
-    /// next updateSolution() on, the irradiance is H_e + T_e/ρ_e, T = the solver's
-    /// previewRadiosity() (when the solver's previewObject() is `object`), so H_indirect = H_e +
-    /// T_e/ρ_e − H_direct,preview(e): the per-sample direct light shows the object's shadow, the
-    /// buffer its reflected light. Call while paused (or without workers). Returns the elements
+    /// next updateSolution() on, H_indirect(e) = H_e − H_e,emission + (T_e − T_e,emission)/ρ_e,
+    /// T = the solver's previewRadiosity() (when the solver's previewObject() is `object`): the
+    /// per-sample direct light shows the object's shadow, the buffer its reflected light; the
+    /// H_direct estimate lights the fallback. Call while paused (or without workers). Returns the elements
     /// whose H_direct changed.
     std::vector<int> setPreview(int object, const Visibility& previewOnly = {});
     /// Back to the scene without a preview object (H_direct as before setPreview). During a
@@ -349,8 +352,11 @@ private:
     void dropDirectJob();
     /// The indirect snapshot from mElementH and the stored preview buffer.
     void rebuildIndirect();
-    /// At the first solution after a drag: mDroppedH from the last preview buffer, for the
-    /// alive version of the same object.
+    /// Gives object version `to` the vertex light of version `from` in `st` when both have the
+    /// same mesh and `to` has none yet.
+    void carryVertexLight(State& st, int from, int to) const;
+    /// At the first solution after a drag: mDroppedIndirect from the last preview buffer, for
+    /// the alive version of the same object.
     void rememberDropped();
     void recordTriple(const ShadowTriple& t) const;
     void workerLoop();
@@ -364,13 +370,15 @@ private:
     std::shared_ptr<const State> mState;
     std::vector<Rgb> mElementDirect;         ///< H_direct(e); written only while paused/idle
     std::vector<Rgb> mElementH;              ///< the last solver snapshot's H_e
-    std::vector<Rgb> mLastPreviewRadiosity;  ///< its preview buffer (empty: none)
+    std::vector<Rgb> mElementHEmission;      ///< and its H_e,emission
+    /// Its preview buffer's indirect irradiance (T − T_emission)/ρ per element (empty: none).
+    std::vector<Rgb> mLastPreviewIndirect;
     /// The per-element direct light the published vertexDirect blends (rebuildIndirect).
     std::vector<Rgb> mVertexDirectOf;
-    /// An object just dropped after a drag (-1 none) and, per element of it, the irradiance
-    /// its last preview buffer estimated: shown until the solver's solution catches up.
+    /// An object just dropped after a drag (-1 none) and, per element of it, the indirect
+    /// irradiance its last preview buffer estimated: shown until the solution catches up.
     int mDroppedObject = -1;
-    std::vector<Rgb> mDroppedH;
+    std::vector<Rgb> mDroppedIndirect;
     int mLastPreviewObject = -1;
     bool mHasSolution = false;
     /// Drag (beginDrag): the origin H_direct still includes, and a subset admitting it.

@@ -27,6 +27,15 @@ double energyKey(const Rgb& unshot, double area) {
 
 bool isZero(const Rgb& c) { return c.x == 0 && c.y == 0 && c.z == 0; }
 
+/// Per channel, the fraction `part` is of `whole` (0 where whole is 0): the share of a shot
+/// radiosity that is emission, which every irradiance the shot sends carries too.
+Rgb shareOf(const Rgb& part, const Rgb& whole) {
+    Rgb s(0.0);
+    for (int c = 0; c < 3; ++c)
+        if (whole[c] != 0) s[c] = part[c] / whole[c];
+    return s;
+}
+
 /// Deterministic uniform numbers in [0, 1) for one stochastic ray: SplitMix64 (Steele,
 /// Lea, Flood 2014), a Weyl sequence through a 64-bit mixer, seeded per ray by hashPair so
 /// a ray's numbers do not depend on which thread traces it. Each 64-bit output gives three
@@ -162,7 +171,9 @@ SolverOptions interactiveSolverOptions() {
     o.raysPerEmittedPower = 1e7;
     o.redistributionRaysPerEmittedPower = 2.5e6;
     o.redistributionThreshold = 1e-4;
-    o.gatherRays = 32;
+    o.gatherRays = 256;
+    o.gatherRayBudget = 1e5;
+    o.gatherBelow = 1.0;
     return o;
 }
 
@@ -172,6 +183,7 @@ struct ChangeEntry {
     std::vector<std::uint8_t> before, after;  ///< objects present just before / after the edit
     std::vector<int> added, removed;
     std::vector<Rgb> shot;   ///< per patch: B − ΔB at the time of the edit (radiosity shot)
+    std::vector<Rgb> shotEmissionShare;  ///< per patch: the emission share of `shot`
     IndexedMaxHeap pending;  ///< per patch: estimated power to redistribute; 0 when done
     double totalPending = 0;
     Vec3 centre{0};  ///< of the changed objects' bounds, for shadow culling
@@ -210,6 +222,7 @@ struct ProgressiveSolver::Impl {
     ChangeEntry previewEntry;
     std::vector<int> previewEmitters;  ///< emitter patches of the preview not yet shot
     std::vector<Rgb> temp;             ///< per element radiosity, display only
+    std::vector<Rgb> tempEmission;     ///< the part of temp straight from emission
     IndexedMaxHeap queue;
     std::vector<Rgb> delta;  ///< per element, radiosity received in the current shot
     std::vector<std::uint8_t> patchReceived;  ///< per patch: received in the current shot
@@ -218,6 +231,7 @@ struct ProgressiveSolver::Impl {
     std::vector<double> patchCdf;    ///< power CDF over the shooters
     std::vector<int> shooters;       ///< patches shot in the batch
     std::vector<Rgb> shooterUnshot;  ///< their ΔB at the start of the batch
+    std::vector<Rgb> shooterShares;  ///< the emission share of each one's ΔB
     std::vector<Received> rayHits;   ///< per ray: receiver element and its irradiance
     std::vector<Rgb> carriedPerRay;  ///< per shooter: what one of its rays carries
     // receiveAll's scratch: entries bucketed by block of patches, in list order.
@@ -242,15 +256,17 @@ void ProgressiveSolver::initialize() {
     const auto& elements = mDisc.elements();
     // Cohen §4: ΔB_i = E_i for every patch; B_e = E_i for its elements.
     mPatchUnshot.assign(patches.size(), Rgb(0.0));
+    mPatchUnshotEmission.assign(patches.size(), Rgb(0.0));
     mElementB.assign(elements.size(), Rgb(0.0));
     mElementH.assign(elements.size(), Rgb(0.0));
+    mElementHEmission.assign(elements.size(), Rgb(0.0));
     mImpl->level.assign(elements.size(), 0);
     mImpl->queue.reset(patches.size());
     mEmittedEnergy = 0;
     for (std::size_t p = 0; p < patches.size(); ++p) {
         if (!mDisc.patchAlive(static_cast<int>(p))) continue;
         const Rgb& e = mDisc.patchMaterial(static_cast<int>(p)).emission;
-        mPatchUnshot[p] = e;
+        mPatchUnshot[p] = mPatchUnshotEmission[p] = e;
         for (int el : patches[p].elements) mElementB[el] = e;
         mEmittedEnergy += (e.x + e.y + e.z) * patches[p].area;
         mImpl->queue.update(static_cast<int>(p), energyKey(e, patches[p].area));
@@ -360,19 +376,23 @@ void ProgressiveSolver::ensureSizes() {
     const std::size_t ne = mDisc.elements().size(), np = mDisc.patches().size();
     mElementB.resize(ne, Rgb(0.0));
     mElementH.resize(ne, Rgb(0.0));
+    mElementHEmission.resize(ne, Rgb(0.0));
     mImpl->level.resize(ne, 0);
     mPatchUnshot.resize(np, Rgb(0.0));
+    mPatchUnshotEmission.resize(np, Rgb(0.0));
     while (mImpl->queue.size() < np) mImpl->queue.push(0.0);
 }
 
-void ProgressiveSolver::receive(int e, const Rgb& dH) {
+void ProgressiveSolver::receive(int e, const Rgb& dH, const Rgb& emissionShare) {
     const Element& el = mDisc.elements()[e];
-    receive(e, el.patch, el.area, dH);
+    receive(e, el.patch, el.area, dH, emissionShare);
 }
 
-void ProgressiveSolver::receive(int e, int patch, double area, const Rgb& dH) {
+void ProgressiveSolver::receive(int e, int patch, double area, const Rgb& dH,
+                                const Rgb& emissionShare) {
     const Rgb dB = mDisc.patchMaterial(patch).reflectance * dH;
     mElementH[e] += dH;
+    mElementHEmission[e] += dH * emissionShare;
     mElementB[e] += dB;
     mPatchUnshot[patch] += dB * (area / mDisc.patches()[patch].area);
 }
@@ -392,7 +412,8 @@ void ProgressiveSolver::updateTouchedPriorities() {
     mImpl->touchedList.clear();
 }
 
-void ProgressiveSolver::receiveAll(const std::vector<Received>& list) {
+void ProgressiveSolver::receiveAll(const std::vector<Received>& list,
+                                   const std::vector<Rgb>& shares) {
     // Bucket the entries by block of patches, keeping list order within each block; every
     // element and patch belongs to one block, so blocks apply in parallel while each sum
     // runs in list order, exactly as a serial loop over the list would.
@@ -426,9 +447,10 @@ void ProgressiveSolver::receiveAll(const std::vector<Received>& list) {
                 const int ahead = list[bucketed[i + kAhead]].element;
                 __builtin_prefetch(&mElementH[ahead], 1);
                 __builtin_prefetch(&mElementB[ahead], 1);
+                __builtin_prefetch(&mElementHEmission[ahead], 1);
             }
             const Received& r = list[bucketed[i]];
-            receive(r.element, r.patch, r.area, r.irradiance);
+            receive(r.element, r.patch, r.area, r.irradiance, shares[r.shooter]);
             if (!touched[r.patch]) touched[r.patch] = 1, blockTouched[b].push_back(r.patch);
         }
     });
@@ -444,7 +466,8 @@ void ProgressiveSolver::updatePriority(int patch) {
 void ProgressiveSolver::shootPatch(int shooter) {
     const auto& patches = mDisc.patches();
     const Rgb dB = mPatchUnshot[shooter];
-    mPatchUnshot[shooter] = Rgb(0.0);
+    const Rgb share = shareOf(mPatchUnshotEmission[shooter], dB);
+    mPatchUnshot[shooter] = mPatchUnshotEmission[shooter] = Rgb(0.0);
     mImpl->queue.update(shooter, 0.0);
     if (isZero(dB)) return;
     const unsigned long long raysBefore = mTracer.rayCount();
@@ -465,7 +488,7 @@ void ProgressiveSolver::shootPatch(int shooter) {
             rays += static_cast<std::uint64_t>(traced);
         });
         for (std::size_t e = 0; e < n; ++e)
-            if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e]);
+            if (!isZero(delta[e])) receive(static_cast<int>(e), delta[e], share);
         subdivideSteepElements();
         for (std::size_t e = 0; e < mDisc.elements().size(); ++e)
             if (e >= delta.size() || !isZero(delta[e])) touchElement(static_cast<int>(e));
@@ -501,7 +524,7 @@ void ProgressiveSolver::shootPatch(int shooter) {
                             traced += ff[k].rays;
                             const Rgb d = dB * ff[k].visible;
                             if (isZero(d)) continue;
-                            receive(receiving[k], d);
+                            receive(receiving[k], d, share);
                             received[p] = 1;
                         }
                     }
@@ -571,8 +594,10 @@ void ProgressiveSolver::shootStochasticBatch() {
     auto& cdf = mImpl->patchCdf;
     auto& shooters = mImpl->shooters;
     auto& unshot = mImpl->shooterUnshot;
+    auto& shares = mImpl->shooterShares;
     shooters.clear();
     unshot.clear();
+    shares.clear();
     cdf.clear();
     // All unshot power leaves at once, unless that would take more than maxBatchRays rays:
     // then the strongest patches go first (progressive refinement's order, batch by batch)
@@ -602,8 +627,9 @@ void ProgressiveSolver::shootStochasticBatch() {
         if (!(power > 0) || power < floorPower) continue;
         shooters.push_back(static_cast<int>(p));
         unshot.push_back(mPatchUnshot[p]);
+        shares.push_back(shareOf(mPatchUnshotEmission[p], mPatchUnshot[p]));
         cdf.push_back(total += power);
-        mPatchUnshot[p] = Rgb(0.0);
+        mPatchUnshot[p] = mPatchUnshotEmission[p] = Rgb(0.0);
         mImpl->queue.update(static_cast<int>(p), 0.0);
     }
     if (shooters.empty()) return;
@@ -664,11 +690,12 @@ void ProgressiveSolver::shootStochasticBatch() {
                 if (hit.element < 0 || hit.backFace) continue;  // escaped, or absorbed by a back
                 if (hit.patch == shooters[k]) continue;
                 hits[g + static_cast<std::size_t>(i)] = {hit.element, hit.patch, hit.area,
-                                                         carriedPerRay[k] / hit.area};
+                                                         carriedPerRay[k] / hit.area,
+                                                         static_cast<int>(k)};
             }
         }
     });
-    receiveAll(hits);
+    receiveAll(hits, shares);
     ++mStats.shots;
     ++mStats.stochasticBatches;
     mStats.stochasticRays += rays;
@@ -704,6 +731,7 @@ void ProgressiveSolver::subdivideSteepElements() {
         const int patch = mDisc.elements()[e].patch;
         const int level = mImpl->level[e] + 1;
         const Rgb parentB = mElementB[e];
+        const Rgb parentShare = shareOf(mElementHEmission[e], mElementH[e]);
         const double parentArea = mDisc.elements()[e].area;
         std::vector<int> children = mDisc.subdivideElement(e);
         if (children.size() < 2) continue;
@@ -715,6 +743,7 @@ void ProgressiveSolver::subdivideSteepElements() {
         Rgb change(0.0);
         for (int c : children) {
             mElementH[c] = gatherShotIrradiance(c);
+            mElementHEmission[c] = mElementH[c] * parentShare;
             mElementB[c] = mDisc.patchMaterial(patch).emission +
                            mDisc.patchMaterial(patch).reflectance * mElementH[c];
             mImpl->delta[c] = mElementB[c] - parentB;
@@ -826,6 +855,7 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
     // would send toward the changed objects: George et al.'s point-sample estimate, a
     // differential area at each sample point facing the patch, F ≈ A cosθ / (πr² + A).
     entry.shot.assign(patches.size(), Rgb(0.0));
+    entry.shotEmissionShare.assign(patches.size(), Rgb(0.0));
     entry.pending.reset(patches.size());
     for (std::size_t j = 0; j < patches.size(); ++j) {
         const Patch& P = patches[j];
@@ -835,6 +865,9 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
         Rgb shot = patchRadiosity(static_cast<int>(j)) - mPatchUnshot[j];
         if (isZero(shot)) continue;
         entry.shot[j] = shot;
+        entry.shotEmissionShare[j] =
+            shareOf(mDisc.patchMaterial(static_cast<int>(j)).emission - mPatchUnshotEmission[j],
+                    shot);
         double power = energyKey(shot, P.area);
         double importance;
         if (changed[P.object]) {
@@ -878,8 +911,9 @@ void ProgressiveSolver::applyChange(const SceneChange& change, bool redistribute
     for (int o : change.removed)
         for (std::size_t j = 0; j < patches.size(); ++j) {
             if (patches[j].object != o) continue;
-            for (int e : patches[j].elements) mElementB[e] = mElementH[e] = Rgb(0.0);
-            mPatchUnshot[j] = Rgb(0.0);
+            for (int e : patches[j].elements)
+                mElementB[e] = mElementH[e] = mElementHEmission[e] = Rgb(0.0);
+            mPatchUnshot[j] = mPatchUnshotEmission[j] = Rgb(0.0);
             updatePriority(static_cast<int>(j));
         }
     // Added objects start with their emission unshot (Cohen's initialization).
@@ -887,8 +921,9 @@ void ProgressiveSolver::applyChange(const SceneChange& change, bool redistribute
         for (std::size_t j = 0; j < patches.size(); ++j) {
             if (patches[j].object != o) continue;
             const Rgb& e = mDisc.patchMaterial(static_cast<int>(j)).emission;
-            for (int el : patches[j].elements) mElementB[el] = e, mElementH[el] = Rgb(0.0);
-            mPatchUnshot[j] = e;
+            for (int el : patches[j].elements)
+                mElementB[el] = e, mElementH[el] = mElementHEmission[el] = Rgb(0.0);
+            mPatchUnshot[j] = mPatchUnshotEmission[j] = e;
             updatePriority(static_cast<int>(j));
         }
     recomputeEmitted();
@@ -929,6 +964,7 @@ void ProgressiveSolver::changeMaterial(int object, const Material& material) {
             sum += dB * mDisc.elements()[e].area;
         }
         mPatchUnshot[j] += sum / P.area;
+        mPatchUnshotEmission[j] += dE;
         updatePriority(j);
     }
     recomputeEmitted();
@@ -1051,7 +1087,11 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
     Visibility after = c.afterWorld();
     if (afterIsCurrentScene(c, preview)) after = Visibility{};
     // Stratified cosine directions: nx × ny strata over (φ, sin²θ).
-    const int n = std::max(1, mOptions.gatherRays);
+    int n = std::max(1, mOptions.gatherRays);
+    if (mOptions.gatherRayBudget > 0 && !receivers.empty())
+        n = std::clamp(static_cast<int>(mOptions.gatherRayBudget /
+                                        static_cast<double>(receivers.size())),
+                       std::min(n, std::max(1, mOptions.minGatherRays)), n);
     int nx = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n))));
     const int ny = (n + nx - 1) / nx;
     const double eps = mTracer.epsilon();
@@ -1094,6 +1134,7 @@ bool ProgressiveSolver::shootRedistribution() {
     }
     const unsigned long long raysBefore = mTracer.rayCount();
     auto& delta = mImpl->delta;
+    Rgb share(0.0);  // gathered shooters are not emitters: no emission share
     if (gather) {
         // The added objects' elements gather what the weak shooters would send them: far
         // less noise than the same rays shot, and the edit's most changed elements.
@@ -1103,10 +1144,11 @@ bool ProgressiveSolver::shootRedistribution() {
         c.totalPending -= c.pending.key(j);
         c.pending.update(j, 0.0);
         redistributionDelta(c, j, false, delta);
+        share = c.shotEmissionShare[j];
     }
     for (std::size_t e = 0; e < delta.size(); ++e)
         if (!isZero(delta[e])) {
-            receive(static_cast<int>(e), delta[e]);
+            receive(static_cast<int>(e), delta[e], share);
             touchElement(static_cast<int>(e));
         }
     updateTouchedPriorities();
@@ -1248,17 +1290,17 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             };
             if (eb >= 0 && c.before[mDisc.elements()[eb].object] && receives(eb)) {
                 const Element& el = mDisc.elements()[eb];
-                out[2 * r] = {eb, el.patch, el.area, -carried / el.area};
+                out[2 * r] = {eb, el.patch, el.area, -carried / el.area, j};
             }
             if (ea >= 0 && receives(ea) &&
                 !(c.isGathered(j) && !c.before[mDisc.elements()[ea].object])) {
                 const Element& el = mDisc.elements()[ea];
-                out[2 * r + 1] = {ea, el.patch, el.area, carried / el.area};
+                out[2 * r + 1] = {ea, el.patch, el.area, carried / el.area, j};
             }
         }
     });
     // Apply in ray order: independent of the thread count.
-    receiveAll(out);
+    receiveAll(out, c.shotEmissionShare);
     if (c.pending.top() < 0 || c.pending.key(c.pending.top()) <= 0)
         mImpl->changes.erase(mImpl->changes.begin() + k);
     ++mStats.shots;
@@ -1283,9 +1325,11 @@ void ProgressiveSolver::setPreview(int object) {
             mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
             mImpl->previewEmitters.push_back(static_cast<int>(j));
     mImpl->temp.assign(mDisc.elements().size(), Rgb(0.0));
+    mImpl->tempEmission.assign(mDisc.elements().size(), Rgb(0.0));
     // The object shows its own emission at once.
     for (int j : mImpl->previewEmitters)
-        for (int e : mDisc.patches()[j].elements) mImpl->temp[e] = mDisc.patchMaterial(j).emission;
+        for (int e : mDisc.patches()[j].elements)
+            mImpl->temp[e] = mImpl->tempEmission[e] = mDisc.patchMaterial(j).emission;
 }
 
 int ProgressiveSolver::stepPreview(int maxShots) {
@@ -1296,6 +1340,7 @@ int ProgressiveSolver::stepPreview(int maxShots) {
     auto& delta = mImpl->delta;
     int done = 0;
     for (; done < maxShots; ++done) {
+        Rgb share(0.0);  // of the shot's radiosity that is emission
         if (!mImpl->previewEmitters.empty()) {
             // The dragged object's own light first (direct only): E·F to every receiver.
             int j = mImpl->previewEmitters.back();
@@ -1308,6 +1353,7 @@ int ProgressiveSolver::stepPreview(int maxShots) {
                 for (std::size_t el = range.begin(); el != range.end(); ++el)
                     delta[el] = irradianceFrom(j, static_cast<int>(el), e, after);
             });
+            share = Rgb(1.0);
         } else {
             int j = c.pending.top();
             if (j < 0 || c.pending.key(j) <= 0) break;
@@ -1318,12 +1364,16 @@ int ProgressiveSolver::stepPreview(int maxShots) {
             } else {
                 c.pending.update(j, 0.0);
                 redistributionDelta(c, j, true, delta);
+                share = c.shotEmissionShare[j];
             }
         }
+        mImpl->tempEmission.resize(mImpl->temp.size(), Rgb(0.0));
         for (std::size_t el = 0; el < delta.size(); ++el)
-            if (!isZero(delta[el]))
-                mImpl->temp[el] +=
-                    mDisc.elementMaterial(static_cast<int>(el)).reflectance * delta[el];
+            if (!isZero(delta[el])) {
+                const Rgb dB = mDisc.elementMaterial(static_cast<int>(el)).reflectance * delta[el];
+                mImpl->temp[el] += dB;
+                mImpl->tempEmission[el] += dB * share;
+            }
     }
     mStats.shots += static_cast<std::uint64_t>(done);
     mStats.rays += mTracer.rayCount() - raysBefore;
@@ -1337,6 +1387,7 @@ void ProgressiveSolver::clearPreview() {
     mImpl->previewEmitters.clear();
     mImpl->previewEntry = ChangeEntry{};
     std::fill(mImpl->temp.begin(), mImpl->temp.end(), Rgb(0.0));
+    std::fill(mImpl->tempEmission.begin(), mImpl->tempEmission.end(), Rgb(0.0));
 }
 
 int ProgressiveSolver::previewObject() const { return mImpl->previewObject; }
@@ -1344,6 +1395,11 @@ int ProgressiveSolver::previewObject() const { return mImpl->previewObject; }
 const std::vector<Rgb>& ProgressiveSolver::previewRadiosity() const {
     mImpl->temp.resize(mDisc.elements().size(), Rgb(0.0));
     return mImpl->temp;
+}
+
+const std::vector<Rgb>& ProgressiveSolver::previewRadiosityFromEmission() const {
+    mImpl->tempEmission.resize(mDisc.elements().size(), Rgb(0.0));
+    return mImpl->tempEmission;
 }
 
 std::vector<Rgb> ProgressiveSolver::displayRadiosity() const {

@@ -58,6 +58,11 @@ struct SolverOptions {
     /// cosine rays per element from its centroid, each returning the shot radiosity of the
     /// pending patch it hits (Σ_j (B_j − ΔB_j) F_ij(t), F(t−1) = 0). 0: shots only.
     int gatherRays = 0;
+    /// When > 0, a gather casts about this many rays in all: gatherRays per element, fewer
+    /// (down to minGatherRays) when the added objects have many elements, so gathering to a
+    /// large addition costs no more than a few shots.
+    double gatherRayBudget = 0;
+    int minGatherRays = 32;
     /// The gather starts once the edit's strongest pending shooter carries less than this
     /// fraction of the emitted power; 0 uses stochasticBelow.
     double gatherBelow = 0;
@@ -154,9 +159,18 @@ public:
     int previewObject() const;
     /// The temporary buffer: per element radiosity added for display only.
     const std::vector<Rgb>& previewRadiosity() const;
+    /// The part of previewRadiosity() straight from emission (irradianceFromEmission's
+    /// bookkeeping for the buffer; the previewed object's own emission included).
+    const std::vector<Rgb>& previewRadiosityFromEmission() const;
 
     /// Element irradiance H (W/m²) received so far: B = E + ρ·H.
     const std::vector<Rgb>& irradiance() const { return mElementH; }
+    /// The part of irradiance() that came straight from emission: what the emitters' E sent
+    /// (shots, batches and redistribution split each shooter's radiosity into its emitted
+    /// and reflected shares). H − this is the light reflected at least once, whatever order
+    /// the shooters went in: a display that computes direct light itself takes its indirect
+    /// part from the difference without waiting for the emitters' redistribution.
+    const std::vector<Rgb>& irradianceFromEmission() const { return mElementHEmission; }
 
     /// Irradiance H (W/m²) arriving at point x with unit normal n, gathered from every
     /// patch's current radiosity with `rays` visibility rays per patch.
@@ -185,10 +199,11 @@ private:
     /// samples that meet an object `changed` admits (formFactorChange).
     Rgb irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,
                          const Visibility& after, const Visibility& changed) const;
-    /// Adds irradiance dH to element e (B += ρ dH) and its share to its patch's unshot.
-    void receive(int e, const Rgb& dH);
+    /// Adds irradiance dH to element e (B += ρ dH) and its share to its patch's unshot;
+    /// `emissionShare` (per channel) of dH came straight from emission.
+    void receive(int e, const Rgb& dH, const Rgb& emissionShare = Rgb(0.0));
     /// receive() for an element whose patch and area the caller has at hand.
-    void receive(int e, int patch, double area, const Rgb& dH);
+    void receive(int e, int patch, double area, const Rgb& dH, const Rgb& emissionShare);
     void updatePriority(int patch);
     /// Marks the patch of element e for one heap update in updateTouchedPriorities().
     void touchElement(int e);
@@ -200,11 +215,13 @@ private:
         int patch = -1;   ///< the element's patch
         double area = 0;  ///< the element's area (from the hit's record: no element lookup)
         Rgb irradiance{0.0};
+        int shooter = 0;  ///< index of its shooter's emission share in receiveAll's `shares`
     };
     /// receive() and touchElement() for every entry in list order, then the heap updates;
     /// parallel over blocks of patches with every sum in list order (bit-identical to the
-    /// serial loop, independent of the thread count).
-    void receiveAll(const std::vector<Received>& list);
+    /// serial loop, independent of the thread count). `shares[r.shooter]` is the emission
+    /// share of entry r's irradiance.
+    void receiveAll(const std::vector<Received>& list, const std::vector<Rgb>& shares);
     /// Whether the next propagation shot (strongest shooter carrying `propagation` W) is a
     /// stochastic batch rather than a deterministic shot.
     bool shootsStochastically(double propagation) const;
@@ -244,7 +261,9 @@ private:
     SolverOptions mOptions;
     std::vector<Rgb> mElementB;
     std::vector<Rgb> mElementH;
+    std::vector<Rgb> mElementHEmission;  ///< the part of mElementH straight from emission
     std::vector<Rgb> mPatchUnshot;
+    std::vector<Rgb> mPatchUnshotEmission;  ///< the part of mPatchUnshot that is emission
     double mEmittedEnergy = 0;
     SolverStats mStats;
     std::unique_ptr<Impl> mImpl;

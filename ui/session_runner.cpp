@@ -623,7 +623,8 @@ void SessionRunner::catchUpDisplay(DisplaySlot& slot, const Light& light) {
             slot.behind = false;
         }
         if (light.irradiance && slot.solution != light.serial) {
-            d.updateSolution(*light.irradiance, light.previewBuffer.get(), light.previewVersion);
+            d.updateSolution(*light.irradiance, *light.fromEmission, light.previewBuffer.get(),
+                             light.previewFromEmission.get(), light.previewVersion);
             slot.solution = light.serial;
         }
     } catch (const std::exception& e) {
@@ -935,9 +936,14 @@ void SessionRunner::publishLight() {
     light.radiosity = std::make_shared<const std::vector<Rgb>>(mSession->displayRadiosity());
     light.previewVersion = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
     light.irradiance = std::make_shared<const std::vector<Rgb>>(mSession->solver().irradiance());
-    if (light.previewVersion >= 0)
+    light.fromEmission =
+        std::make_shared<const std::vector<Rgb>>(mSession->solver().irradianceFromEmission());
+    if (light.previewVersion >= 0) {
         light.previewBuffer =
             std::make_shared<const std::vector<Rgb>>(mSession->solver().previewRadiosity());
+        light.previewFromEmission = std::make_shared<const std::vector<Rgb>>(
+            mSession->solver().previewRadiosityFromEmission());
+    }
     light.serial = ++mLightSerial;
     {
         // Out-of-date overlay: per element the |unshot radiosity| of its patch.

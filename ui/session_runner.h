@@ -208,9 +208,12 @@ private:
         std::shared_ptr<const std::vector<Rgb>> pending;
         double pendingScale = 0;  ///< radiosity luminance that tints fully
         int previewVersion = -1;
-        /// The display modes' solution: ProgressiveSolver::irradiance() and, while dragging,
-        /// previewRadiosity() (copies: the render thread updates its displays from them).
-        std::shared_ptr<const std::vector<Rgb>> irradiance, previewBuffer;
+        /// The display modes' solution: ProgressiveSolver::irradiance(),
+        /// irradianceFromEmission() and, while dragging, previewRadiosity() and
+        /// previewRadiosityFromEmission() (copies: the render thread updates its displays
+        /// from them).
+        std::shared_ptr<const std::vector<Rgb>> irradiance, fromEmission, previewBuffer,
+            previewFromEmission;
         std::uint64_t serial = 0;
     };
     void runSolver();

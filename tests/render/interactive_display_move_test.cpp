@@ -193,6 +193,39 @@ TEST(InteractiveDisplayMove, PointsShadedBeforeTheirElementWasRelitArriveStale) 
     EXPECT_GT(stale, 0u) << "the solution moved on: some elements were relit";
 }
 
+TEST(InteractiveDisplayMove, TheFallbackOfANewDragPositionIsNeverBlack) {
+    // A drag position the solution has not been snapshotted for yet: the pixels the object
+    // newly covers have no point and take the fallback, which shows the object lit as its
+    // previous position was (the same mesh), not black; the same for a shader whose state has
+    // never blended that object (the sampled direct light at the hit).
+    Scene3 s = selectSlab();
+    const Discretization& disc = s.session->discretization();
+    RayTracer::SubsetHandle origin(s.session->tracer(), {s.origin});
+    PointShaderOptions so;
+    so.threads = 0;
+    PointShader shader(disc, s.session->tracer(), SolverOptions{}, so);
+    shader.updateSolution(s.session->solver());
+    shader.beginDrag(s.origin, origin.visibility());
+    shader.setPreview(s.origin, origin.visibility());
+    const int preview = moveSlab(s, test::kLitRoomSlabDragTarget);
+    RayTracer::SubsetHandle subset(s.session->tracer(), {preview});
+    shader.setPreview(preview, subset.visibility());  // no updateSolution after it
+
+    const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
+    int onSlab = 0;
+    for (int y = 0; y < kSize; ++y)
+        for (int x = 0; x < kSize; ++x) {
+            const Vec3 dir = rays.rayDirection(x + 0.5, y + 0.5);
+            const ShadedPoint p = shader.shade({{x + 0.5, y + 0.5}, rays.origin(), dir, 1});
+            if (p.object != preview || luminance(p.radiance) <= 0) continue;
+            ++onSlab;
+            const Rgb fallback = shader.shadeFallback(rays.origin(), dir);
+            EXPECT_GT(luminance(fallback), 0.2 * luminance(p.radiance))
+                << "pixel " << x << ", " << y << ": shaded " << luminance(p.radiance);
+        }
+    EXPECT_GT(onSlab, 20) << "the camera sees the slab at its new place";
+}
+
 TEST(InteractiveDisplayMove, TheFallbackIsTheSolutionBlendedPerVertex) {
     // On the converged room without a preview, the fallback of a ray equals (E + ρ·H)/π with
     // H the element irradiance blended per vertex (the Gouraud view's interpolation), which is
