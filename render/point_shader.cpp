@@ -1243,8 +1243,18 @@ Rgb PointShader::shadeFallback(const Vec3& origin, const Vec3& direction) const 
         hit.weights.size() == el.vertices.size()) {
         const auto& vd = st->vertexDirect[el.object];
         const auto& vi = st->vertexIndirect[el.object];
-        for (std::size_t i = 0; i < hit.weights.size(); ++i)
-            h += hit.weights[i] * (vd[el.vertices[i]] + vi[el.vertices[i]]);
+        Rgb direct(0.0);
+        for (std::size_t i = 0; i < hit.weights.size(); ++i) {
+            direct += hit.weights[i] * vd[el.vertices[i]];
+            h += hit.weights[i] * vi[el.vertices[i]];
+        }
+        // No direct light blended here: a surface an edit has just uncovered (the top of what
+        // a lifted object stood on) whose element estimate has not been redone yet; its light
+        // sampled at the hit as a point's instead (in a shadow, rays that all come back blocked).
+        if (luminance(direct) <= 0 && !hit.backFace)
+            direct = directWith(*st, hit.position, el.normal, el.object,
+                                static_cast<std::uint64_t>(hit.element));
+        h += direct;
     } else if (!hit.backFace) {
         // A version no snapshot has blended yet: its direct light at the hit, sampled as a
         // point's, and its element's indirect light when known. Dimmer than the truth at

@@ -257,8 +257,10 @@ public:
     ShadedPoint shade(const ShadeRequest& request) const;
     /// The display's cheap fallback for a pixel no sample reaches: the nearest hit of the ray
     /// in the displayed world (the scene and the preview object) shaded with the radiosity
-    /// solution's irradiance blended per vertex, as the Gouraud view shows it (no shadow rays:
-    /// one ray). Radiance, W/m²/sr; 0 for a miss, a back face, or before updateSolution().
+    /// solution's irradiance blended per vertex, as the Gouraud view shows it (one ray). Where
+    /// no direct light is blended (an object version no snapshot has seen yet, a surface an
+    /// edit has just uncovered) the direct light is sampled at the hit as a point's, so an
+    /// uncovered surface is not black. Radiance, W/m²/sr; 0 for a miss or a back face.
     Rgb shadeFallback(const Vec3& origin, const Vec3& direction) const;
     /// Direct irradiance (W/m²) at x with unit normal n on object `receiver` from all lights,
     /// estimated with stratified shadow rays whose pattern depends on `key`:
