@@ -786,6 +786,14 @@ std::vector<int> PointShader::endDrag(int added) {
     next->previewWorld.clear();
     next->lights = aliveLights();
     publish(std::move(next));
+    // The solution snapshot is still the drag's, in which the object has no light of its own
+    // (the preview buffer had it): its last buffer's estimate stands in from now on, not only
+    // from the next snapshot, so no point is shaded without its indirect light meanwhile.
+    if (!mLastPreviewIndirect.empty()) {
+        rememberDropped();
+        mLastPreviewIndirect.clear();
+        mLastPreviewObject = -1;
+    }
     if (mHasSolution) rebuildIndirect();
     return changed;
 }

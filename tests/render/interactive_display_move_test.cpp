@@ -226,6 +226,46 @@ TEST(InteractiveDisplayMove, TheFallbackOfANewDragPositionIsNeverBlack) {
     EXPECT_GT(onSlab, 20) << "the camera sees the slab at its new place";
 }
 
+TEST(InteractiveDisplayMove, ADroppedObjectKeepsItsReflectedLightUntilTheNextSnapshot) {
+    // The editor ends a drag (endDrag) before the solver's next snapshot reaches the display:
+    // the snapshot it has is the drag's, in which the dropped version has no light of its own
+    // (the preview buffer had it). Its last buffer's reflected light stands in at once, close
+    // to what the converged solution gives it, instead of none.
+    Scene3 s = selectSlab();
+    const Discretization& disc = s.session->discretization();
+    RayTracer::SubsetHandle origin(s.session->tracer(), {s.origin});
+    InteractiveDisplay display(disc, s.session->tracer(), SolverOptions{}, displayOptions());
+    display.updateSolution(s.session->solver());
+    display.beginDrag(s.origin, origin.visibility());
+    display.setPreview(s.origin, origin.visibility(), &s.session->solver());
+    const int preview = moveSlab(s, test::kLitRoomSlabDragTarget);
+    RayTracer::SubsetHandle subset(s.session->tracer(), {preview});
+    display.setPreview(preview, subset.visibility(), &s.session->solver());
+    s.session->solve(200);  // the preview buffer complete
+    display.updateSolution(s.session->solver());
+    const EditResult r = s.session->apply(UnselectCommand{});
+    ASSERT_EQ(r.added.size(), 1u);
+    const int dropped = r.added[0];
+    display.endDrag(dropped);  // no snapshot yet
+
+    auto reflected = [&](const std::vector<Rgb>& indirect) {
+        double sum = 0;
+        const auto [first, count] = disc.elementRange(dropped);
+        for (int k = 0; k < count; ++k)
+            sum += luminance(indirect[first + k]) * disc.elements()[first + k].area;
+        return sum;
+    };
+    const double shown = reflected(display.shader().elementIndirect());
+    s.session->converge(1e-4);
+    PointShaderOptions so;
+    so.threads = 0;
+    PointShader settled(disc, s.session->tracer(), SolverOptions{}, so);
+    settled.updateSolution(s.session->solver());
+    const double expected = reflected(settled.elementIndirect());
+    ASSERT_GT(expected, 0.0);
+    EXPECT_NEAR(shown, expected, 0.15 * expected);
+}
+
 TEST(InteractiveDisplayMove, TheFallbackIsTheSolutionBlendedPerVertex) {
     // On the converged room without a preview, the fallback of a ray equals (E + ρ·H)/π with
     // H the element irradiance blended per vertex (the Gouraud view's interpolation), which is
