@@ -91,7 +91,8 @@ int runSolve(const SolveArgs& a) {
     auto lit = openAndSolve(a);
     if (!a.save.empty()) saveSolution(*lit, a.save);
     if (!a.exportPath.empty())
-        exportLitScene(lit->discretization(), lit->solver().radiosity(), a.exportPath);
+        exportLitScene(lit->discretization(), lit->solver().radiosity(), a.exportPath,
+                       &lit->scene());
     nlohmann::json report = lit->reportJson();
     writeReport(a.report, report);
     std::fprintf(

@@ -551,7 +551,7 @@ void EditSession::exportLitScene(const std::string& path) const {
                                      "': its elements were subdivided");
         for (std::size_t k = 0; k < to.size(); ++k) values[to[k]] = b[from[k]];
     }
-    penumbra::exportLitScene(compact, values, path);
+    penumbra::exportLitScene(compact, values, path, &scene());
 }
 
 nlohmann::json EditSession::reportJson() const {

@@ -13,9 +13,11 @@
 #include <fstream>
 #include <glm/gtc/constants.hpp>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <system_error>
+#include <tuple>
 
 #include "solver/discretization.h"
 
@@ -136,20 +138,26 @@ void writeFileAtomically(const std::string& path, const std::string& contents) {
 
 struct LitObject {
     std::string id;
+    std::string materialName;  ///< the scene material's name ("" when unknown)
     bool twoSided = false;
     std::vector<Vec3> positions;  ///< world space, per mesh vertex
     std::vector<Vec3> normals;    ///< unit, area-weighted over the elements around a vertex
     std::vector<Rgb> radiosity;   ///< per mesh vertex, W/m²
     /// Element polygons of this object (indices into positions), in element order.
     std::vector<std::vector<int>> polygons;
+    std::vector<int> polygonMaterial;  ///< per polygon, index into Discretization::materials()
 };
 
 std::vector<LitObject> collectLitObjects(const Discretization& disc,
-                                         const std::vector<Rgb>& elementRadiosity) {
+                                         const std::vector<Rgb>& elementRadiosity,
+                                         const Scene* scene) {
     const auto& surfaces = disc.objects();
     std::vector<LitObject> lit(surfaces.size());
     for (size_t o = 0; o < surfaces.size(); ++o) {
         lit[o].id = surfaces[o].id;
+        if (scene)
+            for (const SceneObject& so : scene->objects)
+                if (so.id == surfaces[o].id) lit[o].materialName = so.material;
         // A two-sided object's back is explicit geometry (the twin sheet, its own light), so
         // the material stays single-sided; only an object without twins relies on it.
         lit[o].twoSided = surfaces[o].twoSided && surfaces[o].faceTwin.empty();
@@ -165,6 +173,7 @@ std::vector<LitObject> collectLitObjects(const Discretization& disc,
         const Element& element = elements[e];
         LitObject& object = lit[element.object];
         object.polygons.push_back(element.vertices);
+        object.polygonMaterial.push_back(disc.patches()[element.patch].material);
         Vec3 newell(0.0);
         const size_t n = element.vertices.size();
         for (size_t i = 0; i < n; ++i) {
@@ -277,16 +286,49 @@ constexpr int kUnsignedInt = 5125;
 constexpr int kArrayBuffer = 34962;
 constexpr int kElementArrayBuffer = 34963;
 
+/// The exposure that maps the 99th percentile of lit (non-emitting) surfaces' vertex radiance
+/// luminance to 1: COLOR_0 = min(1, exposure × radiance), display-referred, linear.
+double gltfExposure(const std::vector<LitObject>& lit, const std::vector<Material>& materials) {
+    std::vector<double> values;
+    const double invPi = glm::one_over_pi<double>();
+    for (const LitObject& object : lit) {
+        std::vector<std::uint8_t> emits(object.positions.size(), 0);
+        for (size_t k = 0; k < object.polygons.size(); ++k)
+            if (materials[object.polygonMaterial[k]].isEmitter())
+                for (int v : object.polygons[k]) emits[v] = 1;
+        for (size_t v = 0; v < object.radiosity.size(); ++v)
+            if (!emits[v] && !object.polygons.empty()) {
+                const double y = luminance(object.radiosity[v] * invPi);
+                if (y > 0) values.push_back(y);
+            }
+    }
+    if (values.empty()) return 1.0;
+    const size_t k = std::min(values.size() - 1, values.size() * 99 / 100);
+    std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+    return values[k] > 0 ? 1.0 / values[k] : 1.0;
+}
+
 /// Builds the glTF document and its binary buffer; the buffer's `uri` is left to the caller.
-nlohmann::json buildGltf(const std::vector<LitObject>& lit, std::string& buffer) {
+nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Material>& materials,
+                         std::string& buffer) {
     using nlohmann::json;
     json bufferViews = json::array();
     json accessors = json::array();
     json meshes = json::array();
     json nodes = json::array();
     json sceneNodes = json::array();
+    json gltfMaterials = json::array();
+    bool emissiveStrength = false;
 
-    // Append a float VEC3 array as one buffer view and accessor; returns the accessor.
+    // Appends one array of float VEC3 (or uint32 SCALAR indices) as a buffer view and an
+    // accessor; returns the accessor.
+    auto addView = [&](size_t offset, int target) {
+        bufferViews.push_back({{"buffer", 0},
+                               {"byteOffset", offset},
+                               {"byteLength", buffer.size() - offset},
+                               {"target", target}});
+        return bufferViews.size() - 1;
+    };
     auto addVec3 = [&](const std::vector<Vec3>& values, bool withBounds) {
         const size_t offset = buffer.size();
         Vec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
@@ -296,11 +338,7 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, std::string& buffer)
             lo = glm::min(lo, Vec3(f));
             hi = glm::max(hi, Vec3(f));
         }
-        bufferViews.push_back({{"buffer", 0},
-                               {"byteOffset", offset},
-                               {"byteLength", buffer.size() - offset},
-                               {"target", kArrayBuffer}});
-        json accessor = {{"bufferView", bufferViews.size() - 1},
+        json accessor = {{"bufferView", addView(offset, kArrayBuffer)},
                          {"componentType", kFloat},
                          {"count", values.size()},
                          {"type", "VEC3"}};
@@ -313,97 +351,147 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, std::string& buffer)
         accessors.push_back(accessor);
         return accessors.size() - 1;
     };
-
-    const double invPi = glm::one_over_pi<double>();
-    for (const LitObject& object : lit) {
-        // Triangulate this object's elements.
-        std::vector<std::uint32_t> indices;
-        for (const auto& polygon : object.polygons) {
-            appendFanTriangles(polygon, object.positions, indices);
-        }
-        if (indices.empty() || object.positions.empty()) continue;  // nothing to draw
-
-        std::vector<Vec3> radiance(object.radiosity.size());
-        for (size_t v = 0; v < radiance.size(); ++v) radiance[v] = object.radiosity[v] * invPi;
-
-        const size_t position = addVec3(object.positions, true);
-        const size_t normal = addVec3(object.normals, false);
-        const size_t color = addVec3(radiance, false);
-
+    auto addIndices = [&](const std::vector<std::uint32_t>& indices) {
         const size_t offset = buffer.size();
         for (std::uint32_t i : indices) appendLittleEndian(buffer, i);
-        bufferViews.push_back({{"buffer", 0},
-                               {"byteOffset", offset},
-                               {"byteLength", buffer.size() - offset},
-                               {"target", kElementArrayBuffer}});
-        accessors.push_back({{"bufferView", bufferViews.size() - 1},
+        accessors.push_back({{"bufferView", addView(offset, kElementArrayBuffer)},
                              {"componentType", kUnsignedInt},
                              {"count", indices.size()},
                              {"type", "SCALAR"}});
-        const size_t indexAccessor = accessors.size() - 1;
+        return accessors.size() - 1;
+    };
+    auto rgbJson = [](const Rgb& c) { return json::array({c.x, c.y, c.z}); };
 
-        meshes.push_back(
-            {{"name", object.id},
-             {"primitives",
-              json::array({{{"attributes",
-                             {{"POSITION", position}, {"NORMAL", normal}, {"COLOR_0", color}}},
-                            {"indices", indexAccessor},
-                            {"material", object.twoSided ? 1 : 0},
-                            {"mode", 4}}})}});
-        nodes.push_back({{"name", object.id}, {"mesh", meshes.size() - 1}});
+    const double invPi = glm::one_over_pi<double>();
+    const double exposure = gltfExposure(lit, materials);
+
+    // Surfaces that only reflect: unlit white, the displayed colour is COLOR_0. Lamps: their
+    // emission as glTF's emissive colour on the same exposure (emissiveFactor scaled to a
+    // largest channel of 1, KHR_materials_emissive_strength for the rest), over a black base.
+    std::map<std::pair<bool, std::string>, size_t> reflectorMaterial;
+    std::map<std::tuple<int, bool, std::string>, size_t> lampMaterial;
+    auto reflector = [&](bool doubleSided, const std::string& name) {
+        const auto key = std::make_pair(doubleSided, name);
+        if (auto it = reflectorMaterial.find(key); it != reflectorMaterial.end()) return it->second;
+        gltfMaterials.push_back(
+            {{"name", name.empty() ? std::string("penumbra_radiance") : name},
+             {"pbrMetallicRoughness",
+              {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
+               {"metallicFactor", 0.0},
+               {"roughnessFactor", 1.0}}},
+             {"doubleSided", doubleSided},
+             {"extensions", {{"KHR_materials_unlit", json::object()}}}});
+        return reflectorMaterial[key] = gltfMaterials.size() - 1;
+    };
+    auto lamp = [&](int material, bool doubleSided, const std::string& name) {
+        const auto key = std::make_tuple(material, doubleSided, name);
+        if (auto it = lampMaterial.find(key); it != lampMaterial.end()) return it->second;
+        const Material& m = materials[material];
+        const Rgb shown = m.emission * invPi * exposure;
+        const double strength = std::max({shown.x, shown.y, shown.z});
+        json g = {{"name", name.empty() ? std::string("penumbra_lamp") : name},
+                  {"pbrMetallicRoughness",
+                   {{"baseColorFactor", {0.0, 0.0, 0.0, 1.0}},
+                    {"metallicFactor", 0.0},
+                    {"roughnessFactor", 1.0}}},
+                  {"emissiveFactor", rgbJson(strength > 0 ? shown / std::max(strength, 1.0)
+                                                          : Rgb(0.0))},
+                  {"doubleSided", doubleSided},
+                  {"extras", {{"emission", rgbJson(m.emission)}}}};
+        if (strength > 1) {
+            g["extensions"] = {{"KHR_materials_emissive_strength", {{"emissiveStrength", strength}}}};
+            emissiveStrength = true;
+        }
+        gltfMaterials.push_back(g);
+        return lampMaterial[key] = gltfMaterials.size() - 1;
+    };
+
+    for (const LitObject& object : lit) {
+        if (object.positions.empty()) continue;
+        std::vector<Vec3> radiance(object.radiosity.size()), shown(object.radiosity.size());
+        for (size_t v = 0; v < radiance.size(); ++v) {
+            radiance[v] = object.radiosity[v] * invPi;
+            shown[v] = glm::clamp(radiance[v] * exposure, Rgb(0.0), Rgb(1.0));
+        }
+        // One primitive per material of the object (meshes may carry several).
+        std::map<int, std::vector<std::uint32_t>> byMaterial;
+        for (size_t k = 0; k < object.polygons.size(); ++k)
+            appendFanTriangles(object.polygons[k], object.positions,
+                               byMaterial[object.polygonMaterial[k]]);
+        json primitives = json::array();
+        size_t position = 0, normal = 0, color = 0, exact = 0;
+        bool attributes = false;
+        for (const auto& [material, indices] : byMaterial) {
+            if (indices.empty()) continue;
+            if (!attributes) {
+                position = addVec3(object.positions, true);
+                normal = addVec3(object.normals, false);
+                color = addVec3(shown, false);
+                exact = addVec3(radiance, false);
+                attributes = true;
+            }
+            const bool emitter = materials[material].isEmitter();
+            primitives.push_back(
+                {{"attributes",
+                  {{"POSITION", position}, {"NORMAL", normal}, {"COLOR_0", color},
+                   {"_RADIANCE", exact}}},
+                 {"indices", addIndices(indices)},
+                 {"material", emitter ? lamp(material, object.twoSided, object.materialName)
+                                      : reflector(object.twoSided, object.materialName)},
+                 {"mode", 4}});
+        }
+        if (primitives.empty()) continue;  // nothing to draw
+        meshes.push_back({{"name", object.id}, {"primitives", primitives}});
+        json extras = {{"penumbra_id", object.id}};
+        if (!object.materialName.empty()) extras["material"] = object.materialName;
+        const Material& m = materials[object.polygonMaterial.front()];
+        extras["reflectance"] = rgbJson(m.reflectance);
+        if (m.isEmitter()) extras["emission"] = rgbJson(m.emission);
+        nodes.push_back({{"name", object.id}, {"mesh", meshes.size() - 1}, {"extras", extras}});
         sceneNodes.push_back(nodes.size() - 1);
     }
 
-    // Unlit white materials: displayed colour = COLOR_0 = radiance.
-    auto material = [](const char* name, bool doubleSided) {
-        return json{{"name", name},
-                    {"pbrMetallicRoughness",
-                     {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
-                      {"metallicFactor", 0.0},
-                      {"roughnessFactor", 1.0}}},
-                    {"doubleSided", doubleSided},
-                    {"extensions", {{"KHR_materials_unlit", json::object()}}}};
-    };
-
+    json extensionsUsed = json::array();
+    if (!reflectorMaterial.empty()) extensionsUsed.push_back("KHR_materials_unlit");
+    if (emissiveStrength) extensionsUsed.push_back("KHR_materials_emissive_strength");
     json doc = {
         {"asset",
          {{"version", "2.0"},
           {"generator", "Penumbra"},
           {"extras",
            {{"description",
-             "Penumbra lit scene: world space metres; COLOR_0 = linear radiance B/pi "
-             "(W/m^2/sr), not clipped; one mesh per object"}}}}},
-        {"extensionsUsed", {"KHR_materials_unlit"}},
+             "Penumbra lit scene: world space metres, one mesh per object. COLOR_0 = "
+             "min(1, exposure x radiance): linear, display-referred (glTF viewers encode it as "
+             "sRGB); _RADIANCE = radiance B/pi in W/m^2/sr, exact; lamps are emissive materials "
+             "on the same exposure (emission = pi x emissive x strength / exposure)"},
+            {"exposure", exposure}}}}},
         {"scene", 0},
         {"scenes", json::array({{{"nodes", sceneNodes}}})},
-        {"nodes", nodes},
-        {"meshes", meshes},
-        {"materials", json::array({material("penumbra_radiance", false),
-                                   material("penumbra_radiance_two_sided", true)})},
-        {"buffers", json::array({{{"byteLength", buffer.size()}}})},
-        {"bufferViews", bufferViews},
-        {"accessors", accessors},
     };
-    if (buffer.empty()) {
+    if (!extensionsUsed.empty()) doc["extensionsUsed"] = extensionsUsed;
+    if (!nodes.empty()) doc["nodes"] = nodes;
+    if (!meshes.empty()) doc["meshes"] = meshes;
+    if (!gltfMaterials.empty()) doc["materials"] = gltfMaterials;
+    if (!buffer.empty()) {
         // glTF forbids zero-length buffers: a scene without faces has no binary data.
-        doc.erase("buffers");
-        doc.erase("bufferViews");
-        doc.erase("accessors");
+        doc["buffers"] = json::array({{{"byteLength", buffer.size()}}});
+        doc["bufferViews"] = bufferViews;
+        doc["accessors"] = accessors;
     }
     return doc;
 }
 
-std::string encodeGltf(const std::vector<LitObject>& lit) {
+std::string encodeGltf(const std::vector<LitObject>& lit, const std::vector<Material>& materials) {
     std::string buffer;
-    nlohmann::json doc = buildGltf(lit, buffer);
+    nlohmann::json doc = buildGltf(lit, materials, buffer);
     if (!buffer.empty())
         doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64Encode(buffer);
     return doc.dump(1) + "\n";
 }
 
-std::string encodeGlb(const std::vector<LitObject>& lit) {
+std::string encodeGlb(const std::vector<LitObject>& lit, const std::vector<Material>& materials) {
     std::string buffer;
-    const nlohmann::json doc = buildGltf(lit, buffer);
+    const nlohmann::json doc = buildGltf(lit, materials, buffer);
 
     // Chunks are 4-byte aligned: JSON padded with spaces, BIN with zeros.
     std::string jsonChunk = doc.dump();
@@ -479,7 +567,7 @@ std::string lowerExtension(const std::string& path) {
 // Dispatch
 
 void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,
-                    const std::string& path) {
+                    const std::string& path, const Scene* scene) {
     const std::string ext = lowerExtension(path);
     if (ext != ".ply" && ext != ".gltf" && ext != ".glb" && ext != ".obj") {
         throw std::invalid_argument("cannot export " + path + ": unknown extension '" + ext +
@@ -491,14 +579,14 @@ void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementR
             " radiosity values for " + std::to_string(disc.elements().size()) + " elements");
     }
 
-    const std::vector<LitObject> lit = collectLitObjects(disc, elementRadiosity);
+    const std::vector<LitObject> lit = collectLitObjects(disc, elementRadiosity, scene);
     std::string contents;
     if (ext == ".ply") {
         contents = encodePly(disc, lit);
     } else if (ext == ".gltf") {
-        contents = encodeGltf(lit);
+        contents = encodeGltf(lit, disc.materials());
     } else if (ext == ".glb") {
-        contents = encodeGlb(lit);
+        contents = encodeGlb(lit, disc.materials());
     } else {
         contents = encodeObj(disc, lit);
     }

@@ -20,11 +20,17 @@ class Discretization;
 ///   to [0,1], and `float radiosity_r radiosity_g radiosity_b` = B (W/m²). Face i is
 ///   element i (`list uchar int vertex_indices`, counter-clockwise seen from the front).
 /// - `.gltf`: glTF 2.0 JSON with the binary buffer embedded as a base64 data URI (one
-///   self-contained file). `.glb`: the same as binary glTF. One node and one mesh per object
-///   with faces (named by object id) with POSITION, NORMAL (area-weighted element normals) and
-///   COLOR_0 = linear float VEC3 radiance B/π, not clipped; uint32 triangles fan-triangulated from
-///   the element polygons; an unlit material (KHR_materials_unlit) so viewers show the
-///   colours as they are, doubleSided for two-sided objects.
+///   self-contained file). `.glb`: the same as binary glTF. Valid for the Khronos validator
+///   (no errors, no warnings). One node and one mesh per object with faces (named by object
+///   id; the node's `extras` hold `penumbra_id`, the scene material's name, reflectance and
+///   emission), a primitive per material, with POSITION, NORMAL (area-weighted element
+///   normals), COLOR_0 = min(1, exposure × B/π) per channel — linear, display-referred; the
+///   exposure maps the 99th percentile of lit surfaces' vertex luminance to 1 and is written in
+///   `asset.extras.exposure` — and `_RADIANCE` = B/π (W/m²/sr) exactly; uint32 triangles
+///   fan-triangulated from the element polygons. Reflecting surfaces use an unlit white
+///   material (KHR_materials_unlit) so viewers show COLOR_0 as it is, doubleSided for
+///   two-sided objects; emitters an emissive material on the same exposure: emissiveFactor ×
+///   KHR_materials_emissive_strength = exposure × E/π, black base colour.
 /// - `.obj`: Wavefront OBJ with a comment header, one `o <id>` group per object, vertex
 ///   colours as `v x y z r g b` with r g b = radiance B/π sRGB-encoded and clipped to
 ///   [0,1] (the convention MeshLab and Blender read), polygon faces per element.
@@ -33,7 +39,8 @@ class Discretization;
 /// Throws std::invalid_argument naming the extension for an unknown one, or when
 /// elementRadiosity does not have one value per element; std::runtime_error naming the file
 /// when it cannot be written.
+/// `scene`, when given, names each object's material in the glTF nodes' extras.
 void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,
-                    const std::string& path);
+                    const std::string& path, const Scene* scene = nullptr);
 
 }  // namespace penumbra

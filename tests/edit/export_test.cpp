@@ -137,6 +137,8 @@ protected:
         ASSERT_EQ(doc["scenes"][0]["nodes"].size(), objects.size());
         ASSERT_GE(doc["buffers"][0]["byteLength"].get<size_t>(), 1u);
         ASSERT_LE(doc["buffers"][0]["byteLength"].get<size_t>(), bin.size());
+        const double exposure = doc["asset"]["extras"]["exposure"].get<double>();
+        ASSERT_GT(exposure, 0.0);
 
         // Read an accessor as floats (VEC3 float or SCALAR uint32).
         auto accessor = [&](size_t index, size_t components, int componentType) {
@@ -171,43 +173,55 @@ protected:
             const auto positions = accessor(attributes["POSITION"].get<size_t>(), 3, 5126);
             const auto normals = accessor(attributes["NORMAL"].get<size_t>(), 3, 5126);
             const auto colors = accessor(attributes["COLOR_0"].get<size_t>(), 3, 5126);
+            const auto radiance = accessor(attributes["_RADIANCE"].get<size_t>(), 3, 5126);
             EXPECT_EQ(doc["accessors"][attributes["COLOR_0"].get<size_t>()]["type"], "VEC3");
             ASSERT_EQ(positions.size(), 3 * nv) << objects[o].id;
             ASSERT_EQ(normals.size(), 3 * nv);
             ASSERT_EQ(colors.size(), 3 * nv);
+            ASSERT_EQ(radiance.size(), 3 * nv);
             for (size_t v = 0; v < nv; ++v) {
                 const Vec3 p(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]);
                 EXPECT_NEAR(glm::length(p - objects[o].worldPositions[v]), 0, 1e-6);
                 const Vec3 n(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
                 EXPECT_NEAR(glm::length(n), 1, 1e-5);
                 for (int c = 0; c < 3; ++c) {
-                    EXPECT_NEAR(colors[3 * v + c], objectRadiance[o][c], 1e-6)
+                    EXPECT_NEAR(radiance[3 * v + c], objectRadiance[o][c], 1e-6)
+                        << objects[o].id << " vertex " << v << " channel " << c;
+                    EXPECT_NEAR(colors[3 * v + c], std::min(1.0, exposure * objectRadiance[o][c]),
+                                1e-6)
                         << objects[o].id << " vertex " << v << " channel " << c;
                 }
             }
             if (objects[o].id == "floor") {
                 for (size_t v = 0; v < nv; ++v) EXPECT_NEAR(normals[3 * v + 1], 1, 1e-6);
             }
-            const auto indices = accessor(primitive["indices"].get<size_t>(), 1, 5125);
-            ASSERT_EQ(indices.size() % 3, 0u);
-            triangles += indices.size() / 3;
-            for (double i : indices) EXPECT_LT(i, double(nv));
-            // Triangles are not degenerate and keep the element winding: counter-clockwise
-            // seen from the side the (flat per box face) vertex normals point to.
-            for (size_t t = 0; t < indices.size(); t += 3) {
-                const size_t ia = size_t(indices[t]);
-                const Vec3& a = objects[o].worldPositions[ia];
-                const Vec3& b2 = objects[o].worldPositions[size_t(indices[t + 1])];
-                const Vec3& c = objects[o].worldPositions[size_t(indices[t + 2])];
-                const Vec3 n = glm::cross(b2 - a, c - a);
-                EXPECT_GT(glm::length(n), 1e-9) << "degenerate triangle";
-                const Vec3 vertexNormal(normals[3 * ia], normals[3 * ia + 1], normals[3 * ia + 2]);
-                EXPECT_GT(glm::dot(n, vertexNormal), 0) << objects[o].id << " triangle " << t / 3;
+            // One primitive per material (a two-sided object's back sheet has its own), all
+            // over the object's vertices.
+            for (const json& each : mesh["primitives"]) {
+                EXPECT_EQ(each["attributes"], attributes);
+                const auto indices = accessor(each["indices"].get<size_t>(), 1, 5125);
+                ASSERT_EQ(indices.size() % 3, 0u);
+                triangles += indices.size() / 3;
+                for (double i : indices) EXPECT_LT(i, double(nv));
+                // Triangles are not degenerate and keep the element winding: counter-clockwise
+                // seen from the side the (flat per box face) vertex normals point to.
+                for (size_t t = 0; t < indices.size(); t += 3) {
+                    const size_t ia = size_t(indices[t]);
+                    const Vec3& a = objects[o].worldPositions[ia];
+                    const Vec3& b2 = objects[o].worldPositions[size_t(indices[t + 1])];
+                    const Vec3& c = objects[o].worldPositions[size_t(indices[t + 2])];
+                    const Vec3 n = glm::cross(b2 - a, c - a);
+                    EXPECT_GT(glm::length(n), 1e-9) << "degenerate triangle";
+                    const Vec3 vertexNormal(normals[3 * ia], normals[3 * ia + 1],
+                                            normals[3 * ia + 2]);
+                    EXPECT_GT(glm::dot(n, vertexNormal), 0)
+                        << objects[o].id << " triangle " << t / 3;
+                }
+                const json& material = doc["materials"][each["material"].get<size_t>()];
+                // Two-sided objects carry their back sheet as geometry: single-sided materials.
+                EXPECT_EQ(material.value("doubleSided", false),
+                          objects[o].twoSided && objects[o].faceTwin.empty());
             }
-            const json& material = doc["materials"][primitive["material"].get<size_t>()];
-            // Two-sided objects carry their back sheet as geometry: single-sided materials.
-            EXPECT_EQ(material.value("doubleSided", false),
-                      objects[o].twoSided && objects[o].faceTwin.empty());
         }
         EXPECT_EQ(triangles, expectedTriangles);
     }
@@ -393,24 +407,32 @@ TEST_F(ExportTest, VaryingAndOverbrightRadiosity) {
     exportLitScene(*disc, ramp, ply);
     exportLitScene(*disc, ramp, gltf);
 
-    // glTF colours are unclipped linear B/π of the vertex values.
+    // glTF: _RADIANCE holds the unclipped linear B/π of the vertex values, COLOR_0 the same
+    // times the exposure, clipped to [0, 1].
     const json doc = json::parse(readFile(gltf));
     const std::string uri = doc["buffers"][0]["uri"];
     const std::string bin = base64Decode(uri.substr(uri.find(',') + 1));
     const std::vector<Rgb> floorValues = disc->vertexValues(0, ramp);
-    const json& color =
-        doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"].get<size_t>()];
-    const size_t offset =
-        doc["bufferViews"][color["bufferView"].get<size_t>()].value("byteOffset", size_t{0});
-    double maxRed = 0;
+    const json& attributes = doc["meshes"][0]["primitives"][0]["attributes"];
+    auto offsetOf = [&](const char* attribute) {
+        const json& a = doc["accessors"][attributes[attribute].get<size_t>()];
+        return doc["bufferViews"][a["bufferView"].get<size_t>()].value("byteOffset", size_t{0});
+    };
+    const size_t exact = offsetOf("_RADIANCE"), shown = offsetOf("COLOR_0");
+    const double exposure = doc["asset"]["extras"]["exposure"].get<double>();
+    double maxRed = 0, maxShown = 0;
     for (size_t v = 0; v < floorValues.size(); ++v) {
         for (int c = 0; c < 3; ++c) {
-            const double value = readLittleEndian<float>(bin, offset + 12 * v + 4 * c);
+            const double value = readLittleEndian<float>(bin, exact + 12 * v + 4 * c);
             EXPECT_NEAR(value, floorValues[v][c] / kPi, 1e-5 * std::max(1.0, value));
+            const double display = readLittleEndian<float>(bin, shown + 12 * v + 4 * c);
+            EXPECT_NEAR(display, std::min(1.0, exposure * floorValues[v][c] / kPi), 1e-6);
+            maxShown = std::max(maxShown, display);
         }
-        maxRed = std::max(maxRed, double(readLittleEndian<float>(bin, offset + 12 * v)));
+        maxRed = std::max(maxRed, double(readLittleEndian<float>(bin, exact + 12 * v)));
     }
-    EXPECT_GT(maxRed, 2.5) << "COLOR_0 must not be clipped";
+    EXPECT_GT(maxRed, 2.5) << "_RADIANCE must not be clipped";
+    EXPECT_LE(maxShown, 1.0) << "COLOR_0 is display-referred";
 
     // PLY bytes of the box are clipped to white; the float radiosity is not.
     const std::string bytes = readFile(ply);
