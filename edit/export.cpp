@@ -389,17 +389,18 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
         const Material& m = materials[material];
         const Rgb shown = m.emission * invPi * exposure;
         const double strength = std::max({shown.x, shown.y, shown.z});
-        json g = {{"name", name.empty() ? std::string("penumbra_lamp") : name},
-                  {"pbrMetallicRoughness",
-                   {{"baseColorFactor", {0.0, 0.0, 0.0, 1.0}},
-                    {"metallicFactor", 0.0},
-                    {"roughnessFactor", 1.0}}},
-                  {"emissiveFactor", rgbJson(strength > 0 ? shown / std::max(strength, 1.0)
-                                                          : Rgb(0.0))},
-                  {"doubleSided", doubleSided},
-                  {"extras", {{"emission", rgbJson(m.emission)}}}};
+        json g = {
+            {"name", name.empty() ? std::string("penumbra_lamp") : name},
+            {"pbrMetallicRoughness",
+             {{"baseColorFactor", {0.0, 0.0, 0.0, 1.0}},
+              {"metallicFactor", 0.0},
+              {"roughnessFactor", 1.0}}},
+            {"emissiveFactor", rgbJson(strength > 0 ? shown / std::max(strength, 1.0) : Rgb(0.0))},
+            {"doubleSided", doubleSided},
+            {"extras", {{"emission", rgbJson(m.emission)}}}};
         if (strength > 1) {
-            g["extensions"] = {{"KHR_materials_emissive_strength", {{"emissiveStrength", strength}}}};
+            g["extensions"] = {
+                {"KHR_materials_emissive_strength", {{"emissiveStrength", strength}}}};
             emissiveStrength = true;
         }
         gltfMaterials.push_back(g);

@@ -847,9 +847,9 @@ void PointShader::updateSolution(const std::vector<Rgb>& H, const std::vector<Rg
         const std::vector<Rgb>& T = *previewRadiosity;
         mLastPreviewIndirect.assign(T.size(), Rgb(0.0));
         for (std::size_t e = 0; e < T.size() && e < mDisc.elements().size(); ++e) {
-            const Rgb reflected =
-                previewFromEmission && e < previewFromEmission->size() ? T[e] - (*previewFromEmission)[e]
-                                                                       : T[e];
+            const Rgb reflected = previewFromEmission && e < previewFromEmission->size()
+                                      ? T[e] - (*previewFromEmission)[e]
+                                      : T[e];
             if (isZero(reflected)) continue;
             const Rgb rho = mDisc.elementMaterial(static_cast<int>(e)).reflectance;
             for (int c = 0; c < 3; ++c)

@@ -209,8 +209,8 @@ public:
     /// next updateSolution() on, H_indirect(e) = H_e − H_e,emission + (T_e − T_e,emission)/ρ_e,
     /// T = the solver's previewRadiosity() (when the solver's previewObject() is `object`): the
     /// per-sample direct light shows the object's shadow, the buffer its reflected light; the
-    /// H_direct estimate lights the fallback. Call while paused (or without workers). Returns the elements
-    /// whose H_direct changed.
+    /// H_direct estimate lights the fallback. Call while paused (or without workers). Returns
+    /// the elements whose H_direct changed.
     std::vector<int> setPreview(int object, const Visibility& previewOnly = {});
     /// Back to the scene without a preview object (H_direct as before setPreview). During a
     /// drag (beginDrag) the origin's removal is then recomputed (refreshDirect({origin})).

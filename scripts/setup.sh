@@ -18,6 +18,12 @@ missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# Node.js and npm run the Khronos glTF validator in the export tests; Debian's unless the
+# machine already has a Node.js with its npm (NodeSource's nodejs bundles npm and conflicts
+# with Debian's npm package).
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  missing+=(nodejs npm)
+fi
 if [ ${#missing[@]} -gt 0 ]; then
   echo "setup: installing ${missing[*]}" >&2
   SUDO=""
@@ -38,4 +44,12 @@ if [ $need -eq 1 ]; then
     $(printf 'data/meshes/%s.off ' "${MESHES[@]}")
   for m in "${MESHES[@]}"; do cp "$tmp/data/meshes/$m.off" "$dest/"; done
   rm -rf "$tmp"
+fi
+
+# The glTF validator, pinned by tools/gltf-validator/package-lock.json.
+validator=tools/gltf-validator
+if [ ! -f "$validator/node_modules/gltf-validator/package.json" ] ||
+   [ "$validator/package-lock.json" -nt "$validator/node_modules/.package-lock.json" ]; then
+  echo "setup: installing the glTF validator ($validator)" >&2
+  npm ci --prefix "$validator" --no-audit --no-fund --loglevel=error >/dev/null
 fi
