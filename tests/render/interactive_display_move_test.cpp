@@ -48,14 +48,24 @@ int moveSlab(Scene3& s, const Vec3& to) {
     return s.preview;
 }
 
+/// A display of the solved room that has begun dragging the selected slab at its origin.
+struct DragDisplay {
+    RayTracer::SubsetHandle origin;
+    InteractiveDisplay display;
+    explicit DragDisplay(Scene3& s)
+        : origin(s.session->tracer(), {s.origin}),
+          display(s.session->discretization(), s.session->tracer(), SolverOptions{},
+                  displayOptions()) {
+        display.updateSolution(s.session->solver());
+        display.beginDrag(s.origin, origin.visibility());
+        display.setPreview(s.origin, origin.visibility(), &s.session->solver());
+    }
+};
+
 TEST(InteractiveDisplayMove, PointsBehindTheMovedObjectAreExactlyThoseItCoversFromTheEye) {
     Scene3 s = selectSlab();
-    const Discretization& disc = s.session->discretization();
-    RayTracer::SubsetHandle origin(s.session->tracer(), {s.origin});
-    InteractiveDisplay display(disc, s.session->tracer(), SolverOptions{}, displayOptions());
-    display.updateSolution(s.session->solver());
-    display.beginDrag(s.origin, origin.visibility());
-    display.setPreview(s.origin, origin.visibility(), &s.session->solver());
+    DragDisplay drag(s);
+    InteractiveDisplay& display = drag.display;
     const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
     display.warmUp(rays, 1.0);
     for (int f = 0; f < 3; ++f) display.renderFrame(rays);
@@ -233,11 +243,8 @@ TEST(InteractiveDisplayMove, ADroppedObjectKeepsItsReflectedLightUntilTheNextSna
     // to what the converged solution gives it, instead of none.
     Scene3 s = selectSlab();
     const Discretization& disc = s.session->discretization();
-    RayTracer::SubsetHandle origin(s.session->tracer(), {s.origin});
-    InteractiveDisplay display(disc, s.session->tracer(), SolverOptions{}, displayOptions());
-    display.updateSolution(s.session->solver());
-    display.beginDrag(s.origin, origin.visibility());
-    display.setPreview(s.origin, origin.visibility(), &s.session->solver());
+    DragDisplay drag(s);
+    InteractiveDisplay& display = drag.display;
     const int preview = moveSlab(s, test::kLitRoomSlabDragTarget);
     RayTracer::SubsetHandle subset(s.session->tracer(), {preview});
     display.setPreview(preview, subset.visibility(), &s.session->solver());
