@@ -97,6 +97,19 @@ EditorApp::EditorApp(EditorOptions options) : mOptions(std::move(options)) {
             mOptions.maxFps = std::min(mOptions.maxFps, mOptions.softwareGlMaxFps);
     }
 
+    // Input wakes the frame loop: these count every event (ImGui's backend, installed next,
+    // chains the button, scroll, key, char, focus and enter callbacks to these).
+    glfwSetWindowUserPointer(mWindow, this);
+    glfwSetMouseButtonCallback(mWindow, [](GLFWwindow* w, int, int, int) { wake(w); });
+    glfwSetScrollCallback(mWindow, [](GLFWwindow* w, double, double) { wake(w); });
+    glfwSetKeyCallback(mWindow, [](GLFWwindow* w, int, int, int, int) { wake(w); });
+    glfwSetCharCallback(mWindow, [](GLFWwindow* w, unsigned int) { wake(w); });
+    glfwSetWindowFocusCallback(mWindow, [](GLFWwindow* w, int) { wake(w); });
+    glfwSetCursorEnterCallback(mWindow, [](GLFWwindow* w, int) { wake(w); });
+    glfwSetCursorPosCallback(mWindow, [](GLFWwindow* w, double, double) { wake(w); });
+    glfwSetWindowRefreshCallback(mWindow, [](GLFWwindow* w) { wake(w); });
+    glfwSetFramebufferSizeCallback(mWindow, [](GLFWwindow* w, int, int) { wake(w); });
+
     IMGUI_CHECKVERSION();
     ImGui::CreateContext();
     ImGui::GetIO().IniFilename = nullptr;  // fixed layout, no imgui.ini next to the user's files
@@ -174,9 +187,49 @@ void EditorApp::submit(const EditCommand& c) {
 // ---------------------------------------------------------------------------------------------
 // Frame loop.
 
+void EditorApp::wake(GLFWwindow* window) {
+    if (auto* app = static_cast<EditorApp*>(glfwGetWindowUserPointer(window))) ++app->mInputEvents;
+}
+
+bool EditorApp::needsFrame() {
+    const double now = glfwGetTime();
+    if (mInputEvents != mInputEventsSeen) {
+        mInputEventsSeen = mInputEvents;
+        mEagerUntil = now + kEagerSeconds;
+    }
+    if (now < mEagerUntil || !mScripted.empty() || mDragGizmo || mDrag.active()) return true;
+    // The view request's `interactive` flag falls back 0.3 s after the last move.
+    if (now - mLastInteraction < 0.5) return true;
+    if (ImGui::IsAnyMouseDown()) return true;
+    for (bool down : ImGui::GetIO().KeysDown)
+        if (down) return true;
+    if (playing() || mBenchPhase == 1 || !mOptions.screenshot.empty() || mCaptureNow) return true;
+    if (!mRunner) return now - mLastDrawn > kIdleRedrawSeconds;
+    if (mRunner->image() != mShown || mRunner->hasMessages()) return true;
+    // The status bar's solver figures while the light changes.
+    return now - mLastDrawn > (mRunner->quiescent() ? kIdleRedrawSeconds : kBusyRedrawSeconds);
+}
+
 int EditorApp::run() {
     int status = 0;
     while (!mQuit && !glfwWindowShouldClose(mWindow)) {
+        // A frame only when something on screen can change: input, a new viewport image, a
+        // message or the solver's progress. Redrawing an unchanged window costs a software
+        // rasterizer a core (the swap copies the whole window), which the solver and the
+        // display need after a drop.
+        glfwPollEvents();
+        if (!needsFrame()) {
+            ++mFrame;
+            mDrawnLast = false;
+            mStats.tick(glfwGetTime());
+            if (mBenchFrame >= 0) stepBenchmark();
+            if (mBenchPhase == 4) break;
+            if (mOptions.screenshot.empty() && mOptions.benchDrag.empty() && mOptions.frames > 0 &&
+                mFrame >= mOptions.frames)
+                break;
+            glfwWaitEventsTimeout(1.0 / std::max(mOptions.maxFps, 1.0));
+            continue;
+        }
         const bool capture = mCaptureNow;
         if (!frame()) break;
         if (capture) {
@@ -237,7 +290,9 @@ int EditorApp::run() {
             {"period_ms_p95", at(p, 0.95)},
             {"fps", sumP > 0 ? 1000.0 * p.size() / sumP : 0.0},
             {"viewport_images", stats.imagesShown},
-            {"viewport_images_per_s", sumP > 0 ? 1000.0 * stats.imagesShown / sumP : 0.0},
+            {"viewport_images_per_s",
+             stats.seconds() > 0 ? stats.imagesShown / stats.seconds() : 0.0},
+            {"frames_drawn_share", stats.ticks > 0 ? double(w.size()) / stats.ticks : 0.0},
             {"mode", toString(mMode)},
             {"viewport", {mViewportW, mViewportH}},
             {"image_ms_median", at(im, 0.5)},
@@ -253,7 +308,11 @@ int EditorApp::run() {
 
 bool EditorApp::frame() {
     const double start = glfwGetTime();
-    if (mStats.frames > 0) mStats.periodMs.push_back((start - mFrameStart) * 1e3);
+    // Frame periods between consecutive drawn frames: the rate while something changes.
+    if (mStats.frames > 0 && mDrawnLast) mStats.periodMs.push_back((start - mFrameStart) * 1e3);
+    mDrawnLast = true;
+    mLastDrawn = start;
+    mStats.tick(start);
     mFrameStart = start;
     ++mFrame;
 

@@ -76,9 +76,17 @@ struct FrameStats {
     int frames = 0;
     double lastMs = 0;             ///< work time of the last frame (without the cap's sleep)
     std::vector<double> workMs;    ///< per frame
-    std::vector<double> periodMs;  ///< per frame, frame start to frame start
+    std::vector<double> periodMs;  ///< drawn frame start to the next, when both were drawn
     int imagesShown = 0;           ///< viewport images uploaded
-    std::vector<double> imageMs;   ///< per uploaded image: its render time on the render thread
+    int ticks = 0;                 ///< frame-loop iterations, drawn or not
+    double firstTick = -1, lastTick = 0;
+    void tick(double now) {
+        ++ticks;
+        if (firstTick < 0) firstTick = now;
+        lastTick = now;
+    }
+    double seconds() const { return firstTick < 0 ? 0.0 : lastTick - firstTick; }
+    std::vector<double> imageMs;  ///< per uploaded image: its render time on the render thread
     /// Drag benchmark: frames and ms from the select to the first image that shows the object
     /// moved (a preview version other than the selected one), -1 if none came.
     int dragStartFrames = -1;
@@ -99,6 +107,13 @@ public:
     int run();
     /// One frame. False when the editor should stop.
     bool frame();
+    /// Whether run() draws a frame now, or only ticks (events, the drag benchmark): true for
+    /// half a second after any input event and while a button or key is held, a drag or camera
+    /// move is on, a log replays, a screenshot is due, a new viewport image or message waits;
+    /// otherwise only to refresh the status bar (every 0.25 s while the light changes, every
+    /// second when idle). An unchanged window is not redrawn: under a software rasterizer the
+    /// swap alone costs about a core at the frame cap, which the solver and display need.
+    bool needsFrame();
 
     // For tests and benchmarks.
     SessionRunner* runner() { return mRunner.get(); }
@@ -209,7 +224,15 @@ private:
     std::string mStatus;
     bool mQuit = false;
 
-    // Frames.
+    // Frames: drawn on demand (needsFrame), the loop ticking at maxFps.
+    static void wake(GLFWwindow* window);               ///< GLFW input callbacks: counts the event
+    static constexpr double kEagerSeconds = 0.5;        ///< frames drawn after each input event
+    static constexpr double kBusyRedrawSeconds = 0.25;  ///< status refresh while the light changes
+    static constexpr double kIdleRedrawSeconds = 1.0;
+    std::uint64_t mInputEvents = 0, mInputEventsSeen = 0;
+    double mEagerUntil = 0;
+    double mLastDrawn = -1e9;
+    bool mDrawnLast = false;  ///< the previous tick drew a frame
     FrameStats mStats;
     double mFrameStart = 0;
     int mFrame = 0;

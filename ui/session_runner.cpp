@@ -1041,6 +1041,11 @@ std::vector<std::string> SessionRunner::takeMessages() {
     return out;
 }
 
+bool SessionRunner::hasMessages() const {
+    std::lock_guard<std::mutex> lock(mPublishMutex);
+    return !mMessages.empty();
+}
+
 bool SessionRunner::quiescent() const {
     ViewRequest view;
     {

@@ -195,6 +195,7 @@ public:
     std::shared_ptr<const DocumentSummary> document() const;
     /// Error and status lines since the last call.
     std::vector<std::string> takeMessages();
+    bool hasMessages() const;
     /// Commands queued and not yet applied.
     std::size_t queued() const;
     /// Nothing queued, no solver work pending, no drag, and the image shows the current

@@ -29,6 +29,7 @@
 #include "ui/editor_app.h"
 #include "ui/editor_test_support.h"
 #include "ui/mesh_library.h"
+#include "ui/session_runner.h"
 
 namespace penumbra {
 namespace {
@@ -312,6 +313,46 @@ TEST(EditorDisplay, AddMenuPutsLibraryShapesAndMeshesOnTheSurfaceUnderTheViewCen
     std::printf("box at %s, cow at %s (bounds %.3f x %.3f x %.3f)\n",
                 box.transform.toString().c_str(), mesh.transform.toString().c_str(), e.x, e.y, e.z);
     std::filesystem::remove(log);
+}
+
+TEST(EditorDisplay, AnUnchangedWindowIsNotRedrawnAndInputOrANewImageRedrawsIt) {
+    EditorOptions options;
+    options.mode = ViewMode::Gouraud;
+    options.scene = kSource + "/scenes/cube-room.json";
+    options.width = 800;
+    options.height = 500;
+    options.quiet = true;
+    EditorApp app(options);
+    SessionRunner& runner = *app.runner();
+    // Lit, and the last image on screen.
+    ASSERT_TRUE(test::runUntil(
+        app, [&] { return runner.quiescent() && runner.image() && !app.needsFrame(); }, 120));
+    // Nothing changes: no frame is wanted until the once-a-second status refresh.
+    const auto idleStart = std::chrono::steady_clock::now();
+    std::this_thread::sleep_for(std::chrono::milliseconds(600));
+    EXPECT_FALSE(app.needsFrame()) << "an idle editor redraws its window";
+    // Pointer input wants frames while it is processed.
+    PointerInput in;
+    in.x = app.viewportWidth() * 0.5;
+    in.y = app.viewportHeight() * 0.5;
+    app.queuePointer(in);
+    EXPECT_TRUE(app.needsFrame());
+    app.frame();
+    // An edit: its new viewport image wants a frame as soon as it is published.
+    MaterialCommand green;
+    green.id = "floor";
+    green.reflectance = Rgb(0.2, 0.6, 0.2);
+    runner.submit(green);
+    const auto image = runner.image();
+    bool wanted = false;
+    for (int k = 0; k < 400 && !wanted; ++k) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        wanted = runner.image() != image && app.needsFrame();
+    }
+    EXPECT_TRUE(wanted) << "the edit's image did not ask for a frame";
+    std::printf(
+        "idle check after %.2f s\n",
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - idleStart).count());
 }
 
 TEST(EditorDisplay, FileDialogsOpenNextToTheSceneAndListByExtension) {
