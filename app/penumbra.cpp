@@ -472,6 +472,10 @@ int main(int argc, char** argv) {
                           "print irradiance at \"x y z nx ny nz\" points after the last line");
     replayCmd->add_flag("--reference", replay.options.reference,
                         "from-scratch reference after each edit: error_rms and error_top1");
+    replayCmd
+        ->add_option("--reference-eps", replay.options.referenceEps,
+                     "--reference: convergence of the references (default: --converge)")
+        ->check(CLI::Range(0.0, 1.0));
     replayCmd->add_option("--export", replay.options.exportPath,
                           "export the lit scene after the last line (.ply .gltf .glb .obj)");
     replayCmd->add_option("--report", replay.report, "write a JSON report");

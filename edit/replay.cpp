@@ -29,13 +29,16 @@ double msSince(Clock::time_point start) {
 
 /// A from-scratch converged solve of the lit scene as it stands, on the session's own
 /// discretization and tracer (same elements, same pair-seeded samples). A fresh solver starts
-/// from the objects in the solution only; SolverOptions{} never subdivides.
+/// from the objects in the solution only; it never subdivides. It solves as the session does:
+/// deterministic shots for the strong shooters, then the stochastic tail, whose cost does not
+/// grow with the element count (a deterministic robot-room reference took minutes).
 std::vector<Rgb> solveReference(EditSession& session, const ReplayOptions& options) {
-    SolverOptions deterministic;
-    deterministic.seed = options.solver.seed;
-    ProgressiveSolver reference(session.discretization(), session.tracer(), deterministic);
-    reference.converge(options.converge, options.maxShots);
-    return reference.radiosity();
+    SolverOptions reference = options.solver;
+    reference.gradientThreshold = 0;
+    ProgressiveSolver solver(session.discretization(), session.tracer(), reference);
+    solver.converge(options.referenceEps >= 0 ? options.referenceEps : options.converge,
+                    options.maxShots);
+    return solver.radiosity();
 }
 
 /// George et al. eq. 7: sqrt(Σ (Y_ref − Y_cur)² A / Σ Y_ref² A) over `elements`.
@@ -168,6 +171,9 @@ nlohmann::json runReplay(const ReplayOptions& options) {
     report["budget_shots"] = options.budgetShots;
     report["seed"] = options.solver.seed;
     report["reference"] = options.reference;
+    if (options.reference)
+        report["reference_eps"] =
+            options.referenceEps >= 0 ? options.referenceEps : options.converge;
     report["initial"] = std::move(initial);
     report["edits"] = std::move(editReports);
     if (!points.empty()) {

@@ -17,11 +17,14 @@ struct ReplayOptions {
     std::string logPath;
     /// Shots spent after every line that is not solve/converge (an interactive budget).
     int budgetShots = 0;
-    /// The scene is converged to this before the first line; references converge to it too.
+    /// The scene is converged to this before the first line.
     double converge = 1e-3;
-    /// Solver configuration of the session (seed, stochastic tail...). References use
-    /// SolverOptions{} with the same seed: deterministic, no subdivision.
+    /// Solver configuration of the session (seed, stochastic tail...). References use it too,
+    /// without subdivision: the tail's cost does not grow with the element count, so a
+    /// robot-room reference takes seconds where a deterministic one took minutes.
     SolverOptions solver = interactiveSolverOptions();
+    /// Convergence of the references (the unshot fraction they stop at); < 0: `converge`.
+    double referenceEps = -1;
     /// Compute a from-scratch reference after every line that changes the lit scene and
     /// report "error_rms" and "error_top1".
     bool reference = false;

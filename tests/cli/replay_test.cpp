@@ -172,6 +172,29 @@ TEST_F(ReplayCli, ReportHasOneEntryPerLineWithTheFields) {
     EXPECT_EQ(edited["materials"]["white"]["reflectance"], json::array({0.6, 0.6, 0.6}));
 }
 
+TEST_F(ReplayCli, ReferencesConvergeToReferenceEpsAndAgreeWithATighterOne) {
+    // The references solve as the session does (stochastic tail): one converged loosely and
+    // one ten times tighter describe the same lighting, and the converged end of the log is
+    // close to both.
+    auto lastError = [&](const std::string& eps) {
+        const std::string report = path("ref-" + eps + ".json");
+        const RunResult run = replay(sceneAndLog(log()) + "--reference --reference-eps " + eps +
+                                     " --report " + quoted(report));
+        EXPECT_EQ(run.exitStatus, 0) << run.err;
+        const json j = json::parse(readFile(report));
+        EXPECT_DOUBLE_EQ(j["reference_eps"].get<double>(), std::stod(eps));
+        return j["edits"][kLogLines - 1]["error_rms"].get<double>();
+    };
+    const double loose = lastError("0.01"), tight = lastError("0.001");
+    EXPECT_LT(tight, 0.02);
+    EXPECT_LT(loose, 0.03);
+    EXPECT_GT(loose, 0.0);
+    // A bad value is refused with one line.
+    const RunResult bad = replay(sceneAndLog(log()) + "--reference --reference-eps 2");
+    EXPECT_EQ(bad.exitStatus, 2);
+    EXPECT_EQ(lineCount(bad.err), 1) << bad.err;
+}
+
 TEST_F(ReplayCli, SameSeedAndThreadsGiveBitIdenticalReports) {
     const std::string args = sceneAndLog(log()) + "--budget-shots 2 --seed 7 --threads 2 ";
     const RunResult a = replay(args + "--report " + quoted(path("a.json")));
