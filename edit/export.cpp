@@ -15,6 +15,7 @@
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <stdexcept>
 #include <system_error>
 #include <tuple>
@@ -373,14 +374,13 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
     auto reflector = [&](bool doubleSided, const std::string& name) {
         const auto key = std::make_pair(doubleSided, name);
         if (auto it = reflectorMaterial.find(key); it != reflectorMaterial.end()) return it->second;
-        gltfMaterials.push_back(
-            {{"name", name.empty() ? std::string("penumbra_radiance") : name},
-             {"pbrMetallicRoughness",
-              {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
-               {"metallicFactor", 0.0},
-               {"roughnessFactor", 1.0}}},
-             {"doubleSided", doubleSided},
-             {"extensions", {{"KHR_materials_unlit", json::object()}}}});
+        gltfMaterials.push_back({{"name", name.empty() ? std::string("penumbra_radiance") : name},
+                                 {"pbrMetallicRoughness",
+                                  {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
+                                   {"metallicFactor", 0.0},
+                                   {"roughnessFactor", 1.0}}},
+                                 {"doubleSided", doubleSided},
+                                 {"extensions", {{"KHR_materials_unlit", json::object()}}}});
         return reflectorMaterial[key] = gltfMaterials.size() - 1;
     };
     auto lamp = [&](int material, bool doubleSided, const std::string& name) {
@@ -434,7 +434,9 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
             const bool emitter = materials[material].isEmitter();
             primitives.push_back(
                 {{"attributes",
-                  {{"POSITION", position}, {"NORMAL", normal}, {"COLOR_0", color},
+                  {{"POSITION", position},
+                   {"NORMAL", normal},
+                   {"COLOR_0", color},
                    {"_RADIANCE", exact}}},
                  {"indices", addIndices(indices)},
                  {"material", emitter ? lamp(material, object.twoSided, object.materialName)
@@ -520,9 +522,29 @@ std::string encodeGlb(const std::vector<LitObject>& lit, const std::vector<Mater
 }
 
 // ---------------------------------------------------------------------------------------
-// OBJ with vertex colours
+// OBJ with vertex colours, and its .mtl
 
-std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& lit) {
+/// One name per material the objects use: the scene material's name when an object using it
+/// knows it, else "material_<index>"; unique, one token.
+std::vector<std::string> objMaterialNames(const Discretization& disc,
+                                          const std::vector<LitObject>& lit) {
+    std::vector<std::string> names(disc.materials().size());
+    for (const LitObject& object : lit)
+        for (int m : object.polygonMaterial)
+            if (m >= 0 && m < static_cast<int>(names.size()) && names[m].empty() &&
+                !object.materialName.empty())
+                names[m] = lineToken(object.materialName);
+    std::set<std::string> taken;
+    for (std::size_t m = 0; m < names.size(); ++m) {
+        if (names[m].empty() || taken.count(names[m]))
+            names[m] = (names[m].empty() ? "material" : names[m]) + "_" + std::to_string(m);
+        taken.insert(names[m]);
+    }
+    return names;
+}
+
+std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& lit,
+                      const std::string& mtlFile) {
     std::string out =
         "# Penumbra lit scene\n"
         "# v x y z r g b: world space metres; r g b = radiance B/pi, sRGB-encoded, clipped to "
@@ -531,7 +553,9 @@ std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& 
         "the front)\n";
     out += "# objects " + std::to_string(lit.size()) + ", elements " +
            std::to_string(disc.elements().size()) + "\n";
+    out += "mtllib " + mtlFile + "\n";
 
+    const std::vector<std::string> names = objMaterialNames(disc, lit);
     const double invPi = glm::one_over_pi<double>();
     size_t firstVertex = 1;  // OBJ indices are 1-based and global
     for (const LitObject& object : lit) {
@@ -545,12 +569,49 @@ std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& 
             for (int c = 0; c < 3; ++c) appendFixed(out, encodeSrgbClipped(b[c] * invPi), 6);
             out.push_back('\n');
         }
-        for (const auto& polygon : object.polygons) {
+        int current = -1;
+        for (size_t f = 0; f < object.polygons.size(); ++f) {
+            const int m = f < object.polygonMaterial.size() ? object.polygonMaterial[f] : -1;
+            if (m != current && m >= 0 && m < static_cast<int>(names.size())) {
+                out.append("usemtl ").append(names[m]).push_back('\n');
+                current = m;
+            }
             out.push_back('f');
-            for (int v : polygon) appendNumber(out, firstVertex + v);
+            for (int v : object.polygons[f]) appendNumber(out, firstVertex + v);
             out.push_back('\n');
         }
         firstVertex += object.positions.size();
+    }
+    return out;
+}
+
+/// The materials the objects use: Kd the reflectance (linear), Ke the emitted radiance E/pi
+/// (linear, W/m^2/sr; lamps only), Ka 0, illum 1 (no specular).
+std::string encodeMtl(const Discretization& disc, const std::vector<LitObject>& lit) {
+    std::string out =
+        "# Penumbra lit scene materials\n"
+        "# Kd: reflectance (linear); Ke: emitted radiance E/pi in W/m^2/sr (linear, not "
+        "clipped), lamps only\n";
+    const std::vector<std::string> names = objMaterialNames(disc, lit);
+    std::vector<std::uint8_t> used(names.size(), 0);
+    for (const LitObject& object : lit)
+        for (int m : object.polygonMaterial)
+            if (m >= 0 && m < static_cast<int>(used.size())) used[m] = 1;
+    const double invPi = glm::one_over_pi<double>();
+    for (std::size_t m = 0; m < names.size(); ++m) {
+        if (!used[m]) continue;
+        const Material& material = disc.materials()[m];
+        out.append("newmtl ").append(names[m]).push_back('\n');
+        out += "Ka 0 0 0\n";
+        out += "Kd";
+        for (int c = 0; c < 3; ++c) appendNumber(out, material.reflectance[c]);
+        out.push_back('\n');
+        if (material.isEmitter()) {
+            out += "Ke";
+            for (int c = 0; c < 3; ++c) appendNumber(out, material.emission[c] * invPi);
+            out.push_back('\n');
+        }
+        out += "illum 1\n";
     }
     return out;
 }
@@ -589,7 +650,10 @@ void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementR
     } else if (ext == ".glb") {
         contents = encodeGlb(lit, disc.materials());
     } else {
-        contents = encodeObj(disc, lit);
+        // The .mtl beside it (same stem), written first: the .obj names it.
+        const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
+        writeFileAtomically(mtl.string(), encodeMtl(disc, lit));
+        contents = encodeObj(disc, lit, mtl.filename().string());
     }
     writeFileAtomically(path, contents);
 }

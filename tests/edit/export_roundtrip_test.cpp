@@ -1,0 +1,220 @@
+// Lit-scene exports read back by independent readers (issue 24, point 3): tinyobjloader for
+// OBJ and its .mtl, OpenMesh for PLY, tinygltf for GLB. A floor, a box and a lamp with one
+// radiance per object: every vertex read back must carry its object's value.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <OpenMesh/Core/IO/MeshIO.hh>
+#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <glm/gtc/constants.hpp>
+#include <memory>
+#include <string>
+#include <vector>
+
+// Debian's libtinygltf and libtinyobjloader hold the implementations.
+#include <tiny_gltf.h>
+#include <tiny_obj_loader.h>
+
+#include "edit/export.h"
+#include "render/image.h"
+#include "solver/discretization.h"
+
+namespace penumbra {
+namespace {
+
+const double kPi = glm::pi<double>();
+
+class ExportRoundTrip : public ::testing::Test {
+protected:
+    void SetUp() override {
+        Scene scene;
+        scene.settings.patchSize = 0.5;
+        scene.settings.elementSize = 0.25;
+        Material white;
+        white.reflectance = Rgb(0.6, 0.5, 0.4);
+        Material red;
+        red.reflectance = Rgb(0.7, 0.1, 0.1);
+        Material lamp;
+        lamp.reflectance = Rgb(0.0);
+        lamp.emission = Rgb(10.0, 8.0, 6.0);
+        scene.materials = {{"white", white}, {"red", red}, {"lamp", lamp}};
+        SceneObject floor;
+        floor.id = "floor";
+        floor.shape.type = ShapeType::Quad;
+        floor.shape.size = Vec3(2, 0, 2);
+        floor.material = "white";
+        SceneObject box;
+        box.id = "box";
+        box.shape.type = ShapeType::Box;
+        box.shape.size = Vec3(0.5);
+        box.material = "red";
+        box.transform.translate = Vec3(0.2, 0.25, 0.1);
+        SceneObject light;
+        light.id = "light";
+        light.shape.type = ShapeType::Quad;
+        light.shape.size = Vec3(0.5, 0, 0.5);
+        light.material = "lamp";
+        light.transform.translate = Vec3(0, 1.5, 0);
+        light.transform.rotateDeg = Vec3(180, 0, 0);  // facing down
+        scene.objects = {floor, box, light};
+        disc = std::make_unique<Discretization>(scene);
+        this->scene = scene;
+        // Radiance per object (B/π), within [0, 1] so no colour is clipped.
+        radiance = {Rgb(0.25, 0.2, 0.15), Rgb(0.3, 0.05, 0.04), Rgb(0.9, 0.8, 0.7)};
+        for (const Element& e : disc->elements()) b.push_back(kPi * radiance[e.object]);
+        const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir =
+            std::filesystem::path(::testing::TempDir()) /
+            ("penumbra_roundtrip_" + std::string(test->name()) + "_" + std::to_string(::getpid()));
+        std::filesystem::create_directories(dir);
+    }
+    void TearDown() override { std::filesystem::remove_all(dir); }
+
+    std::size_t totalVertices() const {
+        std::size_t n = 0;
+        for (const ObjectSurface& s : disc->objects()) n += s.worldPositions.size();
+        return n;
+    }
+    /// The object whose vertex `v` (global, in object order) is.
+    int objectOfVertex(std::size_t v) const {
+        for (std::size_t o = 0; o < disc->objects().size(); ++o) {
+            const std::size_t n = disc->objects()[o].worldPositions.size();
+            if (v < n) return static_cast<int>(o);
+            v -= n;
+        }
+        return -1;
+    }
+    std::string pathFor(const std::string& name) const { return (dir / name).string(); }
+
+    Scene scene;
+    std::unique_ptr<Discretization> disc;
+    std::vector<Rgb> radiance, b;
+    std::filesystem::path dir;
+};
+
+TEST_F(ExportRoundTrip, ObjAndItsMtlReadBackWithTinyObjLoader) {
+    const std::string path = pathFor("lit.obj");
+    exportLitScene(*disc, b, path, &scene);
+    ASSERT_TRUE(std::filesystem::exists(pathFor("lit.mtl")));
+    tinyobj::ObjReaderConfig config;
+    config.triangulate = false;
+    config.vertex_color = true;
+    tinyobj::ObjReader reader;
+    ASSERT_TRUE(reader.ParseFromFile(path, config)) << reader.Error();
+    const tinyobj::attrib_t& attrib = reader.GetAttrib();
+    ASSERT_EQ(attrib.vertices.size(), 3 * totalVertices());
+    ASSERT_EQ(attrib.colors.size(), attrib.vertices.size());
+    for (std::size_t v = 0; v < totalVertices(); ++v) {
+        const int o = objectOfVertex(v);
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(attrib.colors[3 * v + c], srgbEncode(radiance[o][c]), 2e-6)
+                << "vertex " << v << " of " << disc->objects()[o].id;
+    }
+    // One shape per object, one face per element, each face with its object's material.
+    const auto& shapes = reader.GetShapes();
+    const auto& materials = reader.GetMaterials();
+    ASSERT_EQ(shapes.size(), disc->objects().size());
+    std::size_t faces = 0;
+    for (std::size_t o = 0; o < shapes.size(); ++o) {
+        EXPECT_EQ(shapes[o].name, disc->objects()[o].id);
+        faces += shapes[o].mesh.num_face_vertices.size();
+        const std::string expected = scene.objects[o].material;
+        for (int id : shapes[o].mesh.material_ids) {
+            ASSERT_GE(id, 0);
+            ASSERT_LT(id, static_cast<int>(materials.size()));
+            EXPECT_EQ(materials[id].name, expected);
+        }
+    }
+    EXPECT_EQ(faces, disc->elements().size());
+    // Kd the reflectance; Ke the lamp's emitted radiance E/π, nothing for the others.
+    ASSERT_EQ(materials.size(), 3u);
+    for (const tinyobj::material_t& m : materials) {
+        const Material* found = scene.findMaterial(m.name);
+        ASSERT_NE(found, nullptr) << m.name;
+        const Material& source = *found;
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(m.diffuse[c], source.reflectance[c], 1e-6) << m.name;
+            EXPECT_NEAR(m.emission[c], source.emission[c] / kPi, 1e-5) << m.name;
+        }
+    }
+}
+
+TEST_F(ExportRoundTrip, PlyReadsBackWithOpenMesh) {
+    const std::string path = pathFor("lit.ply");
+    exportLitScene(*disc, b, path, &scene);
+    OpenMesh::PolyMesh_ArrayKernelT<> mesh;
+    mesh.request_vertex_colors();
+    OpenMesh::IO::Options options = OpenMesh::IO::Options::VertexColor;
+    ASSERT_TRUE(OpenMesh::IO::read_mesh(mesh, path, options));
+    ASSERT_TRUE(options.check(OpenMesh::IO::Options::VertexColor));
+    ASSERT_EQ(mesh.n_vertices(), totalVertices());
+    EXPECT_EQ(mesh.n_faces(), disc->elements().size());
+    for (const auto vh : mesh.vertices()) {
+        const std::size_t v = static_cast<std::size_t>(vh.idx());
+        const int o = objectOfVertex(v);
+        const auto colour = mesh.color(vh);
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(colour[c], 255.0 * srgbEncode(radiance[o][c]), 0.51)
+                << "vertex " << v << " of " << disc->objects()[o].id;
+    }
+}
+
+TEST_F(ExportRoundTrip, GlbReadsBackWithTinyGltf) {
+    const std::string path = pathFor("lit.glb");
+    exportLitScene(*disc, b, path, &scene);
+    tinygltf::TinyGLTF loader;
+    tinygltf::Model model;
+    std::string error, warning;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&model, &error, &warning, path)) << error;
+    EXPECT_TRUE(warning.empty()) << warning;
+    ASSERT_TRUE(model.asset.extras.Has("exposure"));
+    const double exposure = model.asset.extras.Get("exposure").GetNumberAsDouble();
+    EXPECT_GT(exposure, 0.0);
+    // Floats of an accessor (tightly packed or strided VEC3).
+    auto floats = [&](int accessorIndex) {
+        const tinygltf::Accessor& a = model.accessors.at(accessorIndex);
+        const tinygltf::BufferView& view = model.bufferViews.at(a.bufferView);
+        const unsigned char* data =
+            model.buffers.at(view.buffer).data.data() + view.byteOffset + a.byteOffset;
+        const std::size_t stride = view.byteStride ? view.byteStride : 3 * sizeof(float);
+        std::vector<float> out(3 * a.count);
+        for (std::size_t i = 0; i < a.count; ++i)
+            std::memcpy(&out[3 * i], data + i * stride, 3 * sizeof(float));
+        return out;
+    };
+    std::vector<int> seen(disc->objects().size(), 0);
+    for (const tinygltf::Node& node : model.nodes) {
+        if (node.mesh < 0) continue;
+        int o = -1;
+        for (std::size_t k = 0; k < disc->objects().size(); ++k)
+            if (disc->objects()[k].id == node.name) o = static_cast<int>(k);
+        ASSERT_GE(o, 0) << "node " << node.name;
+        ++seen[o];
+        const bool lamp = scene.findMaterial(scene.objects[o].material)->isEmitter();
+        for (const tinygltf::Primitive& p : model.meshes.at(node.mesh).primitives) {
+            ASSERT_TRUE(p.attributes.count("_RADIANCE")) << node.name;
+            const std::vector<float> exact = floats(p.attributes.at("_RADIANCE"));
+            for (std::size_t i = 0; i < exact.size(); ++i)
+                EXPECT_NEAR(exact[i], radiance[o][i % 3], 1e-6) << node.name;
+            if (lamp) {
+                // Lamps: emissive material, black base colour.
+                const tinygltf::Material& m = model.materials.at(p.material);
+                EXPECT_GT(m.emissiveFactor[0], 0.0) << node.name;
+                continue;
+            }
+            ASSERT_TRUE(p.attributes.count("COLOR_0")) << node.name;
+            const std::vector<float> colour = floats(p.attributes.at("COLOR_0"));
+            for (std::size_t i = 0; i < colour.size(); ++i)
+                EXPECT_NEAR(colour[i], std::min(1.0, exposure * radiance[o][i % 3]), 1e-6)
+                    << node.name;
+        }
+    }
+    for (std::size_t o = 0; o < seen.size(); ++o) EXPECT_EQ(seen[o], 1) << disc->objects()[o].id;
+}
+
+}  // namespace
+}  // namespace penumbra
