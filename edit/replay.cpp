@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <numeric>
@@ -93,6 +94,49 @@ double radiosityChecksum(const Discretization& disc, const std::vector<Rgb>& b) 
     return sum;
 }
 
+/// Σ Y·A over each alive object's elements, by document id: which objects' lighting an edit
+/// (or a code change, against a golden report) changed, and by how much.
+nlohmann::json objectChecksums(const Discretization& disc, const std::vector<Rgb>& b) {
+    std::vector<double> sum(disc.objects().size(), 0.0);
+    for (std::size_t e = 0; e < b.size() && e < disc.elements().size(); ++e)
+        if (disc.elementAlive(static_cast<int>(e)))
+            sum[disc.elements()[e].object] += luminance(b[e]) * disc.elements()[e].area;
+    nlohmann::json out = nlohmann::json::object();
+    for (std::size_t o = 0; o < sum.size(); ++o)
+        if (disc.objects()[o].alive) out[disc.objects()[o].id] = sum[o];
+    return out;
+}
+
+/// The objects (up to three) whose lighting checksums differ most between two edit entries,
+/// as "id +4.1%, other -0.8%" (relative to the golden value; "new"/"gone" for objects only
+/// one side has). Empty when neither entry has per-object checksums or none differs.
+std::string objectDifferences(const nlohmann::json& ours, const nlohmann::json& golden,
+                              double tolerance) {
+    if (!ours.contains("objects") || !golden.contains("objects")) return {};
+    std::vector<std::pair<double, std::string>> differences;
+    for (const auto& [id, value] : ours["objects"].items()) {
+        if (!golden["objects"].contains(id)) {
+            differences.push_back({1e300, id + " new"});
+            continue;
+        }
+        const double a = value.get<double>(), g = golden["objects"][id].get<double>();
+        if (std::abs(a - g) <= tolerance * std::max(std::abs(a), std::abs(g))) continue;
+        const double relative = g != 0 ? (a - g) / std::abs(g) : 1e300;
+        char text[64];
+        std::snprintf(text, sizeof text, " %+.2g%%", 100.0 * relative);
+        differences.push_back({std::abs(relative), id + text});
+    }
+    for (const auto& [id, value] : golden["objects"].items())
+        if (!ours["objects"].contains(id)) differences.push_back({1e300, id + " gone"});
+    std::stable_sort(differences.begin(), differences.end(),
+                     [](const auto& x, const auto& y) { return x.first > y.first; });
+    std::string out;
+    for (std::size_t k = 0; k < differences.size() && k < 3; ++k)
+        out += (k ? ", " : "") + differences[k].second;
+    if (differences.size() > 3) out += ", and " + std::to_string(differences.size() - 3) + " more";
+    return out;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -145,6 +189,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
         entry["rays"] = rays;
         entry["ms"] = ms;
         entry["checksum"] = radiosityChecksum(disc, b);
+        entry["objects"] = objectChecksums(disc, b);
         entry["unshot_fraction"] = session->solver().unshotFraction();
         entry["pending_changes"] = session->solver().pendingChanges();
         if (options.reference) {
@@ -254,9 +299,11 @@ std::optional<std::string> compareReplayReports(const nlohmann::json& report,
         if (!(std::abs(ca - cg) <= checksumTolerance * std::max(std::abs(ca), std::abs(cg)))) {
             std::ostringstream tolerance;
             tolerance << checksumTolerance;
+            const std::string objects = objectDifferences(a, g, checksumTolerance);
             return prefix + "checksum: " + number(a["checksum"]) + " here, " +
                    number(g["checksum"]) + " in the golden report (relative tolerance " +
-                   tolerance.str() + ")";
+                   tolerance.str() + ")" +
+                   (objects.empty() ? std::string() : "; lighting changed on " + objects);
         }
         if (a.contains("error_rms") && g.contains("error_rms") && a["error_rms"].is_number() &&
             g["error_rms"].is_number()) {

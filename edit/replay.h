@@ -40,7 +40,8 @@ struct ReplayOptions {
 /// Replays the log (see ReplayOptions) and returns the report: shots, rays, seconds (solver
 /// time, references excluded), unshot_fraction, elements, patches, and "edits", one object
 /// per log line with "line", "op", "shots", "rays", "ms", "checksum" (Σ Y·A over elements in
-/// the solution after the line), "unshot_fraction", and with a reference "error_rms" and
+/// the solution after the line), "objects" (the same sum per object id), "unshot_fraction",
+/// and with a reference "error_rms" and
 /// "error_top1" (George et al. eq. 7 over all elements in the solution, and over the 1% whose
 /// reference luminance changed most with the last edit that changed the lit scene; 0 before
 /// any such edit; while an object is selected it is out of both the solution and the
@@ -54,8 +55,9 @@ nlohmann::json readReplayReport(const std::string& path);
 /// Compares a replay report with a golden one: per edit the op and shots exactly, checksum
 /// within relative `checksumTolerance` (default 1e-9), error_rms within 1e-6 when both have
 /// it, and the number of edits. Returns one line naming the first differing edit (line, op,
-/// field, both values), or nullopt when they agree. `goldenName` names the golden report in
-/// the message.
+/// field, both values; for a checksum, the objects whose lighting changed most and by how
+/// much, when both reports have per-object sums), or nullopt when they agree. `goldenName` names
+/// the golden report in the message.
 std::optional<std::string> compareReplayReports(const nlohmann::json& report,
                                                 const nlohmann::json& golden,
                                                 const std::string& goldenName,

@@ -233,6 +233,23 @@ TEST_F(ReplayCli, CheckAgainstAGoldenReport) {
     EXPECT_EQ(tighter.exitStatus, 1) << tighter.err;
     EXPECT_NE(tighter.err.find("relative tolerance 1e-07"), std::string::npos) << tighter.err;
 
+    // Per object: the report's sums add up to the checksum, and a check that fails on a
+    // checksum names the objects whose lighting changed, with the relative change.
+    for (const json& e : json::parse(readFile(path("golden.json")))["edits"]) {
+        double sum = 0;
+        for (const auto& [id, value] : e["objects"].items()) sum += value.get<double>();
+        EXPECT_NEAR(sum, e["checksum"].get<double>(), 1e-9 * e["checksum"].get<double>())
+            << "line " << e["line"];
+    }
+    ASSERT_TRUE(golden["edits"][3]["objects"].contains("crate"));
+    golden["edits"][3]["objects"]["crate"] =
+        golden["edits"][3]["objects"]["crate"].get<double>() * 1.1;
+    writeFile(path("changed.json"), golden.dump(2));
+    const RunResult named = replay(args + "--check " + quoted(path("changed.json")));
+    EXPECT_EQ(named.exitStatus, 1) << named.err;
+    EXPECT_EQ(lineCount(named.err), 1) << named.err;
+    EXPECT_NE(named.err.find("; lighting changed on crate -9.1%"), std::string::npos) << named.err;
+
     // So are different shots, and the first difference wins.
     golden["edits"][1]["shots"] = 6;
     writeFile(path("changed.json"), golden.dump(2));
