@@ -235,7 +235,8 @@ TEST_F(ReplayCli, CheckAgainstAGoldenReport) {
 
     // Per object: the report's sums add up to the checksum, and a check that fails on a
     // checksum names the objects whose lighting changed, with the relative change.
-    for (const json& e : json::parse(readFile(path("golden.json")))["edits"]) {
+    const json original = json::parse(readFile(path("golden.json")));
+    for (const json& e : original["edits"]) {
         double sum = 0;
         for (const auto& [id, value] : e["objects"].items()) sum += value.get<double>();
         EXPECT_NEAR(sum, e["checksum"].get<double>(), 1e-9 * e["checksum"].get<double>())
