@@ -374,13 +374,14 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
     auto reflector = [&](bool doubleSided, const std::string& name) {
         const auto key = std::make_pair(doubleSided, name);
         if (auto it = reflectorMaterial.find(key); it != reflectorMaterial.end()) return it->second;
-        gltfMaterials.push_back({{"name", name.empty() ? std::string("penumbra_radiance") : name},
-                                 {"pbrMetallicRoughness",
-                                  {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
-                                   {"metallicFactor", 0.0},
-                                   {"roughnessFactor", 1.0}}},
-                                 {"doubleSided", doubleSided},
-                                 {"extensions", {{"KHR_materials_unlit", json::object()}}}});
+        gltfMaterials.push_back(
+            {{"name", name.empty() ? std::string("penumbra_radiance") : name},
+             {"pbrMetallicRoughness",
+              {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
+               {"metallicFactor", 0.0},
+               {"roughnessFactor", 1.0}}},
+             {"doubleSided", doubleSided},
+             {"extensions", {{"KHR_materials_unlit", json::object()}}}});
         return reflectorMaterial[key] = gltfMaterials.size() - 1;
     };
     auto lamp = [&](int material, bool doubleSided, const std::string& name) {
@@ -434,9 +435,7 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
             const bool emitter = materials[material].isEmitter();
             primitives.push_back(
                 {{"attributes",
-                  {{"POSITION", position},
-                   {"NORMAL", normal},
-                   {"COLOR_0", color},
+                  {{"POSITION", position}, {"NORMAL", normal}, {"COLOR_0", color},
                    {"_RADIANCE", exact}}},
                  {"indices", addIndices(indices)},
                  {"material", emitter ? lamp(material, object.twoSided, object.materialName)
@@ -544,7 +543,7 @@ std::vector<std::string> objMaterialNames(const Discretization& disc,
 }
 
 std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& lit,
-                      const std::string& mtlFile) {
+                      const std::vector<std::string>& names, const std::string& mtlFile) {
     std::string out =
         "# Penumbra lit scene\n"
         "# v x y z r g b: world space metres; r g b = radiance B/pi, sRGB-encoded, clipped to "
@@ -555,7 +554,6 @@ std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& 
            std::to_string(disc.elements().size()) + "\n";
     out += "mtllib " + mtlFile + "\n";
 
-    const std::vector<std::string> names = objMaterialNames(disc, lit);
     const double invPi = glm::one_over_pi<double>();
     size_t firstVertex = 1;  // OBJ indices are 1-based and global
     for (const LitObject& object : lit) {
@@ -587,12 +585,12 @@ std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& 
 
 /// The materials the objects use: Kd the reflectance (linear), Ke the emitted radiance E/pi
 /// (linear, W/m^2/sr; lamps only), Ka 0, illum 1 (no specular).
-std::string encodeMtl(const Discretization& disc, const std::vector<LitObject>& lit) {
+std::string encodeMtl(const Discretization& disc, const std::vector<LitObject>& lit,
+                      const std::vector<std::string>& names) {
     std::string out =
         "# Penumbra lit scene materials\n"
         "# Kd: reflectance (linear); Ke: emitted radiance E/pi in W/m^2/sr (linear, not "
         "clipped), lamps only\n";
-    const std::vector<std::string> names = objMaterialNames(disc, lit);
     std::vector<std::uint8_t> used(names.size(), 0);
     for (const LitObject& object : lit)
         for (int m : object.polygonMaterial)
@@ -652,8 +650,9 @@ void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementR
     } else {
         // The .mtl beside it (same stem), written first: the .obj names it.
         const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
-        writeFileAtomically(mtl.string(), encodeMtl(disc, lit));
-        contents = encodeObj(disc, lit, mtl.filename().string());
+        const std::vector<std::string> names = objMaterialNames(disc, lit);
+        writeFileAtomically(mtl.string(), encodeMtl(disc, lit, names));
+        contents = encodeObj(disc, lit, names, mtl.filename().string());
     }
     writeFileAtomically(path, contents);
 }

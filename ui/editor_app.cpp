@@ -198,8 +198,8 @@ bool EditorApp::needsFrame() {
         mEagerUntil = now + kEagerSeconds;
     }
     if (now < mEagerUntil || !mScripted.empty() || mDragGizmo || mDrag.active()) return true;
-    // The view request's `interactive` flag falls back 0.3 s after the last move.
-    if (now - mLastInteraction < 0.5) return true;
+    // Until a frame has told the runner the view is no longer interactive.
+    if (now - mLastInteraction < kInteractiveSeconds + 0.2) return true;
     if (ImGui::IsAnyMouseDown()) return true;
     for (bool down : ImGui::GetIO().KeysDown)
         if (down) return true;
@@ -352,7 +352,8 @@ bool EditorApp::frame() {
         request.width = mViewportW;
         request.height = mViewportH;
         request.highlight = mSelection;
-        request.interactive = mDrag.active() || glfwGetTime() - mLastInteraction < 0.3;
+        request.interactive =
+            mDrag.active() || glfwGetTime() - mLastInteraction < kInteractiveSeconds;
         request.mode = mMode;
         request.referenceRequest = mReferenceRequest;
         mRunner->setView(request);

@@ -225,8 +225,10 @@ private:
     bool mQuit = false;
 
     // Frames: drawn on demand (needsFrame), the loop ticking at maxFps.
-    static void wake(GLFWwindow* window);               ///< GLFW input callbacks: counts the event
-    static constexpr double kEagerSeconds = 0.5;        ///< frames drawn after each input event
+    static void wake(GLFWwindow* window);         ///< GLFW input callbacks: counts the event
+    static constexpr double kEagerSeconds = 0.5;  ///< frames drawn after each input event
+    /// The view request stays `interactive` this long after the last camera move or drag.
+    static constexpr double kInteractiveSeconds = 0.3;
     static constexpr double kBusyRedrawSeconds = 0.25;  ///< status refresh while the light changes
     static constexpr double kIdleRedrawSeconds = 1.0;
     std::uint64_t mInputEvents = 0, mInputEventsSeen = 0;

@@ -20,47 +20,32 @@
 #include <tiny_obj_loader.h>
 
 #include "edit/export.h"
-#include "render/image.h"
 #include "solver/discretization.h"
+#include "test_scenes.h"
 
 namespace penumbra {
 namespace {
 
 const double kPi = glm::pi<double>();
 
+/// sRGB encoding written out (IEC 61966-2-1), independent of the exporter's.
+double srgb(double v) { return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055; }
+
 class ExportRoundTrip : public ::testing::Test {
 protected:
     void SetUp() override {
-        Scene scene;
-        scene.settings.patchSize = 0.5;
-        scene.settings.elementSize = 0.25;
-        Material white;
-        white.reflectance = Rgb(0.6, 0.5, 0.4);
-        Material red;
-        red.reflectance = Rgb(0.7, 0.1, 0.1);
-        Material lamp;
-        lamp.reflectance = Rgb(0.0);
-        lamp.emission = Rgb(10.0, 8.0, 6.0);
-        scene.materials = {{"white", white}, {"red", red}, {"lamp", lamp}};
-        SceneObject floor;
-        floor.id = "floor";
-        floor.shape.type = ShapeType::Quad;
-        floor.shape.size = Vec3(2, 0, 2);
-        floor.material = "white";
+        Scene scene = test::emptyScene(0.5, 0.25);
+        test::addMaterial(scene, "white", Rgb(0.6, 0.5, 0.4));
+        test::addMaterial(scene, "red", Rgb(0.7, 0.1, 0.1));
+        test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(10.0, 8.0, 6.0));
         SceneObject box;
         box.id = "box";
         box.shape.type = ShapeType::Box;
         box.shape.size = Vec3(0.5);
         box.material = "red";
         box.transform.translate = Vec3(0.2, 0.25, 0.1);
-        SceneObject light;
-        light.id = "light";
-        light.shape.type = ShapeType::Quad;
-        light.shape.size = Vec3(0.5, 0, 0.5);
-        light.material = "lamp";
-        light.transform.translate = Vec3(0, 1.5, 0);
-        light.transform.rotateDeg = Vec3(180, 0, 0);  // facing down
-        scene.objects = {floor, box, light};
+        scene.objects = {test::makeQuad("floor", 2, 2, "white", Vec3(0.0)), box,
+                         test::makeQuad("light", 0.5, 0.5, "lamp", {0, 1.5, 0}, {180, 0, 0})};
         disc = std::make_unique<Discretization>(scene);
         this->scene = scene;
         // Radiance per object (B/π), within [0, 1] so no colour is clipped.
@@ -111,7 +96,7 @@ TEST_F(ExportRoundTrip, ObjAndItsMtlReadBackWithTinyObjLoader) {
     for (std::size_t v = 0; v < totalVertices(); ++v) {
         const int o = objectOfVertex(v);
         for (int c = 0; c < 3; ++c)
-            EXPECT_NEAR(attrib.colors[3 * v + c], srgbEncode(radiance[o][c]), 2e-6)
+            EXPECT_NEAR(attrib.colors[3 * v + c], srgb(radiance[o][c]), 2e-6)
                 << "vertex " << v << " of " << disc->objects()[o].id;
     }
     // One shape per object, one face per element, each face with its object's material.
@@ -158,7 +143,7 @@ TEST_F(ExportRoundTrip, PlyReadsBackWithOpenMesh) {
         const int o = objectOfVertex(v);
         const auto colour = mesh.color(vh);
         for (int c = 0; c < 3; ++c)
-            EXPECT_NEAR(colour[c], 255.0 * srgbEncode(radiance[o][c]), 0.51)
+            EXPECT_NEAR(colour[c], 255.0 * srgb(radiance[o][c]), 0.51)
                 << "vertex " << v << " of " << disc->objects()[o].id;
     }
 }
