@@ -476,9 +476,9 @@ std::size_t InteractiveDisplay::updateSolution(const std::vector<Rgb>& irradianc
                                                const std::vector<Rgb>& fromEmission,
                                                const std::vector<Rgb>* previewRadiosity,
                                                const std::vector<Rgb>* previewFromEmission,
-                                               int previewObject) {
+                                               int previewObject, bool previewComplete) {
     mShader->updateSolution(irradiance, fromEmission, previewRadiosity, previewFromEmission,
-                            previewObject);
+                            previewObject, previewComplete);
     return relightChanged();
 }
 

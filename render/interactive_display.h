@@ -280,7 +280,7 @@ public:
                                const std::vector<Rgb>& fromEmission,
                                const std::vector<Rgb>* previewRadiosity = nullptr,
                                const std::vector<Rgb>* previewFromEmission = nullptr,
-                               int previewObject = -1);
+                               int previewObject = -1, bool previewComplete = false);
     /// After an edit changed `changedObjects` (Discretization object versions added, removed,
     /// or with a new material; EditResult's added/removed/materialChanged): a version that
     /// replaced another of the same object (a move) takes its points; a removed object's

@@ -732,6 +732,9 @@ std::vector<int> PointShader::clearPreview() {
         std::sort(changed.begin(), changed.end());
         changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
     }
+    // A drop (the object alive again a little further on) or a cancel (back at its origin):
+    // its stand-in light comes with this state, not with the next solution snapshot.
+    if (!mDragEstimate.empty()) rememberDropped();
     if (mHasSolution) rebuildIndirect();
     return changed;
 }
@@ -742,6 +745,19 @@ void PointShader::beginDrag(int origin, const Visibility& originOnly) {
     dropDirectJob();
     mDragOrigin = origin;
     mOriginOnly = originOnly;
+    // The object's solved indirect light where it rests: the first estimate for its moves.
+    mDragEstimate.clear();
+    mDragEstimateObject = -1;
+    if (mHasSolution) {
+        const auto [first, count] = mDisc.elementRange(origin);
+        const std::size_t n = std::min(mElementH.size(), mElementHEmission.size());
+        mDragEstimate.assign(static_cast<std::size_t>(count), Rgb(0.0));
+        for (int k = 0; k < count; ++k) {
+            const auto e = static_cast<std::size_t>(first + k);
+            if (e < n) mDragEstimate[k] = glm::max(mElementH[e] - mElementHEmission[e], Rgb(0.0));
+        }
+        mDragEstimateObject = origin;
+    }
 }
 
 std::vector<int> PointShader::endDrag(int added) {
@@ -787,13 +803,11 @@ std::vector<int> PointShader::endDrag(int added) {
     next->lights = aliveLights();
     publish(std::move(next));
     // The solution snapshot is still the drag's, in which the object has no light of its own
-    // (the preview buffer had it): its last buffer's estimate stands in from now on, not only
-    // from the next snapshot, so no point is shaded without its indirect light meanwhile.
-    if (!mLastPreviewIndirect.empty()) {
-        rememberDropped();
-        mLastPreviewIndirect.clear();
-        mLastPreviewObject = -1;
-    }
+    // (the preview buffer had it): the drag's estimate stands in from now on, not only from
+    // the next snapshot, so no point is shaded without its indirect light meanwhile.
+    if (!mDragEstimate.empty()) rememberDropped();
+    mLastPreviewIndirect.clear();
+    mLastPreviewObject = -1;
     if (mHasSolution) rebuildIndirect();
     return changed;
 }
@@ -807,6 +821,10 @@ void PointShader::copyDirectFrom(const PointShader& source) {
     mElementHEmission = source.mElementHEmission;
     mLastPreviewIndirect = source.mLastPreviewIndirect;
     mLastPreviewObject = source.mLastPreviewObject;
+    mDragEstimate = source.mDragEstimate;
+    mDragEstimateObject = source.mDragEstimateObject;
+    mDroppedObject = source.mDroppedObject;
+    mDroppedIndirect = source.mDroppedIndirect;
     mHasSolution = source.mHasSolution;
     mPreviewDirectDelta = source.mPreviewDirectDelta;
     mPreviewElements = source.mPreviewElements;
@@ -831,15 +849,17 @@ void PointShader::updateSolution(const ProgressiveSolver& solver) {
     updateSolution(solver.irradiance(), solver.irradianceFromEmission(),
                    preview ? &solver.previewRadiosity() : nullptr,
                    preview ? &solver.previewRadiosityFromEmission() : nullptr,
-                   solver.previewObject());
+                   solver.previewObject(), solver.previewComplete());
 }
 
 void PointShader::updateSolution(const std::vector<Rgb>& H, const std::vector<Rgb>& fromEmission,
                                  const std::vector<Rgb>* previewRadiosity,
-                                 const std::vector<Rgb>* previewFromEmission, int previewObject) {
+                                 const std::vector<Rgb>* previewFromEmission, int previewObject,
+                                 bool previewComplete) {
     mElementH = H;
     mElementHEmission = fromEmission;
-    if (!previewRadiosity && !mLastPreviewIndirect.empty()) rememberDropped();
+    const bool dragging = state()->previewObject >= 0 || mDragOrigin >= 0;
+    if (!dragging && !mDragEstimate.empty()) rememberDropped();
     mLastPreviewIndirect.clear();
     if (previewRadiosity) {
         // George et al.'s buffer T holds ρ·ΔH; its reflected part (T − T_emission)/ρ is the
@@ -857,25 +877,48 @@ void PointShader::updateSolution(const std::vector<Rgb>& H, const std::vector<Rg
         }
     }
     mLastPreviewObject = previewRadiosity ? previewObject : -1;
+    // (A snapshot taken before the drop reached the solver leaves the estimate alone.)
+    if (previewRadiosity && previewObject >= 0 && dragging)
+        noteDragEstimate(previewObject, previewComplete);
     mHasSolution = true;
     rebuildIndirect();
 }
 
+void PointShader::noteDragEstimate(int object, bool complete) {
+    if (mDragEstimateObject >= 0 && !mDisc.sameElements(mDragEstimateObject, object)) {
+        mDragEstimate.clear();
+        mDragEstimateObject = -1;
+    }
+    const auto [first, count] = mDisc.elementRange(object);
+    std::vector<Rgb> candidate(static_cast<std::size_t>(count), Rgb(0.0));
+    double light = 0;
+    for (int k = 0; k < count && first + k < static_cast<int>(mLastPreviewIndirect.size()); ++k) {
+        candidate[k] = glm::max(mLastPreviewIndirect[first + k], Rgb(0.0));
+        light += luminance(candidate[k]);
+    }
+    double estimated = 0;
+    for (const Rgb& h : mDragEstimate) estimated += luminance(h);
+    if (mDragEstimate.empty() || complete || object == mDragEstimateObject ||
+        light >= kDragEstimateShare * estimated) {
+        mDragEstimate = std::move(candidate);
+        mDragEstimateObject = object;
+    }
+}
+
 void PointShader::rememberDropped() {
     // The drag ended: the object is alive again at its last preview's place (or a little
-    // further on: the same mesh), and its buffer's reflected part estimates its indirect
-    // irradiance there.
+    // further on, or back at its origin: the same mesh), and the drag's estimate is the best
+    // guess of its indirect irradiance there.
     mDroppedObject = -1;
     mDroppedIndirect.clear();
-    const int from = mLastPreviewObject;
+    const int from = mDragEstimateObject;
+    std::vector<Rgb> estimate = std::move(mDragEstimate);
+    mDragEstimate.clear();
+    mDragEstimateObject = -1;
     if (from < 0 || from >= static_cast<int>(mDisc.objects().size())) return;
     for (int o = 0; o < static_cast<int>(mDisc.objects().size()); ++o) {
         if (!mDisc.objects()[o].alive || !mDisc.sameElements(from, o)) continue;
-        const auto [first, count] = mDisc.elementRange(from);
-        mDroppedIndirect.assign(static_cast<std::size_t>(count), Rgb(0.0));
-        for (int k = 0; k < count && first + k < static_cast<int>(mLastPreviewIndirect.size());
-             ++k)
-            mDroppedIndirect[k] = mLastPreviewIndirect[first + k];
+        mDroppedIndirect = std::move(estimate);
         mDroppedObject = o;
         return;
     }
@@ -956,6 +999,16 @@ void PointShader::rebuildIndirect() {
         const std::vector<Rgb>& T = lagging ? moved : mLastPreviewIndirect;
         for (std::size_t e = 0; e < next->elementIndirect.size() && e < T.size(); ++e)
             next->elementIndirect[e] += T[e];
+    }
+    // The moving object no darker than the drag's estimate while its buffer fills.
+    if (preview >= 0 && !mDragEstimate.empty() &&
+        mDisc.sameElements(mDragEstimateObject, preview)) {
+        const auto [first, count] = mDisc.elementRange(preview);
+        for (int k = 0; k < count && k < static_cast<int>(mDragEstimate.size()); ++k) {
+            const auto e = static_cast<std::size_t>(first + k);
+            if (e < next->elementIndirect.size())
+                next->elementIndirect[e] = glm::max(next->elementIndirect[e], mDragEstimate[k]);
+        }
     }
     // The dragged object, and versions newer than the solution: their indirect light comes
     // from an estimate (the buffer, a lagging buffer moved with the object) or not at all

@@ -180,12 +180,13 @@ public:
     /// The same from copies: `irradiance` = ProgressiveSolver::irradiance(), `fromEmission`
     /// its irradianceFromEmission(), and while `previewObject` ≥ 0 is the solver's
     /// previewObject(), `previewRadiosity` and `previewFromEmission` its previewRadiosity()
-    /// and previewRadiosityFromEmission() (null: none). Lets another
-    /// thread update the display from a published snapshot while the solver keeps shooting.
+    /// and previewRadiosityFromEmission() (null: none), and `previewComplete` its
+    /// previewComplete(). Lets another thread update the display from a published snapshot
+    /// while the solver keeps shooting.
     void updateSolution(const std::vector<Rgb>& irradiance, const std::vector<Rgb>& fromEmission,
                         const std::vector<Rgb>* previewRadiosity = nullptr,
                         const std::vector<Rgb>* previewFromEmission = nullptr,
-                        int previewObject = -1);
+                        int previewObject = -1, bool previewComplete = false);
     /// H_direct(e) for every element (W/m²), as used by updateSolution() (with a preview set:
     /// in the world that includes the preview object).
     std::vector<Rgb> elementDirect() const;
@@ -357,9 +358,12 @@ private:
     /// Gives object version `to` the vertex light of version `from` in `st` when both have the
     /// same mesh and `to` has none yet.
     void carryVertexLight(State& st, int from, int to) const;
-    /// At the first solution after a drag: mDroppedIndirect from the last preview buffer, for
-    /// the alive version of the same object.
+    /// At a drop (the preview cleared or ended): mDroppedIndirect from mDragEstimate, for the
+    /// alive version of the same object; the estimate is used up.
     void rememberDropped();
+    /// Takes preview version `object`'s part of mLastPreviewIndirect into mDragEstimate when
+    /// it is at least as good an estimate (see mDragEstimate).
+    void noteDragEstimate(int object, bool complete);
     void recordTriple(const ShadowTriple& t) const;
     void workerLoop();
 
@@ -381,6 +385,16 @@ private:
     /// irradiance its last preview buffer estimated: shown until the solution catches up.
     int mDroppedObject = -1;
     std::vector<Rgb> mDroppedIndirect;
+    /// While dragging, per element of the dragged mesh, the best estimate of its indirect
+    /// irradiance so far, for version mDragEstimateObject (-1: none): the origin's solution at
+    /// beginDrag, then each preview buffer that has reached the object (previewComplete, the
+    /// same version again, or at least kDragEstimateShare of the estimate's light). A buffer
+    /// for a new position starts empty and fills shooter by shooter; the moving object is
+    /// shown with no less than the estimate meanwhile (rebuildIndirect), and the dropped
+    /// object starts from it (rememberDropped), never from a buffer that has barely begun.
+    std::vector<Rgb> mDragEstimate;
+    int mDragEstimateObject = -1;
+    static constexpr double kDragEstimateShare = 0.8;
     int mLastPreviewObject = -1;
     bool mHasSolution = false;
     /// Drag (beginDrag): the origin H_direct still includes, and a subset admitting it.

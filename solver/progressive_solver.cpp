@@ -1392,6 +1392,14 @@ void ProgressiveSolver::clearPreview() {
 
 int ProgressiveSolver::previewObject() const { return mImpl->previewObject; }
 
+bool ProgressiveSolver::previewComplete() const {
+    if (mImpl->previewObject < 0) return false;
+    const ChangeEntry& c = mImpl->previewEntry;
+    if (!mImpl->previewEmitters.empty()) return false;
+    const int j = c.pending.top();
+    return !c.gathered.empty() || j < 0 || c.pending.key(j) <= 0;
+}
+
 const std::vector<Rgb>& ProgressiveSolver::previewRadiosity() const {
     mImpl->temp.resize(mDisc.elements().size(), Rgb(0.0));
     return mImpl->temp;

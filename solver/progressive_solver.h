@@ -157,6 +157,10 @@ public:
     int stepPreview(int maxShots);
     void clearPreview();
     int previewObject() const;
+    /// Every shooter's light has reached the previewed object (its gather ran, or nothing is
+    /// left to shoot): previewRadiosity() holds its whole indirect light, less sampling
+    /// noise. Before, the object has only the strongest shooters' light.
+    bool previewComplete() const;
     /// The temporary buffer: per element radiosity added for display only.
     const std::vector<Rgb>& previewRadiosity() const;
     /// The part of previewRadiosity() straight from emission (irradianceFromEmission's

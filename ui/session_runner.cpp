@@ -624,7 +624,8 @@ void SessionRunner::catchUpDisplay(DisplaySlot& slot, const Light& light) {
         }
         if (light.irradiance && slot.solution != light.serial) {
             d.updateSolution(*light.irradiance, *light.fromEmission, light.previewBuffer.get(),
-                             light.previewFromEmission.get(), light.previewVersion);
+                             light.previewFromEmission.get(), light.previewVersion,
+                             light.previewComplete);
             slot.solution = light.serial;
         }
     } catch (const std::exception& e) {
@@ -943,6 +944,7 @@ void SessionRunner::publishLight() {
             std::make_shared<const std::vector<Rgb>>(mSession->solver().previewRadiosity());
         light.previewFromEmission = std::make_shared<const std::vector<Rgb>>(
             mSession->solver().previewRadiosityFromEmission());
+        light.previewComplete = mSession->solver().previewComplete();
     }
     light.serial = ++mLightSerial;
     {

@@ -215,6 +215,7 @@ private:
         /// from them).
         std::shared_ptr<const std::vector<Rgb>> irradiance, fromEmission, previewBuffer,
             previewFromEmission;
+        bool previewComplete = false;  ///< ProgressiveSolver::previewComplete()
         std::uint64_t serial = 0;
     };
     void runSolver();

@@ -273,6 +273,59 @@ TEST(InteractiveDisplayMove, ADroppedObjectKeepsItsReflectedLightUntilTheNextSna
     EXPECT_NEAR(shown, expected, 0.15 * expected);
 }
 
+TEST(InteractiveDisplayMove, ADropJustAfterAMoveKeepsTheDragsLightNotABufferThatBarelyBegan) {
+    // The drag's last move came just before the drop: the solver's buffer for that place has
+    // had one shot (the lamp's direct light, no reflected light yet) when the snapshot reaches
+    // the display. The dropped object's stand-in is the drag's best estimate (the buffer of
+    // the place before, complete), not that one, so it shows about the light it settles to.
+    Scene3 s = selectSlab();
+    const Discretization& disc = s.session->discretization();
+    DragDisplay drag(s);
+    InteractiveDisplay& display = drag.display;
+    const int first = moveSlab(s, test::kLitRoomSlabDragTarget);
+    {
+        RayTracer::SubsetHandle subset(s.session->tracer(), {first});
+        display.setPreview(first, subset.visibility(), &s.session->solver());
+        s.session->solve(200);
+        display.updateSolution(s.session->solver());
+    }
+    TransformCommand t;
+    t.id = "slab";
+    t.translate = test::kLitRoomSlabDragTarget + Vec3(0.05, 0.0, 0.0);
+    const int last = s.session->apply(t).preview;
+    ASSERT_GE(last, 0);
+    RayTracer::SubsetHandle subset(s.session->tracer(), {last});
+    display.setPreview(last, subset.visibility(), &s.session->solver());
+    s.session->solve(1);
+    display.updateSolution(s.session->solver());
+    ASSERT_FALSE(s.session->solver().previewComplete());
+    const EditResult r = s.session->apply(UnselectCommand{});
+    ASSERT_EQ(r.added.size(), 1u);
+    const int dropped = r.added[0];
+    display.endDrag(dropped);
+
+    auto reflected = [&](const std::vector<Rgb>& indirect) {
+        double sum = 0;
+        const auto [firstElement, count] = disc.elementRange(dropped);
+        for (int k = 0; k < count; ++k)
+            sum += luminance(indirect[firstElement + k]) * disc.elements()[firstElement + k].area;
+        return sum;
+    };
+    const double shown = reflected(display.shader().elementIndirect());
+    // Still so after the next snapshot (the solver has not yet reached the dropped version).
+    display.updateSolution(s.session->solver());
+    const double next = reflected(display.shader().elementIndirect());
+    s.session->converge(1e-4);
+    PointShaderOptions so;
+    so.threads = 0;
+    PointShader settled(disc, s.session->tracer(), SolverOptions{}, so);
+    settled.updateSolution(s.session->solver());
+    const double expected = reflected(settled.elementIndirect());
+    ASSERT_GT(expected, 0.0);
+    EXPECT_NEAR(shown, expected, 0.2 * expected);
+    EXPECT_NEAR(next, expected, 0.2 * expected);
+}
+
 TEST(InteractiveDisplayMove, TheFallbackIsTheSolutionBlendedPerVertex) {
     // On the converged room without a preview, the fallback of a ray equals (E + ρ·H)/π with
     // H the element irradiance blended per vertex (the Gouraud view's interpolation), which is
