@@ -330,16 +330,19 @@ void InteractiveDisplay::finishFrame(const CameraRays& camera, Image& image) {
     t = Clock::now();
     const double pixels = static_cast<double>(mOptions.width) * mOptions.height;
     int budget = static_cast<int>(std::lround(mOptions.sampleFraction * pixels));
+    int changedBudget = static_cast<int>(std::lround(mOptions.changedSampleFraction * pixels));
     if (!mOptions.synchronous) {
-        const std::size_t cap = mOptions.maxPendingPerFrame * static_cast<std::size_t>(budget);
+        const std::size_t cap =
+            mOptions.maxPendingPerFrame * static_cast<std::size_t>(budget + changedBudget);
         const std::size_t pending = mShader->pendingCount();
-        budget =
-            pending >= cap ? 0 : static_cast<int>(std::min<std::size_t>(budget, cap - pending));
+        const std::size_t room = pending >= cap ? 0 : cap - pending;
+        budget = static_cast<int>(std::min<std::size_t>(budget, room));
+        changedBudget = static_cast<int>(std::min<std::size_t>(changedBudget, room - budget));
     }
     std::vector<ShadeRequest> requests;
     if (budget > 0) {
         mCache.applyInterpolationFeedback(mEpi.interpolationWeights());
-        requests = mCache.requestSamples(camera, budget);
+        requests = mCache.requestSamples(camera, budget, changedBudget);
     }
     st.requestedSamples = requests.size();
     if (!mOptions.synchronous && !requests.empty()) mShader->submit(requests);

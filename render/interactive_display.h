@@ -129,6 +129,11 @@ struct InteractiveDisplayOptions {
     int height = 512;
     /// New samples per frame as a fraction of the pixels (Bala et al.: 1–3%).
     double sampleFraction = 0.02;
+    /// Up to this fraction of the pixels more per frame for pixels whose point an edit made
+    /// stale or carried (RenderCache::requestSamples): the region an edit changed catches up
+    /// in a second or two instead of at the base rate. The editor's asynchronous display has
+    /// shader capacity to spare for it; 0 (the default) keeps synchronous output unchanged.
+    double changedSampleFraction = 0;
     /// Synchronous: every frame's requests are shaded before renderFrame returns and appear in
     /// the next frame; output depends only on the inputs (CLI, tests, benchmarks).
     /// Asynchronous: requests go to the shader's worker threads; each frame takes what is done.

@@ -684,7 +684,8 @@ void RenderCache::applyInterpolationFeedback(const std::vector<float>& weights) 
     });
 }
 
-std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, int budget) {
+std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, int budget,
+                                                      int changedBudget) {
     const std::size_t pixels = mPriority.size();
     if (budget < 0)
         budget =
@@ -709,6 +710,9 @@ std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, 
             return std::array<std::size_t, 2>{a[0] + b[0], a[1] + b[1]};
         });
     const std::size_t count[3] = {0, changed[0], changed[1]};
+    budget += static_cast<int>(
+        std::min<std::size_t>(static_cast<std::size_t>(std::max(changedBudget, 0)),
+                              count[1] + count[2]));
     // Per pass, the pixels it draws among (tier ≥ the pass's), less those already requested.
     const std::size_t among[3] = {pixels, count[1] + count[2], count[2]};
     std::vector<ShadeRequest> out;

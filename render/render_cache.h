@@ -137,7 +137,11 @@ public:
     /// requests as there are carried pixels not waiting are drawn among them alone, then as
     /// many as there are stale ones among those, the rest as above. Rays come from `camera`
     /// (the frame's camera).
-    std::vector<ShadeRequest> requestSamples(const CameraRays& camera, int budget = -1);
+    /// `changedBudget` more requests may go to carried and stale pixels, up to as many as
+    /// there are: after an edit the changed region is re-shaded faster than the budget the
+    /// rest of the image needs.
+    std::vector<ShadeRequest> requestSamples(const CameraRays& camera, int budget = -1,
+                                             int changedBudget = 0);
     /// Plain render-cache reconstruction of the last frame (no edges): a pixel with a point
     /// shows it, an empty one the distance-weighted mean of the points within 1, 2 or 3 pixels
     /// (the first ring that has any); black when none.

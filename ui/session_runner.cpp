@@ -659,6 +659,10 @@ InteractiveDisplayOptions SessionRunner::displayOptions(int slot, const ViewRequ
     options.shader.workerNice = mOptions.threaded ? mOptions.backgroundNice : 0;
     // Edits come while the solver redistributes: no dark patches where its H lags.
     options.shader.clampIndirect = true;
+    // After an edit or a drop, what changed is re-shaded at up to five times the base rate:
+    // the shader's workers have the capacity, and at the base rate the old and new shadows of
+    // a moved table take seconds to re-shade.
+    options.changedSampleFraction = 0.08;
     if (slot == 1) {
         // Interaction: shadow edges are not worth their cost (tens of thousands of them in
         // robot-room, recomputed at every drag position); a few more samples per (smaller)

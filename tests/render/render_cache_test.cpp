@@ -671,6 +671,44 @@ TEST(RenderCache, RequestsConcentrateOnEmptyPixelsAndAreStratified) {
               static_cast<std::size_t>(std::lround(0.02 * w * h)));
 }
 
+TEST(RenderCache, AChangedBudgetGoesToStalePixelsOnTopOfTheBaseBudget) {
+    // A full image of fresh points, a block of 6×5 of them on object 1 (the object an edit
+    // changed, marked stale). The changed budget adds up to as many requests as there are
+    // stale pixels, and those pixels are all among the requests; the base budget is unchanged.
+    const int w = 32, h = 24;
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), w, h);
+    auto fill = [&](RenderCache& cache) {
+        std::vector<ShadedPoint> points;
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                const int object = x >= 10 && x < 16 && y >= 8 && y < 13 ? 1 : 0;
+                points.push_back(pointOnRay(rays, x + 0.5, y + 0.5, 3.0, object));
+            }
+        cache.insert(points);
+        cache.reproject(rays);
+        EXPECT_EQ(cache.markStale({1}), 30u);
+        cache.reproject(rays);
+    };
+    RenderCache base(w, h, 10000);
+    fill(base);
+    EXPECT_EQ(base.requestSamples(rays, 8).size(), 8u);
+
+    RenderCache extra(w, h, 10000);
+    fill(extra);
+    const auto requests = extra.requestSamples(rays, 8, 100);
+    ASSERT_EQ(requests.size(), 38u) << "8 + the 30 stale pixels (the changed budget's cap)";
+    int stale = 0;
+    for (const ShadeRequest& r : requests) {
+        const int x = static_cast<int>(r.pixel.x), y = static_cast<int>(r.pixel.y);
+        if (x >= 10 && x < 16 && y >= 8 && y < 13) ++stale;
+    }
+    EXPECT_EQ(stale, 30) << "every stale pixel is requested";
+
+    RenderCache some(w, h, 10000);
+    fill(some);
+    EXPECT_EQ(some.requestSamples(rays, 8, 12).size(), 20u);
+}
+
 TEST(RenderCache, OldPointsAndHighContrastRaisePriority) {
     const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), 16, 16);
     RenderCache cache(16, 16, 1000);
