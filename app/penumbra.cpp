@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -21,6 +22,7 @@
 #include "edit/input_error.h"
 #include "edit/lit_scene.h"
 #include "edit/replay.h"
+#include "edit/scene_io.h"
 #include "render/camera_rays.h"
 #include "render/gouraud_renderer.h"
 #include "render/image.h"
@@ -38,11 +40,29 @@ struct SolveArgs {
     std::uint64_t seed = 1;
     double subdivide = 0;
     double stochasticBelow = interactiveSolverOptions().stochasticBelow;
-    std::string save, exportPath, report;
+    std::string save, exportPath, report, saveScene;
+    ImportOptions import;
 };
 
+/// --emission-scale, --light-size and --units: how a glTF or OBJ scene is imported.
+void addImportOptions(CLI::App* cmd, ImportOptions& import) {
+    cmd->add_option("--emission-scale", import.emissionScale,
+                    "glTF/OBJ: multiply emission by S (emission = pi x emissive x S; default 1)")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--light-size", import.lightRadius,
+                    "glTF: radius in metres of the sphere standing for a point light (default "
+                    "0.05)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--units", import.objUnit, "OBJ: file units, mm, cm or m (default m)")
+        ->transform(CLI::CheckedTransformer(
+            std::map<std::string, double>{{"mm", 0.001}, {"cm", 0.01}, {"m", 1.0}}));
+}
+
+constexpr const char* kSceneHelp = "scene file (*.json, or *.gltf *.glb *.obj to import)";
+
 void addSolveOptions(CLI::App* cmd, SolveArgs& a) {
-    cmd->add_option("SCENE", a.scene, "scene file (*.json)")->required();
+    cmd->add_option("SCENE", a.scene, kSceneHelp)->required();
+    addImportOptions(cmd, a.import);
     cmd->add_option("--converge", a.converge,
                     "stop when unshot energy < EPS x emitted energy (default 1e-3)")
         ->check(CLI::Range(0.0, 1.0));
@@ -77,7 +97,7 @@ std::unique_ptr<LitScene> openAndSolve(const SolveArgs& a) {
     options.seed = a.seed;
     options.stochasticBelow = a.stochasticBelow;
     options.gradientThreshold = a.subdivide;
-    auto lit = LitScene::open(a.scene, options);
+    auto lit = LitScene::open(a.scene, options, a.import);
     lit->solver().converge(a.converge, a.maxShots, progressPrinter(a.converge));
     if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\n");
     return lit;
@@ -89,6 +109,7 @@ void writeReport(const std::string& path, const nlohmann::json& report) {
 
 int runSolve(const SolveArgs& a) {
     auto lit = openAndSolve(a);
+    if (!a.saveScene.empty()) saveScene(lit->scene(), a.saveScene);
     if (!a.save.empty()) saveSolution(*lit, a.save);
     if (!a.exportPath.empty())
         exportLitScene(lit->discretization(), lit->solver().radiosity(), a.exportPath,
@@ -208,7 +229,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     options.seed = a.seed;
     options.stochasticBelow = a.stochasticBelow;
     options.gradientThreshold = a.subdivide;
-    auto session = EditSession::open(a.scene, options);
+    auto session = EditSession::open(a.scene, options, a.import);
     std::vector<LoggedEdit> edits;
     if (!r.log.empty())
         edits = readEditLog(r.log, std::filesystem::path(a.scene).parent_path().string());
@@ -408,6 +429,9 @@ int main(int argc, char** argv) {
     solveCmd->add_option("--export", solve.exportPath,
                          "export the lit scene (.ply .gltf .glb .obj)");
     solveCmd->add_option("--report", solve.report, "write a JSON report");
+    solveCmd->add_option("--save-scene", solve.saveScene,
+                         "write the scene as penumbra-scene/1 JSON (an imported one's meshes "
+                         "beside it)");
 
     CLI::App* probeCmd = app.add_subcommand("probe", "print irradiance at points");
     addSolveOptions(probeCmd, solve);
@@ -455,7 +479,8 @@ int main(int argc, char** argv) {
 
     ReplayArgs replay;
     CLI::App* replayCmd = app.add_subcommand("replay", "replay an edit log over a scene");
-    replayCmd->add_option("SCENE", replay.options.scenePath, "scene file (*.json)")->required();
+    replayCmd->add_option("SCENE", replay.options.scenePath, kSceneHelp)->required();
+    addImportOptions(replayCmd, replay.options.import);
     replayCmd->add_option("LOG", replay.options.logPath, "edit log (*.jsonl)")->required();
     replayCmd
         ->add_option("--budget-shots", replay.options.budgetShots,

@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
     omerr().disable();
     penumbra::EditorOptions options;
     CLI::App app{"Penumbra editor: interactive radiosity lighting"};
-    app.add_option("scene", options.scene, "scene file (*.json)");
+    app.add_option("scene", options.scene, "scene file (*.json, or *.gltf *.glb *.obj to import)");
     app.add_option("--log", options.log, "append every edit to this edit log (JSONL)");
     app.add_option("--play", options.play, "replay this edit log live");
     app.add_option("--screenshot", options.screenshot,

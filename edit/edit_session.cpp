@@ -57,8 +57,9 @@ std::string EditResult::toString() const {
 // Construction and log.
 
 std::unique_ptr<EditSession> EditSession::open(const std::string& path,
-                                               const SolverOptions& options) {
-    auto session = std::make_unique<EditSession>(loadScene(path), options, path);
+                                               const SolverOptions& options,
+                                               const ImportOptions& import) {
+    auto session = std::make_unique<EditSession>(loadScene(path, import), options, path);
     session->mSceneDir = std::filesystem::path(path).parent_path().string();
     return session;
 }

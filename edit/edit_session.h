@@ -44,8 +44,10 @@ struct EditResult {
 class EditSession {
 public:
     /// Loads the scene at `path` (InputError on bad input) and builds its solution (not yet
-    /// solved: call apply(ConvergeCommand{...}) or solver().converge()).
-    static std::unique_ptr<EditSession> open(const std::string& path, const SolverOptions& options);
+    /// solved: call apply(ConvergeCommand{...}) or solver().converge()). A glTF or OBJ scene is
+    /// imported with `import`.
+    static std::unique_ptr<EditSession> open(const std::string& path, const SolverOptions& options,
+                                             const ImportOptions& import = {});
     /// `sourceName` names the scene in error messages.
     EditSession(Scene scene, const SolverOptions& options, const std::string& sourceName = "scene");
     ~EditSession();

@@ -11,8 +11,9 @@
 
 namespace penumbra {
 
-std::unique_ptr<LitScene> LitScene::open(const std::string& path, const SolverOptions& options) {
-    return std::make_unique<LitScene>(loadScene(path), options, path);
+std::unique_ptr<LitScene> LitScene::open(const std::string& path, const SolverOptions& options,
+                                         const ImportOptions& import) {
+    return std::make_unique<LitScene>(loadScene(path, import), options, path);
 }
 
 LitScene::LitScene(Scene scene, const SolverOptions& options, const std::string& sourceName)

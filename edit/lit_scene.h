@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "edit/scene_import.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"
@@ -17,9 +18,10 @@ namespace penumbra {
 
 class LitScene {
 public:
-    /// Loads `path` (throws InputError for bad input, naming the file and key) and builds the
-    /// discretization, tracer and solver.
-    static std::unique_ptr<LitScene> open(const std::string& path, const SolverOptions& options);
+    /// Loads `path` (throws InputError for bad input, naming the file and key; a glTF or OBJ
+    /// scene is imported with `import`) and builds the discretization, tracer and solver.
+    static std::unique_ptr<LitScene> open(const std::string& path, const SolverOptions& options,
+                                          const ImportOptions& import = {});
     /// Builds from a scene already in memory; `sourceName` names it in error messages.
     LitScene(Scene scene, const SolverOptions& options, const std::string& sourceName);
 

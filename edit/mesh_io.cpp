@@ -1036,6 +1036,206 @@ PolygonSoup readGltf(const std::string& path, bool binary) {
     return soup;
 }
 
+// ---------------------------------------------------------------------------------------------
+// Scene files for import: parts per glTF mesh node or OBJ object.
+
+tinygltf::Model loadGltfModel(const std::string& path, bool binary) {
+    tinygltf::TinyGLTF loader;
+    loader.SetImageLoader(&ignoreImage, nullptr);
+    loader.SetStoreOriginalJSONForExtrasAndExtensions(true);
+    tinygltf::Model model;
+    std::string error;
+    std::string warning;
+    const bool ok = binary ? loader.LoadBinaryFromFile(&model, &error, &warning, path)
+                           : loader.LoadASCIIFromFile(&model, &error, &warning, path);
+    if (!ok) {
+        throw InputError(path, "",
+                         std::string("not a valid ") + (binary ? "GLB" : "glTF") +
+                             " file: " + (error.empty() ? warning : error));
+    }
+    return model;
+}
+
+/// The part of a face list that `soup` holds, built into a MeshFilePart (materials by index).
+MeshFilePart buildPart(PolygonSoup& soup, std::size_t fileMaterials, const std::string& where) {
+    // Placeholder materials keep the file's indices through buildTriMesh; faces without one
+    // get index fileMaterials ("default"), which is -1 here.
+    soup.materials.assign(fileMaterials, Material{});
+    soup.materialNames.assign(fileMaterials, "");
+    MeshFilePart part;
+    part.mesh = buildTriMesh(soup, where);
+    part.triangleMaterial.assign(part.mesh.triangles.size(), -1);
+    for (std::size_t t = 0; t < part.mesh.triangleMaterial.size(); ++t) {
+        const int m = part.mesh.triangleMaterial[t];
+        part.triangleMaterial[t] = m >= 0 && static_cast<std::size_t>(m) < fileMaterials ? m : -1;
+    }
+    part.mesh.triangleMaterial.clear();
+    part.mesh.materials.clear();
+    part.mesh.materialNames.clear();
+    return part;
+}
+
+MeshFileScene readGltfScene(const std::string& path, bool binary) {
+    const tinygltf::Model model = loadGltfModel(path, binary);
+    MeshFileScene scene;
+    // Extensions: required ones the reader cannot honour make the geometry wrong.
+    // (KHR_materials_unlit: a shading-model hint the radiosity solution replaces.)
+    const std::vector<std::string> known = {"KHR_lights_punctual",
+                                            "KHR_materials_emissive_strength",
+                                            "KHR_materials_unlit"};
+    for (const std::string& e : model.extensionsRequired)
+        if (std::find(known.begin(), known.end(), e) == known.end())
+            throw InputError(path, "", "requires the extension " + e + ", which is not supported");
+    for (const std::string& e : model.extensionsUsed)
+        if (std::find(known.begin(), known.end(), e) == known.end())
+            scene.ignored.push_back("extension " + e);
+    if (!model.skins.empty()) scene.ignored.push_back("skins (the bind pose is used)");
+    if (!model.animations.empty()) scene.ignored.push_back("animations");
+
+    for (const tinygltf::Material& source : model.materials) {
+        MeshFileMaterial material;
+        material.name = source.name;
+        const std::vector<double>& base = source.pbrMetallicRoughness.baseColorFactor;
+        if (base.size() >= 3) material.baseColor = Rgb(base[0], base[1], base[2]);
+        material.textured = source.pbrMetallicRoughness.baseColorTexture.index >= 0;
+        material.doubleSided = source.doubleSided;
+        double strength = 1.0;
+        const auto extension = source.extensions.find("KHR_materials_emissive_strength");
+        if (extension != source.extensions.end() && extension->second.Has("emissiveStrength") &&
+            extension->second.Get("emissiveStrength").IsNumber())
+            strength = extension->second.Get("emissiveStrength").GetNumberAsDouble();
+        if (source.emissiveFactor.size() >= 3)
+            material.emissive = Rgb(source.emissiveFactor[0], source.emissiveFactor[1],
+                                    source.emissiveFactor[2]) *
+                                strength;
+        material.extras = source.extras_json_string;
+        scene.materials.push_back(material);
+    }
+    const std::size_t fileMaterials = scene.materials.size();
+    bool morphs = false;
+
+    std::vector<bool> onPath(model.nodes.size(), false);
+    std::function<void(int, const Mat4&)> visit = [&](int index, const Mat4& worldFromParent) {
+        if (index < 0 || static_cast<size_t>(index) >= model.nodes.size())
+            throw InputError(path, "", "node " + std::to_string(index) + " does not exist");
+        if (onPath[index])
+            throw InputError(path, "", "node " + std::to_string(index) + " is its own ancestor");
+        onPath[index] = true;
+        const tinygltf::Node& node = model.nodes[index];
+        const Mat4 worldFromNode = worldFromParent * localFromNode(node);
+        const std::string where = path + " (node " + std::to_string(index) + ")";
+        if (node.mesh >= 0) {
+            if (static_cast<size_t>(node.mesh) >= model.meshes.size())
+                throw InputError(path, "", "mesh " + std::to_string(node.mesh) + " does not exist");
+            const tinygltf::Mesh& mesh = model.meshes[node.mesh];
+            PolygonSoup soup;
+            for (const tinygltf::Primitive& primitive : mesh.primitives) {
+                morphs = morphs || !primitive.targets.empty();
+                appendPrimitive(model, primitive, worldFromNode, path, soup);
+            }
+            if (soup.faceCount() > 0) {
+                MeshFilePart part = buildPart(soup, fileMaterials, where);
+                part.name = !node.name.empty() ? node.name : mesh.name;
+                part.extras = node.extras_json_string;
+                scene.parts.push_back(std::move(part));
+            }
+        }
+        const auto at = [&](const glm::dvec4& v) { return Vec3(worldFromNode * v); };
+        if (node.camera >= 0 && static_cast<size_t>(node.camera) < model.cameras.size()) {
+            const tinygltf::Camera& source = model.cameras[node.camera];
+            MeshFileCamera camera;
+            camera.name = !source.name.empty() ? source.name : node.name;
+            camera.position = at(glm::dvec4(0, 0, 0, 1));
+            camera.forward = at(glm::dvec4(0, 0, -1, 0));
+            camera.up = at(glm::dvec4(0, 1, 0, 0));
+            camera.perspective = source.type != "orthographic";
+            if (camera.perspective && source.perspective.yfov > 0)
+                camera.yfovDeg = source.perspective.yfov * 180.0 / M_PI;
+            scene.cameras.push_back(camera);
+        }
+        const auto lightExtension = node.extensions.find("KHR_lights_punctual");
+        if (lightExtension != node.extensions.end() && lightExtension->second.Has("light") &&
+            lightExtension->second.Get("light").IsInt()) {
+            const int l = lightExtension->second.Get("light").GetNumberAsInt();
+            if (l < 0 || static_cast<size_t>(l) >= model.lights.size())
+                throw InputError(path, "", "light " + std::to_string(l) + " does not exist");
+            const tinygltf::Light& source = model.lights[l];
+            MeshFileLight light;
+            light.name = !source.name.empty() ? source.name : node.name;
+            light.type = source.type;
+            if (source.color.size() >= 3)
+                light.colour = Rgb(source.color[0], source.color[1], source.color[2]);
+            light.intensity = source.intensity;
+            light.position = at(glm::dvec4(0, 0, 0, 1));
+            light.direction = at(glm::dvec4(0, 0, -1, 0));
+            scene.lights.push_back(light);
+        }
+        for (int child : node.children) visit(child, worldFromNode);
+        onPath[index] = false;
+    };
+    const Mat4 identity(1.0);
+    if (!model.scenes.empty()) {
+        const size_t sceneIndex =
+            model.defaultScene >= 0 && static_cast<size_t>(model.defaultScene) < model.scenes.size()
+                ? static_cast<size_t>(model.defaultScene)
+                : 0;
+        for (int root : model.scenes[sceneIndex].nodes) visit(root, identity);
+    } else {
+        std::vector<bool> isChild(model.nodes.size(), false);
+        for (const tinygltf::Node& node : model.nodes)
+            for (int child : node.children)
+                if (child >= 0 && static_cast<size_t>(child) < isChild.size()) isChild[child] = true;
+        for (size_t i = 0; i < model.nodes.size(); ++i)
+            if (!isChild[i]) visit(static_cast<int>(i), identity);
+    }
+    if (morphs) scene.ignored.push_back("morph targets (the base shape is used)");
+    return scene;
+}
+
+MeshFileScene readObjScene(const std::string& path) {
+    tinyobj::ObjReaderConfig config;
+    config.triangulate = false;
+    config.vertex_color = false;
+    tinyobj::ObjReader reader;
+    if (!reader.ParseFromFile(path, config))
+        throw InputError(path, "", "not a valid OBJ file: " + reader.Error());
+    MeshFileScene scene;
+    std::vector<Vec3> positions;
+    const std::vector<tinyobj::real_t>& coordinates = reader.GetAttrib().vertices;
+    for (size_t i = 0; i + 2 < coordinates.size(); i += 3)
+        positions.emplace_back(coordinates[i], coordinates[i + 1], coordinates[i + 2]);
+    for (const tinyobj::material_t& source : reader.GetMaterials()) {
+        MeshFileMaterial material;
+        material.name = source.name;
+        material.baseColor = Rgb(source.diffuse[0], source.diffuse[1], source.diffuse[2]);
+        material.emissive = Rgb(source.emission[0], source.emission[1], source.emission[2]);
+        material.textured = !source.diffuse_texname.empty();
+        scene.materials.push_back(material);
+    }
+    std::vector<int> face;
+    for (const tinyobj::shape_t& shape : reader.GetShapes()) {
+        PolygonSoup soup;
+        soup.positions = positions;
+        size_t next = 0;
+        for (size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
+            const size_t n = shape.mesh.num_face_vertices[f];
+            face.clear();
+            for (size_t k = 0; k < n && next + k < shape.mesh.indices.size(); ++k)
+                face.push_back(shape.mesh.indices[next + k].vertex_index);
+            next += n;
+            const int material =
+                f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
+            soup.addFace(face.data(), face.size(), material);
+        }
+        if (soup.faceCount() == 0) continue;
+        MeshFilePart part = buildPart(soup, scene.materials.size(),
+                                      path + " (object " + shape.name + ")");
+        part.name = shape.name;
+        scene.parts.push_back(std::move(part));
+    }
+    return scene;
+}
+
 std::string lowerCaseExtension(const std::string& path) {
     std::string extension = std::filesystem::path(path).extension().string();
     std::transform(extension.begin(), extension.end(), extension.begin(),
@@ -1085,6 +1285,80 @@ TriMesh loadMeshFile(const std::string& path) {
         throw InputError(path, "", std::string("cannot read mesh file: ") + error.what());
     }
     return buildTriMesh(soup, path);
+}
+
+MeshFileScene loadMeshFileScene(const std::string& path) {
+    std::error_code error;
+    if (!std::filesystem::exists(path, error)) throw InputError(path, "", "file does not exist");
+    if (std::filesystem::is_directory(path, error))
+        throw InputError(path, "", "is a directory, not a scene file");
+    if (!std::ifstream(path, std::ios::binary).good())
+        throw InputError(path, "", std::string("cannot read file: ") + std::strerror(errno));
+    const std::string extension = lowerCaseExtension(path);
+    MeshFileScene scene;
+    try {
+        if (extension == ".gltf" || extension == ".glb")
+            scene = readGltfScene(path, extension == ".glb");
+        else if (extension == ".obj")
+            scene = readObjScene(path);
+        else
+            throw InputError(path, "",
+                             "unsupported scene format '" + extension +
+                                 "' (expected .json, .gltf, .glb or .obj)");
+    } catch (const InputError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw InputError(path, "", std::string("cannot read file: ") + e.what());
+    }
+    if (scene.parts.empty()) throw InputError(path, "", "no mesh with faces in the file");
+    return scene;
+}
+
+void saveObjMesh(const TriMesh& mesh, const std::string& path) {
+    const bool materials = !mesh.triangleMaterial.empty() && !mesh.materials.empty();
+    const std::filesystem::path objPath(path);
+    const std::filesystem::path mtlPath = std::filesystem::path(path).replace_extension(".mtl");
+    auto writeAtomically = [](const std::filesystem::path& target, const std::string& text) {
+        const std::filesystem::path temporary = target.string() + ".tmp";
+        {
+            std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+            out << text;
+            out.flush();
+            if (!out) throw InputError(target.string(), "", "cannot write the file");
+        }
+        std::error_code error;
+        std::filesystem::rename(temporary, target, error);
+        if (error) throw InputError(target.string(), "", "cannot write the file: " + error.message());
+    };
+    std::ostringstream obj;
+    obj.precision(9);
+    obj << "# penumbra mesh\n";
+    if (materials) obj << "mtllib " << mtlPath.filename().string() << "\n";
+    for (const Vec3& p : mesh.positions) obj << "v " << p.x << ' ' << p.y << ' ' << p.z << "\n";
+    int current = -1;
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        if (materials && mesh.triangleMaterial[t] != current) {
+            current = mesh.triangleMaterial[t];
+            obj << "usemtl m" << current << "\n";
+        }
+        const auto& f = mesh.triangles[t];
+        obj << "f " << f[0] + 1 << ' ' << f[1] + 1 << ' ' << f[2] + 1 << "\n";
+    }
+    if (materials) {
+        std::ostringstream mtl;
+        mtl.precision(9);
+        for (std::size_t m = 0; m < mesh.materials.size(); ++m) {
+            const Material& material = mesh.materials[m];
+            mtl << "newmtl m" << m << "\n";
+            if (m < mesh.materialNames.size()) mtl << "# " << mesh.materialNames[m] << "\n";
+            mtl << "Kd " << material.reflectance.x << ' ' << material.reflectance.y << ' '
+                << material.reflectance.z << "\n";
+            mtl << "Ke " << material.emission.x << ' ' << material.emission.y << ' '
+                << material.emission.z << "\n";
+        }
+        writeAtomically(mtlPath, mtl.str());
+    }
+    writeAtomically(objPath, obj.str());
 }
 
 }  // namespace penumbra

@@ -31,4 +31,61 @@ namespace penumbra {
 /// are not counted in the warning.
 TriMesh loadMeshFile(const std::string& path);
 
+/// A material of a scene file as the file states it (edit/scene_import.h converts it).
+struct MeshFileMaterial {
+    std::string name;
+    Rgb baseColor{1.0};     ///< glTF baseColorFactor (rgb) or OBJ Kd; not clamped
+    Rgb emissive{0.0};      ///< glTF emissiveFactor × emissive strength or OBJ Ke; not scaled
+    bool textured = false;  ///< glTF: has a baseColorTexture (not read)
+    bool doubleSided = false;
+    std::string extras;     ///< glTF material extras as JSON text; "" when none
+};
+
+/// One part of a scene file: a glTF node with a mesh, or an OBJ object or group. Its mesh is
+/// built as loadMeshFile builds one (triangulated, cleaned) in the file's scene space (the
+/// node's world transform applied); its materials are left empty and `triangleMaterial`
+/// (one per triangle) indexes MeshFileScene::materials, -1 where the file assigns none.
+struct MeshFilePart {
+    std::string name;   ///< node name (else its mesh's name) or OBJ object/group name
+    std::string extras; ///< glTF node extras as JSON text; "" when none
+    TriMesh mesh;
+    std::vector<int> triangleMaterial;
+};
+
+struct MeshFileCamera {
+    std::string name;
+    Vec3 position{0.0}, forward{0, 0, -1}, up{0, 1, 0};
+    double yfovDeg = 40.0;
+    bool perspective = true;
+};
+
+/// A KHR_lights_punctual light placed by its node.
+struct MeshFileLight {
+    std::string name;
+    std::string type;  ///< "point", "spot" or "directional"
+    Rgb colour{1.0};
+    double intensity = 1.0;  ///< as the file states it (candela for point and spot lights)
+    Vec3 position{0.0}, direction{0, 0, -1};
+};
+
+/// A glTF/GLB or OBJ file read as a scene: its parts, materials, cameras and lights (glTF's
+/// default scene, else scene 0, else every root node), and the names of features it uses
+/// that the reader ignores (skins, animations, morph targets, texture transforms, unknown
+/// extensions). Throws InputError as loadMeshFile does, and for a required extension the
+/// reader cannot honour (Draco or meshopt compression: the geometry would be wrong).
+struct MeshFileScene {
+    std::vector<MeshFilePart> parts;
+    std::vector<MeshFileMaterial> materials;
+    std::vector<MeshFileCamera> cameras;
+    std::vector<MeshFileLight> lights;
+    std::vector<std::string> ignored;
+};
+MeshFileScene loadMeshFileScene(const std::string& path);
+
+/// Writes `mesh` as an OBJ file; with per-triangle materials also an MTL file beside it
+/// (`Kd` the reflectance, `Ke` the emission as loadMeshFile reads it back), named after the
+/// OBJ with the extension .mtl. Written to temporary names and renamed. Throws InputError
+/// when a file cannot be written.
+void saveObjMesh(const TriMesh& mesh, const std::string& path);
+
 }  // namespace penumbra

@@ -146,7 +146,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
     // Read every input before solving anything, so bad input fails fast.
     std::vector<ProbePoint> points;
     if (!options.pointsPath.empty()) points = readProbePoints(options.pointsPath);
-    std::unique_ptr<EditSession> session = EditSession::open(options.scenePath, options.solver);
+    std::unique_ptr<EditSession> session = EditSession::open(options.scenePath, options.solver, options.import);
     const std::string sceneDir = std::filesystem::path(options.scenePath).parent_path().string();
     const std::vector<LoggedEdit> edits = readEditLog(options.logPath, sceneDir);
     RayTracer& tracer = session->tracer();

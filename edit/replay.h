@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 
+#include "edit/scene_import.h"
 #include "solver/progressive_solver.h"
 
 namespace penumbra {
@@ -33,6 +34,8 @@ struct ReplayOptions {
     std::string pointsPath;
     std::string exportPath;
     std::string saveScenePath;
+    /// How a glTF or OBJ scene is imported.
+    ImportOptions import;
     /// Cap on shots of any one convergence.
     std::uint64_t maxShots = 100000000;
 };

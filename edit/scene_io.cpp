@@ -24,6 +24,7 @@
 
 #include "edit/input_error.h"
 #include "edit/mesh_io.h"
+#include "edit/scene_import.h"
 
 namespace penumbra {
 
@@ -629,7 +630,10 @@ std::string readWholeFile(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Public API.
 
-Scene loadScene(const std::string& path) {
+Scene loadScene(const std::string& path) { return loadScene(path, ImportOptions{}); }
+
+Scene loadScene(const std::string& path, const ImportOptions& import) {
+    if (isImportableScene(path)) return importScene(path, import);
     const std::string text = readWholeFile(path);
     const Json json = parseSceneText(text, path);
     return sceneFromJson(json, path, std::filesystem::path(path).parent_path().string());
@@ -745,10 +749,31 @@ void rebaseMeshPaths(Scene& scene, const std::string& fromDir, const std::string
 }
 
 void saveScene(const Scene& scene, const std::string& path) {
-    const std::string text = formatSceneText(sceneToJson(scene));
     const std::filesystem::path target(path);
     const std::filesystem::path directory =
         target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
+    // Meshes without a file (an imported scene's) are written beside the scene first.
+    Scene written = scene;
+    const std::string meshDir = target.stem().string() + "-meshes";
+    for (SceneObject& object : written.objects) {
+        if (object.shape.type != ShapeType::Mesh || !object.shape.file.empty()) continue;
+        std::string name;
+        for (char c : object.id)
+            name += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+        std::error_code error;
+        std::filesystem::create_directories(directory / meshDir, error);
+        if (error)
+            throw InputError(path, "", "cannot create " + (directory / meshDir).string() + ": " +
+                                           error.message());
+        std::string file = meshDir + "/" + name + ".obj";
+        for (int k = 2; std::any_of(written.objects.begin(), written.objects.end(),
+                                    [&](const SceneObject& o) { return o.shape.file == file; });
+             ++k)
+            file = meshDir + "/" + name + "-" + std::to_string(k) + ".obj";
+        saveObjMesh(object.shape.mesh, (directory / file).string());
+        object.shape.file = file;
+    }
+    const std::string text = formatSceneText(sceneToJson(written));
     auto fail = [&](const std::string& what) {
         throw InputError(path, "", "cannot write scene file: " + what);
     };

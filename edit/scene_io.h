@@ -17,6 +17,8 @@
 
 namespace penumbra {
 
+struct ImportOptions;  // edit/scene_import.h
+
 /// The only scene format this version reads and writes.
 inline constexpr const char* kSceneFormat = "penumbra-scene/1";
 
@@ -25,6 +27,8 @@ inline constexpr const char* kSceneFormat = "penumbra-scene/1";
 /// Duplicate keys anywhere (e.g. two materials named "white") and malformed JSON
 /// (`FILE: line L, column C: ...`) are errors. Throws InputError.
 Scene loadScene(const std::string& path);
+/// The same; a .gltf, .glb or .obj path is imported (edit/scene_import.h) with `import`.
+Scene loadScene(const std::string& path, const ImportOptions& import);
 
 /// Validates an already parsed scene. `sourceName` names the input in error messages;
 /// mesh files are resolved relative to `baseDir` ("" = the working directory), and each
@@ -70,7 +74,9 @@ nlohmann::ordered_json transformToJson(const Transform& transform);
 std::string formatSceneText(const nlohmann::ordered_json& json);
 
 /// Writes formatSceneText(sceneToJson(scene)) to `path` atomically: a temporary file in the
-/// same directory, flushed to disk, then renamed over `path`. Mesh `file` paths are written
+/// same directory, flushed to disk, then renamed over `path`. Mesh shapes without a `file`
+/// (an imported scene's) are first written as OBJ (+MTL) files into `STEM-meshes/` beside
+/// it, and the scene file names them. Mesh `file` paths are written
 /// as stored, i.e. relative to the directory the scene was loaded from: save next to it (or
 /// into a directory with the same relative mesh paths). Throws InputError when the file
 /// cannot be written.

@@ -23,6 +23,7 @@
 
 #include "edit/input_error.h"
 #include "edit/mesh_io.h"
+#include "edit/scene_import.h"
 #include "render/image.h"
 #include "solver/progressive_solver.h"
 
@@ -158,7 +159,10 @@ void EditorApp::openScene(const std::string& path) {
     runnerOptions.interactiveDisplayDivisor = std::max(0, mOptions.interactiveDisplayDivisor);
     mRunner = std::make_unique<SessionRunner>(std::move(session), runnerOptions);
     mRunner->setConvergeEps(mConvergeEps);
-    mScenePath = path;
+    // An imported scene (glTF, OBJ) is saved as a Penumbra scene beside it, never over it.
+    mScenePath = isImportableScene(path)
+                     ? std::filesystem::path(path).replace_extension(".json").string()
+                     : path;
     mSelection.clear();
     const auto doc = mRunner->document();
     if (doc && !doc->cameras.empty()) {
@@ -170,7 +174,8 @@ void EditorApp::openScene(const std::string& path) {
         mView.frame(0.5 * (lo + hi), 0.5 * glm::length(hi - lo));
     }
     refreshMeshLibrary();
-    mStatus = "opened " + path;
+    mStatus = mScenePath == path ? "opened " + path
+                                 : "imported " + path + " (Save writes " + mScenePath + ")";
 }
 
 void EditorApp::saveScene(const std::string& path) {
@@ -856,7 +861,7 @@ void EditorApp::drawPopups() {
             case 1:
                 mBrowser = std::make_unique<FileBrowser>(
                     FileDialogKind::Open, mScenePath.empty() ? sceneDir.string() : mScenePath,
-                    std::vector<std::string>{".json"});
+                    std::vector<std::string>{".json", ".gltf", ".glb", ".obj"});
                 break;
             case 2:
                 mBrowser = std::make_unique<FileBrowser>(
