@@ -20,6 +20,8 @@ namespace penumbra {
 namespace {
 
 constexpr double kMaxReflectance = 0.99;
+/// Receivers an imported scene is discretized into, about (Importer::chooseSettings).
+constexpr double kTargetElements = 4000;
 
 std::string lowerExtension(const std::string& path) {
     std::string e = std::filesystem::path(path).extension().string();
@@ -197,6 +199,23 @@ struct Importer {
         scene.objects.push_back(std::move(object));
     }
 
+    /// Element and shooter sizes from the surface area: about kTargetElements receivers
+    /// whatever the scene's scale (the defaults' 0.1 m would give a large hall millions).
+    void chooseSettings() {
+        double area = 0;
+        for (const SceneObject& o : scene.objects) {
+            const TriMesh& m = o.shape.mesh;
+            for (const auto& t : m.triangles)
+                area += 0.5 * glm::length(glm::cross(m.positions[t[1]] - m.positions[t[0]],
+                                                     m.positions[t[2]] - m.positions[t[0]]));
+        }
+        if (!(area > 0)) return;
+        const double element = std::sqrt(area / kTargetElements);
+        const double rounded = std::pow(10.0, std::floor(std::log10(element)));
+        scene.settings.elementSize = std::ceil(element / rounded * 10) / 10 * rounded;
+        scene.settings.patchSize = 4 * scene.settings.elementSize;
+    }
+
     void addLight(const MeshFileLight& light) {
         if (light.type == "directional") {
             warn("light '" + light.name +
@@ -248,6 +267,7 @@ struct Importer {
         for (const std::string& what : file.ignored) warn("ignored: " + what);
         materialOf.assign(file.materials.size(), "");
         for (MeshFilePart& part : file.parts) addPart(part, obj ? options.objUnit : 1.0);
+        chooseSettings();
         for (const MeshFileLight& light : file.lights) addLight(light);
         for (const MeshFileCamera& camera : file.cameras) addCamera(camera);
         const bool lit = std::any_of(scene.materials.begin(), scene.materials.end(),
