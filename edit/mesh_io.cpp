@@ -1039,9 +1039,9 @@ PolygonSoup readGltf(const std::string& path, bool binary) {
 // ---------------------------------------------------------------------------------------------
 // Scene files for import: parts per glTF mesh node or OBJ object.
 
+/// The model with its images decoded (tinygltf's own PNG/JPEG decoder) for the texture means.
 tinygltf::Model loadGltfModel(const std::string& path, bool binary) {
     tinygltf::TinyGLTF loader;
-    loader.SetImageLoader(&ignoreImage, nullptr);
     loader.SetStoreOriginalJSONForExtrasAndExtensions(true);
     tinygltf::Model model;
     std::string error;
@@ -1098,6 +1098,29 @@ MeshFileScene readGltfScene(const std::string& path, bool binary) {
         const std::vector<double>& base = source.pbrMetallicRoughness.baseColorFactor;
         if (base.size() >= 3) material.baseColor = Rgb(base[0], base[1], base[2]);
         material.textured = source.pbrMetallicRoughness.baseColorTexture.index >= 0;
+        // The texture's mean (its texels are sRGB-encoded) scales the factor.
+        const int texture = source.pbrMetallicRoughness.baseColorTexture.index;
+        if (material.textured && static_cast<size_t>(texture) < model.textures.size()) {
+            const int imageIndex = model.textures[texture].source;
+            if (imageIndex >= 0 && static_cast<size_t>(imageIndex) < model.images.size()) {
+                const tinygltf::Image& image = model.images[imageIndex];
+                const std::size_t texels = static_cast<std::size_t>(std::max(image.width, 0)) *
+                                           static_cast<std::size_t>(std::max(image.height, 0));
+                const int channels = image.component;
+                if (texels > 0 && image.bits == 8 && channels >= 3 &&
+                    image.image.size() >= texels * static_cast<std::size_t>(channels)) {
+                    Rgb sum(0.0);
+                    for (std::size_t t = 0; t < texels; ++t)
+                        for (int c = 0; c < 3; ++c) {
+                            const double v = image.image[t * channels + c] / 255.0;
+                            sum[c] += v <= 0.04045 ? v / 12.92
+                                                   : std::pow((v + 0.055) / 1.055, 2.4);
+                        }
+                    material.baseColor *= sum / static_cast<double>(texels);
+                    material.textured = false;  // read
+                }
+            }
+        }
         material.doubleSided = source.doubleSided;
         double strength = 1.0;
         const auto extension = source.extensions.find("KHR_materials_emissive_strength");

@@ -34,9 +34,11 @@ TriMesh loadMeshFile(const std::string& path);
 /// A material of a scene file as the file states it (edit/scene_import.h converts it).
 struct MeshFileMaterial {
     std::string name;
-    Rgb baseColor{1.0};     ///< glTF baseColorFactor (rgb) or OBJ Kd; not clamped
+    /// glTF baseColorFactor (rgb) × the mean of its baseColorTexture (linear, decoded from
+    /// sRGB), or OBJ Kd; not clamped.
+    Rgb baseColor{1.0};
     Rgb emissive{0.0};      ///< glTF emissiveFactor × emissive strength or OBJ Ke; not scaled
-    bool textured = false;  ///< glTF: has a baseColorTexture (not read)
+    bool textured = false;  ///< a base colour texture the reader could not average (OBJ map_Kd)
     bool doubleSided = false;
     std::string extras;     ///< glTF material extras as JSON text; "" when none
 };

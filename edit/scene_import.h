@@ -31,7 +31,7 @@ struct ImportOptions {
 bool isImportableScene(const std::string& path);
 
 /// Reads a glTF/GLB or OBJ scene. Unsupported features that are safe to ignore (animations,
-/// skins, morph targets, textures, directional lights, orthographic cameras, unknown optional
+/// skins, morph targets, OBJ texture maps, directional lights, orthographic cameras, unknown optional
 /// extensions) get one warning line each; a required extension that changes the geometry
 /// (Draco, meshopt) and malformed files throw InputError (`FILE: what is wrong`).
 Scene importScene(const std::string& path, const ImportOptions& options = {});

@@ -6,7 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -239,6 +241,57 @@ TEST(SceneImport, SharedMaterialsNamesEmissionAndUniqueIds) {
     scaled.emissionScale = 10;
     const Scene brighter = importScene((dir / "m.gltf").string(), scaled);
     EXPECT_NEAR(brighter.findMaterial("lamp")->emission.x, 10 * l->emission.x, 1e-9);
+}
+
+/// A PNG of `w` × 1 RGB texels (uncompressed deflate blocks are enough for a reader).
+std::string tinyPng(const std::vector<std::array<unsigned char, 3>>& texels) {
+    auto be32 = [](std::uint32_t v) {
+        return std::string{static_cast<char>(v >> 24), static_cast<char>(v >> 16),
+                           static_cast<char>(v >> 8), static_cast<char>(v)};
+    };
+    auto crc = [](const std::string& bytes) {
+        std::uint32_t c = 0xffffffffu;
+        for (unsigned char b : bytes) {
+            c ^= b;
+            for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+        }
+        return c ^ 0xffffffffu;
+    };
+    auto chunk = [&](const std::string& type, const std::string& data) {
+        return be32(static_cast<std::uint32_t>(data.size())) + type + data + be32(crc(type + data));
+    };
+    std::string raw(1, '\0');  // filter: none
+    for (const auto& t : texels) raw.append(reinterpret_cast<const char*>(t.data()), 3);
+    // zlib: header, one stored block, Adler-32.
+    std::uint32_t a = 1, b = 0;
+    for (unsigned char c : raw) a = (a + c) % 65521, b = (b + a) % 65521;
+    const auto n = static_cast<std::uint16_t>(raw.size());
+    std::string z = {0x78, 0x01, 0x01, static_cast<char>(n & 0xff), static_cast<char>(n >> 8),
+                     static_cast<char>(~n & 0xff), static_cast<char>((~n >> 8) & 0xff)};
+    z += raw + be32((b << 16) | a);
+    const std::string header = be32(static_cast<std::uint32_t>(texels.size())) + be32(1) +
+                               std::string{8, 2, 0, 0, 0};
+    return std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", header) + chunk("IDAT", z) +
+           chunk("IEND", "");
+}
+
+TEST(SceneImport, ABaseColourTextureScalesTheFactorByItsLinearMean) {
+    const fs::path dir = tempDir();
+    Gltf g;
+    const int m = g.material("tex", Rgb(0.8, 0.6, 0.4));
+    g.j["images"] = {{{"uri", "data:image/png;base64," +
+                                  base64(tinyPng({{255, 0, 188}, {0, 255, 188}}))}}};
+    g.j["textures"] = {{{"source", 0}}};
+    g.j["materials"][m]["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}};
+    g.node({{"name", "t"}, {"mesh", g.mesh(kTriangle, {0, 1, 2}, m)}});
+    std::vector<std::string> warnings;
+    const Scene scene = importScene(g.write(dir / "tex.gltf"), quiet(&warnings));
+    // sRGB 188 is linear ((188/255 + 0.055)/1.055)^2.4; 255 is 1 and 0 is 0.
+    const double blue = std::pow((188.0 / 255 + 0.055) / 1.055, 2.4);
+    const Rgb expected = Rgb(0.8 * 0.5, 0.6 * 0.5, 0.4 * blue);
+    EXPECT_NEAR(glm::length(scene.findMaterial("tex")->reflectance - expected), 0, 1e-9);
+    for (const std::string& w : warnings)
+        EXPECT_EQ(w.find("texture"), std::string::npos) << w;
 }
 
 TEST(SceneImport, APointLightBecomesASphereOfTheSamePowerAndACameraAViewpoint) {
