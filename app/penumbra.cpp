@@ -21,6 +21,7 @@
 #include "edit/export.h"
 #include "edit/input_error.h"
 #include "edit/lit_scene.h"
+#include "app/import_flags.h"
 #include "edit/replay.h"
 #include "edit/scene_io.h"
 #include "render/camera_rays.h"
@@ -44,25 +45,11 @@ struct SolveArgs {
     ImportOptions import;
 };
 
-/// --emission-scale, --light-size and --units: how a glTF or OBJ scene is imported.
-void addImportOptions(CLI::App* cmd, ImportOptions& import) {
-    cmd->add_option("--emission-scale", import.emissionScale,
-                    "glTF/OBJ: multiply emission by S (emission = pi x emissive x S; default 1)")
-        ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--light-size", import.lightRadius,
-                    "glTF: radius in metres of the sphere standing for a point light (default "
-                    "0.05)")
-        ->check(CLI::PositiveNumber);
-    cmd->add_option("--units", import.objUnit, "OBJ: file units, mm, cm or m (default m)")
-        ->transform(CLI::CheckedTransformer(
-            std::map<std::string, double>{{"mm", 0.001}, {"cm", 0.01}, {"m", 1.0}}));
-}
-
 constexpr const char* kSceneHelp = "scene file (*.json, or *.gltf *.glb *.obj to import)";
 
 void addSolveOptions(CLI::App* cmd, SolveArgs& a) {
     cmd->add_option("SCENE", a.scene, kSceneHelp)->required();
-    addImportOptions(cmd, a.import);
+    addImportFlags(cmd, a.import);
     cmd->add_option("--converge", a.converge,
                     "stop when unshot energy < EPS x emitted energy (default 1e-3)")
         ->check(CLI::Range(0.0, 1.0));
@@ -480,7 +467,7 @@ int main(int argc, char** argv) {
     ReplayArgs replay;
     CLI::App* replayCmd = app.add_subcommand("replay", "replay an edit log over a scene");
     replayCmd->add_option("SCENE", replay.options.scenePath, kSceneHelp)->required();
-    addImportOptions(replayCmd, replay.options.import);
+    addImportFlags(replayCmd, replay.options.import);
     replayCmd->add_option("LOG", replay.options.logPath, "edit log (*.jsonl)")->required();
     replayCmd
         ->add_option("--budget-shots", replay.options.budgetShots,

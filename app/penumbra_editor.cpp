@@ -1,4 +1,4 @@
-// penumbra-editor [SCENE] [--log LOG] [--play LOG] [--screenshot PNG --frames N] [--mode NAME]
+// penumbra-editor [SCENE] [--emission-scale S] [--light-size R] [--units mm|cm|m] [--log LOG] [--play LOG] [--screenshot PNG --frames N] [--mode NAME]
 //                 [--display-divisor N] [--interactive-divisor N]
 //                 [--bench-drag ID [--frames N] [--record DIR] [--no-references]]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
@@ -9,6 +9,7 @@
 #include <exception>
 #include <iostream>
 
+#include "app/import_flags.h"
 #include "edit/input_error.h"
 #include "ui/editor_app.h"
 
@@ -20,6 +21,7 @@ int main(int argc, char** argv) {
     penumbra::EditorOptions options;
     CLI::App app{"Penumbra editor: interactive radiosity lighting"};
     app.add_option("scene", options.scene, "scene file (*.json, or *.gltf *.glb *.obj to import)");
+    addImportFlags(&app, options.import);
     app.add_option("--log", options.log, "append every edit to this edit log (JSONL)");
     app.add_option("--play", options.play, "replay this edit log live");
     app.add_option("--screenshot", options.screenshot,

@@ -3,6 +3,7 @@
 // Index: helpers (sRGB, numbers, bytes, files) · lit objects · PLY · glTF/GLB · OBJ · dispatch
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cctype>
 #include <charconv>
@@ -20,6 +21,7 @@
 #include <system_error>
 #include <tuple>
 
+#include "edit/scene_io.h"
 #include "solver/discretization.h"
 
 namespace penumbra {
@@ -147,6 +149,9 @@ struct LitObject {
     /// Element polygons of this object (indices into positions), in element order.
     std::vector<std::vector<int>> polygons;
     std::vector<int> polygonMaterial;  ///< per polygon, index into Discretization::materials()
+    /// The scene object as the scene file writes it, for a primitive shape (box, quad, sphere,
+    /// cylinder): a re-import rebuilds it instead of its element triangles. Null otherwise.
+    nlohmann::json source;
 };
 
 std::vector<LitObject> collectLitObjects(const Discretization& disc,
@@ -158,7 +163,10 @@ std::vector<LitObject> collectLitObjects(const Discretization& disc,
         lit[o].id = surfaces[o].id;
         if (scene)
             for (const SceneObject& so : scene->objects)
-                if (so.id == surfaces[o].id) lit[o].materialName = so.material;
+                if (so.id == surfaces[o].id) {
+                    lit[o].materialName = so.material;
+                    if (so.shape.type != ShapeType::Mesh) lit[o].source = objectToJson(so);
+                }
         // A two-sided object's back is explicit geometry (the twin sheet, its own light), so
         // the material stays single-sided; only an object without twins relies on it.
         lit[o].twoSided = surfaces[o].twoSided && surfaces[o].faceTwin.empty();
@@ -309,9 +317,38 @@ double gltfExposure(const std::vector<LitObject>& lit, const std::vector<Materia
     return values[k] > 0 ? 1.0 / values[k] : 1.0;
 }
 
+/// glTF's unit quaternion (x, y, z, w) of a camera node looking along `forward` with `up`
+/// (a glTF camera looks along its −Z with +Y up).
+std::array<double, 4> cameraRotation(const Vec3& forward, const Vec3& up) {
+    const Vec3 z = -glm::normalize(forward);
+    const Vec3 x = glm::normalize(glm::cross(up, z));
+    const Vec3 y = glm::cross(z, x);
+    // The rotation matrix with columns x, y, z to a quaternion (Shepperd's method).
+    const double trace = x.x + y.y + z.z;
+    std::array<double, 4> q{};
+    if (trace > 0) {
+        const double s = 2 * std::sqrt(1 + trace);
+        q = {(y.z - z.y) / s, (z.x - x.z) / s, (x.y - y.x) / s, s / 4};
+    } else if (x.x > y.y && x.x > z.z) {
+        const double s = 2 * std::sqrt(1 + x.x - y.y - z.z);
+        q = {s / 4, (y.x + x.y) / s, (z.x + x.z) / s, (y.z - z.y) / s};
+    } else if (y.y > z.z) {
+        const double s = 2 * std::sqrt(1 + y.y - x.x - z.z);
+        q = {(y.x + x.y) / s, s / 4, (z.y + y.z) / s, (z.x - x.z) / s};
+    } else {
+        const double s = 2 * std::sqrt(1 + z.z - x.x - y.y);
+        q = {(z.x + x.z) / s, (z.y + y.z) / s, s / 4, (x.y - y.x) / s};
+    }
+    const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    for (double& c : q) c /= n;
+    return q;
+}
+
 /// Builds the glTF document and its binary buffer; the buffer's `uri` is left to the caller.
+/// With `scene`: its cameras become perspective camera nodes (an importer's viewpoints) and
+/// its settings go into asset.extras (a re-import discretizes as the scene did).
 nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Material>& materials,
-                         std::string& buffer) {
+                         const Scene* scene, std::string& buffer) {
     using nlohmann::json;
     json bufferViews = json::array();
     json accessors = json::array();
@@ -449,7 +486,25 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
         const Material& m = materials[object.polygonMaterial.front()];
         extras["reflectance"] = rgbJson(m.reflectance);
         if (m.isEmitter()) extras["emission"] = rgbJson(m.emission);
+        if (!object.source.is_null()) extras["object"] = object.source;
         nodes.push_back({{"name", object.id}, {"mesh", meshes.size() - 1}, {"extras", extras}});
+        sceneNodes.push_back(nodes.size() - 1);
+    }
+
+    json gltfCameras = json::array();
+    for (const Camera& camera : scene ? scene->cameras : std::vector<Camera>{}) {
+        const Vec3 forward = camera.lookAt - camera.position;
+        if (!(glm::length(forward) > 0) || !(glm::length(glm::cross(forward, camera.up)) > 0))
+            continue;  // no direction: not a viewpoint
+        gltfCameras.push_back({{"name", camera.name},
+                               {"type", "perspective"},
+                               {"perspective",
+                                {{"yfov", camera.fovDeg * M_PI / 180.0}, {"znear", 0.01}}}});
+        const std::array<double, 4> q = cameraRotation(forward, camera.up);
+        nodes.push_back({{"name", camera.name},
+                         {"camera", gltfCameras.size() - 1},
+                         {"translation", {camera.position.x, camera.position.y, camera.position.z}},
+                         {"rotation", {q[0], q[1], q[2], q[3]}}});
         sceneNodes.push_back(nodes.size() - 1);
     }
 
@@ -474,6 +529,10 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
     if (!nodes.empty()) doc["nodes"] = nodes;
     if (!meshes.empty()) doc["meshes"] = meshes;
     if (!gltfMaterials.empty()) doc["materials"] = gltfMaterials;
+    if (!gltfCameras.empty()) doc["cameras"] = gltfCameras;
+    if (scene)
+        doc["asset"]["extras"]["settings"] = {{"patch_size", scene->settings.patchSize},
+                                              {"element_size", scene->settings.elementSize}};
     if (!buffer.empty()) {
         // glTF forbids zero-length buffers: a scene without faces has no binary data.
         doc["buffers"] = json::array({{{"byteLength", buffer.size()}}});
@@ -483,17 +542,19 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
     return doc;
 }
 
-std::string encodeGltf(const std::vector<LitObject>& lit, const std::vector<Material>& materials) {
+std::string encodeGltf(const std::vector<LitObject>& lit, const std::vector<Material>& materials,
+                       const Scene* scene) {
     std::string buffer;
-    nlohmann::json doc = buildGltf(lit, materials, buffer);
+    nlohmann::json doc = buildGltf(lit, materials, scene, buffer);
     if (!buffer.empty())
         doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64Encode(buffer);
     return doc.dump(1) + "\n";
 }
 
-std::string encodeGlb(const std::vector<LitObject>& lit, const std::vector<Material>& materials) {
+std::string encodeGlb(const std::vector<LitObject>& lit, const std::vector<Material>& materials,
+                      const Scene* scene) {
     std::string buffer;
-    const nlohmann::json doc = buildGltf(lit, materials, buffer);
+    const nlohmann::json doc = buildGltf(lit, materials, scene, buffer);
 
     // Chunks are 4-byte aligned: JSON padded with spaces, BIN with zeros.
     std::string jsonChunk = doc.dump();
@@ -644,9 +705,9 @@ void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementR
     if (ext == ".ply") {
         contents = encodePly(disc, lit);
     } else if (ext == ".gltf") {
-        contents = encodeGltf(lit, disc.materials());
+        contents = encodeGltf(lit, disc.materials(), scene);
     } else if (ext == ".glb") {
-        contents = encodeGlb(lit, disc.materials());
+        contents = encodeGlb(lit, disc.materials(), scene);
     } else {
         // The .mtl beside it (same stem), written first: the .obj names it.
         const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");

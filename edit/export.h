@@ -39,7 +39,8 @@ class Discretization;
 /// Throws std::invalid_argument naming the extension for an unknown one, or when
 /// elementRadiosity does not have one value per element; std::runtime_error naming the file
 /// when it cannot be written.
-/// `scene`, when given, names each object's material in the glTF nodes' extras.
+/// `scene`, when given, names each object's material in the glTF nodes' extras, and its
+/// cameras become glTF perspective camera nodes.
 void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,
                     const std::string& path, const Scene* scene = nullptr);
 

@@ -1078,6 +1078,7 @@ MeshFilePart buildPart(PolygonSoup& soup, std::size_t fileMaterials, const std::
 MeshFileScene readGltfScene(const std::string& path, bool binary) {
     const tinygltf::Model model = loadGltfModel(path, binary);
     MeshFileScene scene;
+    scene.assetExtras = model.asset.extras_json_string;
     // Extensions: required ones the reader cannot honour make the geometry wrong.
     // (KHR_materials_unlit: a shading-model hint the radiosity solution replaces.)
     const std::vector<std::string> known = {"KHR_lights_punctual",

@@ -81,6 +81,7 @@ struct MeshFileScene {
     std::vector<MeshFileCamera> cameras;
     std::vector<MeshFileLight> lights;
     std::vector<std::string> ignored;
+    std::string assetExtras;  ///< glTF asset extras as JSON text; "" when none
 };
 MeshFileScene loadMeshFileScene(const std::string& path);
 

@@ -14,6 +14,7 @@
 
 #include "edit/input_error.h"
 #include "edit/mesh_io.h"
+#include "edit/scene_io.h"
 
 namespace penumbra {
 
@@ -177,6 +178,16 @@ struct Importer {
         for (Vec3& p : mesh.positions) p -= centre;
         object.transform.translate = centre;
         const std::string fromExtras = extrasMaterial(extras);
+        if (!fromExtras.empty() && extras.contains("object") && extras["object"].is_object()) {
+            // Penumbra's own export of a primitive shape: the object as its scene file had it
+            // (a box, not the box's element triangles).
+            nlohmann::json source = extras["object"];
+            source["id"] = object.id;
+            source["material"] = fromExtras;
+            scene.objects.push_back(objectFromJson(source, scene, path,
+                                                   "node '" + part.name + "' extras.object", ""));
+            return;
+        }
         std::set<int> used(part.triangleMaterial.begin(), part.triangleMaterial.end());
         if (!fromExtras.empty()) {
             object.material = fromExtras;
@@ -210,9 +221,12 @@ struct Importer {
                                                      m.positions[t[2]] - m.positions[t[0]]));
         }
         if (!(area > 0)) return;
+        // Rounded up to two significant digits (0.16, not 0.1573...); divided, not multiplied,
+        // by the power of ten below 1 so the value prints as written.
         const double element = std::sqrt(area / kTargetElements);
-        const double rounded = std::pow(10.0, std::floor(std::log10(element)));
-        scene.settings.elementSize = std::ceil(element / rounded * 10) / 10 * rounded;
+        const double unit = std::pow(10.0, std::floor(std::log10(element)) - 1);
+        const double steps = std::ceil(element / unit - 1e-9);
+        scene.settings.elementSize = unit < 1 ? steps / std::round(1 / unit) : steps * unit;
         scene.settings.patchSize = 4 * scene.settings.elementSize;
     }
 
@@ -267,7 +281,17 @@ struct Importer {
         for (const std::string& what : file.ignored) warn("ignored: " + what);
         materialOf.assign(file.materials.size(), "");
         for (MeshFilePart& part : file.parts) addPart(part, obj ? options.objUnit : 1.0);
-        chooseSettings();
+        // Penumbra's own export carries the scene's settings; otherwise sizes from the area.
+        const nlohmann::json asset = parseExtras(file.assetExtras);
+        const bool exported = asset.contains("settings") && asset["settings"].is_object() &&
+                              asset["settings"].value("patch_size", 0.0) > 0 &&
+                              asset["settings"].value("element_size", 0.0) > 0;
+        if (exported) {
+            scene.settings.patchSize = asset["settings"]["patch_size"].get<double>();
+            scene.settings.elementSize = asset["settings"]["element_size"].get<double>();
+        } else {
+            chooseSettings();
+        }
         for (const MeshFileLight& light : file.lights) addLight(light);
         for (const MeshFileCamera& camera : file.cameras) addCamera(camera);
         const bool lit = std::any_of(scene.materials.begin(), scene.materials.end(),

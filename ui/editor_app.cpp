@@ -151,7 +151,7 @@ EditorApp::~EditorApp() {
 // Scene.
 
 void EditorApp::openScene(const std::string& path) {
-    auto session = EditSession::open(path, interactiveSolverOptions());
+    auto session = EditSession::open(path, interactiveSolverOptions(), mOptions.import);
     if (!mOptions.log.empty()) session->openLog(mOptions.log);
     mRunner.reset();
     SessionRunnerOptions runnerOptions;

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "edit/edit_log.h"
+#include "edit/scene_import.h"
 #include "ui/drag_bench.h"
 #include "ui/drag_controller.h"
 #include "ui/file_dialog.h"
@@ -32,6 +33,7 @@ namespace penumbra {
 
 struct EditorOptions {
     std::string scene;       ///< scene file to open, "" for none
+    ImportOptions import;    ///< how a glTF or OBJ scene is imported (File ▸ Open too)
     std::string log;         ///< edit log to append to
     std::string play;        ///< edit log to replay live
     std::string screenshot;  ///< PNG written after `frames` frames, then exit

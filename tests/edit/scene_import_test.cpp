@@ -442,6 +442,12 @@ TEST(SceneImport, PenumbrasOwnGlbExportImportsBackWithItsObjectsMaterialsAndLamp
     test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(8.0, 6.0, 4.0));
     scene.objects.push_back(test::makeQuad("floor", 2, 2, "grey", {0, 0, 0}));
     scene.objects.push_back(test::makeQuad("lamp", 0.5, 0.5, "lamp", {0, 1.5, 0}, {180, 0, 0}));
+    Camera camera;
+    camera.name = "corner";
+    camera.position = Vec3(1.5, 1.2, 2.0);
+    camera.lookAt = Vec3(0.0, 0.3, 0.0);
+    camera.fovDeg = 55;
+    scene.cameras.push_back(camera);
     Discretization disc(scene);
     RayTracer tracer(disc);
     ProgressiveSolver solver(disc, tracer);
@@ -456,14 +462,20 @@ TEST(SceneImport, PenumbrasOwnGlbExportImportsBackWithItsObjectsMaterialsAndLamp
         const int i = back.findObject(o.id);
         ASSERT_GE(i, 0) << o.id;
         EXPECT_EQ(back.objects[i].material, o.material);
+        // A primitive shape comes back as itself (from the node's extras), not as triangles.
+        EXPECT_EQ(back.objects[i].shape.type, o.shape.type) << o.id;
+        EXPECT_EQ(back.objects[i].shape.size, o.shape.size) << o.id;
+        EXPECT_EQ(back.objects[i].transform.translate, o.transform.translate) << o.id;
+        EXPECT_EQ(back.objects[i].transform.rotateDeg, o.transform.rotateDeg) << o.id;
         const Material* m = back.findMaterial(o.material);
         ASSERT_NE(m, nullptr);
         EXPECT_EQ(m->reflectance, scene.findMaterial(o.material)->reflectance);
         EXPECT_EQ(m->emission, scene.findMaterial(o.material)->emission);
     }
-    Scene reopened = back;
-    reopened.settings = scene.settings;
-    Discretization again(reopened);
+    EXPECT_EQ(back.settings.patchSize, scene.settings.patchSize);
+    EXPECT_EQ(back.settings.elementSize, scene.settings.elementSize);
+    Discretization again(back);
+    EXPECT_EQ(again.elements().size(), disc.elements().size()) << "discretized as before";
     auto emitted = [](const Discretization& d) {
         double w = 0;
         for (std::size_t e = 0; e < d.elements().size(); ++e)
@@ -471,6 +483,15 @@ TEST(SceneImport, PenumbrasOwnGlbExportImportsBackWithItsObjectsMaterialsAndLamp
         return w;
     };
     EXPECT_NEAR(emitted(again), emitted(disc), 1e-9 * emitted(disc));
+    // The camera comes back: the same place, direction and field of view.
+    ASSERT_EQ(back.cameras.size(), 1u);
+    EXPECT_EQ(back.cameras[0].name, "corner");
+    EXPECT_NEAR(glm::length(back.cameras[0].position - camera.position), 0, 1e-6);
+    EXPECT_NEAR(glm::length(glm::normalize(back.cameras[0].lookAt - back.cameras[0].position) -
+                            glm::normalize(camera.lookAt - camera.position)),
+                0, 1e-6);
+    EXPECT_GT(glm::dot(back.cameras[0].up, camera.up), 0.9) << "upright";
+    EXPECT_NEAR(back.cameras[0].fovDeg, 55, 1e-6);
 }
 
 TEST(SceneImport, AnImportedSceneSavesAsJsonWithItsMeshesBesideIt) {
