@@ -15,6 +15,7 @@
 #include "edit/input_error.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_io.h"
+#include "solver/discretization.h"
 
 namespace penumbra {
 
@@ -230,6 +231,18 @@ struct Importer {
         scene.settings.patchSize = 4 * scene.settings.elementSize;
     }
 
+    /// The surface area the solver gives `object` with the scene's settings (its elements').
+    double facetedArea(const SceneObject& object, const Material& material) const {
+        Scene one;
+        one.settings = scene.settings;
+        one.materials.push_back({object.material, material});
+        one.objects.push_back(object);
+        const Discretization disc(one);
+        double area = 0;
+        for (const Element& e : disc.elements()) area += e.area;
+        return area;
+    }
+
     void addLight(const MeshFileLight& light) {
         if (light.type == "directional") {
             warn("light '" + light.name +
@@ -240,11 +253,12 @@ struct Importer {
             warn("light '" + light.name +
                  "': a spot light's cone is not modelled; it emits in every direction as a "
                  "point light of the same intensity");
-        // A point light of intensity I (per steradian) sends 4πI in all; a sphere of radius r
-        // emitting E from its surface sends 4πr²E: the same power for E = I/r².
+        // A point light of intensity I (per steradian) sends Φ = 4πI in all; a sphere emitting
+        // E from its surface sends E × its area. Its area as the solver facets it (a little
+        // less than 4πr²) gives it exactly the light's power.
         const double r = options.lightRadius;
-        const Rgb emission =
-            glm::max(light.colour * light.intensity * options.emissionScale / (r * r), Rgb(0.0));
+        const Rgb power =
+            glm::max(4 * M_PI * light.colour * light.intensity * options.emissionScale, Rgb(0.0));
         const std::string name = light.name.empty() ? "light" : light.name;
         SceneObject object;
         object.id = objectIds.take("light-" + name, "light");
@@ -255,8 +269,9 @@ struct Importer {
         object.patchSize = 2 * r;
         Material m;
         m.reflectance = Rgb(0.0);
-        m.emission = emission;
+        m.emission = Rgb(1.0);
         object.material = materialNames.take("light-" + name, "light");
+        m.emission = power / facetedArea(object, m);
         scene.materials.push_back({object.material, m});
         scene.objects.push_back(std::move(object));
     }
