@@ -34,6 +34,7 @@
 #include <tiny_obj_loader.h>
 
 #include "edit/input_error.h"
+#include "edit/lit_scene.h"
 
 namespace penumbra {
 
@@ -944,9 +945,12 @@ void appendPrimitive(const tinygltf::Model& model, const tinygltf::Primitive& pr
     }
 }
 
-PolygonSoup readGltf(const std::string& path, bool binary) {
+/// Loads a glTF or GLB model; its images are decoded (tinygltf's own PNG/JPEG decoder) only
+/// when `decodeImages` (the scene importer's texture means).
+tinygltf::Model loadGltfModel(const std::string& path, bool binary, bool decodeImages) {
     tinygltf::TinyGLTF loader;
-    loader.SetImageLoader(&ignoreImage, nullptr);
+    if (!decodeImages) loader.SetImageLoader(&ignoreImage, nullptr);
+    loader.SetStoreOriginalJSONForExtrasAndExtensions(true);
     tinygltf::Model model;
     std::string error;
     std::string warning;
@@ -957,6 +961,32 @@ PolygonSoup readGltf(const std::string& path, bool binary) {
                          std::string("not a valid ") + (binary ? "GLB" : "glTF") +
                              " file: " + (error.empty() ? warning : error));
     }
+    return model;
+}
+
+/// Calls `visit(node, identity)` for each root node: the default scene's (else scene 0's),
+/// or every node that is nobody's child when the file has no scene.
+void visitRootNodes(const tinygltf::Model& model,
+                    const std::function<void(int, const Mat4&)>& visit) {
+    const Mat4 identity(1.0);
+    if (!model.scenes.empty()) {
+        const size_t sceneIndex =
+            model.defaultScene >= 0 && static_cast<size_t>(model.defaultScene) < model.scenes.size()
+                ? static_cast<size_t>(model.defaultScene)
+                : 0;
+        for (int root : model.scenes[sceneIndex].nodes) visit(root, identity);
+        return;
+    }
+    std::vector<bool> isChild(model.nodes.size(), false);
+    for (const tinygltf::Node& node : model.nodes)
+        for (int child : node.children)
+            if (child >= 0 && static_cast<size_t>(child) < isChild.size()) isChild[child] = true;
+    for (size_t i = 0; i < model.nodes.size(); ++i)
+        if (!isChild[i]) visit(static_cast<int>(i), identity);
+}
+
+PolygonSoup readGltf(const std::string& path, bool binary) {
+    const tinygltf::Model model = loadGltfModel(path, binary, false);
 
     PolygonSoup soup;
     for (const tinygltf::Material& source : model.materials) {
@@ -1008,53 +1038,18 @@ PolygonSoup readGltf(const std::string& path, bool binary) {
         onPath[index] = false;
     };
 
-    const Mat4 identity(1.0);
-    if (!model.scenes.empty()) {
-        const size_t sceneIndex =
-            model.defaultScene >= 0 && static_cast<size_t>(model.defaultScene) < model.scenes.size()
-                ? static_cast<size_t>(model.defaultScene)
-                : 0;
-        for (int root : model.scenes[sceneIndex].nodes) visit(root, identity);
-    } else if (!model.nodes.empty()) {
-        std::vector<bool> isChild(model.nodes.size(), false);
-        for (const tinygltf::Node& node : model.nodes) {
-            for (int child : node.children) {
-                if (child >= 0 && static_cast<size_t>(child) < isChild.size())
-                    isChild[child] = true;
-            }
-        }
-        for (size_t i = 0; i < model.nodes.size(); ++i) {
-            if (!isChild[i]) visit(static_cast<int>(i), identity);
-        }
+    if (!model.scenes.empty() || !model.nodes.empty()) {
+        visitRootNodes(model, visit);
     } else {
-        for (const tinygltf::Mesh& mesh : model.meshes) {
-            for (const tinygltf::Primitive& primitive : mesh.primitives) {
-                appendPrimitive(model, primitive, identity, path, soup);
-            }
-        }
+        for (const tinygltf::Mesh& mesh : model.meshes)
+            for (const tinygltf::Primitive& primitive : mesh.primitives)
+                appendPrimitive(model, primitive, Mat4(1.0), path, soup);
     }
     return soup;
 }
 
 // ---------------------------------------------------------------------------------------------
 // Scene files for import: parts per glTF mesh node or OBJ object.
-
-/// The model with its images decoded (tinygltf's own PNG/JPEG decoder) for the texture means.
-tinygltf::Model loadGltfModel(const std::string& path, bool binary) {
-    tinygltf::TinyGLTF loader;
-    loader.SetStoreOriginalJSONForExtrasAndExtensions(true);
-    tinygltf::Model model;
-    std::string error;
-    std::string warning;
-    const bool ok = binary ? loader.LoadBinaryFromFile(&model, &error, &warning, path)
-                           : loader.LoadASCIIFromFile(&model, &error, &warning, path);
-    if (!ok) {
-        throw InputError(path, "",
-                         std::string("not a valid ") + (binary ? "GLB" : "glTF") +
-                             " file: " + (error.empty() ? warning : error));
-    }
-    return model;
-}
 
 /// The part of a face list that `soup` holds, built into a MeshFilePart (materials by index).
 MeshFilePart buildPart(PolygonSoup& soup, std::size_t fileMaterials, const std::string& where) {
@@ -1076,7 +1071,7 @@ MeshFilePart buildPart(PolygonSoup& soup, std::size_t fileMaterials, const std::
 }
 
 MeshFileScene readGltfScene(const std::string& path, bool binary) {
-    const tinygltf::Model model = loadGltfModel(path, binary);
+    const tinygltf::Model model = loadGltfModel(path, binary, true);
     MeshFileScene scene;
     scene.assetExtras = model.asset.extras_json_string;
     // Extensions: required ones the reader cannot honour make the geometry wrong.
@@ -1197,21 +1192,7 @@ MeshFileScene readGltfScene(const std::string& path, bool binary) {
         for (int child : node.children) visit(child, worldFromNode);
         onPath[index] = false;
     };
-    const Mat4 identity(1.0);
-    if (!model.scenes.empty()) {
-        const size_t sceneIndex =
-            model.defaultScene >= 0 && static_cast<size_t>(model.defaultScene) < model.scenes.size()
-                ? static_cast<size_t>(model.defaultScene)
-                : 0;
-        for (int root : model.scenes[sceneIndex].nodes) visit(root, identity);
-    } else {
-        std::vector<bool> isChild(model.nodes.size(), false);
-        for (const tinygltf::Node& node : model.nodes)
-            for (int child : node.children)
-                if (child >= 0 && static_cast<size_t>(child) < isChild.size()) isChild[child] = true;
-        for (size_t i = 0; i < model.nodes.size(); ++i)
-            if (!isChild[i]) visit(static_cast<int>(i), identity);
-    }
+    visitRootNodes(model, visit);
     if (morphs) scene.ignored.push_back("morph targets (the base shape is used)");
     return scene;
 }
@@ -1338,22 +1319,19 @@ MeshFileScene loadMeshFileScene(const std::string& path) {
     return scene;
 }
 
+/// writeFileAtomically, failing with the InputError saveObjMesh promises.
+static void writeMeshText(const std::string& path, const std::string& text) {
+    try {
+        writeFileAtomically(path, text);
+    } catch (const std::runtime_error&) {
+        throw InputError(path, "", "cannot write the file");
+    }
+}
+
 void saveObjMesh(const TriMesh& mesh, const std::string& path) {
     const bool materials = !mesh.triangleMaterial.empty() && !mesh.materials.empty();
     const std::filesystem::path objPath(path);
     const std::filesystem::path mtlPath = std::filesystem::path(path).replace_extension(".mtl");
-    auto writeAtomically = [](const std::filesystem::path& target, const std::string& text) {
-        const std::filesystem::path temporary = target.string() + ".tmp";
-        {
-            std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-            out << text;
-            out.flush();
-            if (!out) throw InputError(target.string(), "", "cannot write the file");
-        }
-        std::error_code error;
-        std::filesystem::rename(temporary, target, error);
-        if (error) throw InputError(target.string(), "", "cannot write the file: " + error.message());
-    };
     std::ostringstream obj;
     obj.precision(9);
     obj << "# penumbra mesh\n";
@@ -1380,9 +1358,9 @@ void saveObjMesh(const TriMesh& mesh, const std::string& path) {
             mtl << "Ke " << material.emission.x << ' ' << material.emission.y << ' '
                 << material.emission.z << "\n";
         }
-        writeAtomically(mtlPath, mtl.str());
+        writeMeshText(mtlPath.string(), mtl.str());
     }
-    writeAtomically(objPath, obj.str());
+    writeMeshText(objPath.string(), obj.str());
 }
 
 }  // namespace penumbra

@@ -236,6 +236,25 @@ TEST(InteractiveDisplayMove, TheFallbackOfANewDragPositionIsNeverBlack) {
     EXPECT_GT(onSlab, 20) << "the camera sees the slab at its new place";
 }
 
+/// Σ luminance(H_indirect)·area over the elements of `object`.
+double reflectedLight(const Discretization& disc, int object, const std::vector<Rgb>& indirect) {
+    double sum = 0;
+    const auto [first, count] = disc.elementRange(object);
+    for (int k = 0; k < count; ++k)
+        sum += luminance(indirect[first + k]) * disc.elements()[first + k].area;
+    return sum;
+}
+
+/// reflectedLight of `object` once the session's solution has converged (a fresh shader).
+double settledReflectedLight(Scene3& s, int object) {
+    s.session->converge(1e-4);
+    PointShaderOptions so;
+    so.threads = 0;
+    PointShader settled(s.session->discretization(), s.session->tracer(), SolverOptions{}, so);
+    settled.updateSolution(s.session->solver());
+    return reflectedLight(s.session->discretization(), object, settled.elementIndirect());
+}
+
 TEST(InteractiveDisplayMove, ADroppedObjectKeepsItsReflectedLightUntilTheNextSnapshot) {
     // The editor ends a drag (endDrag) before the solver's next snapshot reaches the display:
     // the snapshot it has is the drag's, in which the dropped version has no light of its own
@@ -255,20 +274,8 @@ TEST(InteractiveDisplayMove, ADroppedObjectKeepsItsReflectedLightUntilTheNextSna
     const int dropped = r.added[0];
     display.endDrag(dropped);  // no snapshot yet
 
-    auto reflected = [&](const std::vector<Rgb>& indirect) {
-        double sum = 0;
-        const auto [first, count] = disc.elementRange(dropped);
-        for (int k = 0; k < count; ++k)
-            sum += luminance(indirect[first + k]) * disc.elements()[first + k].area;
-        return sum;
-    };
-    const double shown = reflected(display.shader().elementIndirect());
-    s.session->converge(1e-4);
-    PointShaderOptions so;
-    so.threads = 0;
-    PointShader settled(disc, s.session->tracer(), SolverOptions{}, so);
-    settled.updateSolution(s.session->solver());
-    const double expected = reflected(settled.elementIndirect());
+    const double shown = reflectedLight(disc, dropped, display.shader().elementIndirect());
+    const double expected = settledReflectedLight(s, dropped);
     ASSERT_GT(expected, 0.0);
     EXPECT_NEAR(shown, expected, 0.15 * expected);
 }
@@ -304,23 +311,11 @@ TEST(InteractiveDisplayMove, ADropJustAfterAMoveKeepsTheDragsLightNotABufferThat
     const int dropped = r.added[0];
     display.endDrag(dropped);
 
-    auto reflected = [&](const std::vector<Rgb>& indirect) {
-        double sum = 0;
-        const auto [firstElement, count] = disc.elementRange(dropped);
-        for (int k = 0; k < count; ++k)
-            sum += luminance(indirect[firstElement + k]) * disc.elements()[firstElement + k].area;
-        return sum;
-    };
-    const double shown = reflected(display.shader().elementIndirect());
+    const double shown = reflectedLight(disc, dropped, display.shader().elementIndirect());
     // Still so after the next snapshot (the solver has not yet reached the dropped version).
     display.updateSolution(s.session->solver());
-    const double next = reflected(display.shader().elementIndirect());
-    s.session->converge(1e-4);
-    PointShaderOptions so;
-    so.threads = 0;
-    PointShader settled(disc, s.session->tracer(), SolverOptions{}, so);
-    settled.updateSolution(s.session->solver());
-    const double expected = reflected(settled.elementIndirect());
+    const double next = reflectedLight(disc, dropped, display.shader().elementIndirect());
+    const double expected = settledReflectedLight(s, dropped);
     ASSERT_GT(expected, 0.0);
     EXPECT_NEAR(shown, expected, 0.2 * expected);
     EXPECT_NEAR(next, expected, 0.2 * expected);
