@@ -25,9 +25,11 @@
 #include "edit/replay.h"
 #include "edit/scene_io.h"
 #include "render/camera_rays.h"
+#include "render/exact_irradiance.h"
 #include "render/gouraud_renderer.h"
 #include "render/image.h"
 #include "render/interactive_display.h"
+#include "render/path_tracer.h"
 
 using namespace penumbra;
 
@@ -112,11 +114,16 @@ int runSolve(const SolveArgs& a) {
     return 0;
 }
 
+/// `probe`: the exact irradiance at each point (Hardt & Teller §5): emitters through their
+/// visible parts, plus the solution's reflected light gathered the same way.
 int runProbe(const SolveArgs& a, const std::string& pointsPath) {
     auto points = readProbePoints(pointsPath);
     auto lit = openAndSolve(a);
+    const Discretization& disc = lit->discretization();
+    ExactIrradiance exact(disc);
+    exact.setReflected(reflectedRadiosity(disc, lit->solver()));
     for (const ProbePoint& p : points) {
-        Rgb h = lit->solver().irradianceAt(p.position, p.normal, 64);
+        Rgb h = exact.irradiance(p.position, glm::normalize(p.normal));
         std::printf("%.9g %.9g %.9g\n", h.x, h.y, h.z);
     }
     return 0;
@@ -127,6 +134,7 @@ struct RenderArgs {
     int width = 512, height = 512, samples = 2;
     // Interactive display modes (epi, cache, reference).
     std::string log, overlay, rmseFrames = "last";
+    std::string compare;  ///< EXR reference: the report adds relative_rmse
     int frames = 0;  ///< 0: 1, or one per log line plus the first
     double sampleFraction = 0.02;
     double warmup = 0.25;
@@ -205,6 +213,18 @@ nlohmann::json frameJson(const DisplayFrameStats& f) {
             {"complex_pixels", f.complexPixels},
             {"unsampled_pixels", f.unsampledPixels},
             {"unfilled_pixels", f.unfilledPixels}};
+}
+
+/// The relative RMSE of `image` against the EXR `path`, lamps left out, for the report.
+double compareWith(const Image& image, const std::string& path, const Discretization& disc,
+                   const RayTracer& tracer, const CameraRays& rays) {
+    const Image reference = readExr(path);
+    if (reference.width != image.width || reference.height != image.height)
+        throw InputError(path, "", "is " + std::to_string(reference.width) + "x" +
+                                       std::to_string(reference.height) + ", the render " +
+                                       std::to_string(image.width) + "x" +
+                                       std::to_string(image.height));
+    return relativeRmse(image, reference, emitterMask(disc, tracer, rays));
 }
 
 /// `render --mode epi|cache|reference`: the interactive display (Bala et al. 2003) over an
@@ -306,20 +326,57 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     report["smooth_radius"] = r.smooth;
     report["max_penumbra_pixels"] = r.maxPenumbraPixels;
     report["frames"] = std::move(frameReports);
+    if (!r.compare.empty())
+        report["relative_rmse"] = compareWith(image, r.compare, session->discretization(),
+                                              session->tracer(), *rays);
+    writeReport(a.report, report);
+    return 0;
+}
+
+/// `render --mode pathtrace`: the brute-force path-traced reference of the scene as it is
+/// (no solve), --samples² paths per pixel.
+int runPathTraceRender(const SolveArgs& a, const RenderArgs& r) {
+    auto session = EditSession::open(a.scene, SolverOptions{}, a.import);
+    const Camera camera = pickCamera(session->scene(), a.scene, r.camera);
+    const CameraRays rays(camera, r.width, r.height);
+    PathTraceOptions options;
+    options.samplesPerPixel = r.samples * r.samples;
+    options.seed = a.seed;
+    const bool tty = ::isatty(STDERR_FILENO);
+    PathTraceResult traced =
+        pathTrace(session->discretization(), session->tracer(), rays, options, [&](double f) {
+            if (tty) std::fprintf(stderr, "\rpath tracing %3.0f%%", 100 * f);
+        });
+    if (tty) std::fprintf(stderr, "\n");
+    writeImage(traced.image, r.out);
+    nlohmann::json report;
+    report["image"] = r.out;
+    report["mode"] = r.mode;
+    report["width"] = r.width;
+    report["height"] = r.height;
+    report["samples_per_pixel"] = options.samplesPerPixel;
+    report["paths"] = traced.paths;
+    report["seconds"] = traced.seconds;
+    if (!r.compare.empty())
+        report["relative_rmse"] = relativeRmse(traced.image, readExr(r.compare), traced.emitterMask);
     writeReport(a.report, report);
     return 0;
 }
 
 int runRender(const SolveArgs& a, const RenderArgs& r) {
-    if (r.mode != "gouraud" && r.mode != "epi" && r.mode != "cache" && r.mode != "reference")
-        throw InputError(
-            "--mode", "",
-            "unknown mode '" + r.mode + "' (available: epi, cache, reference, gouraud)");
+    if (r.mode != "gouraud" && r.mode != "epi" && r.mode != "cache" && r.mode != "reference" &&
+        r.mode != "pathtrace")
+        throw InputError("--mode", "",
+                         "unknown mode '" + r.mode +
+                             "' (available: epi, cache, reference, gouraud, pathtrace)");
+    if (r.mode != "pathtrace" && r.samples > 16)
+        throw InputError("--samples", "", "at most 16 per axis outside --mode pathtrace");
     if (!r.overlay.empty() && r.overlay != "edges")
         throw InputError("--overlay", "", "unknown overlay '" + r.overlay + "' (available: edges)");
     if (r.rmseFrames != "last" && r.rmseFrames != "all" && r.rmseFrames != "none")
         throw InputError("--rmse", "",
                          "unknown value '" + r.rmseFrames + "' (available: last, all, none)");
+    if (r.mode == "pathtrace") return runPathTraceRender(a, r);
     if (r.mode != "gouraud") return runDisplayRender(a, r);
     auto lit = openAndSolve(a);
     const Scene& scene = lit->scene();
@@ -339,6 +396,9 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
     writeImage(image, r.out);
     nlohmann::json report = lit->reportJson();
     report["image"] = r.out;
+    if (!r.compare.empty())
+        report["relative_rmse"] = compareWith(image, r.compare, lit->discretization(),
+                                              lit->tracer(), CameraRays(camera, r.width, r.height));
     writeReport(a.report, report);
     return 0;
 }
@@ -435,9 +495,14 @@ int main(int argc, char** argv) {
                           "camera name (default: 'default' or the first)");
     renderCmd->add_option("--width", render.width)->check(CLI::Range(1, 16384));
     renderCmd->add_option("--height", render.height)->check(CLI::Range(1, 16384));
-    renderCmd->add_option("--samples", render.samples, "samples per pixel per axis")
-        ->check(CLI::Range(1, 16));
-    renderCmd->add_option("--mode", render.mode, "epi, cache, reference or gouraud (default)");
+    renderCmd
+        ->add_option("--samples", render.samples,
+                     "samples per pixel per axis (at most 16; 256 for pathtrace)")
+        ->check(CLI::Range(1, 256));
+    renderCmd->add_option("--mode", render.mode,
+                          "epi, cache, reference, gouraud (default) or pathtrace");
+    renderCmd->add_option("--compare", render.compare,
+                          "report the relative RMSE against this EXR (lamps left out)");
     renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();
     renderCmd->add_option("--report", solve.report, "write a JSON report");
     renderCmd

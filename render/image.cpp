@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <sstream>
 #include <stdexcept>
@@ -185,6 +186,24 @@ Image readPng(const std::string& path) {
         image.pixels[i] = Rgb(table[data[3 * i]], table[data[3 * i + 1]], table[data[3 * i + 2]]);
     }
     stbi_image_free(data);
+    return image;
+}
+
+Image readExr(const std::string& path) {
+    float* rgba = nullptr;
+    int width = 0, height = 0;
+    const char* err = nullptr;
+    if (LoadEXR(&rgba, &width, &height, path.c_str(), &err) != TINYEXR_SUCCESS) {
+        std::string reason = err ? err : "unknown error";
+        if (err) FreeEXRErrorMessage(err);
+        while (!reason.empty() && (reason.back() == '\n' || reason.back() == '\r'))
+            reason.pop_back();
+        throw std::runtime_error("cannot read EXR " + path + ": " + reason);
+    }
+    Image image(width, height);
+    for (std::size_t i = 0; i < image.pixels.size(); ++i)
+        image.pixels[i] = Rgb(rgba[4 * i], rgba[4 * i + 1], rgba[4 * i + 2]);
+    std::free(rgba);
     return image;
 }
 

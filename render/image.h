@@ -56,4 +56,8 @@ void writeImage(const Image& image, const std::string& path);
 /// linear values (sRGB-decoded). Throws std::runtime_error naming the file on failure.
 Image readPng(const std::string& path);
 
+/// Reads an OpenEXR file's RGB as linear values (tinyexr). Throws std::runtime_error naming
+/// the file on failure.
+Image readExr(const std::string& path);
+
 }  // namespace penumbra

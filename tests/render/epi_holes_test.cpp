@@ -58,7 +58,9 @@ TEST(EpiHoles, WithoutEdgesAHoleHasNoPointInItsFilterOrSmoothingBox) {
                                       (smooth == 0 || pointsWithin(epi, x, y, smooth) < 2);
                 const bool hole = epi.holes()[y * kW + x] != 0;
                 EXPECT_EQ(hole, expected) << "pixel " << x << ", " << y << ", smooth " << smooth;
-                if (hole) EXPECT_EQ(luminance(image.at(x, y)), 0.0);
+                if (hole) {
+                    EXPECT_EQ(luminance(image.at(x, y)), 0.0);
+                }
                 holes += hole;
             }
         EXPECT_EQ(epi.holeCount(), holes);

@@ -1,0 +1,403 @@
+#include "render/exact_irradiance.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "solver/discretization.h"
+#include "solver/form_factor.h"
+#include "solver/progressive_solver.h"
+
+namespace penumbra {
+
+namespace {
+
+double cross2(const Vec2& a, const Vec2& b) { return a.x * b.y - a.y * b.x; }
+
+/// Twice the signed area of a 2D polygon (positive counter-clockwise).
+double signedArea2(const std::vector<Vec2>& p) {
+    double a = 0;
+    for (std::size_t i = 0, n = p.size(); i < n; ++i) a += cross2(p[i], p[(i + 1) % n]);
+    return a;
+}
+
+/// The part of convex `poly` where side(p) ≥ 0 (Sutherland–Hodgman against one line), with
+/// side affine in p. Writes into `out`.
+template <typename P, typename Side>
+void clipConvex(const std::vector<P>& poly, Side side, std::vector<P>& out) {
+    out.clear();
+    const std::size_t n = poly.size();
+    if (n == 0) return;
+    P prev = poly[n - 1];
+    double sPrev = side(prev);
+    for (std::size_t i = 0; i < n; ++i) {
+        const P& cur = poly[i];
+        const double s = side(cur);
+        // A vertex on the line is kept as it is, never doubled by an intersection.
+        if ((sPrev > 0 && s < 0) || (sPrev < 0 && s > 0)) {
+            const double t = sPrev / (sPrev - s);
+            out.push_back(prev + t * (cur - prev));
+        }
+        if (s >= 0) out.push_back(cur);
+        prev = cur;
+        sPrev = s;
+    }
+    if (out.size() < 3) out.clear();
+}
+
+Vec3 newellNormal(const std::vector<Vec3>& p) {
+    Vec3 n(0.0);
+    for (std::size_t i = 0, k = p.size(); i < k; ++i) {
+        const Vec3& a = p[i];
+        const Vec3& b = p[(i + 1) % k];
+        n += Vec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+    }
+    const double len = glm::length(n);
+    return len > 0 ? n / len : n;
+}
+
+/// An orthonormal frame of a source polygon's plane: origin, axes u and v with u × v = the
+/// polygon's normal, so counter-clockwise in 2D is counter-clockwise seen from the front.
+struct PlaneFrame {
+    Vec3 origin, u, v, n;
+    explicit PlaneFrame(const std::vector<Vec3>& poly) : origin(poly[0]), n(newellNormal(poly)) {
+        u = glm::normalize(poly[1] - poly[0]);
+        v = glm::cross(n, u);
+    }
+    Vec2 to2(const Vec3& p) const { return {glm::dot(p - origin, u), glm::dot(p - origin, v)}; }
+    Vec3 to3(const Vec2& p) const { return origin + p.x * u + p.y * v; }
+};
+
+}  // namespace
+
+bool isConvexPolygon(const std::vector<Vec3>& polygon, const Vec3& normal) {
+    const std::size_t n = polygon.size();
+    if (n < 3) return false;
+    double scale = 0;
+    for (const Vec3& p : polygon) scale = std::max(scale, glm::length(p - polygon[0]));
+    for (std::size_t i = 0; i < n; ++i) {
+        const Vec3 a = polygon[(i + 1) % n] - polygon[i];
+        const Vec3 b = polygon[(i + 2) % n] - polygon[(i + 1) % n];
+        if (glm::dot(glm::cross(a, b), normal) < -1e-12 * scale * scale) return false;
+    }
+    return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// PolygonSet2
+
+PolygonSet2::PolygonSet2(std::vector<Vec2> convex) {
+    const double a = signedArea2(convex);
+    if (a < 0) std::reverse(convex.begin(), convex.end());
+    mMinArea = std::abs(a) * 1e-12;
+    if (convex.size() >= 3 && std::abs(a) > 0) mPieces.push_back(std::move(convex));
+}
+
+void PolygonSet2::subtract(const std::vector<Vec2>& convexIn) {
+    if (convexIn.size() < 3 || mPieces.empty()) return;
+    Vec2 lo(1e300), hi(-1e300);
+    for (const Vec2& p : convexIn) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    // Drop repeated vertices: a zero-length edge has no line to peel along.
+    const double tiny = 1e-24 * std::max(glm::dot(hi - lo, hi - lo), 1e-300);
+    std::vector<Vec2> s;
+    s.reserve(convexIn.size());
+    for (const Vec2& p : convexIn) {
+        if (!s.empty() && glm::dot(p - s.back(), p - s.back()) <= tiny) continue;
+        s.push_back(p);
+    }
+    while (s.size() > 1 && glm::dot(s.front() - s.back(), s.front() - s.back()) <= tiny) s.pop_back();
+    const double sArea = signedArea2(s);
+    if (s.size() < 3 || std::abs(sArea) <= mMinArea) return;  // nothing to remove
+    if (sArea < 0) std::reverse(s.begin(), s.end());
+    std::vector<std::vector<Vec2>> next;
+    next.reserve(mPieces.size() + 4);
+    std::vector<Vec2> rest, outside, inside;
+    for (std::vector<Vec2>& piece : mPieces) {
+        Vec2 plo(1e300), phi(-1e300);
+        for (const Vec2& p : piece) {
+            plo = glm::min(plo, p);
+            phi = glm::max(phi, p);
+        }
+        if (phi.x <= lo.x || hi.x <= plo.x || phi.y <= lo.y || hi.y <= plo.y) {
+            next.push_back(std::move(piece));
+            continue;
+        }
+        // Peel off the part outside each edge's line; what stays inside every line is the
+        // overlap, which goes.
+        rest = piece;
+        std::vector<std::vector<Vec2>> peeled;
+        bool disjoint = false;
+        for (std::size_t i = 0, n = s.size(); i < n && !rest.empty(); ++i) {
+            const Vec2 a = s[i], d = s[(i + 1) % n] - s[i];
+            auto left = [&](const Vec2& p) { return cross2(d, p - a); };
+            clipConvex(rest, [&](const Vec2& p) { return -left(p); }, outside);
+            clipConvex(rest, left, inside);
+            if (inside.empty()) {  // the piece lies outside this edge: untouched
+                disjoint = true;
+                break;
+            }
+            if (!outside.empty() && std::abs(signedArea2(outside)) > mMinArea)
+                peeled.push_back(outside);
+            rest.swap(inside);
+        }
+        if (disjoint) {
+            next.push_back(std::move(piece));
+            continue;
+        }
+        for (auto& p : peeled) next.push_back(std::move(p));
+    }
+    mPieces.swap(next);
+}
+
+double PolygonSet2::area() const {
+    double a = 0;
+    for (const auto& p : mPieces) a += 0.5 * signedArea2(p);
+    return a;
+}
+
+// ---------------------------------------------------------------------------------------------
+// ExactIrradiance
+
+ExactIrradiance::ExactIrradiance(const Discretization& disc, ExactIrradianceOptions options)
+    : mDisc(disc), mOptions(options) {
+    rebuild();
+}
+
+void ExactIrradiance::rebuild() {
+    mBlockers.clear();
+    mObjects.clear();
+    mEmitters.clear();
+    mPatches.clear();
+    Vec3 sceneLo(1e300), sceneHi(-1e300);
+    const auto& patches = mDisc.patches();
+    const auto& elements = mDisc.elements();
+    // Blockers: each front-sheet patch's convex outline, or its elements.
+    std::vector<std::vector<int>> patchesOf(mDisc.objects().size());
+    for (std::size_t p = 0; p < patches.size(); ++p)
+        if (mDisc.patchAlive(static_cast<int>(p)))
+            patchesOf[patches[p].object].push_back(static_cast<int>(p));
+    for (std::size_t o = 0; o < patchesOf.size(); ++o) {
+        if (patchesOf[o].empty()) continue;
+        const ObjectSurface& surface = mDisc.objects()[o];
+        ObjectBlockers ob;
+        ob.object = static_cast<int>(o);
+        ob.first = static_cast<int>(mBlockers.size());
+        ob.lo = Vec3(1e300);
+        ob.hi = Vec3(-1e300);
+        auto add = [&](std::vector<Vec3> poly) {
+            Blocker b;
+            b.lo = Vec3(1e300);
+            b.hi = Vec3(-1e300);
+            for (const Vec3& q : poly) {
+                b.lo = glm::min(b.lo, q);
+                b.hi = glm::max(b.hi, q);
+            }
+            ob.lo = glm::min(ob.lo, b.lo);
+            ob.hi = glm::max(ob.hi, b.hi);
+            b.polygon = std::move(poly);
+            b.object = static_cast<int>(o);
+            mBlockers.push_back(std::move(b));
+        };
+        for (int p : patchesOf[o]) {
+            const Patch& P = patches[p];
+            const bool back = !P.elements.empty() &&
+                              surface.isBackFace(elements[P.elements.front()].face);
+            const bool convex = !P.outline.empty() && isConvexPolygon(P.outline, P.normal);
+            // Sources: every patch (a back sheet reflects toward its own side).
+            SourcePatch sp;
+            sp.patch = p;
+            sp.centroid = P.centroid;
+            sp.radius = P.radius;
+            sp.convexOutline = convex;
+            mPatches.push_back(sp);
+            const Material& m = mDisc.patchMaterial(p);
+            if (m.isEmitter() && !back) {
+                if (convex) {
+                    mEmitters.push_back({P.outline, m.emission, static_cast<int>(o)});
+                } else {
+                    for (int e : P.elements)
+                        mEmitters.push_back(
+                            {mDisc.elementPolygon(e), m.emission, static_cast<int>(o)});
+                }
+            }
+            if (back) continue;  // the same surface as its front sheet: blocks once
+            if (convex) {
+                add(P.outline);
+            } else {
+                for (int e : P.elements) add(mDisc.elementPolygon(e));
+            }
+        }
+        ob.count = static_cast<int>(mBlockers.size()) - ob.first;
+        if (ob.count > 0) {
+            sceneLo = glm::min(sceneLo, ob.lo);
+            sceneHi = glm::max(sceneHi, ob.hi);
+            mObjects.push_back(ob);
+        }
+    }
+    const double diag = mObjects.empty() ? 1.0 : glm::length(sceneHi - sceneLo);
+    mEpsilon = 1e-9 * std::max(diag, 1e-6);
+    if (!mReflected.empty()) setReflected(std::move(mReflected));
+}
+
+void ExactIrradiance::setReflected(std::vector<Rgb> reflected) {
+    mReflected = std::move(reflected);
+    mReflected.resize(mDisc.elements().size(), Rgb(0.0));
+    mPatchReflected.assign(mDisc.patches().size(), Rgb(0.0));
+    for (std::size_t p = 0; p < mDisc.patches().size(); ++p) {
+        const Patch& P = mDisc.patches()[p];
+        Rgb sum(0.0);
+        double area = 0;
+        for (int e : P.elements) {
+            sum += mReflected[e] * mDisc.elements()[e].area;
+            area += mDisc.elements()[e].area;
+        }
+        mPatchReflected[p] = area > 0 ? sum / area : Rgb(0.0);
+    }
+}
+
+std::vector<std::vector<Vec3>> ExactIrradiance::visiblePart(const Vec3& x,
+                                                            const std::vector<Vec3>& source,
+                                                            int ignoreObject) const {
+    std::vector<std::vector<Vec3>> out;
+    if (source.size() < 3) return out;
+    const PlaneFrame frame(source);
+    const double hx = glm::dot(x - frame.origin, frame.n);
+    if (!(hx > mEpsilon)) return out;  // behind the source (or on its plane): sees nothing
+    std::vector<Vec2> source2;
+    source2.reserve(source.size());
+    for (const Vec3& p : source) source2.push_back(frame.to2(p));
+    PolygonSet2 visible(source2);
+    if (visible.empty()) return out;
+
+    // The pyramid from x over the source: side planes through x and each edge (normals
+    // pointing inward) and the source's plane, slightly lifted so the source's own surface and
+    // anything on its plane do not count as blockers.
+    const std::size_t n = source.size();
+    std::vector<Vec3> sideNormal(n);
+    Vec3 centroid(0.0);
+    for (const Vec3& p : source) centroid += p;
+    centroid /= static_cast<double>(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        Vec3 m = glm::cross(source[i] - x, source[(i + 1) % n] - x);
+        if (glm::dot(m, centroid - x) < 0) m = -m;
+        const double len = glm::length(m);
+        sideNormal[i] = len > 0 ? m / len : m;
+    }
+    Vec3 lo = x, hi = x;
+    for (const Vec3& p : source) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    auto boxOverlaps = [&](const Vec3& a, const Vec3& b) {
+        return a.x <= hi.x && lo.x <= b.x && a.y <= hi.y && lo.y <= b.y && a.z <= hi.z &&
+               lo.z <= b.z;
+    };
+    const double lift = 1e3 * mEpsilon;
+    std::vector<Vec3> clipA, clipB;
+    std::vector<Vec2> shadow;
+    for (const ObjectBlockers& ob : mObjects) {
+        if (ob.object == ignoreObject || !boxOverlaps(ob.lo, ob.hi)) continue;
+        for (int b = ob.first; b < ob.first + ob.count && !visible.empty(); ++b) {
+            const Blocker& B = mBlockers[b];
+            if (!boxOverlaps(B.lo, B.hi)) continue;
+            // A polygon whose plane passes through x cannot hide anything from x.
+            const Vec3 bn = newellNormal(B.polygon);
+            if (std::abs(glm::dot(x - B.polygon[0], bn)) <= lift) continue;
+            clipConvex(
+                B.polygon,
+                [&](const Vec3& p) { return glm::dot(p - frame.origin, frame.n) - lift; }, clipA);
+            for (std::size_t i = 0; i < n && !clipA.empty(); ++i) {
+                clipConvex(clipA, [&](const Vec3& p) { return glm::dot(p - x, sideNormal[i]); },
+                           clipB);
+                clipA.swap(clipB);
+            }
+            if (clipA.size() < 3) continue;
+            // Central projection from x onto the source's plane.
+            shadow.clear();
+            for (const Vec3& p : clipA) {
+                const double hp = glm::dot(p - frame.origin, frame.n);
+                const Vec3 q = x + (p - x) * (hx / (hx - hp));
+                shadow.push_back(frame.to2(q));
+            }
+            visible.subtract(shadow);
+        }
+    }
+    out.reserve(visible.pieces().size());
+    for (const auto& piece : visible.pieces()) {
+        std::vector<Vec3> poly;
+        poly.reserve(piece.size());
+        for (const Vec2& p : piece) poly.push_back(frame.to3(p));
+        out.push_back(std::move(poly));
+    }
+    return out;
+}
+
+double ExactIrradiance::visibleFormFactor(const Vec3& x, const Vec3& n,
+                                          const std::vector<Vec3>& source,
+                                          int ignoreObject) const {
+    // Unoccluded first: a source the point cannot see (behind it or below its horizon) costs
+    // no clipping.
+    const double unoccluded = polygonFormFactor(x, n, source);
+    if (!(unoccluded > 0)) return 0.0;
+    double f = 0;
+    for (const auto& piece : visiblePart(x, source, ignoreObject))
+        f += polygonFormFactor(x, n, piece);
+    return std::clamp(f, 0.0, unoccluded);
+}
+
+Rgb ExactIrradiance::direct(const Vec3& x, const Vec3& n) const {
+    Rgb h(0.0);
+    for (const Source& s : mEmitters) {
+        // A planar emitter cannot hide itself; a curved one (a sphere lamp) can.
+        h += s.radiosity * visibleFormFactor(x, n, s.polygon, -1);
+    }
+    return h;
+}
+
+void ExactIrradiance::addSourcesOfPatch(const SourcePatch& sp, const Vec3& x,
+                                        std::vector<Source>& out) const {
+    const Patch& P = mDisc.patches()[sp.patch];
+    const bool far = glm::length(x - sp.centroid) > mOptions.nearRadii * sp.radius;
+    if (far && sp.convexOutline) {
+        const Rgb b = mPatchReflected[sp.patch];
+        if (b.x > 0 || b.y > 0 || b.z > 0) out.push_back({P.outline, b, P.object});
+        return;
+    }
+    for (int e : P.elements) {
+        const Rgb b = mReflected[e];
+        if (b.x > 0 || b.y > 0 || b.z > 0) out.push_back({mDisc.elementPolygon(e), b, P.object});
+    }
+}
+
+Rgb ExactIrradiance::indirect(const Vec3& x, const Vec3& n) const {
+    if (mReflected.empty()) return Rgb(0.0);
+    Rgb h(0.0);
+    std::vector<Source> sources;
+    for (const SourcePatch& sp : mPatches) {
+        sources.clear();
+        addSourcesOfPatch(sp, x, sources);
+        for (const Source& s : sources) h += s.radiosity * visibleFormFactor(x, n, s.polygon, -1);
+    }
+    return h;
+}
+
+std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const ProgressiveSolver& solver) {
+    const std::vector<Rgb> b = solver.displayRadiosity();
+    std::vector<Rgb> out(b.size());
+    for (std::size_t e = 0; e < b.size(); ++e)
+        out[e] = glm::max(b[e] - disc.elementMaterial(static_cast<int>(e)).emission, Rgb(0.0));
+    return out;
+}
+
+std::string ExactIrradiance::toString() const {
+    std::ostringstream s;
+    s << "ExactIrradiance{blockers=" << mBlockers.size() << ", emitters=" << mEmitters.size()
+      << ", sources=" << mPatches.size() << ", indirect=" << (mReflected.empty() ? "no" : "yes")
+      << "}";
+    return s.str();
+}
+
+}  // namespace penumbra

@@ -1,0 +1,128 @@
+#pragma once
+// Exact irradiance at a point (Hardt & Teller 1996 §5, IrradianceAtPoint): for every source
+// polygon, the part visible from the point, found by backprojecting the blockers onto the
+// source's plane (Drettakis & Fiume 1994) and subtracting them as convex polygons, integrated
+// with Lambert's contour formula. Direct light comes from the emitters' emission, indirect
+// light from the solution's reflected radiosity (B − E = ρH per element), gathered the same way.
+//
+// Index: PolygonSet2 · ExactIrradianceOptions · ExactIrradiance
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "solver/scene.h"
+
+namespace penumbra {
+
+class Discretization;
+class ProgressiveSolver;
+
+/// 2D point of a source polygon's plane.
+using Vec2 = glm::dvec2;
+
+/// A region of a plane as disjoint convex polygons (counter-clockwise): what is left of a
+/// convex polygon after convex polygons are subtracted from it, one at a time.
+class PolygonSet2 {
+public:
+    explicit PolygonSet2(std::vector<Vec2> convex);
+    /// Removes a convex polygon (either winding). Each piece it overlaps is split into the
+    /// parts outside each of its edges' lines in turn, so pieces stay convex and disjoint.
+    void subtract(const std::vector<Vec2>& convex);
+    const std::vector<std::vector<Vec2>>& pieces() const { return mPieces; }
+    bool empty() const { return mPieces.empty(); }
+    double area() const;
+
+private:
+    std::vector<std::vector<Vec2>> mPieces;
+    double mMinArea;  ///< slivers below this (relative to the first polygon) are dropped
+};
+
+struct ExactIrradianceOptions {
+    /// Gather indirect light from the solution (else direct only).
+    bool indirect = true;
+    /// A source patch nearer than this many bounding radii (centroid to point) is gathered
+    /// element by element with each element's radiosity; farther, as its outline with the
+    /// patch's mean radiosity.
+    double nearRadii = 3.0;
+};
+
+/// Thread safety: const functions may be called from any thread. The Discretization must not
+/// change while one runs; call rebuild() after it changed (an edit, a subdivision).
+class ExactIrradiance {
+public:
+    explicit ExactIrradiance(const Discretization& disc, ExactIrradianceOptions options = {});
+    /// Re-reads the alive objects' blockers and emitters.
+    void rebuild();
+    /// The light the solution reflects, per element (W/m²): B − E, i.e. ρ·H. Without one,
+    /// irradiance() is direct light only.
+    void setReflected(std::vector<Rgb> reflected);
+
+    /// Form factor from (x, n) to the part of a planar convex `source` polygon
+    /// (counter-clockwise seen from its front) that no blocker hides. Blockers of object
+    /// `ignoreObject` are left out (-1: none).
+    double visibleFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& source,
+                             int ignoreObject = -1) const;
+    /// The visible part itself, in world space (pieces of the source's plane).
+    std::vector<std::vector<Vec3>> visiblePart(const Vec3& x, const std::vector<Vec3>& source,
+                                               int ignoreObject = -1) const;
+
+    /// Irradiance (W/m²) straight from the emitters at x (unit normal n).
+    Rgb direct(const Vec3& x, const Vec3& n) const;
+    /// Irradiance (W/m²) from the reflected radiosity of every element (0 without
+    /// setReflected()).
+    Rgb indirect(const Vec3& x, const Vec3& n) const;
+    Rgb irradiance(const Vec3& x, const Vec3& n) const {
+        return direct(x, n) + (mOptions.indirect ? indirect(x, n) : Rgb(0.0));
+    }
+
+    std::size_t blockerCount() const { return mBlockers.size(); }
+    std::size_t emitterCount() const { return mEmitters.size(); }
+    const ExactIrradianceOptions& options() const { return mOptions; }
+    std::string toString() const;
+
+private:
+    struct Blocker {
+        std::vector<Vec3> polygon;  ///< convex, world space
+        Vec3 lo, hi;                ///< bounds
+        int object = -1;
+    };
+    struct ObjectBlockers {
+        int first = 0, count = 0;  ///< range in mBlockers
+        Vec3 lo, hi;
+        int object = -1;
+    };
+    struct Source {
+        std::vector<Vec3> polygon;  ///< convex, counter-clockwise seen from the front
+        Rgb radiosity{0.0};
+        int object = -1;
+    };
+    struct SourcePatch {
+        int patch = -1;
+        Vec3 centroid{0.0};
+        double radius = 0;
+        bool convexOutline = false;
+    };
+    /// The polygons patch `sp` lights x with: its outline when far and convex, else its
+    /// elements.
+    void addSourcesOfPatch(const SourcePatch& sp, const Vec3& x, std::vector<Source>& out) const;
+
+    const Discretization& mDisc;
+    ExactIrradianceOptions mOptions;
+    std::vector<Blocker> mBlockers;
+    std::vector<ObjectBlockers> mObjects;
+    std::vector<Source> mEmitters;
+    std::vector<SourcePatch> mPatches;  ///< alive patches (indirect sources)
+    std::vector<Rgb> mReflected;        ///< per element
+    std::vector<Rgb> mPatchReflected;   ///< per patch, area-weighted mean
+    double mEpsilon = 1e-9;             ///< length tolerance, from the scene's size
+};
+
+/// Per element, the radiosity the solution reflects: B − E (ρ·H plus the solver's ambient
+/// estimate of the light not yet shot, Cohen eq. 13), for ExactIrradiance::setReflected.
+std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const ProgressiveSolver& solver);
+
+/// Whether a planar polygon is convex (all turns the same way about `normal`).
+bool isConvexPolygon(const std::vector<Vec3>& polygon, const Vec3& normal);
+
+}  // namespace penumbra

@@ -1,0 +1,215 @@
+#include "render/path_tracer.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "render/camera_rays.h"
+#include "solver/discretization.h"
+#include "solver/form_factor.h"
+#include "solver/ray_tracer.h"
+
+namespace penumbra {
+
+namespace {
+
+/// A uniform double in [0, 1) from a SplitMix64 stream.
+struct Random {
+    std::uint64_t state;
+    double next() {
+        const std::uint64_t r = splitmix64(state);
+        state += 0x9e3779b97f4a7c15ull;
+        return static_cast<double>(r >> 11) * 0x1.0p-53;
+    }
+};
+
+/// One emitting triangle (a fan triangle of an emitting element's front).
+struct EmitterTriangle {
+    Vec3 a, b, c, normal;
+    double area = 0;
+    Rgb emission{0.0};
+};
+
+/// Emitters chosen with probability proportional to area × luminance of emission.
+struct Emitters {
+    std::vector<EmitterTriangle> triangles;
+    std::vector<double> cumulative;  ///< of area × luminance
+    double total = 0;
+
+    explicit Emitters(const Discretization& disc) {
+        for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+            const int ei = static_cast<int>(e);
+            if (!disc.elementAlive(ei)) continue;
+            const Element& el = disc.elements()[e];
+            if (disc.objects()[el.object].isBackFace(el.face)) continue;  // emission is front-only
+            const Material& m = disc.elementMaterial(ei);
+            if (!m.isEmitter()) continue;
+            const std::vector<Vec3> poly = disc.elementPolygon(ei);
+            for (std::size_t k = 1; k + 1 < poly.size(); ++k) {
+                const Vec3 c = glm::cross(poly[k] - poly[0], poly[k + 1] - poly[0]);
+                const double area = 0.5 * glm::length(c);
+                if (!(area > 0)) continue;
+                triangles.push_back({poly[0], poly[k], poly[k + 1], c / (2 * area), area,
+                                     m.emission});
+                total += area * luminance(m.emission);
+                cumulative.push_back(total);
+            }
+        }
+    }
+    /// A triangle by power and a uniform point on it; `pdfArea` the density per unit area.
+    const EmitterTriangle& sample(Random& rng, Vec3& point, double& pdfArea) const {
+        const double u = rng.next() * total;
+        std::size_t i = std::upper_bound(cumulative.begin(), cumulative.end(), u) -
+                        cumulative.begin();
+        i = std::min(i, triangles.size() - 1);
+        const EmitterTriangle& t = triangles[i];
+        double r0 = rng.next(), r1 = rng.next();
+        if (r0 + r1 > 1) r0 = 1 - r0, r1 = 1 - r1;
+        point = t.a + r0 * (t.b - t.a) + r1 * (t.c - t.a);
+        pdfArea = luminance(t.emission) / total;
+        return t;
+    }
+};
+
+/// A unit vector distributed by cos θ about n (Malley's method).
+Vec3 cosineDirection(const Vec3& n, Random& rng) {
+    const double r = std::sqrt(rng.next()), phi = 2 * M_PI * rng.next();
+    const Vec3 t = std::abs(n.x) > 0.5 ? glm::normalize(glm::cross(n, Vec3(0, 1, 0)))
+                                       : glm::normalize(glm::cross(n, Vec3(1, 0, 0)));
+    const Vec3 b = glm::cross(n, t);
+    return glm::normalize(r * std::cos(phi) * t + r * std::sin(phi) * b +
+                          std::sqrt(std::max(0.0, 1 - r * r)) * n);
+}
+
+/// Radiance along one camera ray.
+Rgb tracePath(const Discretization& disc, const RayTracer& tracer, const Emitters& emitters,
+              Vec3 origin, Vec3 dir, Random& rng, const PathTraceOptions& o) {
+    const double eps = tracer.epsilon();
+    Rgb radiance(0.0), throughput(1.0);
+    for (int depth = 0; depth < o.maxDepth; ++depth) {
+        const RayTracer::FirstHit hit = tracer.firstHit(origin, dir);
+        if (hit.element < 0 || hit.backFace) break;  // a one-sided surface's back is black
+        const Element& el = disc.elements()[hit.element];
+        const Material& m = disc.elementMaterial(hit.element);
+        const bool back = disc.objects()[el.object].isBackFace(el.face);
+        // Emission seen directly; after a bounce the emitters' light came by next-event
+        // estimation.
+        if (depth == 0 && !back) radiance += throughput * m.emission / M_PI;
+        const Vec3 n = el.normal;
+        const Vec3 x = origin + static_cast<double>(hit.t) * dir;
+        const Rgb rho = m.reflectance;
+        if (rho.x <= 0 && rho.y <= 0 && rho.z <= 0) break;
+        const Vec3 from = x + n * eps;
+        if (emitters.total > 0) {
+            Vec3 y;
+            double pdfArea = 0;
+            const EmitterTriangle& t = emitters.sample(rng, y, pdfArea);
+            const Vec3 d = y - x;
+            const double r2 = glm::dot(d, d);
+            const double cx = glm::dot(n, d), cy = -glm::dot(t.normal, d);
+            if (r2 > 0 && cx > 0 && cy > 0 && pdfArea > 0 &&
+                !tracer.occluded(from, y + t.normal * eps)) {
+                // (ρ/π)(E/π) cos θx cos θy / r² / pdf, the cosines carrying |d| each.
+                const double g = cx * cy / (r2 * r2);
+                radiance += throughput * rho * t.emission *
+                            (g / (M_PI * M_PI * pdfArea));
+            }
+        }
+        throughput *= rho;  // (ρ/π) cos θ / (cos θ / π)
+        if (depth + 1 >= o.rouletteDepth) {
+            const double survive =
+                std::min(0.95, std::max({throughput.x, throughput.y, throughput.z}));
+            if (!(rng.next() < survive)) break;
+            throughput /= survive;
+        }
+        origin = from;
+        dir = cosineDirection(n, rng);
+    }
+    return radiance;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> emitterMask(const Discretization& disc, const RayTracer& tracer,
+                                      const CameraRays& rays) {
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(rays.width()) * rays.height(), 0);
+    tbb::parallel_for(0, rays.height(), [&](int y) {
+        for (int x = 0; x < rays.width(); ++x) {
+            const RayTracer::FirstHit hit =
+                tracer.firstHit(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
+            if (hit.element < 0 || hit.backFace) continue;
+            const Element& el = disc.elements()[hit.element];
+            if (disc.elementMaterial(hit.element).isEmitter() &&
+                !disc.objects()[el.object].isBackFace(el.face))
+                mask[static_cast<std::size_t>(y) * rays.width() + x] = 1;
+        }
+    });
+    return mask;
+}
+
+PathTraceResult pathTrace(const Discretization& disc, const RayTracer& tracer,
+                          const CameraRays& rays, const PathTraceOptions& options,
+                          const std::function<void(double)>& progress) {
+    const auto start = std::chrono::steady_clock::now();
+    const Emitters emitters(disc);
+    PathTraceResult result;
+    result.image = Image(rays.width(), rays.height());
+    const int spp = std::max(1, options.samplesPerPixel);
+    const int strata = static_cast<int>(std::lround(std::sqrt(double(spp))));
+    const bool stratified = strata * strata == spp;
+    std::atomic<int> rowsDone{0};
+    auto renderRows = [&] {
+        tbb::parallel_for(0, rays.height(), [&](int y) {
+            for (int x = 0; x < rays.width(); ++x) {
+                const std::uint64_t pixel = static_cast<std::uint64_t>(y) * rays.width() + x;
+                Random rng{hashPair(options.seed, pixel)};
+                Rgb sum(0.0);
+                for (int s = 0; s < spp; ++s) {
+                    double jx = rng.next(), jy = rng.next();
+                    if (stratified) {
+                        jx = ((s % strata) + jx) / strata;
+                        jy = ((s / strata) + jy) / strata;
+                    }
+                    sum += tracePath(disc, tracer, emitters, rays.origin(),
+                                     rays.rayDirection(x + jx, y + jy), rng, options);
+                }
+                result.image.at(x, y) = sum / static_cast<double>(spp);
+            }
+            rowsDone.fetch_add(1, std::memory_order_relaxed);
+        });
+    };
+    if (progress) {
+        std::thread worker(renderRows);
+        while (rowsDone.load() < rays.height()) {
+            progress(double(rowsDone.load()) / rays.height());
+            std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        }
+        worker.join();
+        progress(1.0);
+    } else {
+        renderRows();
+    }
+    result.emitterMask = emitterMask(disc, tracer, rays);
+    result.paths = static_cast<std::uint64_t>(rays.width()) * rays.height() * spp;
+    result.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+}
+
+double relativeRmse(const Image& image, const Image& reference,
+                    const std::vector<std::uint8_t>& mask) {
+    double err = 0, norm = 0;
+    for (std::size_t i = 0; i < reference.pixels.size() && i < image.pixels.size(); ++i) {
+        if (!mask.empty() && mask[i]) continue;
+        const Rgb d = image.pixels[i] - reference.pixels[i];
+        err += glm::dot(d, d);
+        norm += glm::dot(reference.pixels[i], reference.pixels[i]);
+    }
+    return norm > 0 ? std::sqrt(err / norm) : 0.0;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,55 @@
+#pragma once
+// A brute-force path tracer over the same surfaces as the radiosity solution: the independent
+// reference the high-fidelity renderer is measured against (what a production path tracer
+// such as Cycles computes for a scene of one-sided Lambertian polygons and area lamps).
+// Unidirectional paths with next-event estimation on the emitters and Russian roulette; every
+// ray through Embree (RayTracer).
+//
+// Index: PathTraceOptions · PathTraceResult · pathTrace
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "render/image.h"
+
+namespace penumbra {
+
+class CameraRays;
+class Discretization;
+class RayTracer;
+
+struct PathTraceOptions {
+    int samplesPerPixel = 64;  ///< jittered over each pixel (stratified when a square)
+    std::uint64_t seed = 1;
+    /// Bounces before Russian roulette may end a path; after it, a path survives with the
+    /// probability of its largest throughput channel (at most 0.95).
+    int rouletteDepth = 3;
+    int maxDepth = 1000;  ///< a hard stop (a closed white room still ends long before)
+};
+
+struct PathTraceResult {
+    Image image;  ///< radiance (W/m²/sr), linear
+    /// Per pixel: 1 when the pixel's centre sees an emitter's front (the lamp itself,
+    /// left out of comparisons).
+    std::vector<std::uint8_t> emitterMask;
+    std::uint64_t paths = 0;
+    double seconds = 0;
+};
+
+/// Renders the view. Deterministic for a seed (each pixel's samples depend on the seed and
+/// the pixel only). `progress(fraction)` is called from the calling thread when given.
+PathTraceResult pathTrace(const Discretization& disc, const RayTracer& tracer,
+                          const CameraRays& rays, const PathTraceOptions& options = {},
+                          const std::function<void(double)>& progress = {});
+
+/// Per pixel: 1 when the pixel's centre sees an emitter's front.
+std::vector<std::uint8_t> emitterMask(const Discretization& disc, const RayTracer& tracer,
+                                      const CameraRays& rays);
+
+/// Relative RMSE of `image` against `reference` over the pixels `mask` leaves in (mask 0;
+/// all when empty): sqrt(Σ |a − r|²) / sqrt(Σ |r|²) over the three channels.
+double relativeRmse(const Image& image, const Image& reference,
+                    const std::vector<std::uint8_t>& mask = {});
+
+}  // namespace penumbra
