@@ -27,6 +27,7 @@
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
 #include "render/gouraud_renderer.h"
+#include "render/hifi_mesh.h"
 #include "render/image.h"
 #include "render/interactive_display.h"
 #include "render/path_tracer.h"
@@ -363,12 +364,52 @@ int runPathTraceRender(const SolveArgs& a, const RenderArgs& r) {
     return 0;
 }
 
+/// `render --mode interpolant`: the high-fidelity picture (Hardt & Teller 1996) — the
+/// converged solution's elements meshed along their discontinuities, quadratic interpolants
+/// through exact irradiance samples, evaluated per pixel.
+int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
+    using Clock = std::chrono::steady_clock;
+    auto lit = openAndSolve(a);
+    const Camera camera = pickCamera(lit->scene(), a.scene, r.camera);
+    const CameraRays rays(camera, r.width, r.height);
+    const Discretization& disc = lit->discretization();
+    ExactIrradiance exact(disc);
+    exact.setReflected(reflectedRadiosity(disc, lit->solver()));
+    HifiMesh mesh;
+    const bool tty = ::isatty(STDERR_FILENO);
+    mesh.build(disc, exact, HifiOptions{}, [&](double f) {
+        if (tty) std::fprintf(stderr, "\rmeshing and sampling %3.0f%%", 100 * f);
+    });
+    if (tty) std::fprintf(stderr, "\n");
+    const auto start = Clock::now();
+    const Image image = renderInterpolants(disc, lit->tracer(), mesh, rays, r.samples);
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    writeImage(image, r.out);
+    nlohmann::json report = lit->reportJson();
+    report["image"] = r.out;
+    report["mode"] = r.mode;
+    const HifiStats& st = mesh.stats();
+    report["hifi"] = {{"elements", st.elements},
+                      {"meshed_elements", st.meshedElements},
+                      {"triangles", st.triangles},
+                      {"shadow_segments", st.shadowSegments},
+                      {"contact_segments", st.contactSegments},
+                      {"samples", st.samples},
+                      {"build_seconds", st.seconds},
+                      {"evaluate_ms", ms}};
+    if (!r.compare.empty())
+        report["relative_rmse"] = compareWith(image, r.compare, disc, lit->tracer(), rays);
+    writeReport(a.report, report);
+    return 0;
+}
+
 int runRender(const SolveArgs& a, const RenderArgs& r) {
     if (r.mode != "gouraud" && r.mode != "epi" && r.mode != "cache" && r.mode != "reference" &&
-        r.mode != "pathtrace")
+        r.mode != "pathtrace" && r.mode != "interpolant")
         throw InputError("--mode", "",
                          "unknown mode '" + r.mode +
-                             "' (available: epi, cache, reference, gouraud, pathtrace)");
+                             "' (available: epi, cache, reference, gouraud, interpolant, "
+                             "pathtrace)");
     if (r.mode != "pathtrace" && r.samples > 16)
         throw InputError("--samples", "", "at most 16 per axis outside --mode pathtrace");
     if (!r.overlay.empty() && r.overlay != "edges")
@@ -377,6 +418,7 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
         throw InputError("--rmse", "",
                          "unknown value '" + r.rmseFrames + "' (available: last, all, none)");
     if (r.mode == "pathtrace") return runPathTraceRender(a, r);
+    if (r.mode == "interpolant") return runInterpolantRender(a, r);
     if (r.mode != "gouraud") return runDisplayRender(a, r);
     auto lit = openAndSolve(a);
     const Scene& scene = lit->scene();
@@ -500,7 +542,7 @@ int main(int argc, char** argv) {
                      "samples per pixel per axis (at most 16; 256 for pathtrace)")
         ->check(CLI::Range(1, 256));
     renderCmd->add_option("--mode", render.mode,
-                          "epi, cache, reference, gouraud (default) or pathtrace");
+                          "epi, cache, reference, gouraud (default), interpolant or pathtrace");
     renderCmd->add_option("--compare", render.compare,
                           "report the relative RMSE against this EXR (lamps left out)");
     renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();

@@ -85,21 +85,41 @@ Vec3 cosineDirection(const Vec3& n, Random& rng) {
                           std::sqrt(std::max(0.0, 1 - r * r)) * n);
 }
 
-/// Radiance along one camera ray.
+/// The power heuristic (Veach 1997, β = 2): the weight of the strategy with density `a`
+/// against the other's `b`.
+double powerHeuristic(double a, double b) {
+    const double a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0 ? a2 / (a2 + b2) : 0.0;
+}
+
+/// Radiance along one camera ray. Light reaches each vertex two ways, combined by multiple
+/// importance sampling: a point sampled on an emitter (next-event estimation) and the next
+/// cosine-sampled direction happening to hit an emitter. Either alone is unbiased; the
+/// combination keeps the variance finite where an emitter meets the surface (a lamp's
+/// corner, a glowing wall), where area sampling alone has heavy tails.
 Rgb tracePath(const Discretization& disc, const RayTracer& tracer, const Emitters& emitters,
               Vec3 origin, Vec3 dir, Random& rng, const PathTraceOptions& o) {
     const double eps = tracer.epsilon();
     Rgb radiance(0.0), throughput(1.0);
+    double directionPdf = 0;  ///< solid-angle density of `dir` (0: a camera ray)
     for (int depth = 0; depth < o.maxDepth; ++depth) {
         const RayTracer::FirstHit hit = tracer.firstHit(origin, dir);
         if (hit.element < 0 || hit.backFace) break;  // a one-sided surface's back is black
         const Element& el = disc.elements()[hit.element];
         const Material& m = disc.elementMaterial(hit.element);
         const bool back = disc.objects()[el.object].isBackFace(el.face);
-        // Emission seen directly; after a bounce the emitters' light came by next-event
-        // estimation.
-        if (depth == 0 && !back) radiance += throughput * m.emission / M_PI;
         const Vec3 n = el.normal;
+        if (!back && m.isEmitter()) {
+            double weight = 1;
+            if (depth > 0 && emitters.total > 0) {
+                const double cosHit = -glm::dot(n, dir);
+                const double t = hit.t;
+                const double lightPdf = luminance(m.emission) / emitters.total * t * t /
+                                        std::max(cosHit, 1e-300);
+                weight = powerHeuristic(directionPdf, lightPdf);
+            }
+            radiance += throughput * m.emission * (weight / M_PI);
+        }
         const Vec3 x = origin + static_cast<double>(hit.t) * dir;
         const Rgb rho = m.reflectance;
         if (rho.x <= 0 && rho.y <= 0 && rho.z <= 0) break;
@@ -113,10 +133,13 @@ Rgb tracePath(const Discretization& disc, const RayTracer& tracer, const Emitter
             const double cx = glm::dot(n, d), cy = -glm::dot(t.normal, d);
             if (r2 > 0 && cx > 0 && cy > 0 && pdfArea > 0 &&
                 !tracer.occluded(from, y + t.normal * eps)) {
+                const double r = std::sqrt(r2);
+                const double lightPdf = pdfArea * r2 / (cy / r);  // per solid angle
+                const double bsdfPdf = cx / r / M_PI;
                 // (ρ/π)(E/π) cos θx cos θy / r² / pdf, the cosines carrying |d| each.
                 const double g = cx * cy / (r2 * r2);
                 radiance += throughput * rho * t.emission *
-                            (g / (M_PI * M_PI * pdfArea));
+                            (g / (M_PI * M_PI * pdfArea) * powerHeuristic(lightPdf, bsdfPdf));
             }
         }
         throughput *= rho;  // (ρ/π) cos θ / (cos θ / π)
@@ -128,6 +151,7 @@ Rgb tracePath(const Discretization& disc, const RayTracer& tracer, const Emitter
         }
         origin = from;
         dir = cosineDirection(n, rng);
+        directionPdf = std::max(glm::dot(n, dir), 0.0) / M_PI;
     }
     return radiance;
 }
@@ -148,7 +172,21 @@ std::vector<std::uint8_t> emitterMask(const Discretization& disc, const RayTrace
                 mask[static_cast<std::size_t>(y) * rays.width() + x] = 1;
         }
     });
-    return mask;
+    // Grown by a pixel: pixels a lamp's edge crosses mix its radiance (tens of times the
+    // room's) into theirs by their coverage, which anti-aliasing of either image decides.
+    std::vector<std::uint8_t> grown = mask;
+    const int w = rays.width(), h = rays.height();
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            if (!mask[static_cast<std::size_t>(y) * w + x]) continue;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int nx = x + dx, ny = y + dy;
+                    if (nx >= 0 && ny >= 0 && nx < w && ny < h)
+                        grown[static_cast<std::size_t>(ny) * w + nx] = 1;
+                }
+        }
+    return grown;
 }
 
 PathTraceResult pathTrace(const Discretization& disc, const RayTracer& tracer,

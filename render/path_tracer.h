@@ -2,8 +2,9 @@
 // A brute-force path tracer over the same surfaces as the radiosity solution: the independent
 // reference the high-fidelity renderer is measured against (what a production path tracer
 // such as Cycles computes for a scene of one-sided Lambertian polygons and area lamps).
-// Unidirectional paths with next-event estimation on the emitters and Russian roulette; every
-// ray through Embree (RayTracer).
+// Unidirectional paths with next-event estimation on the emitters combined with the
+// paths' own hits by multiple importance sampling, and Russian roulette; every ray through
+// Embree (RayTracer).
 //
 // Index: PathTraceOptions · PathTraceResult · pathTrace
 
@@ -30,8 +31,8 @@ struct PathTraceOptions {
 
 struct PathTraceResult {
     Image image;  ///< radiance (W/m²/sr), linear
-    /// Per pixel: 1 when the pixel's centre sees an emitter's front (the lamp itself,
-    /// left out of comparisons).
+    /// Per pixel: the lamp itself and its edge pixels (emitterMask), left out of
+    /// comparisons.
     std::vector<std::uint8_t> emitterMask;
     std::uint64_t paths = 0;
     double seconds = 0;
@@ -43,7 +44,8 @@ PathTraceResult pathTrace(const Discretization& disc, const RayTracer& tracer,
                           const CameraRays& rays, const PathTraceOptions& options = {},
                           const std::function<void(double)>& progress = {});
 
-/// Per pixel: 1 when the pixel's centre sees an emitter's front.
+/// Per pixel: 1 when the pixel's centre sees an emitter's front, or a neighbour's does (the
+/// lamp's edge pixels, whose values depend on how each image anti-aliases).
 std::vector<std::uint8_t> emitterMask(const Discretization& disc, const RayTracer& tracer,
                                       const CameraRays& rays);
 

@@ -1,0 +1,558 @@
+#include "render/hifi_mesh.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "render/camera_rays.h"
+#include "render/cdt.h"
+#include "render/edge_tree.h"
+#include "render/exact_irradiance.h"
+#include "solver/discretization.h"
+#include "solver/ray_tracer.h"
+
+namespace penumbra {
+
+QuadraticInterpolant QuadraticInterpolant::fromSamples(const std::array<Rgb, 6>& r) {
+    // Hardt & Teller §2.2: the symbolic inverse of the 6 × 6 system, with 2B, 2C, 2E stored.
+    // E's r5 coefficient is 2 (R(0,1) and R(0,½) give 2E = 4r5 − 3r0 − r4, the mirror of C);
+    // the paper's printed 1 does not reproduce R = t.
+    QuadraticInterpolant q;
+    q.c[0] = 2.0 * r[0] - 4.0 * r[1] + 2.0 * r[2];                  // A
+    q.c[1] = 2.0 * (2.0 * r[0] - 2.0 * r[1] + 2.0 * r[3] - 2.0 * r[5]);  // 2B
+    q.c[2] = 2.0 * (-1.5 * r[0] + 2.0 * r[1] - 0.5 * r[2]);         // 2C
+    q.c[3] = 2.0 * r[0] + 2.0 * r[4] - 4.0 * r[5];                  // D
+    q.c[4] = 2.0 * (-1.5 * r[0] - 0.5 * r[4] + 2.0 * r[5]);         // 2E
+    q.c[5] = r[0];                                                  // F
+    return q;
+}
+
+namespace {
+
+/// A planar frame of an element: 2D coordinates in its plane.
+struct Frame {
+    Vec3 origin, u, v, n;
+    Frame(const std::vector<Vec3>& poly, const Vec3& normal) : origin(poly[0]), n(normal) {
+        u = glm::normalize(poly[1] - poly[0]);
+        v = glm::cross(n, u);
+    }
+    glm::dvec2 to2(const Vec3& p) const { return {glm::dot(p - origin, u), glm::dot(p - origin, v)}; }
+    Vec3 to3(const glm::dvec2& p) const { return origin + p.x * u + p.y * v; }
+};
+
+/// The part of segment a–b inside the convex polygon `poly` (counter-clockwise, 2D);
+/// false when nothing is left (Cyrus–Beck).
+bool clipSegment(const std::vector<glm::dvec2>& poly, glm::dvec2& a, glm::dvec2& b) {
+    double t0 = 0, t1 = 1;
+    const glm::dvec2 d = b - a;
+    for (std::size_t i = 0, n = poly.size(); i < n; ++i) {
+        const glm::dvec2 e = poly[(i + 1) % n] - poly[i];
+        // Inside: cross(e, p − poly[i]) ≥ 0.
+        const double num = e.x * (a.y - poly[i].y) - e.y * (a.x - poly[i].x);
+        const double den = e.x * d.y - e.y * d.x;
+        if (den == 0) {
+            if (num < 0) return false;
+            continue;
+        }
+        const double t = -num / den;
+        if (den > 0) t0 = std::max(t0, t);
+        else t1 = std::min(t1, t);
+        if (t0 > t1) return false;
+    }
+    const glm::dvec2 a0 = a;
+    a = a0 + t0 * d;
+    b = a0 + t1 * d;
+    return glm::length(b - a) > 0;
+}
+
+/// A VE or EV event as two rays from source points a_k through blocker points b_k (VE:
+/// a0 = a1, a light vertex; EV: b0 = b1, a blocker vertex).
+struct Wedge {
+    Vec3 a[2], b[2];
+    double brightness = 0;  ///< B_src (luminance of the emission)
+    int emitterObject = -1, blockerObject = -1;
+};
+
+/// The light's outline: its corners and boundary edges (world space), from its element mesh.
+struct LightOutline {
+    std::vector<Vec3> corners;
+    std::vector<std::pair<Vec3, Vec3>> edges;
+    Vec3 centroid{0.0}, normal{0.0};
+    double brightness = 0;
+    int object = -1;
+};
+
+std::vector<LightOutline> lightOutlines(const Discretization& disc) {
+    std::vector<LightOutline> out;
+    for (std::size_t o = 0; o < disc.objects().size(); ++o) {
+        const ObjectSurface& surface = disc.objects()[o];
+        if (!surface.alive) continue;
+        const auto [first, count] = disc.elementRange(static_cast<int>(o));
+        if (count == 0) continue;
+        const Material& m = disc.elementMaterial(first);
+        if (!m.isEmitter()) continue;
+        const int front = std::min(surface.firstBackFace, static_cast<int>(surface.mesh.n_faces()));
+        const EdgeMesh mesh = EdgeMesh::fromElementMesh(surface.mesh, 85.0, front);
+        if (mesh.boundaryEdges().empty()) continue;  // closed: no outline casts sharp events
+        LightOutline L;
+        L.object = static_cast<int>(o);
+        L.brightness = luminance(m.emission);
+        auto world = [&](int v) {
+            return Vec3(surface.worldFromObject * glm::dvec4(mesh.positions()[v], 1.0));
+        };
+        std::vector<std::vector<int>> around(mesh.positions().size());
+        for (int e : mesh.boundaryEdges()) {
+            const MeshEdge& edge = mesh.edges()[e];
+            L.edges.emplace_back(world(edge.v0), world(edge.v1));
+            around[edge.v0].push_back(edge.v1);
+            around[edge.v1].push_back(edge.v0);
+        }
+        for (std::size_t v = 0; v < around.size(); ++v) {
+            if (around[v].size() != 2) continue;
+            const Vec3 p = world(static_cast<int>(v));
+            const Vec3 d0 = glm::normalize(world(around[v][0]) - p);
+            const Vec3 d1 = glm::normalize(world(around[v][1]) - p);
+            if (glm::dot(d0, d1) > -0.9999) L.corners.push_back(p);  // the outline turns here
+        }
+        for (int e = first; e < first + count; ++e) {
+            L.centroid += disc.elements()[e].centroid * disc.elements()[e].area;
+            L.normal += disc.elements()[e].normal * disc.elements()[e].area;
+        }
+        double area = 0;
+        for (int e = first; e < first + count; ++e) area += disc.elements()[e].area;
+        L.centroid /= area;
+        L.normal = glm::normalize(L.normal);
+        out.push_back(std::move(L));
+    }
+    return out;
+}
+
+/// Every VE/EV event of every light outline with every other object (blockers through their
+/// welded element meshes: silhouette edges from a light corner, vertices whose one ring a
+/// light edge's plane supports).
+std::vector<Wedge> allWedges(const Discretization& disc) {
+    std::vector<Wedge> wedges;
+    const std::vector<LightOutline> lights = lightOutlines(disc);
+    if (lights.empty()) return wedges;
+    for (std::size_t o = 0; o < disc.objects().size(); ++o) {
+        const ObjectSurface& surface = disc.objects()[o];
+        if (!surface.alive) continue;
+        const int front = std::min(surface.firstBackFace, static_cast<int>(surface.mesh.n_faces()));
+        const EdgeMesh mesh = EdgeMesh::fromElementMesh(surface.mesh, 85.0, front);
+        const Mat4 objectFromWorld = glm::inverse(surface.worldFromObject);
+        auto world = [&](int v) {
+            return Vec3(surface.worldFromObject * glm::dvec4(mesh.positions()[v], 1.0));
+        };
+        for (const LightOutline& L : lights) {
+            if (L.object == static_cast<int>(o)) continue;
+            for (const Vec3& corner : L.corners) {
+                const Vec3 eye = Vec3(objectFromWorld * glm::dvec4(corner, 1.0));
+                for (std::size_t e = 0; e < mesh.edges().size(); ++e) {
+                    if (!mesh.isSilhouette(static_cast<int>(e), eye)) continue;
+                    const MeshEdge& edge = mesh.edges()[e];
+                    Wedge w;
+                    w.a[0] = w.a[1] = corner;
+                    w.b[0] = world(edge.v0);
+                    w.b[1] = world(edge.v1);
+                    // Blocker in front of the light only.
+                    if (glm::dot(w.b[0] - L.centroid, L.normal) <= 0 &&
+                        glm::dot(w.b[1] - L.centroid, L.normal) <= 0)
+                        continue;
+                    w.brightness = L.brightness;
+                    w.emitterObject = L.object;
+                    w.blockerObject = static_cast<int>(o);
+                    wedges.push_back(w);
+                }
+            }
+            for (const auto& [p0, p1] : L.edges) {
+                for (std::size_t v = 0; v < mesh.positions().size(); ++v) {
+                    const Vec3 wv = world(static_cast<int>(v));
+                    if (glm::dot(wv - L.centroid, L.normal) <= 0) continue;
+                    Vec3 pn = glm::cross(p1 - p0, wv - p0);
+                    const double len = glm::length(pn);
+                    if (!(len > 0)) continue;
+                    pn /= len;
+                    // The plane through the light edge and w supports the blocker at w.
+                    int above = 0, below = 0;
+                    const int s = mesh.neighbourStart()[v], t = mesh.neighbourStart()[v + 1];
+                    if (s == t) continue;
+                    for (int k = s; k < t; ++k) {
+                        const double h = glm::dot(world(mesh.neighbours()[k]) - wv, pn);
+                        if (h > 1e-12) ++above;
+                        if (h < -1e-12) ++below;
+                    }
+                    if (above > 0 && below > 0) continue;
+                    Wedge w;
+                    w.a[0] = p0;
+                    w.a[1] = p1;
+                    w.b[0] = w.b[1] = wv;
+                    w.brightness = L.brightness;
+                    w.emitterObject = L.object;
+                    w.blockerObject = static_cast<int>(o);
+                    wedges.push_back(w);
+                }
+            }
+        }
+    }
+    return wedges;
+}
+
+/// The segment a wedge cuts on element `e` (2D in its frame, clipped) and its weight.
+bool wedgeOnElement(const Wedge& w, const Element& el, const Frame& frame,
+                    const std::vector<glm::dvec2>& poly, glm::dvec2& a, glm::dvec2& b,
+                    double& weight) {
+    if (w.blockerObject == el.object || w.emitterObject == el.object) return false;
+    Vec3 r[2];
+    double ratio = 0;
+    for (int k = 0; k < 2; ++k) {
+        const Vec3 d = w.b[k] - w.a[k];
+        const double den = glm::dot(el.normal, d);
+        if (den >= 0) return false;  // the ray must come at the element's front
+        const double s = glm::dot(frame.origin - w.a[k], el.normal) / den;
+        if (!(s > 1 + 1e-9)) return false;  // the element must lie beyond the blocker
+        r[k] = w.a[k] + s * d;
+        const double dsb = glm::length(d), dbr = (s - 1) * dsb;
+        ratio = std::max(ratio, dsb / std::max(dbr, 1e-12));
+    }
+    a = frame.to2(r[0]);
+    b = frame.to2(r[1]);
+    if (!clipSegment(poly, a, b)) return false;
+    weight = ratio * w.brightness;
+    return true;
+}
+
+struct ElementGeometry {
+    std::vector<Vec3> poly;
+    std::vector<glm::dvec2> poly2;
+    Frame frame;
+};
+
+ElementGeometry geometryOf(const Discretization& disc, int e) {
+    std::vector<Vec3> poly = disc.elementPolygon(e);
+    Frame frame(poly, disc.elements()[e].normal);
+    std::vector<glm::dvec2> poly2;
+    for (const Vec3& p : poly) poly2.push_back(frame.to2(p));
+    return {std::move(poly), std::move(poly2), frame};
+}
+
+std::vector<Discontinuity> rankWedges(const Discretization& disc, int e,
+                                      const std::vector<Wedge>& wedges) {
+    const ElementGeometry g = geometryOf(disc, e);
+    std::vector<Discontinuity> out;
+    for (const Wedge& w : wedges) {
+        glm::dvec2 a, b;
+        double weight = 0;
+        if (wedgeOnElement(w, disc.elements()[e], g.frame, g.poly2, a, b, weight))
+            out.push_back({g.frame.to3(a), g.frame.to3(b), weight});
+    }
+    std::sort(out.begin(), out.end(),
+              [](const Discontinuity& x, const Discontinuity& y) { return x.weight > y.weight; });
+    return out;
+}
+
+/// Per object: element polygons (front sheet) and bounds, for contact lines.
+/// Element polygons find where a surface crosses a plane; its sharp edges (creases and
+/// boundaries of the welded mesh, never the grid lines inside a flat face) where it rests on
+/// or nearly touches one.
+struct ContactIndex {
+    struct Object {
+        Vec3 lo{1e300}, hi{-1e300};
+        std::vector<std::vector<Vec3>> polygons;
+        std::vector<std::pair<Vec3, Vec3>> sharpEdges;
+    };
+    std::vector<Object> objects;
+    explicit ContactIndex(const Discretization& disc) : objects(disc.objects().size()) {
+        for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+            const int ei = static_cast<int>(e);
+            if (!disc.elementAlive(ei)) continue;
+            const Element& el = disc.elements()[e];
+            if (disc.objects()[el.object].isBackFace(el.face)) continue;
+            Object& o = objects[el.object];
+            o.polygons.push_back(disc.elementPolygon(ei));
+            for (const Vec3& p : o.polygons.back()) {
+                o.lo = glm::min(o.lo, p);
+                o.hi = glm::max(o.hi, p);
+            }
+        }
+        for (std::size_t i = 0; i < objects.size(); ++i) {
+            const ObjectSurface& surface = disc.objects()[i];
+            if (objects[i].polygons.empty()) continue;
+            const int front =
+                std::min(surface.firstBackFace, static_cast<int>(surface.mesh.n_faces()));
+            const EdgeMesh mesh = EdgeMesh::fromElementMesh(surface.mesh, 30.0, front);
+            for (int edge : mesh.sharpEdges()) {
+                const MeshEdge& me = mesh.edges()[edge];
+                objects[i].sharpEdges.emplace_back(
+                    Vec3(surface.worldFromObject * glm::dvec4(mesh.positions()[me.v0], 1.0)),
+                    Vec3(surface.worldFromObject * glm::dvec4(mesh.positions()[me.v1], 1.0)));
+            }
+        }
+    }
+};
+
+std::vector<Discontinuity> contactsOn(const Discretization& disc, int e,
+                                      const ContactIndex& index, double contactFraction) {
+    const Element& el = disc.elements()[e];
+    const ElementGeometry g = geometryOf(disc, e);
+    const double delta = contactFraction * std::sqrt(el.area);
+    Vec3 lo(1e300), hi(-1e300);
+    for (const Vec3& p : g.poly) {
+        lo = glm::min(lo, p - Vec3(delta));
+        hi = glm::max(hi, p + Vec3(delta));
+    }
+    std::vector<Discontinuity> out;
+    const double inf = std::numeric_limits<double>::infinity();
+    for (std::size_t o = 0; o < index.objects.size(); ++o) {
+        if (static_cast<int>(o) == el.object) continue;
+        const ContactIndex::Object& obj = index.objects[o];
+        if (obj.polygons.empty() || obj.hi.x < lo.x || obj.lo.x > hi.x || obj.hi.y < lo.y ||
+            obj.lo.y > hi.y || obj.hi.z < lo.z || obj.lo.z > hi.z)
+            continue;
+        auto height = [&](const Vec3& p) { return glm::dot(p - g.frame.origin, el.normal); };
+        auto keep = [&](const Vec3& p, const Vec3& q) {
+            glm::dvec2 a = g.frame.to2(p), b = g.frame.to2(q);
+            if (clipSegment(g.poly2, a, b)) out.push_back({g.frame.to3(a), g.frame.to3(b), inf});
+        };
+        // Where a polygon crosses the plane (an object standing through it).
+        for (const auto& q : obj.polygons) {
+            std::vector<Vec3> crossing;
+            for (std::size_t i = 0, n = q.size(); i < n; ++i) {
+                const Vec3& p0 = q[i];
+                const Vec3& p1 = q[(i + 1) % n];
+                const double h0 = height(p0), h1 = height(p1);
+                if ((h0 > delta && h1 < -delta) || (h0 < -delta && h1 > delta))
+                    crossing.push_back(p0 + (h0 / (h0 - h1)) * (p1 - p0));
+            }
+            if (crossing.size() == 2) keep(crossing[0], crossing[1]);
+        }
+        // The parts of sharp edges within δ of the plane (resting on it, or nearly).
+        for (const auto& [p0, p1] : obj.sharpEdges) {
+            const double h0 = height(p0), h1 = height(p1);
+            double t0 = 0, t1 = 1;
+            const double dh = h1 - h0;
+            if (dh == 0) {
+                if (std::abs(h0) > delta) continue;
+            } else {
+                double ta = (-delta - h0) / dh, tb = (delta - h0) / dh;
+                if (ta > tb) std::swap(ta, tb);
+                t0 = std::max(t0, ta);
+                t1 = std::min(t1, tb);
+                if (t0 >= t1) continue;
+            }
+            keep(p0 + t0 * (p1 - p0), p0 + t1 * (p1 - p0));
+        }
+    }
+    return out;
+}
+
+/// Drops segments lying on the element's boundary (they add nothing) or shorter than `minLen`.
+void dropBoundarySegments(const std::vector<glm::dvec2>& poly,
+                          std::vector<std::pair<glm::dvec2, glm::dvec2>>& segs, double tol) {
+    auto onBoundary = [&](const glm::dvec2& a, const glm::dvec2& b) {
+        for (std::size_t i = 0, n = poly.size(); i < n; ++i) {
+            const glm::dvec2 p = poly[i], q = poly[(i + 1) % n];
+            const glm::dvec2 d = q - p;
+            const double len = glm::length(d);
+            if (!(len > 0)) continue;
+            auto dist = [&](const glm::dvec2& x) {
+                return std::abs(d.x * (x.y - p.y) - d.y * (x.x - p.x)) / len;
+            };
+            if (dist(a) <= tol && dist(b) <= tol) return true;
+        }
+        return false;
+    };
+    segs.erase(std::remove_if(segs.begin(), segs.end(),
+                              [&](const auto& s) {
+                                  return glm::length(s.second - s.first) <= tol ||
+                                         onBoundary(s.first, s.second);
+                              }),
+               segs.end());
+}
+
+}  // namespace
+
+std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element) {
+    return rankWedges(disc, element, allWedges(disc));
+}
+
+std::vector<Discontinuity> contactLines(const Discretization& disc, int element,
+                                        double contactFraction) {
+    return contactsOn(disc, element, ContactIndex(disc), contactFraction);
+}
+
+void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
+                     const HifiOptions& options, const std::function<void(double)>& progress) {
+    const auto start = std::chrono::steady_clock::now();
+    const int elementCount = static_cast<int>(disc.elements().size());
+    const std::vector<Wedge> wedges = allWedges(disc);
+    const ContactIndex contacts(disc);
+    std::vector<std::vector<HifiTriangle>> perElement(elementCount);
+    std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0};
+
+    auto work = [&] {
+        tbb::parallel_for(0, elementCount, [&](int e) {
+            done.fetch_add(1, std::memory_order_relaxed);
+            if (!disc.elementAlive(e)) return;
+            const Element& el = disc.elements()[e];
+            const ElementGeometry g = geometryOf(disc, e);
+            const double size = std::sqrt(el.area);
+            // Discontinuities: the k strongest shadow events above w_min, every contact line.
+            std::vector<std::pair<glm::dvec2, glm::dvec2>> segs;
+            std::vector<std::pair<glm::dvec2, glm::dvec2>> contactSegsHere;
+            int kept = 0;
+            for (const Discontinuity& d : rankWedges(disc, e, wedges)) {
+                if (kept >= options.maxDiscontinuities || d.weight < options.minWeight) break;
+                segs.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
+                ++kept;
+            }
+            for (const Discontinuity& d : contactsOn(disc, e, contacts, options.contactFraction))
+                contactSegsHere.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
+            dropBoundarySegments(g.poly2, segs, 1e-6 * size);
+            dropBoundarySegments(g.poly2, contactSegsHere, 1e-6 * size);
+            shadowSegs.fetch_add(static_cast<int>(segs.size()), std::memory_order_relaxed);
+            contactSegs.fetch_add(static_cast<int>(contactSegsHere.size()),
+                                  std::memory_order_relaxed);
+            // Triangulate (the element as it is when nothing crosses it).
+            Triangulation2 tri;
+            if (segs.empty() && contactSegsHere.empty()) {
+                tri.points = g.poly2;
+                for (std::size_t k = 1; k + 1 < g.poly2.size(); ++k)
+                    tri.triangles.push_back({0, static_cast<int>(k), static_cast<int>(k + 1)});
+            } else {
+                segs.insert(segs.end(), contactSegsHere.begin(), contactSegsHere.end());
+                tri = triangulateConstrained(g.poly2, segs);
+                meshed.fetch_add(1, std::memory_order_relaxed);
+            }
+            // Six exact samples per triangle, each moved a hair towards the triangle's centre:
+            // on a contact line irradiance jumps, and each side takes its own limit.
+            auto& out = perElement[e];
+            for (const auto& t : tri.triangles) {
+                glm::dvec2 p[3] = {tri.points[t[0]], tri.points[t[1]], tri.points[t[2]]};
+                const double cross = (p[1].x - p[0].x) * (p[2].y - p[0].y) -
+                                     (p[1].y - p[0].y) * (p[2].x - p[0].x);
+                if (std::abs(cross) <= 1e-14 * size * size) continue;  // degenerate
+                if (cross < 0) std::swap(p[1], p[2]);
+                HifiTriangle ht;
+                ht.element = e;
+                for (int k = 0; k < 3; ++k) ht.p[k] = g.frame.to3(p[k]);
+                const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
+                const glm::dvec2 at[6] = {p[0], 0.5 * (p[0] + p[1]), p[1],
+                                          0.5 * (p[1] + p[2]), p[2], 0.5 * (p[0] + p[2])};
+                std::array<Rgb, 6> r;
+                for (int k = 0; k < 6; ++k) {
+                    const glm::dvec2 q = at[k] + 1e-4 * (centre - at[k]);
+                    r[k] = exact.irradiance(g.frame.to3(q), el.normal);
+                }
+                samples.fetch_add(6, std::memory_order_relaxed);
+                ht.irradiance = QuadraticInterpolant::fromSamples(r);
+                out.push_back(ht);
+            }
+        });
+    };
+    if (progress) {
+        std::thread worker(work);
+        while (done.load() < elementCount) {
+            progress(double(done.load()) / std::max(1, elementCount));
+            std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        }
+        worker.join();
+        progress(1.0);
+    } else {
+        work();
+    }
+    mTriangles.clear();
+    mFirst.assign(elementCount + 1, 0);
+    for (int e = 0; e < elementCount; ++e) {
+        mFirst[e] = static_cast<int>(mTriangles.size());
+        mTriangles.insert(mTriangles.end(), perElement[e].begin(), perElement[e].end());
+    }
+    mFirst[elementCount] = static_cast<int>(mTriangles.size());
+    mStats = {};
+    mStats.elements = elementCount;
+    mStats.meshedElements = meshed.load();
+    mStats.triangles = static_cast<int>(mTriangles.size());
+    mStats.shadowSegments = shadowSegs.load();
+    mStats.contactSegments = contactSegs.load();
+    mStats.samples = samples.load();
+    mStats.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+int HifiMesh::locate(int element, const Vec3& x, double& s, double& t) const {
+    if (element < 0 || element + 1 >= static_cast<int>(mFirst.size())) return -1;
+    int best = -1;
+    double bestOutside = std::numeric_limits<double>::infinity();
+    for (int k = mFirst[element]; k < mFirst[element + 1]; ++k) {
+        const HifiTriangle& tri = mTriangles[k];
+        const Vec3 e1 = tri.p[1] - tri.p[0], e2 = tri.p[2] - tri.p[0], d = x - tri.p[0];
+        const double a = glm::dot(e1, e1), b = glm::dot(e1, e2), c = glm::dot(e2, e2);
+        const double p = glm::dot(d, e1), q = glm::dot(d, e2);
+        const double det = a * c - b * b;
+        if (!(det > 0)) continue;
+        const double si = (c * p - b * q) / det, ti = (a * q - b * p) / det;
+        // How far outside (0 inside): the nearest triangle wins at shared edges and cracks.
+        const double outside = std::max({0.0, -si, -ti, si + ti - 1});
+        if (outside < bestOutside) {
+            bestOutside = outside;
+            best = k;
+            s = si;
+            t = ti;
+            if (outside == 0) break;
+        }
+    }
+    if (best >= 0) {
+        s = std::clamp(s, 0.0, 1.0);
+        t = std::clamp(t, 0.0, 1.0 - s);
+    }
+    return best;
+}
+
+Rgb HifiMesh::radiosity(const Discretization& disc, int triangle, double s, double t) const {
+    const HifiTriangle& tri = mTriangles[triangle];
+    const Material& m = disc.elementMaterial(tri.element);
+    const Element& el = disc.elements()[tri.element];
+    const bool back = disc.objects()[el.object].isBackFace(el.face);
+    return (back ? Rgb(0.0) : m.emission) + m.reflectance * tri.irradiance(s, t);
+}
+
+Image renderInterpolants(const Discretization& disc, const RayTracer& tracer,
+                         const HifiMesh& mesh, const CameraRays& rays, int samples) {
+    Image image(rays.width(), rays.height());
+    const int n = std::max(1, samples);
+    tbb::parallel_for(0, rays.height(), [&](int y) {
+        for (int x = 0; x < rays.width(); ++x) {
+            Rgb sum(0.0);
+            for (int k = 0; k < n * n; ++k) {
+                const double jx = (k % n + 0.5) / n, jy = (k / n + 0.5) / n;
+                const Vec3 dir = rays.rayDirection(x + jx, y + jy);
+                const RayTracer::FirstHit hit = tracer.firstHit(rays.origin(), dir);
+                if (hit.element < 0 || hit.backFace) continue;
+                const Vec3 p = rays.origin() + static_cast<double>(hit.t) * dir;
+                double s = 0, t = 0;
+                const int tri = mesh.locate(hit.element, p, s, t);
+                if (tri < 0) continue;
+                sum += mesh.radiosity(disc, tri, s, t);
+            }
+            image.at(x, y) = sum / (M_PI * n * n);
+        }
+    });
+    return image;
+}
+
+std::string HifiMesh::toString() const {
+    std::ostringstream s;
+    s << "HifiMesh{elements=" << mStats.elements << ", meshed=" << mStats.meshedElements
+      << ", triangles=" << mStats.triangles << ", shadow_segments=" << mStats.shadowSegments
+      << ", contact_segments=" << mStats.contactSegments << ", samples=" << mStats.samples
+      << ", seconds=" << mStats.seconds << "}";
+    return s.str();
+}
+
+}  // namespace penumbra

@@ -1,0 +1,117 @@
+#pragma once
+// The high-fidelity irradiance mesh (Hardt & Teller 1996 §2, §4): every solution element is
+// triangulated — by CGAL's constrained Delaunay triangulation where discontinuities cross it,
+// as itself elsewhere (their hybrid quadtree-mesh) — and every triangle carries a quadratic
+// irradiance interpolant through six exact samples (ExactIrradiance) at its vertices and edge
+// midpoints. Radiosity at a surface point is then E + ρ·R(s, t).
+//
+// Discontinuities on an element: the VE and EV events of each emitter and the blockers between
+// them (§4.1; EEE events are ignored, as in the paper), ranked by the paper's weight
+// w = max(d_sb / d_br) · B_src (§4.2) with the k strongest of weight ≥ w_min kept; and contact
+// lines, where another surface meets or nearly touches the element (a box on a floor, a lamp
+// set into a ceiling), always kept: across them irradiance jumps.
+//
+// Index: QuadraticInterpolant · HifiOptions · HifiTriangle · HifiStats · HifiMesh
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "render/image.h"
+#include "solver/scene.h"
+
+namespace penumbra {
+
+class CameraRays;
+class Discretization;
+class ExactIrradiance;
+class RayTracer;
+
+/// R(s, t) = A s² + 2B st + 2C s + D t² + 2E t + F over barycentric (s, t) of a triangle
+/// p0, p1, p2 (point p0 + s (p1 − p0) + t (p2 − p0)), stored as the paper stores it:
+/// (A, 2B, 2C, D, 2E, F) per colour channel.
+struct QuadraticInterpolant {
+    std::array<Rgb, 6> c{};
+    /// From the samples at (0,0), (½,0), (1,0), (½,½), (0,1), (0,½) — the vertices and edge
+    /// midpoints in the paper's order (§2.2's closed form).
+    static QuadraticInterpolant fromSamples(const std::array<Rgb, 6>& r);
+    Rgb operator()(double s, double t) const {
+        return c[0] * (s * s) + c[1] * (s * t) + c[2] * s + c[3] * (t * t) + c[4] * t + c[5];
+    }
+};
+
+struct HifiOptions {
+    /// k: the strongest shadow discontinuities kept per element (the paper's setting: 10).
+    int maxDiscontinuities = 10;
+    /// w_min (W/m²): weaker discontinuities are not meshed.
+    double minWeight = 1.0;
+    /// A surface within this fraction of an element's size (√area) of its plane, in front
+    /// of it, touches it: its outline there is a contact line.
+    double contactFraction = 0.25;
+    /// Threads (0: TBB's default).
+    int threads = 0;
+};
+
+struct HifiTriangle {
+    std::array<Vec3, 3> p;  ///< world space, counter-clockwise seen from the front
+    int element = -1;
+    QuadraticInterpolant irradiance;
+};
+
+struct HifiStats {
+    int elements = 0;
+    int meshedElements = 0;  ///< elements triangulated around discontinuities
+    int triangles = 0;
+    int shadowSegments = 0;   ///< kept VE/EV segments
+    int contactSegments = 0;  ///< contact lines
+    int samples = 0;          ///< exact irradiance evaluations
+    double seconds = 0;
+};
+
+/// Built once for a scene state; rebuild after an edit.
+class HifiMesh {
+public:
+    /// Meshes every alive element and samples each triangle's irradiance with `exact` (which
+    /// must hold the solution's reflected light for indirect light). `progress(fraction)` is
+    /// called from the calling thread.
+    void build(const Discretization& disc, const ExactIrradiance& exact,
+               const HifiOptions& options = {},
+               const std::function<void(double)>& progress = {});
+
+    const std::vector<HifiTriangle>& triangles() const { return mTriangles; }
+    /// Triangles of element e: triangles()[first(e) .. first(e + 1)).
+    int first(int element) const { return mFirst[element]; }
+    /// The triangle of `element` containing world point x (its plane's projection), with
+    /// barycentrics (s, t); -1 when the element has none.
+    int locate(int element, const Vec3& x, double& s, double& t) const;
+    /// Radiosity B = E + ρ R(s, t) of a triangle at (s, t), with the element's material.
+    Rgb radiosity(const Discretization& disc, int triangle, double s, double t) const;
+    const HifiStats& stats() const { return mStats; }
+    std::string toString() const;
+
+private:
+    std::vector<HifiTriangle> mTriangles;
+    std::vector<int> mFirst;  ///< per element, plus one past the end
+    HifiStats mStats;
+};
+
+/// The per-pixel pass (§2.6) with the visible triangle and its barycentrics found by one
+/// Embree ray per sample: radiance B/π, `samples`² jittered samples per pixel.
+Image renderInterpolants(const Discretization& disc, const RayTracer& tracer,
+                         const HifiMesh& mesh, const CameraRays& rays, int samples = 1);
+
+/// A discontinuity segment on an element with its weight (w = max(d_sb / d_br) · B_src; contact
+/// lines carry infinity).
+struct Discontinuity {
+    Vec3 a, b;
+    double weight = 0;
+};
+
+/// The VE/EV discontinuities of every emitter on element `e`, clipped to it, strongest first.
+std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element);
+/// The contact lines on element `e`, clipped to it.
+std::vector<Discontinuity> contactLines(const Discretization& disc, int element,
+                                        double contactFraction);
+
+}  // namespace penumbra
