@@ -394,6 +394,11 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     const std::vector<Wedge> wedges = allWedges(disc);
     const ContactIndex contacts(disc);
     std::vector<std::vector<HifiTriangle>> perElement(elementCount);
+    // Refinement ignores differences below this fraction of the brightest emitter's
+    // luminance (dark corners need no subdivision).
+    double brightest = 0;
+    for (const Material& m : disc.materials()) brightest = std::max(brightest, luminance(m.emission));
+    const double absoluteTolerance = 1e-4 * brightest;
     std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0};
 
     auto work = [&] {
@@ -433,26 +438,63 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
             // Six exact samples per triangle, each moved a hair towards the triangle's centre:
             // on a contact line irradiance jumps, and each side takes its own limit.
             auto& out = perElement[e];
+            auto sampleAt = [&](const glm::dvec2& q, const glm::dvec2& centre) {
+                samples.fetch_add(1, std::memory_order_relaxed);
+                return exact.irradiance(g.frame.to3(q + 1e-4 * (centre - q)), el.normal);
+            };
+            // A triangle whose interpolant misses an exact sample at its centre by more than the
+            // tolerance is split into four at its edge midpoints, whose samples it already has.
+            std::function<void(const glm::dvec2*, const std::array<Rgb, 6>&, int)> emit =
+                [&](const glm::dvec2* p, const std::array<Rgb, 6>& r, int depth) {
+                    const QuadraticInterpolant q = QuadraticInterpolant::fromSamples(r);
+                    const glm::dvec2 mid[3] = {0.5 * (p[0] + p[1]), 0.5 * (p[1] + p[2]),
+                                               0.5 * (p[2] + p[0])};
+                    if (depth < options.maxRefineDepth && options.refineTolerance > 0) {
+                        const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
+                        const double truth = luminance(sampleAt(centre, centre));
+                        const double fitted = luminance(q(1.0 / 3.0, 1.0 / 3.0));
+                        if (std::abs(fitted - truth) >
+                            options.refineTolerance * std::abs(truth) + absoluteTolerance) {
+                            // Children: corner triangles and the middle one, counter-clockwise.
+                            const glm::dvec2 corners[4][3] = {{p[0], mid[0], mid[2]},
+                                                              {mid[0], p[1], mid[1]},
+                                                              {mid[2], mid[1], p[2]},
+                                                              {mid[0], mid[1], mid[2]}};
+                            // Their vertex samples in the parent's order (A, AB, B, BC, C, CA).
+                            const Rgb vertex[4][3] = {{r[0], r[1], r[5]},
+                                                      {r[1], r[2], r[3]},
+                                                      {r[5], r[3], r[4]},
+                                                      {r[1], r[3], r[5]}};
+                            for (int c = 0; c < 4; ++c) {
+                                const glm::dvec2* cp = corners[c];
+                                const glm::dvec2 cc = (cp[0] + cp[1] + cp[2]) / 3.0;
+                                const std::array<Rgb, 6> cr = {
+                                    vertex[c][0], sampleAt(0.5 * (cp[0] + cp[1]), cc),
+                                    vertex[c][1], sampleAt(0.5 * (cp[1] + cp[2]), cc),
+                                    vertex[c][2], sampleAt(0.5 * (cp[2] + cp[0]), cc)};
+                                emit(cp, cr, depth + 1);
+                            }
+                            return;
+                        }
+                    }
+                    HifiTriangle ht;
+                    ht.element = e;
+                    for (int k = 0; k < 3; ++k) ht.p[k] = g.frame.to3(p[k]);
+                    ht.irradiance = q;
+                    out.push_back(ht);
+                };
             for (const auto& t : tri.triangles) {
                 glm::dvec2 p[3] = {tri.points[t[0]], tri.points[t[1]], tri.points[t[2]]};
                 const double cross = (p[1].x - p[0].x) * (p[2].y - p[0].y) -
                                      (p[1].y - p[0].y) * (p[2].x - p[0].x);
                 if (std::abs(cross) <= 1e-14 * size * size) continue;  // degenerate
                 if (cross < 0) std::swap(p[1], p[2]);
-                HifiTriangle ht;
-                ht.element = e;
-                for (int k = 0; k < 3; ++k) ht.p[k] = g.frame.to3(p[k]);
                 const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
-                const glm::dvec2 at[6] = {p[0], 0.5 * (p[0] + p[1]), p[1],
-                                          0.5 * (p[1] + p[2]), p[2], 0.5 * (p[0] + p[2])};
-                std::array<Rgb, 6> r;
-                for (int k = 0; k < 6; ++k) {
-                    const glm::dvec2 q = at[k] + 1e-4 * (centre - at[k]);
-                    r[k] = exact.irradiance(g.frame.to3(q), el.normal);
-                }
-                samples.fetch_add(6, std::memory_order_relaxed);
-                ht.irradiance = QuadraticInterpolant::fromSamples(r);
-                out.push_back(ht);
+                const std::array<Rgb, 6> r = {
+                    sampleAt(p[0], centre), sampleAt(0.5 * (p[0] + p[1]), centre),
+                    sampleAt(p[1], centre), sampleAt(0.5 * (p[1] + p[2]), centre),
+                    sampleAt(p[2], centre), sampleAt(0.5 * (p[0] + p[2]), centre)};
+                emit(p, r, 0);
             }
         });
     };

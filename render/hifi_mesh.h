@@ -49,8 +49,12 @@ struct HifiOptions {
     /// A surface within this fraction of an element's size (√area) of its plane, in front
     /// of it, touches it: its outline there is a contact line.
     double contactFraction = 0.25;
-    /// Threads (0: TBB's default).
-    int threads = 0;
+    /// Representation-error refinement (the paper's §7.2 proposal): a triangle whose
+    /// interpolant misses the exact irradiance at its centre by more than this fraction
+    /// (plus 1e-4 of the brightest emitter's luminance) is split into four, up to
+    /// maxRefineDepth times. 0 turns it off.
+    double refineTolerance = 0.01;
+    int maxRefineDepth = 3;
 };
 
 struct HifiTriangle {
