@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <sstream>
+#include <tuple>
 
 #include "bench/bench.h"
 #include "edit/edit_log.h"
@@ -366,6 +367,41 @@ int runPathTraceRender(const SolveArgs& a, const RenderArgs& r) {
     return 0;
 }
 
+/// The reflected radiosity of `lit`'s elements from a second solve in which every element is
+/// its own shooter (as the paper's hierarchical solution links leaf elements). A patch shoots
+/// its mean radiosity, which at a concave contact (a box on a floor) is not what its elements
+/// near the contact send: with the scenes' patches the gathered indirect light there came
+/// out 4-6% low against a path tracer. `lit`'s own patches stay the gather's source groups.
+std::vector<Rgb> leafReflectedRadiosity(const SolveArgs& a, LitScene& lit) {
+    const Discretization& disc = lit.discretization();
+    Scene scene = lit.scene();
+    if (scene.settings.patchSize <= scene.settings.elementSize)
+        return reflectedRadiosity(disc, lit.solver());
+    scene.settings.patchSize = scene.settings.elementSize;
+    SolverOptions options = interactiveSolverOptions();
+    options.seed = a.seed;
+    options.stochasticBelow = a.stochasticBelow;
+    LitScene leaf(std::move(scene), options, a.scene);
+    leaf.solver().converge(a.converge, a.maxShots);
+    const Discretization& fine = leaf.discretization();
+    const std::vector<Rgb> fineReflected = reflectedRadiosity(fine, leaf.solver());
+    // The same elements, grouped differently: matched by object and centroid.
+    std::map<std::tuple<int, long long, long long, long long>, int> byCentroid;
+    auto key = [](int object, const Vec3& c) {
+        return std::make_tuple(object, std::llround(c.x * 1e6), std::llround(c.y * 1e6),
+                               std::llround(c.z * 1e6));
+    };
+    for (std::size_t e = 0; e < fine.elements().size(); ++e)
+        byCentroid.emplace(key(fine.elements()[e].object, fine.elements()[e].centroid),
+                           static_cast<int>(e));
+    std::vector<Rgb> out = reflectedRadiosity(disc, lit.solver());
+    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+        auto it = byCentroid.find(key(disc.elements()[e].object, disc.elements()[e].centroid));
+        if (it != byCentroid.end()) out[e] = fineReflected[it->second];
+    }
+    return out;
+}
+
 /// `render --mode interpolant`: the high-fidelity picture (Hardt & Teller 1996) — the
 /// converged solution's elements meshed along their discontinuities, quadratic interpolants
 /// through exact irradiance samples, evaluated per pixel.
@@ -376,7 +412,7 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     const CameraRays rays(camera, r.width, r.height);
     const Discretization& disc = lit->discretization();
     ExactIrradiance exact(disc);
-    exact.setReflected(reflectedRadiosity(disc, lit->solver()));
+    exact.setReflected(leafReflectedRadiosity(a, *lit));
     HifiMesh mesh;
     const bool tty = ::isatty(STDERR_FILENO);
     mesh.build(disc, exact, HifiOptions{}, [&](double f) {
