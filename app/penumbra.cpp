@@ -14,7 +14,6 @@
 #include <memory>
 #include <optional>
 #include <sstream>
-#include <tuple>
 
 #include "bench/bench.h"
 #include "edit/edit_log.h"
@@ -139,6 +138,7 @@ struct RenderArgs {
     // Interactive display modes (epi, cache, reference).
     std::string log, overlay, rmseFrames = "last";
     std::string compare;  ///< EXR reference: the report adds relative_rmse
+    int gatherRays = 256;  ///< interpolant: ExactIrradianceOptions::farRays
     int frames = 0;  ///< 0: 1, or one per log line plus the first
     double sampleFraction = 0.02;
     double warmup = 0.25;
@@ -367,41 +367,6 @@ int runPathTraceRender(const SolveArgs& a, const RenderArgs& r) {
     return 0;
 }
 
-/// The reflected radiosity of `lit`'s elements from a second solve in which every element is
-/// its own shooter (as the paper's hierarchical solution links leaf elements). A patch shoots
-/// its mean radiosity, which at a concave contact (a box on a floor) is not what its elements
-/// near the contact send: with the scenes' patches the gathered indirect light there came
-/// out 4-6% low against a path tracer. `lit`'s own patches stay the gather's source groups.
-std::vector<Rgb> leafReflectedRadiosity(const SolveArgs& a, LitScene& lit) {
-    const Discretization& disc = lit.discretization();
-    Scene scene = lit.scene();
-    if (scene.settings.patchSize <= scene.settings.elementSize)
-        return reflectedRadiosity(disc, lit.solver());
-    scene.settings.patchSize = scene.settings.elementSize;
-    SolverOptions options = interactiveSolverOptions();
-    options.seed = a.seed;
-    options.stochasticBelow = a.stochasticBelow;
-    LitScene leaf(std::move(scene), options, a.scene);
-    leaf.solver().converge(a.converge, a.maxShots);
-    const Discretization& fine = leaf.discretization();
-    const std::vector<Rgb> fineReflected = reflectedRadiosity(fine, leaf.solver());
-    // The same elements, grouped differently: matched by object and centroid.
-    std::map<std::tuple<int, long long, long long, long long>, int> byCentroid;
-    auto key = [](int object, const Vec3& c) {
-        return std::make_tuple(object, std::llround(c.x * 1e6), std::llround(c.y * 1e6),
-                               std::llround(c.z * 1e6));
-    };
-    for (std::size_t e = 0; e < fine.elements().size(); ++e)
-        byCentroid.emplace(key(fine.elements()[e].object, fine.elements()[e].centroid),
-                           static_cast<int>(e));
-    std::vector<Rgb> out = reflectedRadiosity(disc, lit.solver());
-    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
-        auto it = byCentroid.find(key(disc.elements()[e].object, disc.elements()[e].centroid));
-        if (it != byCentroid.end()) out[e] = fineReflected[it->second];
-    }
-    return out;
-}
-
 /// `render --mode interpolant`: the high-fidelity picture (Hardt & Teller 1996) — the
 /// converged solution's elements meshed along their discontinuities, quadratic interpolants
 /// through exact irradiance samples, evaluated per pixel.
@@ -411,8 +376,15 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     const Camera camera = pickCamera(lit->scene(), a.scene, r.camera);
     const CameraRays rays(camera, r.width, r.height);
     const Discretization& disc = lit->discretization();
-    ExactIrradiance exact(disc);
-    exact.setReflected(leafReflectedRadiosity(a, *lit));
+    ExactIrradianceOptions exactOptions;
+    exactOptions.farRays = r.gatherRays;
+    exactOptions.maxExactBlockers = 48;
+    ExactIrradiance exact(disc, exactOptions, &lit->tracer());
+    SolverOptions leafOptions = interactiveSolverOptions();
+    leafOptions.seed = a.seed;
+    leafOptions.stochasticBelow = a.stochasticBelow;
+    exact.setReflected(leafReflectedRadiosity(lit->scene(), disc, lit->solver(), leafOptions,
+                                              a.converge, a.maxShots));
     HifiMesh mesh;
     const bool tty = ::isatty(STDERR_FILENO);
     mesh.build(disc, exact, HifiOptions{}, [&](double f) {
@@ -601,6 +573,11 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(1, 256));
     renderCmd->add_option("--mode", render.mode,
                           "epi, cache, reference, gouraud (default), interpolant or pathtrace");
+    renderCmd
+        ->add_option("--gather-rays", render.gatherRays,
+                     "interpolant: sample the far field's indirect light with this many rays "
+                     "per point (default 256; 0: every patch exactly)")
+        ->check(CLI::Range(0, 1 << 20));
     renderCmd->add_option("--compare", render.compare,
                           "report the relative RMSE against this EXR (lamps left out)");
     renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();
@@ -698,6 +675,17 @@ int main(int argc, char** argv) {
     benchRedist->add_flag("--split", redist.split,
                           "print the top-1% error on the added objects and on the rest");
     DisplayBenchOptions display;
+    HifiBenchOptions hifi;
+    CLI::App* benchHifi = benchCmd->add_subcommand(
+        "hifi", "Hardt & Teller: interpolant build, evaluation fps, error against reference");
+    benchHifi->add_option("--cases", hifi.cases, "scenes by name (default: cornell-box cube-room)");
+    benchHifi->add_option("--scene-dir", hifi.sceneDir, "folder with the scenes");
+    benchHifi->add_option("--width", hifi.width)->check(CLI::Range(8, 8192));
+    benchHifi->add_option("--height", hifi.height)->check(CLI::Range(8, 8192));
+    benchHifi->add_option("--frames", hifi.frames)->check(CLI::Range(1, 100000));
+    benchHifi->add_option("--plot-dir", hifi.plotDir, "write the error images there");
+    benchHifi->add_option("--json", hifi.jsonOut, "write every figure as JSON");
+
     CLI::App* benchDisplay = benchCmd->add_subcommand(
         "display", "Bala et al. Table 2: display stage times, fps, epi vs cache error");
     benchDisplay->add_option("--cases", display.cases, "robot-room and/or armadillo-field");
@@ -757,6 +745,7 @@ int main(int argc, char** argv) {
         if (*benchSolver) return runSolverBench(bench);
         if (*benchRedist) return runRedistributionBench(redist);
         if (*benchDisplay) return runDisplayBench(display);
+        if (*benchHifi) return runHifiBench(hifi);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "penumbra: %s\n", e.what());
         return 2;

@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <sstream>
+#include <tuple>
 
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/progressive_solver.h"
+#include "solver/ray_tracer.h"
 
 namespace penumbra {
 
@@ -161,13 +164,15 @@ double PolygonSet2::area() const {
 // ---------------------------------------------------------------------------------------------
 // ExactIrradiance
 
-ExactIrradiance::ExactIrradiance(const Discretization& disc, ExactIrradianceOptions options)
-    : mDisc(disc), mOptions(options) {
+ExactIrradiance::ExactIrradiance(const Discretization& disc, ExactIrradianceOptions options,
+                                 const RayTracer* tracer)
+    : mDisc(disc), mOptions(options), mTracer(tracer) {
     rebuild();
 }
 
 void ExactIrradiance::rebuild() {
     mBlockers.clear();
+    mNodes.clear();
     mObjects.clear();
     mEmitters.clear();
     mPatches.clear();
@@ -197,6 +202,7 @@ void ExactIrradiance::rebuild() {
             }
             ob.lo = glm::min(ob.lo, b.lo);
             ob.hi = glm::max(ob.hi, b.hi);
+            b.normal = newellNormal(poly);
             b.polygon = std::move(poly);
             b.object = static_cast<int>(o);
             mBlockers.push_back(std::move(b));
@@ -232,14 +238,55 @@ void ExactIrradiance::rebuild() {
         }
         ob.count = static_cast<int>(mBlockers.size()) - ob.first;
         if (ob.count > 0) {
+            ob.root = buildNodes(ob.first, ob.first + ob.count);
             sceneLo = glm::min(sceneLo, ob.lo);
             sceneHi = glm::max(sceneHi, ob.hi);
             mObjects.push_back(ob);
         }
     }
+    // The near-patch grid.
+    mCellSize = 0;
+    for (const SourcePatch& sp : mPatches)
+        mCellSize = std::max(mCellSize, mOptions.nearRadii * sp.radius);
+    mCellSize = std::max(mCellSize, 1e-6);
+    mPatchCells.clear();
+    for (std::size_t i = 0; i < mPatches.size(); ++i) {
+        const Vec3 c = mPatches[i].centroid / mCellSize;
+        mPatchCells[cellKey(std::llround(std::floor(c.x)), std::llround(std::floor(c.y)),
+                            std::llround(std::floor(c.z)))]
+            .push_back(static_cast<int>(i));
+    }
     const double diag = mObjects.empty() ? 1.0 : glm::length(sceneHi - sceneLo);
     mEpsilon = 1e-9 * std::max(diag, 1e-6);
     if (!mReflected.empty()) setReflected(std::move(mReflected));
+}
+
+int ExactIrradiance::buildNodes(int begin, int end) {
+    BlockerNode node;
+    node.lo = Vec3(1e300);
+    node.hi = Vec3(-1e300);
+    for (int b = begin; b < end; ++b) {
+        node.lo = glm::min(node.lo, mBlockers[b].lo);
+        node.hi = glm::max(node.hi, mBlockers[b].hi);
+    }
+    node.begin = begin;
+    node.end = end;
+    const int index = static_cast<int>(mNodes.size());
+    mNodes.push_back(node);
+    if (end - begin <= 8) return index;
+    // Median split of the box centres along the longest axis.
+    const Vec3 extent = node.hi - node.lo;
+    const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+    const int mid = (begin + end) / 2;
+    std::nth_element(mBlockers.begin() + begin, mBlockers.begin() + mid, mBlockers.begin() + end,
+                     [axis](const Blocker& a, const Blocker& b) {
+                         return a.lo[axis] + a.hi[axis] < b.lo[axis] + b.hi[axis];
+                     });
+    const int left = buildNodes(begin, mid);
+    const int right = buildNodes(mid, end);
+    mNodes[index].left = left;
+    mNodes[index].right = right;
+    return index;
 }
 
 void ExactIrradiance::setReflected(std::vector<Rgb> reflected) {
@@ -261,6 +308,16 @@ void ExactIrradiance::setReflected(std::vector<Rgb> reflected) {
 std::vector<std::vector<Vec3>> ExactIrradiance::visiblePart(const Vec3& x,
                                                             const std::vector<Vec3>& source,
                                                             int ignoreObject) const {
+    bool tooMany = false;
+    return clipVisible(x, source, ignoreObject, 0, tooMany);
+}
+
+std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
+                                                            const std::vector<Vec3>& source,
+                                                            int ignoreObject, int maxBlockers,
+                                                            bool& tooMany) const {
+    tooMany = false;
+    int reaching = 0;
     std::vector<std::vector<Vec3>> out;
     if (source.size() < 3) return out;
     const PlaneFrame frame(source);
@@ -291,21 +348,50 @@ std::vector<std::vector<Vec3>> ExactIrradiance::visiblePart(const Vec3& x,
         lo = glm::min(lo, p);
         hi = glm::max(hi, p);
     }
+    // A box meets the pyramid only if it meets the pyramid's box and no face plane of the
+    // pyramid has the whole box outside (the plane's largest value over the box < 0).
     auto boxOverlaps = [&](const Vec3& a, const Vec3& b) {
-        return a.x <= hi.x && lo.x <= b.x && a.y <= hi.y && lo.y <= b.y && a.z <= hi.z &&
-               lo.z <= b.z;
+        if (!(a.x <= hi.x && lo.x <= b.x && a.y <= hi.y && lo.y <= b.y && a.z <= hi.z &&
+              lo.z <= b.z))
+            return false;
+        const Vec3 centre = 0.5 * (a + b), half = 0.5 * (b - a);
+        auto outside = [&](const Vec3& m, const Vec3& through) {
+            return glm::dot(centre - through, m) + std::abs(m.x) * half.x +
+                       std::abs(m.y) * half.y + std::abs(m.z) * half.z <
+                   0;
+        };
+        if (outside(frame.n, frame.origin)) return false;  // behind the source's plane
+        for (std::size_t i = 0; i < n; ++i)
+            if (outside(sideNormal[i], x)) return false;
+        return true;
     };
     const double lift = 1e3 * mEpsilon;
     std::vector<Vec3> clipA, clipB;
     std::vector<Vec2> shadow;
+    std::vector<int> candidates, stack;
     for (const ObjectBlockers& ob : mObjects) {
         if (ob.object == ignoreObject || !boxOverlaps(ob.lo, ob.hi)) continue;
-        for (int b = ob.first; b < ob.first + ob.count && !visible.empty(); ++b) {
+        // The blockers whose boxes meet the pyramid's, through the object's box tree.
+        candidates.clear();
+        stack.clear();
+        stack.push_back(ob.root);
+        while (!stack.empty()) {
+            const BlockerNode& node = mNodes[stack.back()];
+            stack.pop_back();
+            if (!boxOverlaps(node.lo, node.hi)) continue;
+            if (node.left < 0) {
+                for (int b = node.begin; b < node.end; ++b) candidates.push_back(b);
+            } else {
+                stack.push_back(node.right);
+                stack.push_back(node.left);
+            }
+        }
+        for (int b : candidates) {
+            if (visible.empty()) break;
             const Blocker& B = mBlockers[b];
             if (!boxOverlaps(B.lo, B.hi)) continue;
             // A polygon whose plane passes through x cannot hide anything from x.
-            const Vec3 bn = newellNormal(B.polygon);
-            if (std::abs(glm::dot(x - B.polygon[0], bn)) <= lift) continue;
+            if (std::abs(glm::dot(x - B.polygon[0], B.normal)) <= lift) continue;
             clipConvex(
                 B.polygon,
                 [&](const Vec3& p) { return glm::dot(p - frame.origin, frame.n) - lift; }, clipA);
@@ -315,6 +401,10 @@ std::vector<std::vector<Vec3>> ExactIrradiance::visiblePart(const Vec3& x,
                 clipA.swap(clipB);
             }
             if (clipA.size() < 3) continue;
+            if (maxBlockers > 0 && ++reaching > maxBlockers) {
+                tooMany = true;
+                return {};
+            }
             // Central projection from x onto the source's plane.
             shadow.clear();
             for (const Vec3& p : clipA) {
@@ -342,10 +432,55 @@ double ExactIrradiance::visibleFormFactor(const Vec3& x, const Vec3& n,
     // no clipping.
     const double unoccluded = polygonFormFactor(x, n, source);
     if (!(unoccluded > 0)) return 0.0;
+    const int limit = mTracer ? mOptions.maxExactBlockers : 0;
+    bool tooMany = false;
+    const auto pieces = clipVisible(x, source, ignoreObject, limit, tooMany);
+    if (tooMany) return unoccluded * sampledVisibleFraction(x, n, source);
     double f = 0;
-    for (const auto& piece : visiblePart(x, source, ignoreObject))
-        f += polygonFormFactor(x, n, piece);
+    for (const auto& piece : pieces) f += polygonFormFactor(x, n, piece);
     return std::clamp(f, 0.0, unoccluded);
+}
+
+double ExactIrradiance::sampledVisibleFraction(const Vec3& x, const Vec3& n,
+                                               const std::vector<Vec3>& source) const {
+    // Fan triangles by area; stratified in the area-cumulative coordinate.
+    std::vector<double> cumulative;
+    double total = 0;
+    for (std::size_t k = 1; k + 1 < source.size(); ++k) {
+        total += 0.5 * glm::length(glm::cross(source[k] - source[0], source[k + 1] - source[0]));
+        cumulative.push_back(total);
+    }
+    if (!(total > 0)) return 0.0;
+    const Vec3 sn = newellNormal(source);
+    std::uint64_t state = 0;
+    for (double c : {x.x, x.y, x.z, source[0].x, source[0].y, source[0].z})
+        state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
+    auto next = [&] {
+        const std::uint64_t r = splitmix64(state);
+        state += 0x9e3779b97f4a7c15ull;
+        return static_cast<double>(r >> 11) * 0x1.0p-53;
+    };
+    const double eps = mTracer->epsilon();
+    const Vec3 from = x + eps * n;
+    const int m = std::max(1, mOptions.blockedRays);
+    double all = 0, seen = 0;
+    for (int i = 0; i < m; ++i) {
+        const double u = (i + next()) / m * total;
+        const std::size_t k =
+            std::min<std::size_t>(std::upper_bound(cumulative.begin(), cumulative.end(), u) -
+                                      cumulative.begin(),
+                                  cumulative.size() - 1);
+        double r0 = next(), r1 = next();
+        if (r0 + r1 > 1) r0 = 1 - r0, r1 = 1 - r1;
+        const Vec3 y = source[0] + r0 * (source[k + 1] - source[0]) + r1 * (source[k + 2] - source[0]);
+        const Vec3 d = y - x;
+        const double r2 = glm::dot(d, d);
+        const double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(sn, d)) / (r2 * r2);
+        if (!(w > 0)) continue;
+        all += w;
+        if (!mTracer->occluded(from, y + eps * sn)) seen += w;
+    }
+    return all > 0 ? seen / all : 0.0;
 }
 
 Rgb ExactIrradiance::direct(const Vec3& x, const Vec3& n) const {
@@ -372,16 +507,73 @@ void ExactIrradiance::addSourcesOfPatch(const SourcePatch& sp, const Vec3& x,
     }
 }
 
+std::uint64_t ExactIrradiance::cellKey(long long i, long long j, long long k) const {
+    return hashPair(hashPair(static_cast<std::uint64_t>(i), static_cast<std::uint64_t>(j)),
+                    static_cast<std::uint64_t>(k));
+}
+
+bool ExactIrradiance::nearPatch(int patch, const Vec3& x) const {
+    const Patch& P = mDisc.patches()[patch];
+    return glm::length(x - P.centroid) <= mOptions.nearRadii * P.radius;
+}
+
 Rgb ExactIrradiance::indirect(const Vec3& x, const Vec3& n) const {
     if (mReflected.empty()) return Rgb(0.0);
+    const bool sampled = mOptions.farRays > 0 && mTracer;
     Rgb h(0.0);
     std::vector<Source> sources;
-    for (const SourcePatch& sp : mPatches) {
+    auto gather = [&](const SourcePatch& sp) {
         sources.clear();
         addSourcesOfPatch(sp, x, sources);
         for (const Source& s : sources) h += s.radiosity * visibleFormFactor(x, n, s.polygon, -1);
+    };
+    if (!sampled) {
+        for (const SourcePatch& sp : mPatches) gather(sp);
+        return h;
     }
+    const Vec3 c = x / mCellSize;
+    const long long ci = std::llround(std::floor(c.x)), cj = std::llround(std::floor(c.y)),
+                    ck = std::llround(std::floor(c.z));
+    for (long long i = ci - 1; i <= ci + 1; ++i)
+        for (long long j = cj - 1; j <= cj + 1; ++j)
+            for (long long k = ck - 1; k <= ck + 1; ++k) {
+                const auto it = mPatchCells.find(cellKey(i, j, k));
+                if (it == mPatchCells.end()) continue;
+                for (int p : it->second)
+                    if (nearPatch(mPatches[p].patch, x)) gather(mPatches[p]);
+            }
+    h += farIndirect(x, n);
     return h;
+}
+
+Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
+    // Stratified cosine-distributed directions (Malley: a stratified disc lifted), the
+    // pattern's jitter seeded by the point, so a point's value is reproducible.
+    const int side = std::max(1, static_cast<int>(std::lround(std::sqrt(double(mOptions.farRays)))));
+    const Vec3 t = std::abs(n.x) > 0.5 ? glm::normalize(glm::cross(n, Vec3(0, 1, 0)))
+                                       : glm::normalize(glm::cross(n, Vec3(1, 0, 0)));
+    const Vec3 b = glm::cross(n, t);
+    std::uint64_t key = 0;
+    for (double c : {x.x, x.y, x.z}) key = hashPair(key, static_cast<std::uint64_t>(std::llround(c * 1e9)));
+    std::uint64_t state = key;
+    auto next = [&] {
+        const std::uint64_t r = splitmix64(state);
+        state += 0x9e3779b97f4a7c15ull;
+        return static_cast<double>(r >> 11) * 0x1.0p-53;
+    };
+    const Vec3 origin = x + mTracer->epsilon() * n;
+    Rgb sum(0.0);
+    for (int i = 0; i < side; ++i)
+        for (int k = 0; k < side; ++k) {
+            const double u = (i + next()) / side, v = (k + next()) / side;
+            const double r = std::sqrt(u), phi = 2 * M_PI * v;
+            const Vec3 d = r * std::cos(phi) * t + r * std::sin(phi) * b +
+                           std::sqrt(std::max(0.0, 1 - u)) * n;
+            const RayTracer::FirstHit hit = mTracer->firstHit(origin, d);
+            if (hit.element < 0 || hit.backFace || nearPatch(hit.patch, x)) continue;
+            sum += mReflected[hit.element];
+        }
+    return sum / static_cast<double>(side * side);  // E = ∫ (B/π) cos dω = mean over cos
 }
 
 std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const ProgressiveSolver& solver) {
@@ -389,6 +581,37 @@ std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const Progressiv
     std::vector<Rgb> out(b.size());
     for (std::size_t e = 0; e < b.size(); ++e)
         out[e] = glm::max(b[e] - disc.elementMaterial(static_cast<int>(e)).emission, Rgb(0.0));
+    return out;
+}
+
+std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
+                                        const ProgressiveSolver& solved,
+                                        const SolverOptions& options, double eps,
+                                        std::uint64_t maxShots) {
+    std::vector<Rgb> out = reflectedRadiosity(disc, solved);
+    if (scene.settings.patchSize <= scene.settings.elementSize) return out;
+    Scene leafScene = scene;
+    leafScene.settings.patchSize = scene.settings.elementSize;
+    Discretization fine(leafScene);
+    RayTracer tracer(fine);
+    ProgressiveSolver solver(fine, tracer, options);
+    solver.converge(eps, maxShots);
+    const std::vector<Rgb> fineReflected = reflectedRadiosity(fine, solver);
+    // The same elements, grouped differently: matched by object and centroid.
+    using Key = std::tuple<int, long long, long long, long long>;
+    auto key = [](int object, const Vec3& c) {
+        return Key(object, std::llround(c.x * 1e6), std::llround(c.y * 1e6),
+                   std::llround(c.z * 1e6));
+    };
+    std::map<Key, int> byCentroid;
+    for (std::size_t e = 0; e < fine.elements().size(); ++e)
+        byCentroid.emplace(key(fine.elements()[e].object, fine.elements()[e].centroid),
+                           static_cast<int>(e));
+    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+        const auto it =
+            byCentroid.find(key(disc.elements()[e].object, disc.elements()[e].centroid));
+        if (it != byCentroid.end()) out[e] = fineReflected[it->second];
+    }
     return out;
 }
 

@@ -8,7 +8,9 @@
 // Index: PolygonSet2 · ExactIrradianceOptions · ExactIrradiance
 
 #include <array>
+#include <cstdint>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "solver/scene.h"
@@ -17,6 +19,8 @@ namespace penumbra {
 
 class Discretization;
 class ProgressiveSolver;
+class RayTracer;
+struct SolverOptions;
 
 /// 2D point of a source polygon's plane.
 using Vec2 = glm::dvec2;
@@ -45,13 +49,29 @@ struct ExactIrradianceOptions {
     /// element by element with each element's radiosity; farther, as its outline with the
     /// patch's mean radiosity.
     double nearRadii = 3.0;
+    /// 0: every patch gathered exactly. N > 0 (with a ray tracer): only the near patches
+    /// are; the rest of the hemisphere is sampled by N stratified cosine-distributed rays,
+    /// each reading the reflected radiosity of the element it hits (hits on near patches
+    /// count nothing, they are in the exact part). The far field is smooth and its share
+    /// small, so a few hundred rays keep its noise well under a per cent of the total, at a
+    /// cost that does not grow with the number of patches.
+    int farRays = 0;
+    /// With a ray tracer and maxExactBlockers > 0: when more than this many blocker polygons
+    /// reach into the pyramid from a point to a source (a finely tessellated mesh between
+    /// them, whose shadows would split the source into hundreds of pieces), that source's
+    /// visible fraction is estimated by `blockedRays` shadow rays stratified over it instead
+    /// (the ratio estimator of formFactorToPatch; the unoccluded part stays exact).
+    int maxExactBlockers = 0;
+    int blockedRays = 256;
 };
 
 /// Thread safety: const functions may be called from any thread. The Discretization must not
 /// change while one runs; call rebuild() after it changed (an edit, a subdivision).
 class ExactIrradiance {
 public:
-    explicit ExactIrradiance(const Discretization& disc, ExactIrradianceOptions options = {});
+    /// `tracer` (optional) serves ExactIrradianceOptions::farRays.
+    explicit ExactIrradiance(const Discretization& disc, ExactIrradianceOptions options = {},
+                             const RayTracer* tracer = nullptr);
     /// Re-reads the alive objects' blockers and emitters.
     void rebuild();
     /// The light the solution reflects, per element (W/m²): B − E, i.e. ρ·H. Without one,
@@ -84,14 +104,24 @@ public:
 private:
     struct Blocker {
         std::vector<Vec3> polygon;  ///< convex, world space
+        Vec3 normal{0.0};           ///< unit
         Vec3 lo, hi;                ///< bounds
         int object = -1;
+    };
+    /// A node of an object's bounding-box tree over its blockers: blockers [begin, end) of
+    /// mBlockers, children or a leaf.
+    struct BlockerNode {
+        Vec3 lo, hi;
+        int begin = 0, end = 0;
+        int left = -1, right = -1;
     };
     struct ObjectBlockers {
         int first = 0, count = 0;  ///< range in mBlockers
         Vec3 lo, hi;
         int object = -1;
+        int root = -1;  ///< in mNodes
     };
+    int buildNodes(int begin, int end);
     struct Source {
         std::vector<Vec3> polygon;  ///< convex, counter-clockwise seen from the front
         Rgb radiosity{0.0};
@@ -107,12 +137,31 @@ private:
     /// elements.
     void addSourcesOfPatch(const SourcePatch& sp, const Vec3& x, std::vector<Source>& out) const;
 
+    bool nearPatch(int patch, const Vec3& x) const;
+    /// visiblePart, giving up (and setting `tooMany`) once more than `maxBlockers` (> 0)
+    /// blockers reach into the pyramid.
+    std::vector<std::vector<Vec3>> clipVisible(const Vec3& x, const std::vector<Vec3>& source,
+                                               int ignoreObject, int maxBlockers,
+                                               bool& tooMany) const;
+    /// The visible fraction of `source` from (x, n) by stratified shadow rays, weighted by
+    /// the point-to-point kernel.
+    double sampledVisibleFraction(const Vec3& x, const Vec3& n,
+                                  const std::vector<Vec3>& source) const;
+    Rgb farIndirect(const Vec3& x, const Vec3& n) const;
+
     const Discretization& mDisc;
     ExactIrradianceOptions mOptions;
+    const RayTracer* mTracer = nullptr;
     std::vector<Blocker> mBlockers;
+    std::vector<BlockerNode> mNodes;
     std::vector<ObjectBlockers> mObjects;
     std::vector<Source> mEmitters;
     std::vector<SourcePatch> mPatches;  ///< alive patches (indirect sources)
+    /// mPatches indices by grid cell of their centroids (cells of mCellSize, at least the
+    /// largest near distance): the near patches of a point are in its 27 cells.
+    std::unordered_map<std::uint64_t, std::vector<int>> mPatchCells;
+    double mCellSize = 1;
+    std::uint64_t cellKey(long long i, long long j, long long k) const;
     std::vector<Rgb> mReflected;        ///< per element
     std::vector<Rgb> mPatchReflected;   ///< per patch, area-weighted mean
     double mEpsilon = 1e-9;             ///< length tolerance, from the scene's size
@@ -121,6 +170,18 @@ private:
 /// Per element, the radiosity the solution reflects: B − E (ρ·H plus the solver's ambient
 /// estimate of the light not yet shot, Cohen eq. 13), for ExactIrradiance::setReflected.
 std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const ProgressiveSolver& solver);
+
+/// The reflected radiosity of `disc`'s elements from a second solve of `scene` in which every
+/// element is its own shooter (as the paper's hierarchical solution links leaf elements),
+/// converged to `eps` (at most `maxShots`). A patch shoots its mean radiosity, which at a
+/// concave contact (a box on a floor) is not what its elements near the contact send, so a
+/// gather from a coarse-patch solution there comes out low. Elements are matched by object
+/// and centroid; `disc`'s own patches stay the gather's source groups. Returns `solved`'s
+/// reflected radiosity when the patches already are the elements.
+std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
+                                        const ProgressiveSolver& solved,
+                                        const SolverOptions& options, double eps,
+                                        std::uint64_t maxShots);
 
 /// Whether a planar polygon is convex (all turns the same way about `normal`).
 bool isConvexPolygon(const std::vector<Vec3>& polygon, const Vec3& normal);

@@ -52,8 +52,9 @@ struct HifiOptions {
     /// Representation-error refinement (the paper's §7.2 proposal): a triangle whose
     /// interpolant misses the exact irradiance at its centre by more than this fraction
     /// (plus 1e-4 of the brightest emitter's luminance) is split into four, up to
-    /// maxRefineDepth times. 0 turns it off.
-    double refineTolerance = 0.01;
+    /// maxRefineDepth times. 0 turns it off. Above the noise of ray-sampled far fields
+    /// (ExactIrradianceOptions::farRays), which would otherwise split smooth regions.
+    double refineTolerance = 0.03;
     int maxRefineDepth = 3;
 };
 

@@ -77,4 +77,23 @@ struct DisplayBenchOptions {
 /// every pixel once, silhouette time, shadow-edge update after a move.
 int runDisplayBench(const DisplayBenchOptions& options);
 
+struct HifiBenchOptions {
+    std::vector<std::string> cases{"cornell-box", "cube-room"};  /// robot-room: see docs/hifi.md
+    std::string sceneDir = "scenes";
+    double converge = 1e-3;
+    int gatherRays = 256;  ///< ExactIrradianceOptions::farRays, as `render --mode interpolant`
+    int width = 1280;      ///< evaluation size
+    int height = 720;
+    int frames = 20;
+    int errorWidth = 320;  ///< error images' size
+    int errorHeight = 240;
+    std::string plotDir;  ///< writes hifi-<scene>-{reference,gouraud,interpolant}.png there
+    std::string jsonOut;
+};
+
+/// `penumbra bench hifi`: Hardt & Teller 1996 — interpolant build time and triangles,
+/// evaluation frames/s on the offscreen GL pass, and the error of gouraud, epi and
+/// interpolant against the display's reference, per scene.
+int runHifiBench(const HifiBenchOptions& options);
+
 }  // namespace penumbra

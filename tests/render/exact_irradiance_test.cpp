@@ -210,6 +210,11 @@ TEST(ExactIrradiance, GatherMatchesAHemisphereOfRaysOverTheSameElements) {
     exactOptions.nearRadii = 1e9;  // every source element by element
     ExactIrradiance exact(disc, exactOptions);
     exact.setReflected(reflected);
+    // The far field by rays (near patches exact): the same light, less the rays' noise.
+    ExactIrradianceOptions hybridOptions;
+    hybridOptions.farRays = 1024;
+    ExactIrradiance hybrid(disc, hybridOptions, &tracer);
+    hybrid.setReflected(reflected);
     const int grid = 600;  // 360,000 stratified rays
     for (Vec3 x : {Vec3(-0.5, -1, -0.5), Vec3(0.0, -1, 0.1), Vec3(0.3, -1, -0.3)}) {
         const Vec3 n(0, 1, 0);
@@ -228,6 +233,7 @@ TEST(ExactIrradiance, GatherMatchesAHemisphereOfRaysOverTheSameElements) {
         const Rgb total = exact.irradiance(x, n);
         EXPECT_NEAR(total.x, byRays, 0.003 * byRays) << x.x << " " << x.z;
         EXPECT_GT(exact.indirect(x, n).x, 0.05 * total.x);
+        EXPECT_NEAR(hybrid.irradiance(x, n).x, byRays, 0.01 * byRays) << x.x << " " << x.z;
     }
 }
 
