@@ -78,7 +78,7 @@ struct DisplayBenchOptions {
 int runDisplayBench(const DisplayBenchOptions& options);
 
 struct HifiBenchOptions {
-    std::vector<std::string> cases{"cornell-box", "cube-room"};  /// robot-room: see docs/hifi.md
+    std::vector<std::string> cases{"cornell-box", "cube-room"};  ///< robot-room: docs/hifi.md
     std::string sceneDir = "scenes";
     double converge = 1e-3;
     int gatherRays = 256;  ///< ExactIrradianceOptions::farRays, as `render --mode interpolant`
