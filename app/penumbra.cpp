@@ -169,20 +169,6 @@ std::string siblingPath(const std::string& path, const std::string& suffix) {
     return (p.parent_path() / name).string();
 }
 
-/// Frame k along the camera path: the camera turned about its up axis around the look-at point
-/// by k · degPerFrame.
-Camera orbitCamera(const Camera& camera, int k, double degPerFrame) {
-    if (k == 0 || degPerFrame == 0) return camera;
-    const double angle = glm::radians(degPerFrame * k);
-    Vec3 axis = glm::length(camera.up) > 0 ? glm::normalize(camera.up) : Vec3(0, 1, 0);
-    const Vec3 r = camera.position - camera.lookAt;
-    // Rodrigues' rotation of r about axis.
-    const Vec3 rotated = r * std::cos(angle) + glm::cross(axis, r) * std::sin(angle) +
-                         axis * glm::dot(axis, r) * (1 - std::cos(angle));
-    Camera out = camera;
-    out.position = camera.lookAt + rotated;
-    return out;
-}
 
 nlohmann::json frameJson(const DisplayFrameStats& f) {
     const DisplayStageTimes& t = f.times;
@@ -283,7 +269,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
                 display.updateSolution(session->solver());
             entry["edit"] = {{"line", logged.line}, {"op", logged.command.opName()}};
         }
-        const Camera frameCamera = r.log.empty() ? orbitCamera(camera, k, r.orbitDeg) : camera;
+        const Camera frameCamera = r.log.empty() ? orbitCamera(camera, k * r.orbitDeg) : camera;
         rays.emplace(frameCamera, r.width, r.height);
         if (reference) {
             const auto start = Clock::now();
@@ -362,7 +348,8 @@ int runPathTraceRender(const SolveArgs& a, const RenderArgs& r) {
     report["paths"] = traced.paths;
     report["seconds"] = traced.seconds;
     if (!r.compare.empty())
-        report["relative_rmse"] = relativeRmse(traced.image, readExr(r.compare), traced.emitterMask);
+        report["relative_rmse"] =
+            relativeRmse(traced.image, readExr(r.compare), traced.emitterMask);
     writeReport(a.report, report);
     return 0;
 }

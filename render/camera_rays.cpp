@@ -59,4 +59,15 @@ std::string CameraRays::toString() const {
     return out.str();
 }
 
+Camera orbitCamera(const Camera& camera, double deg) {
+    if (deg == 0) return camera;
+    const double angle = glm::radians(deg);
+    const Vec3 axis = glm::length(camera.up) > 0 ? glm::normalize(camera.up) : Vec3(0, 1, 0);
+    const Vec3 r = camera.position - camera.lookAt;
+    Camera out = camera;
+    out.position = camera.lookAt + r * std::cos(angle) + glm::cross(axis, r) * std::sin(angle) +
+                   axis * glm::dot(axis, r) * (1 - std::cos(angle));
+    return out;
+}
+
 }  // namespace penumbra

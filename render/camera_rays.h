@@ -14,6 +14,10 @@ namespace penumbra {
 /// image size. Pixel coordinates: px grows right in [0, width], py grows down in
 /// [0, height]; pixel (i, j) covers [i, i+1) × [j, j+1), its centre is (i + 0.5, j + 0.5).
 /// Square pixels: the horizontal field of view follows from the aspect ratio.
+/// `camera` turned by `deg` degrees about its up axis around its look-at point (Rodrigues'
+/// rotation of the position): a camera path orbiting the scene.
+Camera orbitCamera(const Camera& camera, double deg);
+
 class CameraRays {
 public:
     /// Throws std::invalid_argument when width or height is not positive, fovDeg is not in

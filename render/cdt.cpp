@@ -39,8 +39,8 @@ Triangulation2 triangulateConstrained(
         out.points.emplace_back(v->point().x(), v->point().y());
     }
     for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f)
-        out.triangles.push_back({index.at(f->vertex(0)), index.at(f->vertex(1)),
-                                 index.at(f->vertex(2))});
+        out.triangles.push_back(
+            {index.at(f->vertex(0)), index.at(f->vertex(1)), index.at(f->vertex(2))});
     return out;
 }
 

@@ -4,10 +4,9 @@
 // intersections constructed).
 
 #include <array>
+#include <glm/vec2.hpp>
 #include <utility>
 #include <vector>
-
-#include <glm/vec2.hpp>
 
 namespace penumbra {
 
@@ -19,7 +18,8 @@ struct Triangulation2 {
 /// Triangulates the convex polygon `boundary` (either winding) so that each edge of it and
 /// each of `segments` (which must lie inside it; parts outside are the caller's to clip) is a
 /// union of triangle edges. Crossing segments are split at their intersection.
-Triangulation2 triangulateConstrained(const std::vector<glm::dvec2>& boundary,
-                                      const std::vector<std::pair<glm::dvec2, glm::dvec2>>& segments);
+Triangulation2 triangulateConstrained(
+    const std::vector<glm::dvec2>& boundary,
+    const std::vector<std::pair<glm::dvec2, glm::dvec2>>& segments);
 
 }  // namespace penumbra

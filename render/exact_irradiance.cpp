@@ -111,7 +111,8 @@ void PolygonSet2::subtract(const std::vector<Vec2>& convexIn) {
         if (!s.empty() && glm::dot(p - s.back(), p - s.back()) <= tiny) continue;
         s.push_back(p);
     }
-    while (s.size() > 1 && glm::dot(s.front() - s.back(), s.front() - s.back()) <= tiny) s.pop_back();
+    while (s.size() > 1 && glm::dot(s.front() - s.back(), s.front() - s.back()) <= tiny)
+        s.pop_back();
     const double sArea = signedArea2(s);
     if (s.size() < 3 || std::abs(sArea) <= mMinArea) return;  // nothing to remove
     if (sArea < 0) std::reverse(s.begin(), s.end());
@@ -136,7 +137,8 @@ void PolygonSet2::subtract(const std::vector<Vec2>& convexIn) {
         for (std::size_t i = 0, n = s.size(); i < n && !rest.empty(); ++i) {
             const Vec2 a = s[i], d = s[(i + 1) % n] - s[i];
             auto left = [&](const Vec2& p) { return cross2(d, p - a); };
-            clipConvex(rest, [&](const Vec2& p) { return -left(p); }, outside);
+            clipConvex(
+                rest, [&](const Vec2& p) { return -left(p); }, outside);
             clipConvex(rest, left, inside);
             if (inside.empty()) {  // the piece lies outside this edge: untouched
                 disjoint = true;
@@ -209,8 +211,8 @@ void ExactIrradiance::rebuild() {
         };
         for (int p : patchesOf[o]) {
             const Patch& P = patches[p];
-            const bool back = !P.elements.empty() &&
-                              surface.isBackFace(elements[P.elements.front()].face);
+            const bool back =
+                !P.elements.empty() && surface.isBackFace(elements[P.elements.front()].face);
             const bool convex = !P.outline.empty() && isConvexPolygon(P.outline, P.normal);
             // Sources: every patch (a back sheet reflects toward its own side).
             SourcePatch sp;
@@ -276,7 +278,8 @@ int ExactIrradiance::buildNodes(int begin, int end) {
     if (end - begin <= 8) return index;
     // Median split of the box centres along the longest axis.
     const Vec3 extent = node.hi - node.lo;
-    const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+    const int axis =
+        extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
     const int mid = (begin + end) / 2;
     std::nth_element(mBlockers.begin() + begin, mBlockers.begin() + mid, mBlockers.begin() + end,
                      [axis](const Blocker& a, const Blocker& b) {
@@ -356,8 +359,8 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
             return false;
         const Vec3 centre = 0.5 * (a + b), half = 0.5 * (b - a);
         auto outside = [&](const Vec3& m, const Vec3& through) {
-            return glm::dot(centre - through, m) + std::abs(m.x) * half.x +
-                       std::abs(m.y) * half.y + std::abs(m.z) * half.z <
+            return glm::dot(centre - through, m) + std::abs(m.x) * half.x + std::abs(m.y) * half.y +
+                       std::abs(m.z) * half.z <
                    0;
         };
         if (outside(frame.n, frame.origin)) return false;  // behind the source's plane
@@ -396,8 +399,8 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
                 B.polygon,
                 [&](const Vec3& p) { return glm::dot(p - frame.origin, frame.n) - lift; }, clipA);
             for (std::size_t i = 0; i < n && !clipA.empty(); ++i) {
-                clipConvex(clipA, [&](const Vec3& p) { return glm::dot(p - x, sideNormal[i]); },
-                           clipB);
+                clipConvex(
+                    clipA, [&](const Vec3& p) { return glm::dot(p - x, sideNormal[i]); }, clipB);
                 clipA.swap(clipB);
             }
             if (clipA.size() < 3) continue;
@@ -426,8 +429,7 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
 }
 
 double ExactIrradiance::visibleFormFactor(const Vec3& x, const Vec3& n,
-                                          const std::vector<Vec3>& source,
-                                          int ignoreObject) const {
+                                          const std::vector<Vec3>& source, int ignoreObject) const {
     // Unoccluded first: a source the point cannot see (behind it or below its horizon) costs
     // no clipping.
     const double unoccluded = polygonFormFactor(x, n, source);
@@ -466,16 +468,17 @@ double ExactIrradiance::sampledVisibleFraction(const Vec3& x, const Vec3& n,
     double all = 0, seen = 0;
     for (int i = 0; i < m; ++i) {
         const double u = (i + next()) / m * total;
-        const std::size_t k =
-            std::min<std::size_t>(std::upper_bound(cumulative.begin(), cumulative.end(), u) -
-                                      cumulative.begin(),
-                                  cumulative.size() - 1);
+        const std::size_t k = std::min<std::size_t>(
+            std::upper_bound(cumulative.begin(), cumulative.end(), u) - cumulative.begin(),
+            cumulative.size() - 1);
         double r0 = next(), r1 = next();
         if (r0 + r1 > 1) r0 = 1 - r0, r1 = 1 - r1;
-        const Vec3 y = source[0] + r0 * (source[k + 1] - source[0]) + r1 * (source[k + 2] - source[0]);
+        const Vec3 y =
+            source[0] + r0 * (source[k + 1] - source[0]) + r1 * (source[k + 2] - source[0]);
         const Vec3 d = y - x;
         const double r2 = glm::dot(d, d);
-        const double w = std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(sn, d)) / (r2 * r2);
+        const double w =
+            std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(sn, d)) / (r2 * r2);
         if (!(w > 0)) continue;
         all += w;
         if (!mTracer->occluded(from, y + eps * sn)) seen += w;
@@ -549,12 +552,14 @@ Rgb ExactIrradiance::indirect(const Vec3& x, const Vec3& n) const {
 Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
     // Stratified cosine-distributed directions (Malley: a stratified disc lifted), the
     // pattern's jitter seeded by the point, so a point's value is reproducible.
-    const int side = std::max(1, static_cast<int>(std::lround(std::sqrt(double(mOptions.farRays)))));
+    const int side =
+        std::max(1, static_cast<int>(std::lround(std::sqrt(double(mOptions.farRays)))));
     const Vec3 t = std::abs(n.x) > 0.5 ? glm::normalize(glm::cross(n, Vec3(0, 1, 0)))
                                        : glm::normalize(glm::cross(n, Vec3(1, 0, 0)));
     const Vec3 b = glm::cross(n, t);
     std::uint64_t key = 0;
-    for (double c : {x.x, x.y, x.z}) key = hashPair(key, static_cast<std::uint64_t>(std::llround(c * 1e9)));
+    for (double c : {x.x, x.y, x.z})
+        key = hashPair(key, static_cast<std::uint64_t>(std::llround(c * 1e9)));
     std::uint64_t state = key;
     auto next = [&] {
         const std::uint64_t r = splitmix64(state);
@@ -567,8 +572,8 @@ Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
         for (int k = 0; k < side; ++k) {
             const double u = (i + next()) / side, v = (k + next()) / side;
             const double r = std::sqrt(u), phi = 2 * M_PI * v;
-            const Vec3 d = r * std::cos(phi) * t + r * std::sin(phi) * b +
-                           std::sqrt(std::max(0.0, 1 - u)) * n;
+            const Vec3 d =
+                r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u)) * n;
             const RayTracer::FirstHit hit = mTracer->firstHit(origin, d);
             if (hit.element < 0 || hit.backFace || nearPatch(hit.patch, x)) continue;
             sum += mReflected[hit.element];

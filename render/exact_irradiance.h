@@ -162,9 +162,9 @@ private:
     std::unordered_map<std::uint64_t, std::vector<int>> mPatchCells;
     double mCellSize = 1;
     std::uint64_t cellKey(long long i, long long j, long long k) const;
-    std::vector<Rgb> mReflected;        ///< per element
-    std::vector<Rgb> mPatchReflected;   ///< per patch, area-weighted mean
-    double mEpsilon = 1e-9;             ///< length tolerance, from the scene's size
+    std::vector<Rgb> mReflected;       ///< per element
+    std::vector<Rgb> mPatchReflected;  ///< per patch, area-weighted mean
+    double mEpsilon = 1e-9;            ///< length tolerance, from the scene's size
 };
 
 /// Per element, the radiosity the solution reflects: B − E (ρ·H plus the solver's ambient

@@ -25,12 +25,12 @@ QuadraticInterpolant QuadraticInterpolant::fromSamples(const std::array<Rgb, 6>&
     // E's r5 coefficient is 2 (R(0,1) and R(0,½) give 2E = 4r5 − 3r0 − r4, the mirror of C);
     // the paper's printed 1 does not reproduce R = t.
     QuadraticInterpolant q;
-    q.c[0] = 2.0 * r[0] - 4.0 * r[1] + 2.0 * r[2];                  // A
+    q.c[0] = 2.0 * r[0] - 4.0 * r[1] + 2.0 * r[2];                       // A
     q.c[1] = 2.0 * (2.0 * r[0] - 2.0 * r[1] + 2.0 * r[3] - 2.0 * r[5]);  // 2B
-    q.c[2] = 2.0 * (-1.5 * r[0] + 2.0 * r[1] - 0.5 * r[2]);         // 2C
-    q.c[3] = 2.0 * r[0] + 2.0 * r[4] - 4.0 * r[5];                  // D
-    q.c[4] = 2.0 * (-1.5 * r[0] - 0.5 * r[4] + 2.0 * r[5]);         // 2E
-    q.c[5] = r[0];                                                  // F
+    q.c[2] = 2.0 * (-1.5 * r[0] + 2.0 * r[1] - 0.5 * r[2]);              // 2C
+    q.c[3] = 2.0 * r[0] + 2.0 * r[4] - 4.0 * r[5];                       // D
+    q.c[4] = 2.0 * (-1.5 * r[0] - 0.5 * r[4] + 2.0 * r[5]);              // 2E
+    q.c[5] = r[0];                                                       // F
     return q;
 }
 
@@ -43,7 +43,9 @@ struct Frame {
         u = glm::normalize(poly[1] - poly[0]);
         v = glm::cross(n, u);
     }
-    glm::dvec2 to2(const Vec3& p) const { return {glm::dot(p - origin, u), glm::dot(p - origin, v)}; }
+    glm::dvec2 to2(const Vec3& p) const {
+        return {glm::dot(p - origin, u), glm::dot(p - origin, v)};
+    }
     Vec3 to3(const glm::dvec2& p) const { return origin + p.x * u + p.y * v; }
 };
 
@@ -62,8 +64,10 @@ bool clipSegment(const std::vector<glm::dvec2>& poly, glm::dvec2& a, glm::dvec2&
             continue;
         }
         const double t = -num / den;
-        if (den > 0) t0 = std::max(t0, t);
-        else t1 = std::min(t1, t);
+        if (den > 0)
+            t0 = std::max(t0, t);
+        else
+            t1 = std::min(t1, t);
         if (t0 > t1) return false;
     }
     const glm::dvec2 a0 = a;
@@ -297,8 +301,8 @@ struct ContactIndex {
     }
 };
 
-std::vector<Discontinuity> contactsOn(const Discretization& disc, int e,
-                                      const ContactIndex& index, double contactFraction) {
+std::vector<Discontinuity> contactsOn(const Discretization& disc, int e, const ContactIndex& index,
+                                      double contactFraction) {
     const Element& el = disc.elements()[e];
     const ElementGeometry g = geometryOf(disc, e);
     const double delta = contactFraction * std::sqrt(el.area);
@@ -397,7 +401,8 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     // Refinement ignores differences below this fraction of the brightest emitter's
     // luminance (dark corners need no subdivision).
     double brightest = 0;
-    for (const Material& m : disc.materials()) brightest = std::max(brightest, luminance(m.emission));
+    for (const Material& m : disc.materials())
+        brightest = std::max(brightest, luminance(m.emission));
     const double absoluteTolerance = 1e-4 * brightest;
     std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0};
 
@@ -485,8 +490,8 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                 };
             for (const auto& t : tri.triangles) {
                 glm::dvec2 p[3] = {tri.points[t[0]], tri.points[t[1]], tri.points[t[2]]};
-                const double cross = (p[1].x - p[0].x) * (p[2].y - p[0].y) -
-                                     (p[1].y - p[0].y) * (p[2].x - p[0].x);
+                const double cross =
+                    (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
                 if (std::abs(cross) <= 1e-14 * size * size) continue;  // degenerate
                 if (cross < 0) std::swap(p[1], p[2]);
                 const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
@@ -564,8 +569,8 @@ Rgb HifiMesh::radiosity(const Discretization& disc, int triangle, double s, doub
     return (back ? Rgb(0.0) : m.emission) + m.reflectance * tri.irradiance(s, t);
 }
 
-Image renderInterpolants(const Discretization& disc, const RayTracer& tracer,
-                         const HifiMesh& mesh, const CameraRays& rays, int samples) {
+Image renderInterpolants(const Discretization& disc, const RayTracer& tracer, const HifiMesh& mesh,
+                         const CameraRays& rays, int samples) {
     Image image(rays.width(), rays.height());
     const int n = std::max(1, samples);
     tbb::parallel_for(0, rays.height(), [&](int y) {

@@ -81,8 +81,7 @@ public:
     /// must hold the solution's reflected light for indirect light). `progress(fraction)` is
     /// called from the calling thread.
     void build(const Discretization& disc, const ExactIrradiance& exact,
-               const HifiOptions& options = {},
-               const std::function<void(double)>& progress = {});
+               const HifiOptions& options = {}, const std::function<void(double)>& progress = {});
 
     const std::vector<HifiTriangle>& triangles() const { return mTriangles; }
     /// Triangles of element e: triangles()[first(e) .. first(e + 1)).
@@ -103,8 +102,8 @@ private:
 
 /// The per-pixel pass (§2.6) with the visible triangle and its barycentrics found by one
 /// Embree ray per sample: radiance B/π, `samples`² jittered samples per pixel.
-Image renderInterpolants(const Discretization& disc, const RayTracer& tracer,
-                         const HifiMesh& mesh, const CameraRays& rays, int samples = 1);
+Image renderInterpolants(const Discretization& disc, const RayTracer& tracer, const HifiMesh& mesh,
+                         const CameraRays& rays, int samples = 1);
 
 /// A discontinuity segment on an element with its weight (w = max(d_sb / d_br) · B_src; contact
 /// lines carry infinity).

@@ -53,8 +53,8 @@ struct Emitters {
                 const Vec3 c = glm::cross(poly[k] - poly[0], poly[k + 1] - poly[0]);
                 const double area = 0.5 * glm::length(c);
                 if (!(area > 0)) continue;
-                triangles.push_back({poly[0], poly[k], poly[k + 1], c / (2 * area), area,
-                                     m.emission});
+                triangles.push_back(
+                    {poly[0], poly[k], poly[k + 1], c / (2 * area), area, m.emission});
                 total += area * luminance(m.emission);
                 cumulative.push_back(total);
             }
@@ -63,8 +63,8 @@ struct Emitters {
     /// A triangle by power and a uniform point on it; `pdfArea` the density per unit area.
     const EmitterTriangle& sample(Random& rng, Vec3& point, double& pdfArea) const {
         const double u = rng.next() * total;
-        std::size_t i = std::upper_bound(cumulative.begin(), cumulative.end(), u) -
-                        cumulative.begin();
+        std::size_t i =
+            std::upper_bound(cumulative.begin(), cumulative.end(), u) - cumulative.begin();
         i = std::min(i, triangles.size() - 1);
         const EmitterTriangle& t = triangles[i];
         double r0 = rng.next(), r1 = rng.next();
@@ -114,8 +114,8 @@ Rgb tracePath(const Discretization& disc, const RayTracer& tracer, const Emitter
             if (depth > 0 && emitters.total > 0) {
                 const double cosHit = -glm::dot(n, dir);
                 const double t = hit.t;
-                const double lightPdf = luminance(m.emission) / emitters.total * t * t /
-                                        std::max(cosHit, 1e-300);
+                const double lightPdf =
+                    luminance(m.emission) / emitters.total * t * t / std::max(cosHit, 1e-300);
                 weight = powerHeuristic(directionPdf, lightPdf);
             }
             radiance += throughput * m.emission * (weight / M_PI);

@@ -2,7 +2,7 @@
 
 // glad's header first: it stands in for GL/gl.h, which osmesa.h would otherwise include.
 #include <glad/gl.h>
-
+// (separate blocks keep the order)
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
 #include <GL/osmesa.h>
@@ -25,7 +25,9 @@ struct OffscreenContext::Impl {
 
 namespace {
 
-GLADapiproc eglLoad(const char* name) { return reinterpret_cast<GLADapiproc>(eglGetProcAddress(name)); }
+GLADapiproc eglLoad(const char* name) {
+    return reinterpret_cast<GLADapiproc>(eglGetProcAddress(name));
+}
 GLADapiproc osmesaLoad(const char* name) {
     return reinterpret_cast<GLADapiproc>(OSMesaGetProcAddress(name));
 }
@@ -42,8 +44,8 @@ bool hasExtension(const char* list, const char* name) {
 /// surfaceless platform (llvmpipe) when no device is found.
 EGLDisplay findEglDisplay(bool allowSoftware) {
     const char* clientExtensions = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-    auto queryDevices = reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(
-        eglGetProcAddress("eglQueryDevicesEXT"));
+    auto queryDevices =
+        reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
     auto queryDeviceString = reinterpret_cast<PFNEGLQUERYDEVICESTRINGEXTPROC>(
         eglGetProcAddress("eglQueryDeviceStringEXT"));
     auto getPlatformDisplay = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(
@@ -82,7 +84,8 @@ OffscreenContext::OffscreenContext(Backend backend) : mImpl(std::make_unique<Imp
         backend = display != EGL_NO_DISPLAY ? Backend::Egl : Backend::OsMesa;
     } else if (backend == Backend::Egl) {
         display = findEglDisplay(true);
-        if (display == EGL_NO_DISPLAY) throw std::runtime_error("EGL: no device or surfaceless display");
+        if (display == EGL_NO_DISPLAY)
+            throw std::runtime_error("EGL: no device or surfaceless display");
     }
     mBackend = backend;
     if (backend == Backend::Egl) {
@@ -99,19 +102,30 @@ OffscreenContext::OffscreenContext(Backend backend) : mImpl(std::make_unique<Imp
         EGLint configs = 0;
         if (!eglChooseConfig(display, configAttribs, &config, 1, &configs) || configs < 1)
             throw std::runtime_error("EGL: no OpenGL config");
-        const EGLint contextAttribs[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5,
+        const EGLint contextAttribs[] = {EGL_CONTEXT_MAJOR_VERSION,
+                                         4,
+                                         EGL_CONTEXT_MINOR_VERSION,
+                                         5,
                                          EGL_CONTEXT_OPENGL_PROFILE_MASK,
-                                         EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+                                         EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                         EGL_NONE};
         mImpl->context = eglCreateContext(display, config, EGL_NO_CONTEXT, contextAttribs);
         if (mImpl->context == EGL_NO_CONTEXT)
             throw std::runtime_error("EGL: cannot create a GL 4.5 core context");
         makeCurrent();
         if (!gladLoadGL(eglLoad)) throw std::runtime_error("EGL: cannot load GL functions");
     } else {
-        const int attribs[] = {OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS, 0,
-                               OSMESA_PROFILE, OSMESA_CORE_PROFILE,
-                               OSMESA_CONTEXT_MAJOR_VERSION, 4,
-                               OSMESA_CONTEXT_MINOR_VERSION, 5, 0};
+        const int attribs[] = {OSMESA_FORMAT,
+                               OSMESA_RGBA,
+                               OSMESA_DEPTH_BITS,
+                               0,
+                               OSMESA_PROFILE,
+                               OSMESA_CORE_PROFILE,
+                               OSMESA_CONTEXT_MAJOR_VERSION,
+                               4,
+                               OSMESA_CONTEXT_MINOR_VERSION,
+                               5,
+                               0};
         mImpl->osmesa = OSMesaCreateContextAttribs(attribs, nullptr);
         if (!mImpl->osmesa) throw std::runtime_error("OSMesa: cannot create a GL 4.5 core context");
         makeCurrent();

@@ -46,16 +46,6 @@ CaseSpec caseSpec(const std::string& name) {
     return {name, 1e-2, 100000000, "", Vec3(0.0)};
 }
 
-Camera orbit(const Camera& camera, double deg) {
-    const double a = glm::radians(deg);
-    const Vec3 axis = glm::normalize(camera.up);
-    const Vec3 r = camera.position - camera.lookAt;
-    Camera out = camera;
-    out.position = camera.lookAt + r * std::cos(a) + glm::cross(axis, r) * std::sin(a) +
-                   axis * glm::dot(axis, r) * (1 - std::cos(a));
-    return out;
-}
-
 /// Moves of the shadow-update figure (there and back).
 constexpr int kMoves = 5;
 /// Steady state: frames timed once the render cache is full (at most kFillFrames to fill it).
@@ -155,7 +145,7 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
     int counted = 0;
     Camera last = camera;
     for (int k = 0; k < options.frames; ++k) {
-        last = orbit(camera, options.degPerFrame * k);
+        last = orbitCamera(camera, options.degPerFrame * k);
         display.renderFrame(CameraRays(last, W, H), true);
         const DisplayFrameStats& f = display.lastFrame();
         if (k == 0) res.initialShadowMs = f.times.shadowMs;
@@ -270,11 +260,13 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
         int k = options.frames;
         const std::size_t capacity = display.cache().capacity();
         while (display.cache().points().size() < capacity && res.fillFrames < kFillFrames) {
-            display.renderFrame(CameraRays(orbit(camera, options.degPerFrame * k++), W, H), true);
+            display.renderFrame(
+                CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H), true);
             ++res.fillFrames;
         }
         for (int f = 0; f < kSteadyFrames; ++f) {
-            display.renderFrame(CameraRays(orbit(camera, options.degPerFrame * k++), W, H), true);
+            display.renderFrame(
+                CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H), true);
             add(res.steady, display.lastFrame().times, 1.0 / kSteadyFrames);
         }
         res.steadyPoints = display.cache().points().size();

@@ -35,16 +35,6 @@ double secondsSince(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-Camera orbitCamera(const Camera& camera, double deg) {
-    const double a = glm::radians(deg);
-    const Vec3 axis = glm::normalize(camera.up);
-    const Vec3 r = camera.position - camera.lookAt;
-    Camera out = camera;
-    out.position = camera.lookAt + r * std::cos(a) + glm::cross(axis, r) * std::sin(a) +
-                   axis * glm::dot(axis, r) * (1 - std::cos(a));
-    return out;
-}
-
 struct HifiCase {
     std::string name;
     double buildSeconds = 0, leafSolveSeconds = 0;
@@ -64,9 +54,10 @@ HifiCase runCase(const HifiBenchOptions& o, const std::string& name, nlohmann::j
     session->converge(o.converge, 100000000);
     const Discretization& disc = session->discretization();
     const RayTracer& tracer = session->tracer();
-    const Camera camera = session->scene().findCamera("default") ? *session->scene().findCamera("default")
+    const Camera camera = session->scene().findCamera("default")
+                              ? *session->scene().findCamera("default")
                           : session->scene().cameras.empty() ? Camera{}
-                                                              : session->scene().cameras.front();
+                                                             : session->scene().cameras.front();
 
     auto start = Clock::now();
     ExactIrradianceOptions exactOptions;
@@ -161,20 +152,21 @@ int runHifiBench(const HifiBenchOptions& options) {
     const double paperTrianglesPerCpuSecond = 6576.0 / (2.5 * 3600);
     const double paperPixelsPerSecond = 640.0 * 480 * 2.3;
     std::printf("\n%-14s %9s %9s %9s %10s %8s %7s %8s | %8s %8s %11s\n", "scene", "elements",
-                "triangles", "build_s", "tri/CPU-s", "x paper", "fps", "x paper", "gouraud",
-                "epi", "interpolant");
+                "triangles", "build_s", "tri/CPU-s", "x paper", "fps", "x paper", "gouraud", "epi",
+                "interpolant");
     for (const HifiCase& c : results) {
         const double triPerCpuSecond = c.stats.triangles / (2.0 * c.buildSeconds);
         const double fps = 1e3 / c.frameMs;
         std::printf("%-14s %9d %9d %9.1f %10.1f %8.0f %7.1f %8.1f | %7.2f%% %7.2f%% %10.2f%%\n",
                     c.name.c_str(), c.stats.elements, c.stats.triangles, c.buildSeconds,
                     triPerCpuSecond, triPerCpuSecond / paperTrianglesPerCpuSecond, fps,
-                    fps * options.width * options.height / paperPixelsPerSecond,
-                    100 * c.errGouraud, 100 * c.errEpi, 100 * c.errInterpolant);
+                    fps * options.width * options.height / paperPixelsPerSecond, 100 * c.errGouraud,
+                    100 * c.errEpi, 100 * c.errInterpolant);
     }
-    std::printf("(build on 2 cores; fps at %dx%d, x paper in pixels/s against 2.3 fps at 640x480; "
-                "errors: relative RMSE against the display's reference at %dx%d, lamps left out)\n",
-                options.width, options.height, options.errorWidth, options.errorHeight);
+    std::printf(
+        "(build on 2 cores; fps at %dx%d, x paper in pixels/s against 2.3 fps at 640x480; "
+        "errors: relative RMSE against the display's reference at %dx%d, lamps left out)\n",
+        options.width, options.height, options.errorWidth, options.errorHeight);
     if (!options.jsonOut.empty()) std::ofstream(options.jsonOut) << all.dump(2) << "\n";
     return 0;
 }

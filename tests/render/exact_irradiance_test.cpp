@@ -3,11 +3,13 @@
 // half-plane blocker (what stays visible is again a rectangle), a blocker covering the source —
 // and the polygon subtraction against areas computed by hand.
 
+#include "render/exact_irradiance.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "render/exact_irradiance.h"
+#include "closed_forms.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/progressive_solver.h"
@@ -17,22 +19,7 @@
 namespace penumbra {
 namespace {
 
-/// Form factor from a point to the corner rectangle [0, x] × [0, y] of a parallel plane at
-/// height h above it (the point under the corner), odd in x and in y, so any rectangle is a
-/// signed sum of four (the textbook closed form, e.g. Howell's catalogue, configuration B-3).
-double cornerFormFactor(double x, double y, double h) {
-    const double X = x / h, Y = y / h;
-    const double a = std::sqrt(1 + X * X), b = std::sqrt(1 + Y * Y);
-    return (X / a * std::atan(Y / a) + Y / b * std::atan(X / b)) / (2 * M_PI);
-}
-
-/// Form factor from a point to the rectangle [x0, x1] × [y0, y1] (offsets from the point) of a
-/// parallel plane at height h.
-double rectangleFormFactor(double x0, double x1, double y0, double y1, double h) {
-    if (x1 <= x0 || y1 <= y0) return 0.0;
-    return cornerFormFactor(x1, y1, h) - cornerFormFactor(x0, y1, h) -
-           cornerFormFactor(x1, y0, h) + cornerFormFactor(x0, y0, h);
-}
+using test::rectangleFormFactor;
 
 TEST(PolygonSet2, SubtractingASquareFromTheMiddleLeavesTheFrame) {
     PolygonSet2 set({{0, 0}, {4, 0}, {4, 4}, {0, 4}});

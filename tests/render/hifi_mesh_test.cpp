@@ -5,6 +5,8 @@
 // lines, and the interpolants of a blocker over a plane are closer to the exact irradiance
 // than the solution's constant elements.
 
+#include "render/hifi_mesh.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,7 +15,6 @@
 #include "render/camera_rays.h"
 #include "render/cdt.h"
 #include "render/exact_irradiance.h"
-#include "render/hifi_mesh.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"
@@ -69,9 +70,10 @@ bool coveredByEdges(const Triangulation2& tri, glm::dvec2 a, glm::dvec2 b) {
 
 TEST(ConstrainedTriangulation, EveryConstraintSegmentIsAUnionOfEdges) {
     const std::vector<glm::dvec2> square = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
-    std::vector<std::pair<glm::dvec2, glm::dvec2>> segs = {
-        {{0.1, 0.2}, {0.9, 0.7}}, {{0.2, 0.9}, {0.8, 0.1}}, {{0.0, 0.5}, {1.0, 0.5}},
-        {{0.3, 0.3}, {0.35, 0.31}}};
+    std::vector<std::pair<glm::dvec2, glm::dvec2>> segs = {{{0.1, 0.2}, {0.9, 0.7}},
+                                                           {{0.2, 0.9}, {0.8, 0.1}},
+                                                           {{0.0, 0.5}, {1.0, 0.5}},
+                                                           {{0.3, 0.3}, {0.35, 0.31}}};
     const Triangulation2 tri = triangulateConstrained(square, segs);
     for (const auto& [a, b] : segs) EXPECT_TRUE(coveredByEdges(tri, a, b));
     for (std::size_t i = 0; i < square.size(); ++i)

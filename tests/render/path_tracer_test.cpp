@@ -2,11 +2,12 @@
 // E and reflects ρ has radiance E / (π (1 − ρ)) everywhere) and one bounce of direct light
 // (a grey floor under a lamp in a black world shows ρ/π times the exact direct irradiance).
 
+#include "render/path_tracer.h"
+
 #include <gtest/gtest.h>
 
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
-#include "render/path_tracer.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"
