@@ -246,9 +246,8 @@ ElementGeometry geometryOf(const Discretization& disc, int e) {
     return {std::move(poly), std::move(poly2), frame};
 }
 
-std::vector<Discontinuity> rankWedges(const Discretization& disc, int e,
+std::vector<Discontinuity> rankWedges(const Discretization& disc, int e, const ElementGeometry& g,
                                       const std::vector<Wedge>& wedges) {
-    const ElementGeometry g = geometryOf(disc, e);
     std::vector<Discontinuity> out;
     for (const Wedge& w : wedges) {
         glm::dvec2 a, b;
@@ -301,10 +300,9 @@ struct ContactIndex {
     }
 };
 
-std::vector<Discontinuity> contactsOn(const Discretization& disc, int e, const ContactIndex& index,
-                                      double contactFraction) {
+std::vector<Discontinuity> contactsOn(const Discretization& disc, int e, const ElementGeometry& g,
+                                      const ContactIndex& index, double contactFraction) {
     const Element& el = disc.elements()[e];
-    const ElementGeometry g = geometryOf(disc, e);
     const double delta = contactFraction * std::sqrt(el.area);
     Vec3 lo(1e300), hi(-1e300);
     for (const Vec3& p : g.poly) {
@@ -383,12 +381,13 @@ void dropBoundarySegments(const std::vector<glm::dvec2>& poly,
 }  // namespace
 
 std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element) {
-    return rankWedges(disc, element, allWedges(disc));
+    return rankWedges(disc, element, geometryOf(disc, element), allWedges(disc));
 }
 
 std::vector<Discontinuity> contactLines(const Discretization& disc, int element,
                                         double contactFraction) {
-    return contactsOn(disc, element, ContactIndex(disc), contactFraction);
+    return contactsOn(disc, element, geometryOf(disc, element), ContactIndex(disc),
+                      contactFraction);
 }
 
 void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
@@ -417,12 +416,12 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
             std::vector<std::pair<glm::dvec2, glm::dvec2>> segs;
             std::vector<std::pair<glm::dvec2, glm::dvec2>> contactSegsHere;
             int kept = 0;
-            for (const Discontinuity& d : rankWedges(disc, e, wedges)) {
+            for (const Discontinuity& d : rankWedges(disc, e, g, wedges)) {
                 if (kept >= options.maxDiscontinuities || d.weight < options.minWeight) break;
                 segs.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
                 ++kept;
             }
-            for (const Discontinuity& d : contactsOn(disc, e, contacts, options.contactFraction))
+            for (const Discontinuity& d : contactsOn(disc, e, g, contacts, options.contactFraction))
                 contactSegsHere.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
             dropBoundarySegments(g.poly2, segs, 1e-6 * size);
             dropBoundarySegments(g.poly2, contactSegsHere, 1e-6 * size);
