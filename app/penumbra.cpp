@@ -412,6 +412,7 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
                       {"shadow_segments", st.shadowSegments},
                       {"contact_segments", st.contactSegments},
                       {"samples", st.samples},
+                      {"centre_samples", st.centreSamples},
                       {"build_seconds", st.seconds},
                       {"render_ms", ms}};
     if (!r.compare.empty())

@@ -246,10 +246,16 @@ void ExactIrradiance::rebuild() {
             mObjects.push_back(ob);
         }
     }
+    mElementRadius.assign(elements.size(), 0.0);
+    for (std::size_t e = 0; e < elements.size(); ++e)
+        if (mDisc.elementAlive(static_cast<int>(e)))
+            for (const Vec3& p : mDisc.elementPolygon(static_cast<int>(e)))
+                mElementRadius[e] =
+                    std::max(mElementRadius[e], glm::length(p - elements[e].centroid));
     // The near-patch grid.
     mCellSize = 0;
     for (const SourcePatch& sp : mPatches)
-        mCellSize = std::max(mCellSize, mOptions.nearRadii * sp.radius);
+        mCellSize = std::max(mCellSize, nearPatchRadii() * sp.radius);
     mCellSize = std::max(mCellSize, 1e-6);
     mPatchCells.clear();
     for (std::size_t i = 0; i < mPatches.size(); ++i) {
@@ -430,6 +436,19 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
 
 double ExactIrradiance::visibleFormFactor(const Vec3& x, const Vec3& n,
                                           const std::vector<Vec3>& source, int ignoreObject) const {
+    bool sampled = false;
+    return formFactor(x, n, source, ignoreObject, sampled);
+}
+
+void ExactIrradiance::addSource(const Vec3& x, const Vec3& n, const std::vector<Vec3>& source,
+                                const Rgb& radiosity, Parts& parts) const {
+    bool sampled = false;
+    parts.gathered += radiosity * formFactor(x, n, source, -1, sampled);
+}
+
+double ExactIrradiance::formFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& source,
+                                   int ignoreObject, bool& sampled) const {
+    sampled = false;
     // Unoccluded first: a source the point cannot see (behind it or below its horizon) costs
     // no clipping.
     const double unoccluded = polygonFormFactor(x, n, source);
@@ -437,7 +456,10 @@ double ExactIrradiance::visibleFormFactor(const Vec3& x, const Vec3& n,
     const int limit = mTracer ? mOptions.maxExactBlockers : 0;
     bool tooMany = false;
     const auto pieces = clipVisible(x, source, ignoreObject, limit, tooMany);
-    if (tooMany) return unoccluded * sampledVisibleFraction(x, n, source);
+    if (tooMany) {
+        sampled = true;
+        return unoccluded * sampledVisibleFraction(x, n, source);
+    }
     double f = 0;
     for (const auto& piece : pieces) f += polygonFormFactor(x, n, piece);
     return std::clamp(f, 0.0, unoccluded);
@@ -454,8 +476,11 @@ double ExactIrradiance::sampledVisibleFraction(const Vec3& x, const Vec3& n,
     }
     if (!(total > 0)) return 0.0;
     const Vec3 sn = newellNormal(source);
+    // The same points of the source for every x: the estimate then changes with x only where
+    // a ray's blocker changes, smoothly enough for the interpolants and their refinement test
+    // (independent patterns would put noise between neighbouring samples).
     std::uint64_t state = 0;
-    for (double c : {x.x, x.y, x.z, source[0].x, source[0].y, source[0].z})
+    for (double c : {source[0].x, source[0].y, source[0].z, source[1].x, source[1].y, source[1].z})
         state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
     auto next = [&] {
         const std::uint64_t r = splitmix64(state);
@@ -487,12 +512,15 @@ double ExactIrradiance::sampledVisibleFraction(const Vec3& x, const Vec3& n,
 }
 
 Rgb ExactIrradiance::direct(const Vec3& x, const Vec3& n) const {
-    Rgb h(0.0);
-    for (const Source& s : mEmitters) {
-        // A planar emitter cannot hide itself; a curved one (a sphere lamp) can.
-        h += s.radiosity * visibleFormFactor(x, n, s.polygon, -1);
-    }
-    return h;
+    Parts parts;
+    addDirect(x, n, parts);
+    return parts.total();
+}
+
+void ExactIrradiance::addDirect(const Vec3& x, const Vec3& n, Parts& parts) const {
+    // A planar emitter cannot hide itself; a curved one (a sphere lamp) can: no object is
+    // left out of the blockers.
+    for (const Source& s : mEmitters) addSource(x, n, s.polygon, s.radiosity, parts);
 }
 
 void ExactIrradiance::addSourcesOfPatch(const SourcePatch& sp, const Vec3& x,
@@ -517,22 +545,43 @@ std::uint64_t ExactIrradiance::cellKey(long long i, long long j, long long k) co
 
 bool ExactIrradiance::nearPatch(int patch, const Vec3& x) const {
     const Patch& P = mDisc.patches()[patch];
-    return glm::length(x - P.centroid) <= mOptions.nearRadii * P.radius;
+    return glm::length(x - P.centroid) <= nearPatchRadii() * P.radius;
+}
+
+bool ExactIrradiance::nearElement(int element, const Vec3& x) const {
+    return glm::length(x - mDisc.elements()[element].centroid) <=
+           mOptions.nearElementRadii * mElementRadius[element];
 }
 
 Rgb ExactIrradiance::indirect(const Vec3& x, const Vec3& n) const {
     if (mReflected.empty()) return Rgb(0.0);
-    const bool sampled = mOptions.farRays > 0 && mTracer;
-    Rgb h(0.0);
+    Parts parts;
+    addGathered(x, n, parts);
+    if (sampledFarField()) parts.farField += farIndirect(x, n);
+    return parts.total();
+}
+
+ExactIrradiance::Parts ExactIrradiance::irradianceParts(const Vec3& x, const Vec3& n,
+                                                        bool withFarField) const {
+    Parts parts;
+    addDirect(x, n, parts);
+    if (!mOptions.indirect || mReflected.empty()) return parts;
+    addGathered(x, n, parts);
+    if (withFarField && sampledFarField()) parts.farField += farIndirect(x, n);
+    return parts;
+}
+
+void ExactIrradiance::addGathered(const Vec3& x, const Vec3& n, Parts& parts) const {
+    if (mReflected.empty()) return;
     std::vector<Source> sources;
     auto gather = [&](const SourcePatch& sp) {
         sources.clear();
         addSourcesOfPatch(sp, x, sources);
-        for (const Source& s : sources) h += s.radiosity * visibleFormFactor(x, n, s.polygon, -1);
+        for (const Source& s : sources) addSource(x, n, s.polygon, s.radiosity, parts);
     };
-    if (!sampled) {
+    if (!sampledFarField()) {
         for (const SourcePatch& sp : mPatches) gather(sp);
-        return h;
+        return;
     }
     const Vec3 c = x / mCellSize;
     const long long ci = std::llround(std::floor(c.x)), cj = std::llround(std::floor(c.y)),
@@ -542,25 +591,33 @@ Rgb ExactIrradiance::indirect(const Vec3& x, const Vec3& n) const {
             for (long long k = ck - 1; k <= ck + 1; ++k) {
                 const auto it = mPatchCells.find(cellKey(i, j, k));
                 if (it == mPatchCells.end()) continue;
-                for (int p : it->second)
-                    if (nearPatch(mPatches[p].patch, x)) gather(mPatches[p]);
+                for (int p : it->second) {
+                    if (!nearPatch(mPatches[p].patch, x)) continue;
+                    if (!(mOptions.nearElementRadii > 0)) {
+                        gather(mPatches[p]);
+                        continue;
+                    }
+                    const Patch& P = mDisc.patches()[mPatches[p].patch];
+                    for (int e : P.elements) {
+                        const Rgb b = mReflected[e];
+                        if (!(b.x > 0 || b.y > 0 || b.z > 0) || !nearElement(e, x)) continue;
+                        addSource(x, n, mDisc.elementPolygon(e), b, parts);
+                    }
+                }
             }
-    h += farIndirect(x, n);
-    return h;
 }
 
 Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
-    // Stratified cosine-distributed directions (Malley: a stratified disc lifted), the
-    // pattern's jitter seeded by the point, so a point's value is reproducible.
+    // Stratified cosine-distributed directions (Malley: a stratified disc lifted).
     const int side =
         std::max(1, static_cast<int>(std::lround(std::sqrt(double(mOptions.farRays)))));
     const Vec3 t = std::abs(n.x) > 0.5 ? glm::normalize(glm::cross(n, Vec3(0, 1, 0)))
                                        : glm::normalize(glm::cross(n, Vec3(1, 0, 0)));
     const Vec3 b = glm::cross(n, t);
-    std::uint64_t key = 0;
+    // The pattern's jitter is seeded by the point, so a point's value is reproducible.
+    std::uint64_t state = 0;
     for (double c : {x.x, x.y, x.z})
-        key = hashPair(key, static_cast<std::uint64_t>(std::llround(c * 1e9)));
-    std::uint64_t state = key;
+        state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
     auto next = [&] {
         const std::uint64_t r = splitmix64(state);
         state += 0x9e3779b97f4a7c15ull;
@@ -575,7 +632,10 @@ Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
             const Vec3 d =
                 r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u)) * n;
             const RayTracer::FirstHit hit = mTracer->firstHit(origin, d);
-            if (hit.element < 0 || hit.backFace || nearPatch(hit.patch, x)) continue;
+            if (hit.element < 0 || hit.backFace) continue;
+            if (mOptions.nearElementRadii > 0 ? nearElement(hit.element, x)
+                                              : nearPatch(hit.patch, x))
+                continue;
             sum += mReflected[hit.element];
         }
     return sum / static_cast<double>(side * side);  // E = ∫ (B/π) cos dω = mean over cos

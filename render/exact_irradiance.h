@@ -56,6 +56,11 @@ struct ExactIrradianceOptions {
     /// small, so a few hundred rays keep its noise well under a per cent of the total, at a
     /// cost that does not grow with the number of patches.
     int farRays = 0;
+    /// With farRays: an element is gathered exactly when the point is within this many of
+    /// its own bounding radii (0: every element of a patch within nearRadii). Element by
+    /// element, the exact part stays a few sources per point however finely a mesh is
+    /// tessellated; a patch-wide near field on a tessellated mesh holds hundreds.
+    double nearElementRadii = 2;
     /// With a ray tracer and maxExactBlockers > 0: when more than this many blocker polygons
     /// reach into the pyramid from a point to a source (a finely tessellated mesh between
     /// them, whose shadows would split the source into hundreds of pieces), that source's
@@ -95,6 +100,18 @@ public:
     Rgb irradiance(const Vec3& x, const Vec3& n) const {
         return direct(x, n) + (mOptions.indirect ? indirect(x, n) : Rgb(0.0));
     }
+    /// Irradiance split by how it is found: `gathered` from sources one by one (the emitters;
+    /// every reflecting source without farRays, the near ones with), `farField` the far
+    /// field's rays (farRays). The gathered part is exact but for sources seen through more
+    /// than maxExactBlockers blockers, whose visibility is sampled with the same points of the
+    /// source from every x and so varies smoothly; it is the part to test an interpolant's fit
+    /// against.
+    struct Parts {
+        Rgb gathered{0.0}, farField{0.0};
+        Rgb total() const { return gathered + farField; }
+    };
+    /// `withFarField` false leaves the far field's rays out.
+    Parts irradianceParts(const Vec3& x, const Vec3& n, bool withFarField = true) const;
 
     std::size_t blockerCount() const { return mBlockers.size(); }
     std::size_t emitterCount() const { return mEmitters.size(); }
@@ -138,6 +155,11 @@ private:
     void addSourcesOfPatch(const SourcePatch& sp, const Vec3& x, std::vector<Source>& out) const;
 
     bool nearPatch(int patch, const Vec3& x) const;
+    bool nearElement(int element, const Vec3& x) const;
+    /// The patch distance (in its radii) within which a patch may hold near sources.
+    double nearPatchRadii() const {
+        return mOptions.nearElementRadii > 0 ? mOptions.nearElementRadii + 1 : mOptions.nearRadii;
+    }
     /// visiblePart, giving up (and setting `tooMany`) once more than `maxBlockers` (> 0)
     /// blockers reach into the pyramid.
     std::vector<std::vector<Vec3>> clipVisible(const Vec3& x, const std::vector<Vec3>& source,
@@ -148,6 +170,18 @@ private:
     double sampledVisibleFraction(const Vec3& x, const Vec3& n,
                                   const std::vector<Vec3>& source) const;
     Rgb farIndirect(const Vec3& x, const Vec3& n) const;
+    /// Form factor to the visible part of `source`; `sampled` set when its visibility was
+    /// estimated by rays (past maxExactBlockers).
+    double formFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& source,
+                      int ignoreObject, bool& sampled) const;
+    /// Adds radiosity × the visible form factor of `source` to the part it was found by.
+    void addSource(const Vec3& x, const Vec3& n, const std::vector<Vec3>& source,
+                   const Rgb& radiosity, Parts& parts) const;
+    void addDirect(const Vec3& x, const Vec3& n, Parts& parts) const;
+    /// The indirect light of the sources gathered one by one (every source without farRays,
+    /// the near ones with).
+    void addGathered(const Vec3& x, const Vec3& n, Parts& parts) const;
+    bool sampledFarField() const { return mOptions.farRays > 0 && mTracer; }
 
     const Discretization& mDisc;
     ExactIrradianceOptions mOptions;
@@ -162,9 +196,10 @@ private:
     std::unordered_map<std::uint64_t, std::vector<int>> mPatchCells;
     double mCellSize = 1;
     std::uint64_t cellKey(long long i, long long j, long long k) const;
-    std::vector<Rgb> mReflected;       ///< per element
-    std::vector<Rgb> mPatchReflected;  ///< per patch, area-weighted mean
-    double mEpsilon = 1e-9;            ///< length tolerance, from the scene's size
+    std::vector<Rgb> mReflected;         ///< per element
+    std::vector<double> mElementRadius;  ///< bounding radius about the centroid, per element
+    std::vector<Rgb> mPatchReflected;    ///< per patch, area-weighted mean
+    double mEpsilon = 1e-9;              ///< length tolerance, from the scene's size
 };
 
 /// Per element, the radiosity the solution reflects: B − E (ρ·H plus the solver's ambient

@@ -1,5 +1,6 @@
 #include "render/hifi_mesh.h"
 
+#include <tbb/concurrent_hash_map.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include "render/edge_tree.h"
 #include "render/exact_irradiance.h"
 #include "solver/discretization.h"
+#include "solver/form_factor.h"
 #include "solver/ray_tracer.h"
 
 namespace penumbra {
@@ -378,6 +380,40 @@ void dropBoundarySegments(const std::vector<glm::dvec2>& poly,
                segs.end());
 }
 
+/// Where an exact sample is taken. A point off every contact line is shared by the triangles
+/// of every element of its object's surface that meet there with the same plane (key without
+/// the element); on a contact line irradiance jumps, so each element samples its own side.
+struct SampleKey {
+    int object = -1, sheet = 0, element = -1;
+    std::array<long long, 3> position{}, normal{};
+    bool operator==(const SampleKey& o) const {
+        return object == o.object && sheet == o.sheet && element == o.element &&
+               position == o.position && normal == o.normal;
+    }
+};
+
+struct SampleKeyHash {
+    static std::size_t hash(const SampleKey& k) {
+        std::uint64_t h = hashPair(static_cast<std::uint64_t>(k.object),
+                                   static_cast<std::uint64_t>(k.sheet) * 2654435761u +
+                                       static_cast<std::uint64_t>(k.element + 1));
+        for (long long c : k.position) h = hashPair(h, static_cast<std::uint64_t>(c));
+        for (long long c : k.normal) h = hashPair(h, static_cast<std::uint64_t>(c));
+        return static_cast<std::size_t>(h);
+    }
+    static bool equal(const SampleKey& a, const SampleKey& b) { return a == b; }
+};
+
+using SampleCache = tbb::concurrent_hash_map<SampleKey, ExactIrradiance::Parts, SampleKeyHash>;
+
+/// Distance from p to segment a–b.
+double segmentDistance(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b) {
+    const glm::dvec2 d = b - a;
+    const double len2 = glm::dot(d, d);
+    const double t = len2 > 0 ? std::clamp(glm::dot(p - a, d) / len2, 0.0, 1.0) : 0.0;
+    return glm::length(p - (a + t * d));
+}
+
 }  // namespace
 
 std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element) {
@@ -403,7 +439,16 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     for (const Material& m : disc.materials())
         brightest = std::max(brightest, luminance(m.emission));
     const double absoluteTolerance = 1e-4 * brightest;
-    std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0};
+    std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
+        centreSamples{0};
+    // Sample positions are shared on a grid far finer than any element.
+    Vec3 sceneLo(1e300), sceneHi(-1e300);
+    for (const Element& el : disc.elements()) {
+        sceneLo = glm::min(sceneLo, el.centroid);
+        sceneHi = glm::max(sceneHi, el.centroid);
+    }
+    const double grid = 1e-9 * std::max(1.0, glm::length(sceneHi - sceneLo));
+    SampleCache cache;
 
     auto work = [&] {
         tbb::parallel_for(0, elementCount, [&](int e) {
@@ -423,6 +468,8 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
             }
             for (const Discontinuity& d : contactsOn(disc, e, g, contacts, options.contactFraction))
                 contactSegsHere.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
+            // Points on a contact line (those on the boundary included) sample their side.
+            const std::vector<std::pair<glm::dvec2, glm::dvec2>> allContacts = contactSegsHere;
             dropBoundarySegments(g.poly2, segs, 1e-6 * size);
             dropBoundarySegments(g.poly2, contactSegsHere, 1e-6 * size);
             shadowSegs.fetch_add(static_cast<int>(segs.size()), std::memory_order_relaxed);
@@ -439,40 +486,83 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                 tri = triangulateConstrained(g.poly2, segs);
                 meshed.fetch_add(1, std::memory_order_relaxed);
             }
-            // Six exact samples per triangle, each moved a hair towards the triangle's centre:
-            // on a contact line irradiance jumps, and each side takes its own limit.
+            // Six exact samples per triangle. On a contact line irradiance jumps: there each is
+            // moved a hair towards its triangle's centre, so each side takes its own limit.
+            // Elsewhere the field is continuous and a sample is shared through the cache.
             auto& out = perElement[e];
+            const int sheet = disc.objects()[el.object].isBackFace(el.face) ? 1 : 0;
             auto sampleAt = [&](const glm::dvec2& q, const glm::dvec2& centre) {
+                bool onContact = false;
+                for (const auto& [a, b] : allContacts)
+                    if (segmentDistance(q, a, b) <= 1e-6 * size) {
+                        onContact = true;
+                        break;
+                    }
+                const Vec3 x = g.frame.to3(onContact ? q + 1e-4 * (centre - q) : q);
+                SampleKey key;
+                key.object = el.object;
+                key.sheet = sheet;
+                key.element = onContact ? e : -1;
+                for (int k = 0; k < 3; ++k) {
+                    key.position[k] = std::llround(x[k] / grid);
+                    key.normal[k] = std::llround(el.normal[k] * 1e6);
+                }
+                {
+                    SampleCache::const_accessor found;
+                    if (cache.find(found, key)) return found->second;
+                }
+                // Evaluated outside any lock; a point two threads reach at once is evaluated
+                // twice to the same value.
                 samples.fetch_add(1, std::memory_order_relaxed);
-                return exact.irradiance(g.frame.to3(q + 1e-4 * (centre - q)), el.normal);
+                const ExactIrradiance::Parts value = exact.irradianceParts(x, el.normal);
+                cache.insert({key, value});
+                return value;
+            };
+            // The refinement test's centre sample lies inside one triangle (never shared) and
+            // needs only the exact part.
+            auto centreSample = [&](const glm::dvec2& q) {
+                centreSamples.fetch_add(1, std::memory_order_relaxed);
+                return exact.irradianceParts(g.frame.to3(q), el.normal, false).gathered;
             };
             // A triangle whose interpolant misses an exact sample at its centre by more than the
             // tolerance is split into four at its edge midpoints, whose samples it already has.
-            std::function<void(const glm::dvec2*, const std::array<Rgb, 6>&, int)> emit =
-                [&](const glm::dvec2* p, const std::array<Rgb, 6>& r, int depth) {
-                    const QuadraticInterpolant q = QuadraticInterpolant::fromSamples(r);
+            std::function<void(const glm::dvec2*, const std::array<ExactIrradiance::Parts, 6>&,
+                               int)>
+                emit = [&](const glm::dvec2* p, const std::array<ExactIrradiance::Parts, 6>& r,
+                           int depth) {
+                    std::array<Rgb, 6> total, exactPart;
+                    for (int k = 0; k < 6; ++k) {
+                        total[k] = r[k].total();
+                        exactPart[k] = r[k].gathered;
+                    }
+                    const QuadraticInterpolant q = QuadraticInterpolant::fromSamples(total);
                     const glm::dvec2 mid[3] = {0.5 * (p[0] + p[1]), 0.5 * (p[1] + p[2]),
                                                0.5 * (p[2] + p[0])};
                     if (depth < options.maxRefineDepth && options.refineTolerance > 0) {
                         const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
-                        const double truth = luminance(sampleAt(centre, centre));
-                        const double fitted = luminance(q(1.0 / 3.0, 1.0 / 3.0));
+                        const double truth = luminance(centreSample(centre));
+                        // The fit of the exact part: the far field's ray noise would split
+                        // triangles for nothing, and the far field is smooth.
+                        const double fitted = luminance(
+                            QuadraticInterpolant::fromSamples(exactPart)(1.0 / 3.0, 1.0 / 3.0));
+                        // Relative to the whole irradiance there (what the pixel shows).
+                        const double seen = luminance(q(1.0 / 3.0, 1.0 / 3.0));
                         if (std::abs(fitted - truth) >
-                            options.refineTolerance * std::abs(truth) + absoluteTolerance) {
+                            options.refineTolerance * std::abs(seen) + absoluteTolerance) {
                             // Children: corner triangles and the middle one, counter-clockwise.
                             const glm::dvec2 corners[4][3] = {{p[0], mid[0], mid[2]},
                                                               {mid[0], p[1], mid[1]},
                                                               {mid[2], mid[1], p[2]},
                                                               {mid[0], mid[1], mid[2]}};
                             // Their vertex samples in the parent's order (A, AB, B, BC, C, CA).
-                            const Rgb vertex[4][3] = {{r[0], r[1], r[5]},
-                                                      {r[1], r[2], r[3]},
-                                                      {r[5], r[3], r[4]},
-                                                      {r[1], r[3], r[5]}};
+                            const ExactIrradiance::Parts vertex[4][3] = {{r[0], r[1], r[5]},
+                                                                         {r[1], r[2], r[3]},
+                                                                         {r[5], r[3], r[4]},
+                                                                         {r[1], r[3], r[5]}};
                             for (int c = 0; c < 4; ++c) {
                                 const glm::dvec2* cp = corners[c];
                                 const glm::dvec2 cc = (cp[0] + cp[1] + cp[2]) / 3.0;
-                                const std::array<Rgb, 6> cr = {
+                                const std::array<ExactIrradiance::Parts, 6> cr = {
                                     vertex[c][0], sampleAt(0.5 * (cp[0] + cp[1]), cc),
                                     vertex[c][1], sampleAt(0.5 * (cp[1] + cp[2]), cc),
                                     vertex[c][2], sampleAt(0.5 * (cp[2] + cp[0]), cc)};
@@ -494,7 +584,7 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                 if (std::abs(cross) <= 1e-14 * size * size) continue;  // degenerate
                 if (cross < 0) std::swap(p[1], p[2]);
                 const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
-                const std::array<Rgb, 6> r = {
+                const std::array<ExactIrradiance::Parts, 6> r = {
                     sampleAt(p[0], centre), sampleAt(0.5 * (p[0] + p[1]), centre),
                     sampleAt(p[1], centre), sampleAt(0.5 * (p[1] + p[2]), centre),
                     sampleAt(p[2], centre), sampleAt(0.5 * (p[0] + p[2]), centre)};
@@ -527,6 +617,7 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     mStats.shadowSegments = shadowSegs.load();
     mStats.contactSegments = contactSegs.load();
     mStats.samples = samples.load();
+    mStats.centreSamples = centreSamples.load();
     mStats.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }

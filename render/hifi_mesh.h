@@ -70,7 +70,8 @@ struct HifiStats {
     int triangles = 0;
     int shadowSegments = 0;   ///< kept VE/EV segments
     int contactSegments = 0;  ///< contact lines
-    int samples = 0;          ///< exact irradiance evaluations
+    int samples = 0;          ///< irradiance evaluations at triangle vertices and midpoints
+    int centreSamples = 0;    ///< exact-part evaluations at centres (the refinement test)
     double seconds = 0;
 };
 

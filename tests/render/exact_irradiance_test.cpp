@@ -221,6 +221,12 @@ TEST(ExactIrradiance, GatherMatchesAHemisphereOfRaysOverTheSameElements) {
         EXPECT_NEAR(total.x, byRays, 0.003 * byRays) << x.x << " " << x.z;
         EXPECT_GT(exact.indirect(x, n).x, 0.05 * total.x);
         EXPECT_NEAR(hybrid.irradiance(x, n).x, byRays, 0.01 * byRays) << x.x << " " << x.z;
+        // The parts add up to the irradiance; without rays there is no far field.
+        const ExactIrradiance::Parts parts = hybrid.irradianceParts(x, n);
+        EXPECT_NEAR(parts.total().x, hybrid.irradiance(x, n).x, 1e-12 * byRays);
+        EXPECT_GT(parts.farField.x, 0.0);
+        EXPECT_EQ(exact.irradianceParts(x, n).farField.x, 0.0);
+        EXPECT_NEAR(exact.irradianceParts(x, n).gathered.x, total.x, 1e-12 * byRays);
     }
 }
 

@@ -160,6 +160,78 @@ TEST(HifiMesh, ABoxOnTheFloorLeavesItsOutlineAsContactLines) {
     EXPECT_NEAR(length, 1.6, 1e-9);
 }
 
+TEST(HifiMesh, SharesSamplesWhereIrradianceIsContinuousAndSplitsThemAtContacts) {
+    Scene scene;
+    test::addMaterial(scene, "grey", Rgb(0.5));
+    test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(10.0));
+    scene.objects.push_back(test::makeQuad("floor", 2, 2, "grey", {0, 0, 0}));
+    scene.objects.push_back(test::makeQuad("lamp", 0.5, 0.5, "lamp", {-0.6, 1.2, 0}, {180, 0, 0}));
+    SceneObject box;
+    box.id = "box";
+    box.shape.type = ShapeType::Box;
+    box.shape.size = Vec3(0.4, 0.4, 0.4);
+    box.material = "grey";
+    box.transform.translate = Vec3(0.1, 0.2, 0.04);  // footprint x ∈ [−0.1, 0.3], z ∈ [−0.16, 0.24]
+    scene.objects.push_back(box);
+    scene.settings.patchSize = 0.5;
+    scene.settings.elementSize = 0.25;
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ProgressiveSolver solver(disc, tracer, SolverOptions{});
+    solver.converge(1e-4, 100000);
+    ExactIrradiance exact(disc);
+    exact.setReflected(reflectedRadiosity(disc, solver));
+    HifiMesh mesh;
+    mesh.build(disc, exact);
+    // Without sharing every triangle would take six samples of its own.
+    EXPECT_LT(mesh.stats().samples, 4 * mesh.stats().triangles);
+
+    // The floor triangles' values at each of their corners, grouped by corner.
+    auto onOutline = [](const Vec3& v) {
+        const bool inX = v.x > -0.1 - 1e-9 && v.x < 0.3 + 1e-9;
+        const bool inZ = v.z > -0.16 - 1e-9 && v.z < 0.24 + 1e-9;
+        return (inZ && (std::abs(v.x + 0.1) < 1e-9 || std::abs(v.x - 0.3) < 1e-9)) ||
+               (inX && (std::abs(v.z + 0.16) < 1e-9 || std::abs(v.z - 0.24) < 1e-9));
+    };
+    auto underBox = [](const Vec3& c) {
+        return c.x > -0.1 && c.x < 0.3 && c.z > -0.16 && c.z < 0.24;
+    };
+    struct Corner {
+        Vec3 at;
+        double value;
+        bool inside;  // its triangle lies under the box
+    };
+    std::vector<Corner> corners;
+    for (const HifiTriangle& t : mesh.triangles()) {
+        if (disc.elements()[t.element].object != 0) continue;
+        const Vec3 centre = (t.p[0] + t.p[1] + t.p[2]) / 3.0;
+        const double at[3] = {t.irradiance(0, 0).x, t.irradiance(1, 0).x, t.irradiance(0, 1).x};
+        for (int k = 0; k < 3; ++k) corners.push_back({t.p[k], at[k], underBox(centre)});
+    }
+    int shared = 0, outline = 0;
+    double brightest = 0;
+    for (const Corner& c : corners) brightest = std::max(brightest, c.value);
+    for (std::size_t i = 0; i < corners.size(); ++i)
+        for (std::size_t j = i + 1; j < corners.size(); ++j) {
+            const Corner &a = corners[i], &b = corners[j];
+            if (glm::length(a.at - b.at) > 1e-9) continue;
+            if (!onOutline(a.at)) {
+                // Off the contact irradiance is continuous: one sample serves both (equal up
+                // to the rounding of the coefficients; a sample of each side's own, moved a
+                // hair towards its triangle, would differ far more).
+                EXPECT_NEAR(a.value, b.value, 1e-12 * brightest) << a.at.x << " " << a.at.z;
+                ++shared;
+            } else if (a.inside != b.inside) {
+                // On it each side keeps its own limit: dark under the box.
+                const Corner& in = a.inside ? a : b;
+                EXPECT_LT(in.value, 1e-3 * brightest) << in.at.x << " " << in.at.z;
+                ++outline;
+            }
+        }
+    EXPECT_GT(shared, 0);
+    EXPECT_GT(outline, 0);
+}
+
 TEST(HifiMesh, InterpolantsFollowTheExactIrradianceCloserThanConstantElements) {
     CardScene s(0.25);
     ProgressiveSolver solver(*s.disc, *s.tracer, SolverOptions{});
