@@ -1,4 +1,5 @@
-// penumbra-editor [SCENE] [--emission-scale S] [--light-size R] [--units mm|cm|m] [--log LOG] [--play LOG] [--screenshot PNG --frames N] [--mode NAME]
+// penumbra-editor [SCENE] [--emission-scale S] [--light-size R] [--units mm|cm|m] [--log LOG]
+// [--play LOG] [--screenshot PNG --frames N] [--mode NAME]
 //                 [--display-divisor N] [--interactive-divisor N]
 //                 [--bench-drag ID [--frames N] [--record DIR] [--no-references]]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
@@ -51,7 +52,7 @@ int main(int argc, char** argv) {
     std::string mode = "epi";
     app.add_option("--mode", mode,
                    "viewport mode: epi (default), gouraud, cache, edges, samples, difference, "
-                   "outofdate")
+                   "outofdate, interpolant")
         ->check([](const std::string& name) {
             return penumbra::parseViewMode(name) ? std::string() : "unknown mode '" + name + "'";
         });

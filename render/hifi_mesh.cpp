@@ -449,10 +449,16 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     }
     const double grid = 1e-9 * std::max(1.0, glm::length(sceneHi - sceneLo));
     SampleCache cache;
+    std::atomic<bool> cancelled{false};
 
     auto work = [&] {
         tbb::parallel_for(0, elementCount, [&](int e) {
             done.fetch_add(1, std::memory_order_relaxed);
+            if (cancelled.load(std::memory_order_relaxed)) return;
+            if (options.cancelled && options.cancelled()) {
+                cancelled.store(true, std::memory_order_relaxed);
+                return;
+            }
             if (!disc.elementAlive(e)) return;
             const Element& el = disc.elements()[e];
             const ElementGeometry g = geometryOf(disc, e);
@@ -616,6 +622,7 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     mStats.triangles = static_cast<int>(mTriangles.size());
     mStats.shadowSegments = shadowSegs.load();
     mStats.contactSegments = contactSegs.load();
+    mStats.cancelled = cancelled.load();
     mStats.samples = samples.load();
     mStats.centreSamples = centreSamples.load();
     mStats.seconds =

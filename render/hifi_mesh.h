@@ -50,12 +50,15 @@ struct HifiOptions {
     /// of it, touches it: its outline there is a contact line.
     double contactFraction = 0.25;
     /// Representation-error refinement (the paper's §7.2 proposal): a triangle whose
-    /// interpolant misses the exact irradiance at its centre by more than this fraction
-    /// (plus 1e-4 of the brightest emitter's luminance) is split into four, up to
-    /// maxRefineDepth times. 0 turns it off. Above the noise of ray-sampled far fields
-    /// (ExactIrradianceOptions::farRays), which would otherwise split smooth regions.
+    /// interpolant of the gathered part (ExactIrradiance::Parts) misses it at the triangle's
+    /// centre by more than this fraction of the whole irradiance there (plus 1e-4 of the
+    /// brightest emitter's luminance) is split into four, up to maxRefineDepth times. 0 turns
+    /// it off.
     double refineTolerance = 0.03;
     int maxRefineDepth = 3;
+    /// Polled once per element: when it returns true the build stops early and the mesh is
+    /// left incomplete (HifiStats::cancelled). The editor cancels a build an edit outdates.
+    std::function<bool()> cancelled;
 };
 
 struct HifiTriangle {
@@ -73,6 +76,7 @@ struct HifiStats {
     int samples = 0;          ///< irradiance evaluations at triangle vertices and midpoints
     int centreSamples = 0;    ///< exact-part evaluations at centres (the refinement test)
     double seconds = 0;
+    bool cancelled = false;  ///< HifiOptions::cancelled stopped the build
 };
 
 /// Built once for a scene state; rebuild after an edit.

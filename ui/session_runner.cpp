@@ -18,6 +18,7 @@
 #endif
 
 #include "render/camera_rays.h"
+#include "render/exact_irradiance.h"
 #include "solver/discretization.h"
 
 namespace penumbra {
@@ -86,8 +87,10 @@ SessionRunner::~SessionRunner() {
     mRenderWake.notify_all();
     if (mSolverThread.joinable()) mSolverThread.join();
     if (mRenderThread.joinable()) mRenderThread.join();
-    // A display being built holds the structure: wait for it.
+    // A display or interpolants being built hold the structure: wait for them.
     if (mBuild.valid()) mBuild.wait();
+    mHifiOutdated = true;
+    if (mHifiBuild.valid()) mHifiBuild.wait();
     // The displays' shader workers may use the preview subset until they are joined.
     for (DisplaySlot& slot : mSlots) slot.display.reset();
 }
@@ -265,7 +268,10 @@ bool SessionRunner::solverIteration() {
     // Edits (and tasks, in their place) change the structure: exclusively.
     if (!commands.empty()) {
         const double a0 = nowSeconds();
+        // An interpolant build holding the structure stops at its next element.
+        ++mEditsWaiting;
         std::unique_lock<std::shared_mutex> lock(mStructure);
+        --mEditsWaiting;
         // The display's asynchronous shader reads the structure: paused while it changes, and
         // told what changed before it resumes.
         std::unique_lock<std::mutex> displayLock(mDisplayMutex);
@@ -434,12 +440,14 @@ bool SessionRunner::renderIteration() {
     std::shared_ptr<const ViewportImage> last;
     std::shared_ptr<const DocumentSummary> doc;
     std::string dragged;
+    bool solverIdle = false;
     {
         std::lock_guard<std::mutex> lock(mPublishMutex);
         light = mLight;
         last = mImage;
         doc = mDocument;
         dragged = mSolver.selected;
+        solverIdle = mSolver.idle;
     }
     // The dragged object's transform in the state rendered (the structure is held shared).
     mRenderDragged = mSession->selected();
@@ -457,15 +465,25 @@ bool SessionRunner::renderIteration() {
         if (displayLanded(view)) return renderDisplay(view, light, last, highlight, structure);
         loading = true;
     }
+    // The interpolant mode shows Gouraud until its mesh of this lighting lands.
+    const HifiMesh* hifi = nullptr;
+    std::string hifiNote;
+    if (view.mode == ViewMode::Interpolant) {
+        const bool still = solverIdle && dragged.empty() && light.previewVersion < 0;
+        hifi = hifiLanded(view, light, still, hifiNote);
+        loading = hifi == nullptr;
+    }
     const bool need = !last || last->stateSerial != light.serial ||
                       last->viewSerial != view.serial || (last->reduced && !view.interactive) ||
-                      (!loading && last->mode != view.mode);
+                      (!loading && last->mode != view.mode) ||
+                      (view.mode == ViewMode::Interpolant && last->note != hifiNote);
     if (!need || !light.radiosity) return false;
     // While the display is built, new lighting is shown at most every loadingImageMs (the
     // cores go to the build); view changes at once.
     if (loading && last && last->viewSerial == view.serial &&
         !(last->reduced && !view.interactive) &&
-        nowSeconds() - mLastLoadingImage < kLoadingImageMs * 1e-3)
+        nowSeconds() - mLastLoadingImage < kLoadingImageMs * 1e-3 &&
+        (view.mode != ViewMode::Interpolant || last->stateSerial == light.serial))
         return false;
     if (loading) mLastLoadingImage = nowSeconds();
 
@@ -513,6 +531,15 @@ bool SessionRunner::renderIteration() {
             tintPending(img->render.rgba, pending.radiance, light.pendingScale / M_PI);
             img->note = "red: pending unshot / redistribution |dB| (full at 5% of mean B)";
         }
+        if (hifi) {
+            // One ray per pixel finds the triangle whose interpolant it shows (the editor's GL
+            // context belongs to the UI thread); the outline over it as over Gouraud.
+            img->render.radiance =
+                renderInterpolants(disc, mSession->tracer(), *hifi, CameraRays(view.camera, w, h));
+            img->render.rgba = encodeDisplay(img->render.radiance);
+            if (highlight >= 0)
+                drawSelectionOutline(img->render.rgba, img->render.objectAt, w, h, highlight);
+        }
     } catch (const std::exception& e) {
         report(std::string("viewport: ") + e.what());
         return false;
@@ -528,7 +555,9 @@ bool SessionRunner::renderIteration() {
     img->stateSerial = light.serial;
     img->reduced = d > 1;
     img->mode = loading ? ViewMode::Gouraud : view.mode;
-    if (loading)
+    if (view.mode == ViewMode::Interpolant)
+        img->note = hifiNote;
+    else if (loading)
         img->note = std::string(viewModeLabel(view.mode)) + " display loading: Gouraud meanwhile";
     img->previewVersion = light.previewVersion;
     img->dragged = mRenderDragged;
@@ -536,6 +565,81 @@ bool SessionRunner::renderIteration() {
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mImage = std::move(img);
     return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The interpolant mode.
+
+const HifiMesh* SessionRunner::hifiLanded(const ViewRequest& view, const Light& light, bool still,
+                                          std::string& note) {
+    if (mHifiBuild.valid() &&
+        mHifiBuild.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+        std::unique_ptr<HifiMesh> built = mHifiBuild.get();
+        if (built && mHifiBuildSerial == light.serial) {
+            mHifi = std::move(built);
+            mHifiSerial = light.serial;
+        }
+    }
+    if (mHifi && mHifiSerial == light.serial) {
+        char text[160];
+        std::snprintf(text, sizeof text, "interpolants: %d triangles, built in %.1f s",
+                      mHifi->stats().triangles, mHifi->stats().seconds);
+        note = text;
+        return mHifi.get();
+    }
+    if (mHifiBuild.valid()) {
+        if (mHifiBuildSerial != light.serial) mHifiOutdated = true;  // stops at its next element
+        char text[160];
+        std::snprintf(text, sizeof text, "interpolants: building %.0f%% (Gouraud meanwhile)",
+                      100 * mHifiProgress.load());
+        note = text;
+        return nullptr;
+    }
+    if (!still || view.interactive || !light.radiosity) {
+        note = "interpolants: built when the lighting and the view are still (Gouraud meanwhile)";
+        return nullptr;
+    }
+    mHifiBuildSerial = light.serial;
+    mHifiProgress = 0;
+    mHifiOutdated = false;
+    note = "interpolants: building 0% (Gouraud meanwhile)";
+    if (!mOptions.threaded) {
+        mHifi = buildHifi(light.radiosity);
+        mHifiSerial = light.serial;
+        return mHifi.get();
+    }
+    mHifiBuild = std::async(std::launch::async, [this, radiosity = light.radiosity] {
+        lowerThreadPriority(mOptions.backgroundNice);
+        return buildHifi(radiosity);
+    });
+    return nullptr;
+}
+
+std::unique_ptr<HifiMesh> SessionRunner::buildHifi(
+    std::shared_ptr<const std::vector<Rgb>> radiosity) {
+    std::shared_lock<std::shared_mutex> structure(mStructure);
+    const Discretization& disc = mSession->discretization();
+    if (radiosity->size() != disc.elements().size()) return nullptr;
+    try {
+        ExactIrradianceOptions exactOptions;
+        exactOptions.farRays = mOptions.hifiGatherRays;
+        exactOptions.maxExactBlockers = 48;  // as `render --mode interpolant`
+        ExactIrradiance exact(disc, exactOptions, &mSession->tracer());
+        std::vector<Rgb> reflected(radiosity->size());
+        for (std::size_t e = 0; e < reflected.size(); ++e)
+            reflected[e] =
+                glm::max((*radiosity)[e] - disc.elementMaterial(int(e)).emission, Rgb(0.0));
+        exact.setReflected(std::move(reflected));
+        HifiOptions options;
+        options.cancelled = [this] { return mEditsWaiting.load() > 0 || mHifiOutdated.load(); };
+        auto mesh = std::make_unique<HifiMesh>();
+        mesh->build(disc, exact, options, [this](double f) { mHifiProgress = f; });
+        if (mesh->stats().cancelled) return nullptr;
+        return mesh;
+    } catch (const std::exception& e) {
+        report(std::string("interpolants: ") + e.what());
+        return nullptr;
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1063,6 +1167,7 @@ bool SessionRunner::quiescent() const {
     return mSolver.idle && mSolver.selected.empty() && mImage &&
            mImage->viewSerial == view.serial && !mImage->reduced &&
            mImage->stateSerial == mLight.serial &&
+           (view.mode != ViewMode::Interpolant || mImage->mode == view.mode) &&
            (!usesInteractiveDisplay(view.mode) ||
             (mImage->mode == view.mode && mImage->settledFrames >= mOptions.settleFrames));
 }

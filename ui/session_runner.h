@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "edit/edit_session.h"
+#include "render/hifi_mesh.h"
 #include "render/interactive_display.h"
 #include "ui/picking.h"
 #include "ui/view_mode.h"
@@ -144,6 +145,9 @@ struct SessionRunnerOptions {
     /// maxReducedDivisor).
     int interactiveDisplayDivisor = 1;
     int referenceDivisor = 4;  ///< difference mode: reference at display / d pixels
+    /// Interpolant mode: far-field rays per exact irradiance sample (ExactIrradianceOptions::
+    /// farRays, as `render --mode interpolant`).
+    int hifiGatherRays = 256;
     /// Linux nice increment of the solver, render and display-shading threads (threaded
     /// runners): the UI thread keeps its frame rate on a busy machine. 0 leaves them as is.
     int backgroundNice = 5;
@@ -199,7 +203,8 @@ public:
     /// Commands queued and not yet applied.
     std::size_t queued() const;
     /// Nothing queued, no solver work pending, no drag, and the image shows the current
-    /// lighting and the latest view at full resolution (display modes: for settleFrames).
+    /// lighting and the latest view at full resolution (display modes: for settleFrames;
+    /// the interpolant mode: its interpolants).
     bool quiescent() const;
 
 private:
@@ -234,6 +239,14 @@ private:
     bool renderDisplay(const ViewRequest& view, const Light& light,
                        const std::shared_ptr<const ViewportImage>& last, int highlight,
                        std::shared_lock<std::shared_mutex>& structure);
+    /// Interpolant mode (render thread): the mesh of `light`'s lighting when one is built;
+    /// otherwise starts or follows its build (in the background once the lighting is still:
+    /// `still`) and says how far it got in `note`.
+    const HifiMesh* hifiLanded(const ViewRequest& view, const Light& light, bool still,
+                               std::string& note);
+    /// The build itself (any thread): the interpolants of the structure now and `radiosity`;
+    /// null when an edit came first.
+    std::unique_ptr<HifiMesh> buildHifi(std::shared_ptr<const std::vector<Rgb>> radiosity);
     void publishDocument();
     void publishLight();
     void publishSolver(double solverMs);
@@ -340,6 +353,16 @@ private:
     Image mReference;  ///< difference mode
     Camera mReferenceCamera;
     std::uint64_t mReferenceDone = 0;
+    // Interpolant mode. The build runs on a thread of its own holding the structure shared;
+    // an edit waiting for it (mEditsWaiting) or newer lighting (mHifiOutdated) stops it
+    // between elements, so an edit waits for one element's samples, not the build.
+    std::unique_ptr<HifiMesh> mHifi;  ///< the mesh shown, of lighting mHifiSerial
+    std::uint64_t mHifiSerial = 0;
+    std::future<std::unique_ptr<HifiMesh>> mHifiBuild;
+    std::uint64_t mHifiBuildSerial = 0;  ///< the lighting being built
+    std::atomic<double> mHifiProgress{0};
+    std::atomic<bool> mHifiOutdated{false};
+    std::atomic<int> mEditsWaiting{0};  ///< edit batches waiting for the structure
 
     std::thread mSolverThread, mRenderThread;
 };

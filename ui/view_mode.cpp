@@ -23,6 +23,7 @@ constexpr std::array<ModeName, kViewModeCount> kModes{{
     {ViewMode::SamplesOverlay, "samples", "Samples overlay"},
     {ViewMode::Difference, "difference", "Difference vs reference"},
     {ViewMode::OutOfDate, "outofdate", "Out-of-date lighting"},
+    {ViewMode::Interpolant, "interpolant", "High fidelity (interpolants)"},
 }};
 
 std::uint8_t toByte(double v) {
@@ -44,7 +45,8 @@ std::optional<ViewMode> parseViewMode(const std::string& name) {
 }
 
 bool usesInteractiveDisplay(ViewMode mode) {
-    return mode != ViewMode::Gouraud && mode != ViewMode::OutOfDate;
+    return mode != ViewMode::Gouraud && mode != ViewMode::OutOfDate &&
+           mode != ViewMode::Interpolant;
 }
 
 std::vector<std::uint8_t> encodeDisplay(const Image& radiance) {

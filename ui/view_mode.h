@@ -23,13 +23,17 @@ enum class ViewMode {
     SamplesOverlay,  ///< edge-and-point with this frame's new samples as dots
     Difference,      ///< |edge-and-point − reference| as false colour
     OutOfDate,       ///< Gouraud tinted where unshot / redistribution energy is pending
+    /// Hardt & Teller 1996: quadratic interpolants over the discontinuity mesh (hifi_mesh.h),
+    /// built in the background once the lighting is still; Gouraud meanwhile
+    Interpolant,
 };
 
-constexpr int kViewModeCount = 7;
+constexpr int kViewModeCount = 8;
 
 /// Menu label ("Edge-and-point", ...).
 const char* viewModeLabel(ViewMode mode);
-/// Command-line name: gouraud, epi, cache, edges, samples, difference, outofdate.
+/// Command-line name: gouraud, epi, cache, edges, samples, difference, outofdate,
+/// interpolant.
 const char* toString(ViewMode mode);
 /// Inverse of toString (case-sensitive); nullopt for an unknown name.
 std::optional<ViewMode> parseViewMode(const std::string& name);

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <random>
 
@@ -262,6 +263,26 @@ TEST(HifiMesh, InterpolantsFollowTheExactIrradianceCloserThanConstantElements) {
     const double relHifi = std::sqrt(errHifi / norm), relConst = std::sqrt(errConst / norm);
     EXPECT_LT(relHifi, 0.02);
     EXPECT_LT(relHifi, 0.3 * relConst);
+}
+
+TEST(HifiMesh, ACancelledBuildStopsEarlyAndSaysSo) {
+    CardScene s(0.25);
+    ProgressiveSolver solver(*s.disc, *s.tracer, SolverOptions{});
+    solver.converge(1e-4, 100000);
+    ExactIrradiance exact(*s.disc);
+    exact.setReflected(reflectedRadiosity(*s.disc, solver));
+    HifiMesh whole;
+    whole.build(*s.disc, exact);
+    EXPECT_FALSE(whole.stats().cancelled);
+    // Cancelled after a few elements: those may finish, the rest are not sampled.
+    std::atomic<int> polls{0};
+    HifiOptions options;
+    options.cancelled = [&] { return ++polls > 4; };
+    HifiMesh part;
+    part.build(*s.disc, exact, options);
+    EXPECT_TRUE(part.stats().cancelled);
+    EXPECT_LT(part.stats().triangles, whole.stats().triangles / 2);
+    EXPECT_LT(part.stats().samples, whole.stats().samples / 2);
 }
 
 TEST(HifiMesh, RendersWithoutADisplay) {

@@ -20,6 +20,7 @@ TEST(ViewMode, NamesRoundTripAndUnknownNamesAreRejected) {
     EXPECT_FALSE(parseViewMode("").has_value());
     EXPECT_FALSE(usesInteractiveDisplay(ViewMode::Gouraud));
     EXPECT_FALSE(usesInteractiveDisplay(ViewMode::OutOfDate));
+    EXPECT_FALSE(usesInteractiveDisplay(ViewMode::Interpolant));
     EXPECT_TRUE(usesInteractiveDisplay(ViewMode::EdgeAndPoint));
     EXPECT_TRUE(usesInteractiveDisplay(ViewMode::Difference));
 }

@@ -1,0 +1,156 @@
+// SessionRunner in the interpolant mode (Hardt & Teller 1996): Gouraud while the lighting
+// moves, then, once it is still, the interpolants of exactly that lighting, built in the
+// background; an edit outdates them and they come back for the new lighting. The reference
+// is an independent build: a fresh session converged the same way, its own ExactIrradiance
+// and HifiMesh, drawn by renderInterpolants.
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "render/camera_rays.h"
+#include "render/exact_irradiance.h"
+#include "render/gouraud_renderer.h"
+#include "test_scenes.h"
+#include "ui/session_runner.h"
+
+namespace penumbra {
+namespace {
+
+constexpr int kSize = 64;
+
+ViewRequest view() {
+    ViewRequest v;
+    v.camera = test::litRoomTopCamera();
+    v.width = v.height = kSize;
+    v.mode = ViewMode::Interpolant;
+    return v;
+}
+
+std::shared_ptr<const ViewportImage> pumpUntil(
+    SessionRunner& runner, double seconds, const std::function<bool(const ViewportImage&)>& done) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    std::shared_ptr<const ViewportImage> img;
+    while (std::chrono::steady_clock::now() < end) {
+        if (!runner.image() || !done(*runner.image())) {
+            runner.pump();
+        }
+        img = runner.image();
+        if (img && done(*img)) break;
+    }
+    return img;
+}
+
+std::shared_ptr<const ViewportImage> waitUntil(
+    SessionRunner& runner, double seconds, const std::function<bool(const ViewportImage&)>& done) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    std::shared_ptr<const ViewportImage> img;
+    while (std::chrono::steady_clock::now() < end) {
+        img = runner.image();
+        if (img && done(*img)) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return img;
+}
+
+double relativeDifference(const Image& a, const Image& b) {
+    double num = 0, den = 0;
+    for (std::size_t i = 0; i < a.pixels.size(); ++i) {
+        const Rgb d = a.pixels[i] - b.pixels[i];
+        num += glm::dot(d, d);
+        den += glm::dot(b.pixels[i], b.pixels[i]);
+    }
+    return std::sqrt(num / den);
+}
+
+/// The interpolants of `scene` converged to 1e-3 as the runner converges it, drawn from
+/// the test view, and the Gouraud image of the same lighting.
+std::pair<Image, Image> independentImages(const Scene& scene) {
+    EditSession session(scene, SolverOptions{});
+    while (!session.solver().converged(1e-3) && session.solve(1) > 0) {
+    }
+    const Discretization& disc = session.discretization();
+    ExactIrradianceOptions exactOptions;
+    exactOptions.farRays = 256;
+    exactOptions.maxExactBlockers = 48;
+    ExactIrradiance exact(disc, exactOptions, &session.tracer());
+    exact.setReflected(reflectedRadiosity(disc, session.solver()));
+    HifiMesh mesh;
+    mesh.build(disc, exact);
+    const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
+    Image hifi = renderInterpolants(disc, session.tracer(), mesh, rays);
+    Image gouraud = renderGouraud(disc, session.tracer(), session.solver().displayRadiosity(),
+                                  test::litRoomTopCamera(), kSize, kSize);
+    return {std::move(hifi), std::move(gouraud)};
+}
+
+TEST(SessionRunnerInterpolant, ShowsTheInterpolantsOnceTheLightingIsStillAndAgainAfterAnEdit) {
+    SessionRunnerOptions options;
+    options.threaded = false;
+    options.solveBudgetMs = 1;  // a few shots per pump: the lighting moves for a while
+    const Scene scene = test::makeLitRoom("red");
+    SessionRunner runner(std::make_unique<EditSession>(scene, SolverOptions{}), options);
+    runner.setView(view());
+    // While the solver shoots: Gouraud, saying why.
+    runner.pump();
+    ASSERT_TRUE(runner.image());
+    EXPECT_EQ(runner.image()->mode, ViewMode::Gouraud);
+    EXPECT_NE(runner.image()->note.find("interpolants"), std::string::npos);
+
+    auto shown = pumpUntil(runner, 60,
+                           [](const ViewportImage& i) { return i.mode == ViewMode::Interpolant; });
+    ASSERT_TRUE(shown && shown->mode == ViewMode::Interpolant);
+    EXPECT_FALSE(shown->reduced);
+    auto [hifi, gouraud] = independentImages(scene);
+    const double toHifi = relativeDifference(shown->render.radiance, hifi);
+    const double hifiToGouraud = relativeDifference(gouraud, hifi);
+    EXPECT_LT(toHifi, 1e-6);
+    EXPECT_GT(hifiToGouraud, 10 * toHifi);
+    EXPECT_TRUE(runner.takeMessages().empty());
+
+    // An edit: Gouraud of the new lighting until it is still, then its interpolants.
+    TransformCommand t;
+    t.id = "slab";
+    t.translate = test::kLitRoomSlabDragTarget;
+    runner.submit(t);
+    runner.pump();
+    EXPECT_EQ(runner.image()->mode, ViewMode::Gouraud);
+    EXPECT_GT(runner.image()->stateSerial, shown->stateSerial);
+    auto after = pumpUntil(runner, 60,
+                           [](const ViewportImage& i) { return i.mode == ViewMode::Interpolant; });
+    ASSERT_TRUE(after && after->mode == ViewMode::Interpolant);
+    Scene moved = scene;
+    for (SceneObject& o : moved.objects)
+        if (o.id == "slab") o.transform.translate = test::kLitRoomSlabDragTarget;
+    auto [movedHifi, movedGouraud] = independentImages(moved);
+    (void)movedGouraud;
+    // Redistribution reaches the lighting of a fresh solve only to the convergence threshold.
+    EXPECT_LT(relativeDifference(after->render.radiance, movedHifi), 0.005);
+    EXPECT_GT(relativeDifference(after->render.radiance, hifi), 0.05);
+}
+
+TEST(SessionRunnerInterpolant, ThreadedRunnerBuildsInTheBackgroundAndFollowsAnEdit) {
+    SessionRunnerOptions options;
+    options.solveBudgetMs = 5;
+    SessionRunner runner(std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{}),
+                         options);
+    runner.setView(view());
+    auto first = waitUntil(runner, 60,
+                           [](const ViewportImage& i) { return i.mode == ViewMode::Interpolant; });
+    ASSERT_TRUE(first && first->mode == ViewMode::Interpolant);
+    TransformCommand t;
+    t.id = "slab";
+    t.translate = test::kLitRoomSlabDragTarget;
+    runner.submit(t);
+    auto second = waitUntil(runner, 60, [&](const ViewportImage& i) {
+        return i.mode == ViewMode::Interpolant && i.stateSerial > first->stateSerial;
+    });
+    ASSERT_TRUE(second && second->mode == ViewMode::Interpolant);
+    EXPECT_GT(relativeDifference(second->render.radiance, first->render.radiance), 0.05);
+    EXPECT_TRUE(runner.takeMessages().empty());
+}
+
+}  // namespace
+}  // namespace penumbra
