@@ -15,20 +15,20 @@
 #include <optional>
 #include <sstream>
 
+#include "app/import_flags.h"
 #include "bench/bench.h"
 #include "edit/edit_log.h"
 #include "edit/edit_session.h"
 #include "edit/export.h"
 #include "edit/input_error.h"
 #include "edit/lit_scene.h"
-#include "app/import_flags.h"
 #include "edit/replay.h"
 #include "edit/scene_io.h"
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
-#include "render/gouraud_renderer.h"
 #include "render/gl/interpolant_gl.h"
 #include "render/gl/offscreen_context.h"
+#include "render/gouraud_renderer.h"
 #include "render/hifi_mesh.h"
 #include "render/image.h"
 #include "render/interactive_display.h"
@@ -48,6 +48,8 @@ struct SolveArgs {
     double stochasticBelow = interactiveSolverOptions().stochasticBelow;
     std::string save, exportPath, report, saveScene;
     ImportOptions import;
+    bool exportHifi = false;  ///< export: the interpolants' triangles instead of the elements
+    int gatherRays = 256;     ///< interpolants: ExactIrradianceOptions::farRays
 };
 
 constexpr const char* kSceneHelp = "scene file (*.json, or *.gltf *.glb *.obj to import)";
@@ -99,14 +101,79 @@ void writeReport(const std::string& path, const nlohmann::json& report) {
     if (!path.empty()) writeFileAtomically(path, report.dump(2) + "\n");
 }
 
+/// The high-fidelity mesh of a solved scene (Hardt & Teller 1996): exact irradiance with the
+/// far field's rays and sampled visibility past 48 blockers, gathered from a second solve in
+/// which every element shoots (leafReflectedRadiosity), meshed and sampled with progress on a
+/// terminal.
+HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
+    const Discretization& disc = lit.discretization();
+    ExactIrradianceOptions exactOptions;
+    exactOptions.farRays = a.gatherRays;
+    exactOptions.maxExactBlockers = 48;
+    ExactIrradiance exact(disc, exactOptions, &lit.tracer());
+    SolverOptions leafOptions = interactiveSolverOptions();
+    leafOptions.seed = a.seed;
+    leafOptions.stochasticBelow = a.stochasticBelow;
+    exact.setReflected(leafReflectedRadiosity(lit.scene(), disc, lit.solver(), leafOptions,
+                                              a.converge, a.maxShots));
+    HifiMesh mesh;
+    const bool tty = ::isatty(STDERR_FILENO);
+    mesh.build(disc, exact, HifiOptions{}, [&](double f) {
+        if (tty) std::fprintf(stderr, "\rmeshing and sampling %3.0f%%", 100 * f);
+    });
+    if (tty) std::fprintf(stderr, "\n");
+    return mesh;
+}
+
+nlohmann::json hifiReport(const HifiMesh& mesh) {
+    const HifiStats& st = mesh.stats();
+    return {{"elements", st.elements},
+            {"meshed_elements", st.meshedElements},
+            {"triangles", st.triangles},
+            {"shadow_segments", st.shadowSegments},
+            {"contact_segments", st.contactSegments},
+            {"samples", st.samples},
+            {"centre_samples", st.centreSamples},
+            {"build_seconds", st.seconds}};
+}
+
+/// The interpolants as triangles for export: each split into four at its edge midpoints, so
+/// that the linear interpolation of vertex colours other tools do follows the quadratic.
+std::vector<LitTriangle> interpolantTriangles(const Discretization& disc, const HifiMesh& mesh) {
+    std::vector<LitTriangle> out;
+    out.reserve(4 * mesh.triangles().size());
+    for (std::size_t t = 0; t < mesh.triangles().size(); ++t) {
+        const HifiTriangle& tri = mesh.triangles()[t];
+        // (s, t) of the corners and midpoints: p = p0 + s (p1 − p0) + t (p2 − p0).
+        const glm::dvec2 st[6] = {{0, 0}, {0.5, 0}, {1, 0}, {0.5, 0.5}, {0, 1}, {0, 0.5}};
+        Vec3 p[6];
+        Rgb b[6];
+        for (int k = 0; k < 6; ++k) {
+            p[k] = tri.p[0] + st[k].x * (tri.p[1] - tri.p[0]) + st[k].y * (tri.p[2] - tri.p[0]);
+            b[k] = mesh.radiosity(disc, static_cast<int>(t), st[k].x, st[k].y);
+        }
+        const int corners[4][3] = {{0, 1, 5}, {1, 2, 3}, {5, 3, 4}, {1, 3, 5}};
+        for (const auto& c : corners)
+            out.push_back({tri.element, {p[c[0]], p[c[1]], p[c[2]]}, {b[c[0]], b[c[1]], b[c[2]]}});
+    }
+    return out;
+}
+
 int runSolve(const SolveArgs& a) {
+    if (!a.exportPath.empty()) checkExportPath(a.exportPath);
     auto lit = openAndSolve(a);
     if (!a.saveScene.empty()) saveScene(lit->scene(), a.saveScene);
     if (!a.save.empty()) saveSolution(*lit, a.save);
-    if (!a.exportPath.empty())
+    nlohmann::json report = lit->reportJson();
+    if (!a.exportPath.empty() && a.exportHifi) {
+        const HifiMesh mesh = buildInterpolants(*lit, a);
+        exportLitTriangles(lit->discretization(), interpolantTriangles(lit->discretization(), mesh),
+                           a.exportPath, &lit->scene());
+        report["hifi"] = hifiReport(mesh);
+    } else if (!a.exportPath.empty()) {
         exportLitScene(lit->discretization(), lit->solver().radiosity(), a.exportPath,
                        &lit->scene());
-    nlohmann::json report = lit->reportJson();
+    }
     writeReport(a.report, report);
     std::fprintf(
         stderr, "penumbra: %llu shots, %llu rays, %.3f s, unshot %.3g, %zu patches, %zu elements\n",
@@ -137,9 +204,9 @@ struct RenderArgs {
     int width = 512, height = 512, samples = 2;
     // Interactive display modes (epi, cache, reference).
     std::string log, overlay, rmseFrames = "last";
-    std::string compare;  ///< EXR reference: the report adds relative_rmse
+    std::string compare;   ///< EXR reference: the report adds relative_rmse
     int gatherRays = 256;  ///< interpolant: ExactIrradianceOptions::farRays
-    int frames = 0;  ///< 0: 1, or one per log line plus the first
+    int frames = 0;        ///< 0: 1, or one per log line plus the first
     double sampleFraction = 0.02;
     double warmup = 0.25;
     double orbitDeg = 0.5;                          ///< per frame
@@ -168,7 +235,6 @@ std::string siblingPath(const std::string& path, const std::string& suffix) {
     name += p.extension();
     return (p.parent_path() / name).string();
 }
-
 
 nlohmann::json frameJson(const DisplayFrameStats& f) {
     const DisplayStageTimes& t = f.times;
@@ -210,10 +276,10 @@ double compareWith(const Image& image, const std::string& path, const Discretiza
                    const RayTracer& tracer, const CameraRays& rays) {
     const Image reference = readExr(path);
     if (reference.width != image.width || reference.height != image.height)
-        throw InputError(path, "", "is " + std::to_string(reference.width) + "x" +
-                                       std::to_string(reference.height) + ", the render " +
-                                       std::to_string(image.width) + "x" +
-                                       std::to_string(image.height));
+        throw InputError(path, "",
+                         "is " + std::to_string(reference.width) + "x" +
+                             std::to_string(reference.height) + ", the render " +
+                             std::to_string(image.width) + "x" + std::to_string(image.height));
     return relativeRmse(image, reference, emitterMask(disc, tracer, rays));
 }
 
@@ -317,8 +383,8 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     report["max_penumbra_pixels"] = r.maxPenumbraPixels;
     report["frames"] = std::move(frameReports);
     if (!r.compare.empty())
-        report["relative_rmse"] = compareWith(image, r.compare, session->discretization(),
-                                              session->tracer(), *rays);
+        report["relative_rmse"] =
+            compareWith(image, r.compare, session->discretization(), session->tracer(), *rays);
     writeReport(a.report, report);
     return 0;
 }
@@ -363,21 +429,9 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     const Camera camera = pickCamera(lit->scene(), a.scene, r.camera);
     const CameraRays rays(camera, r.width, r.height);
     const Discretization& disc = lit->discretization();
-    ExactIrradianceOptions exactOptions;
-    exactOptions.farRays = r.gatherRays;
-    exactOptions.maxExactBlockers = 48;
-    ExactIrradiance exact(disc, exactOptions, &lit->tracer());
-    SolverOptions leafOptions = interactiveSolverOptions();
-    leafOptions.seed = a.seed;
-    leafOptions.stochasticBelow = a.stochasticBelow;
-    exact.setReflected(leafReflectedRadiosity(lit->scene(), disc, lit->solver(), leafOptions,
-                                              a.converge, a.maxShots));
-    HifiMesh mesh;
-    const bool tty = ::isatty(STDERR_FILENO);
-    mesh.build(disc, exact, HifiOptions{}, [&](double f) {
-        if (tty) std::fprintf(stderr, "\rmeshing and sampling %3.0f%%", 100 * f);
-    });
-    if (tty) std::fprintf(stderr, "\n");
+    SolveArgs withRays = a;
+    withRays.gatherRays = r.gatherRays;
+    const HifiMesh mesh = buildInterpolants(*lit, withRays);
     // The paper's passes on an offscreen GL context (EGL on a GPU, else OSMesa); one Embree
     // ray per sample when no context can be made.
     nlohmann::json pass;
@@ -405,16 +459,8 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     report["image"] = r.out;
     report["mode"] = r.mode;
     report["pixel_pass"] = pass;
-    const HifiStats& st = mesh.stats();
-    report["hifi"] = {{"elements", st.elements},
-                      {"meshed_elements", st.meshedElements},
-                      {"triangles", st.triangles},
-                      {"shadow_segments", st.shadowSegments},
-                      {"contact_segments", st.contactSegments},
-                      {"samples", st.samples},
-                      {"centre_samples", st.centreSamples},
-                      {"build_seconds", st.seconds},
-                      {"render_ms", ms}};
+    report["hifi"] = hifiReport(mesh);
+    report["hifi"]["render_ms"] = ms;
     if (!r.compare.empty())
         report["relative_rmse"] = compareWith(image, r.compare, disc, lit->tracer(), rays);
     writeReport(a.report, report);
@@ -548,6 +594,15 @@ int main(int argc, char** argv) {
     addSolveOptions(exportCmd, solve);
     exportCmd->add_option("OUT", solve.exportPath, "output (.ply .gltf .glb .obj)")->required();
     exportCmd->add_option("--report", solve.report, "write a JSON report");
+    exportCmd->add_flag("--hifi", solve.exportHifi,
+                        "export the high-fidelity mesh (Hardt & Teller 1996: discontinuity-meshed "
+                        "triangles, colours from their quadratic interpolants) instead of the "
+                        "elements");
+    exportCmd
+        ->add_option("--gather-rays", solve.gatherRays,
+                     "--hifi: sample the far field's indirect light with this many rays per "
+                     "point (default 256; 0: every patch exactly)")
+        ->check(CLI::Range(0, 1 << 20));
 
     CLI::App* renderCmd = app.add_subcommand("render", "solve and render an image");
     addSolveOptions(renderCmd, solve);

@@ -230,20 +230,23 @@ void appendFanTriangles(const std::vector<int>& polygon, const std::vector<Vec3>
 // ---------------------------------------------------------------------------------------
 // PLY (binary little-endian)
 
-std::string encodePly(const Discretization& disc, const std::vector<LitObject>& lit) {
+/// `faces`: (object, polygon) in the order the faces are written; `faceNote` says what face i
+/// is in the header's comment.
+std::string encodePly(const std::vector<LitObject>& lit,
+                      const std::vector<std::pair<int, int>>& faces, const std::string& faceNote) {
     size_t vertexCount = 0;
     std::vector<size_t> firstVertex(lit.size());
     for (size_t o = 0; o < lit.size(); ++o) {
         firstVertex[o] = vertexCount;
         vertexCount += lit[o].positions.size();
     }
-    const auto& elements = disc.elements();
 
     std::string out =
         "ply\n"
         "format binary_little_endian 1.0\n"
         "comment Penumbra lit scene: world space metres; red green blue = radiance B/pi, "
-        "sRGB-encoded, clipped; radiosity_* = B in W/m^2; face i = element i\n";
+        "sRGB-encoded, clipped; radiosity_* = B in W/m^2; " +
+        faceNote + "\n";
     for (const LitObject& object : lit) {
         out.append("comment object ").append(lineToken(object.id)).push_back('\n');
     }
@@ -253,7 +256,7 @@ std::string encodePly(const Discretization& disc, const std::vector<LitObject>& 
            "property uchar red\nproperty uchar green\nproperty uchar blue\n"
            "property float radiosity_r\nproperty float radiosity_g\nproperty float radiosity_b\n"
            "element face " +
-           std::to_string(elements.size()) +
+           std::to_string(faces.size()) +
            "\n"
            "property list uchar int vertex_indices\n"
            "end_header\n";
@@ -274,14 +277,15 @@ std::string encodePly(const Discretization& disc, const std::vector<LitObject>& 
             appendLittleEndian(out, static_cast<float>(b.z));
         }
     }
-    for (const Element& element : elements) {
-        if (element.vertices.size() > 255) {
-            throw std::runtime_error("element with " + std::to_string(element.vertices.size()) +
+    for (const auto& [o, f] : faces) {
+        const std::vector<int>& polygon = lit[o].polygons[f];
+        if (polygon.size() > 255) {
+            throw std::runtime_error("element with " + std::to_string(polygon.size()) +
                                      " vertices does not fit a PLY uchar list");
         }
-        out.push_back(static_cast<char>(element.vertices.size()));
-        for (int v : element.vertices) {
-            appendLittleEndian(out, static_cast<std::int32_t>(firstVertex[element.object] + v));
+        out.push_back(static_cast<char>(polygon.size()));
+        for (int v : polygon) {
+            appendLittleEndian(out, static_cast<std::int32_t>(firstVertex[o] + v));
         }
     }
     return out;
@@ -411,14 +415,13 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
     auto reflector = [&](bool doubleSided, const std::string& name) {
         const auto key = std::make_pair(doubleSided, name);
         if (auto it = reflectorMaterial.find(key); it != reflectorMaterial.end()) return it->second;
-        gltfMaterials.push_back(
-            {{"name", name.empty() ? std::string("penumbra_radiance") : name},
-             {"pbrMetallicRoughness",
-              {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
-               {"metallicFactor", 0.0},
-               {"roughnessFactor", 1.0}}},
-             {"doubleSided", doubleSided},
-             {"extensions", {{"KHR_materials_unlit", json::object()}}}});
+        gltfMaterials.push_back({{"name", name.empty() ? std::string("penumbra_radiance") : name},
+                                 {"pbrMetallicRoughness",
+                                  {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
+                                   {"metallicFactor", 0.0},
+                                   {"roughnessFactor", 1.0}}},
+                                 {"doubleSided", doubleSided},
+                                 {"extensions", {{"KHR_materials_unlit", json::object()}}}});
         return reflectorMaterial[key] = gltfMaterials.size() - 1;
     };
     auto lamp = [&](int material, bool doubleSided, const std::string& name) {
@@ -472,7 +475,9 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
             const bool emitter = materials[material].isEmitter();
             primitives.push_back(
                 {{"attributes",
-                  {{"POSITION", position}, {"NORMAL", normal}, {"COLOR_0", color},
+                  {{"POSITION", position},
+                   {"NORMAL", normal},
+                   {"COLOR_0", color},
                    {"_RADIANCE", exact}}},
                  {"indices", addIndices(indices)},
                  {"material", emitter ? lamp(material, object.twoSided, object.materialName)
@@ -496,10 +501,10 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
         const Vec3 forward = camera.lookAt - camera.position;
         if (!(glm::length(forward) > 0) || !(glm::length(glm::cross(forward, camera.up)) > 0))
             continue;  // no direction: not a viewpoint
-        gltfCameras.push_back({{"name", camera.name},
-                               {"type", "perspective"},
-                               {"perspective",
-                                {{"yfov", camera.fovDeg * M_PI / 180.0}, {"znear", 0.01}}}});
+        gltfCameras.push_back(
+            {{"name", camera.name},
+             {"type", "perspective"},
+             {"perspective", {{"yfov", camera.fovDeg * M_PI / 180.0}, {"znear", 0.01}}}});
         const std::array<double, 4> q = cameraRotation(forward, camera.up);
         nodes.push_back({{"name", camera.name},
                          {"camera", gltfCameras.size() - 1},
@@ -603,16 +608,18 @@ std::vector<std::string> objMaterialNames(const Discretization& disc,
     return names;
 }
 
-std::string encodeObj(const Discretization& disc, const std::vector<LitObject>& lit,
-                      const std::vector<std::string>& names, const std::string& mtlFile) {
+std::string encodeObj(const std::vector<LitObject>& lit, const std::vector<std::string>& names,
+                      const std::string& mtlFile, const std::string& facesNote) {
     std::string out =
         "# Penumbra lit scene\n"
         "# v x y z r g b: world space metres; r g b = radiance B/pi, sRGB-encoded, clipped to "
         "[0,1]\n"
-        "# one object group per scene object, one face per element (counter-clockwise from "
-        "the front)\n";
-    out += "# objects " + std::to_string(lit.size()) + ", elements " +
-           std::to_string(disc.elements().size()) + "\n";
+        "# one object group per scene object, one face per " +
+        facesNote + " (counter-clockwise from the front)\n";
+    std::size_t faces = 0;
+    for (const LitObject& object : lit) faces += object.polygons.size();
+    out += "# objects " + std::to_string(lit.size()) + ", " + facesNote + "s " +
+           std::to_string(faces) + "\n";
     out += "mtllib " + mtlFile + "\n";
 
     const double invPi = glm::one_over_pi<double>();
@@ -687,23 +694,25 @@ std::string lowerExtension(const std::string& path) {
 // ---------------------------------------------------------------------------------------
 // Dispatch
 
-void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,
-                    const std::string& path, const Scene* scene) {
+void checkExportPath(const std::string& path) {
     const std::string ext = lowerExtension(path);
     if (ext != ".ply" && ext != ".gltf" && ext != ".glb" && ext != ".obj") {
         throw std::invalid_argument("cannot export " + path + ": unknown extension '" + ext +
                                     "' (expected .ply, .gltf, .glb or .obj)");
     }
-    if (elementRadiosity.size() != disc.elements().size()) {
-        throw std::invalid_argument(
-            "cannot export " + path + ": " + std::to_string(elementRadiosity.size()) +
-            " radiosity values for " + std::to_string(disc.elements().size()) + " elements");
-    }
+}
 
-    const std::vector<LitObject> lit = collectLitObjects(disc, elementRadiosity, scene);
+namespace {
+
+/// Writes `lit` in the format of `path`'s extension; `faces` and `faceNote` as encodePly's,
+/// `faceName` what an OBJ face is.
+void writeLit(const Discretization& disc, const std::vector<LitObject>& lit,
+              const std::vector<std::pair<int, int>>& faces, const std::string& faceNote,
+              const std::string& faceName, const std::string& path, const Scene* scene) {
+    const std::string ext = lowerExtension(path);
     std::string contents;
     if (ext == ".ply") {
-        contents = encodePly(disc, lit);
+        contents = encodePly(lit, faces, faceNote);
     } else if (ext == ".gltf") {
         contents = encodeGltf(lit, disc.materials(), scene);
     } else if (ext == ".glb") {
@@ -713,9 +722,79 @@ void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementR
         const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
         const std::vector<std::string> names = objMaterialNames(disc, lit);
         writeFileAtomically(mtl.string(), encodeMtl(disc, lit, names));
-        contents = encodeObj(disc, lit, names, mtl.filename().string());
+        contents = encodeObj(lit, names, mtl.filename().string(), faceName);
     }
     writeFileAtomically(path, contents);
+}
+
+}  // namespace
+
+void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,
+                    const std::string& path, const Scene* scene) {
+    checkExportPath(path);
+    if (elementRadiosity.size() != disc.elements().size()) {
+        throw std::invalid_argument(
+            "cannot export " + path + ": " + std::to_string(elementRadiosity.size()) +
+            " radiosity values for " + std::to_string(disc.elements().size()) + " elements");
+    }
+    const std::vector<LitObject> lit = collectLitObjects(disc, elementRadiosity, scene);
+    // Face i is element i: the k-th element of an object is its k-th polygon.
+    std::vector<std::pair<int, int>> faces;
+    std::vector<int> seen(lit.size(), 0);
+    for (const Element& element : disc.elements())
+        faces.emplace_back(element.object, seen[element.object]++);
+    writeLit(disc, lit, faces, "face i = element i", "element", path, scene);
+}
+
+void exportLitTriangles(const Discretization& disc, const std::vector<LitTriangle>& triangles,
+                        const std::string& path, const Scene* scene) {
+    checkExportPath(path);
+    const int elementCount = static_cast<int>(disc.elements().size());
+    // The objects as the element export names them, with their geometry replaced.
+    std::vector<LitObject> lit =
+        collectLitObjects(disc, std::vector<Rgb>(disc.elements().size(), Rgb(0.0)), scene);
+    for (LitObject& object : lit) {
+        object.positions.clear();
+        object.normals.clear();
+        object.radiosity.clear();
+        object.polygons.clear();
+        object.polygonMaterial.clear();
+    }
+    // Welding: one vertex per object, position, normal and radiosity.
+    using Key = std::array<double, 9>;
+    std::vector<std::map<Key, int>> welded(lit.size());
+    std::vector<std::pair<int, int>> faces;
+    for (std::size_t t = 0; t < triangles.size(); ++t) {
+        const LitTriangle& tri = triangles[t];
+        if (tri.element < 0 || tri.element >= elementCount) {
+            throw std::invalid_argument(
+                "cannot export " + path + ": triangle " + std::to_string(t) + " names element " +
+                std::to_string(tri.element) + " of " + std::to_string(elementCount));
+        }
+        const Element& element = disc.elements()[tri.element];
+        LitObject& object = lit[element.object];
+        std::vector<int> polygon;
+        for (int k = 0; k < 3; ++k) {
+            const Key key{tri.p[k].x,         tri.p[k].y,         tri.p[k].z,
+                          element.normal.x,   element.normal.y,   element.normal.z,
+                          tri.radiosity[k].x, tri.radiosity[k].y, tri.radiosity[k].z};
+            auto [it, added] =
+                welded[element.object].emplace(key, static_cast<int>(object.positions.size()));
+            if (added) {
+                object.positions.push_back(tri.p[k]);
+                object.normals.push_back(element.normal);
+                object.radiosity.push_back(tri.radiosity[k]);
+            }
+            polygon.push_back(it->second);
+        }
+        object.polygons.push_back(std::move(polygon));
+        object.polygonMaterial.push_back(disc.patches()[element.patch].material);
+    }
+    for (std::size_t o = 0; o < lit.size(); ++o)
+        for (std::size_t f = 0; f < lit[o].polygons.size(); ++f)
+            faces.emplace_back(static_cast<int>(o), static_cast<int>(f));
+    writeLit(disc, lit, faces, "face i = triangle i of the objects in order", "triangle", path,
+             scene);
 }
 
 }  // namespace penumbra

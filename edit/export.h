@@ -2,6 +2,7 @@
 // Export of a lit scene: the element meshes of every object in world space with their
 // radiosity as vertex colours, for viewing in other tools (MeshLab, Blender, glTF viewers).
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -43,5 +44,27 @@ class Discretization;
 /// cameras become glTF perspective camera nodes.
 void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,
                     const std::string& path, const Scene* scene = nullptr);
+
+/// Throws std::invalid_argument naming `path` unless its extension is one exportLitScene
+/// writes: checked before a long solve, not after it.
+void checkExportPath(const std::string& path);
+
+/// One triangle of a finer lit mesh than the elements (the high-fidelity mesh of
+/// render/hifi_mesh.h): world-space corners, counter-clockwise seen from the front, and the
+/// radiosity B (W/m²) at each.
+struct LitTriangle {
+    int element = -1;  ///< the element it lies in (object, material, normal)
+    std::array<Vec3, 3> p;
+    std::array<Rgb, 3> radiosity;
+};
+
+/// exportLitScene with `triangles` in place of the element polygons, in the same formats and
+/// with the same guarantees. Corners of one object with the same position, normal and
+/// radiosity are welded into one vertex, so the mesh stays connected where the light is
+/// continuous and splits where it jumps (contact lines). PLY: face i = triangle i of the
+/// objects in order. Throws std::invalid_argument for an unknown extension or a triangle
+/// naming no element of `disc`.
+void exportLitTriangles(const Discretization& disc, const std::vector<LitTriangle>& triangles,
+                        const std::string& path, const Scene* scene = nullptr);
 
 }  // namespace penumbra

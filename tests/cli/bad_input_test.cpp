@@ -182,4 +182,24 @@ TEST(BadInputCliFile, MissingSceneFile) {
     fs::remove_all(dir);
 }
 
+TEST(BadInputCliFile, UnknownExportExtensionIsRefusedBeforeSolving) {
+    const fs::path dir = uniqueTempDir("export_ext");
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path errPath = dir / "stderr.txt", out = dir / "lit.xyz";
+    // --hifi would mesh and sample for seconds first; the error must come before any of it
+    // (nothing written, one line naming the file).
+    const std::string command = std::string("timeout 60 '") + PENUMBRA_EXE + "' export '" +
+                                PENUMBRA_SOURCE_DIR + "/scenes/cornell-box.json' '" + out.string() +
+                                "' --hifi 2> '" + errPath.string() + "'";
+    const int status = runShell(command);
+    const std::string err = readFile(errPath);
+    EXPECT_EQ(status, 2) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    EXPECT_NE(err.find(out.string() + ": unknown extension '.xyz'"), std::string::npos) << err;
+    EXPECT_EQ(err.find("shots"), std::string::npos) << err;  // no solve ran
+    EXPECT_FALSE(fs::exists(out));
+    fs::remove_all(dir);
+}
+
 }  // namespace

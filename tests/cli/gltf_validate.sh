@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Issue 24's validator check: exports the bundled scenes, and a scene with a mesh, a two-sided
-# object and an emitter of coloured light, as glTF and GLB, and runs the Khronos validator
+# object and an emitter of coloured light, as glTF and GLB (elements, and the high-fidelity
+# mesh of issue 23), and runs the Khronos validator
 # (tools/gltf-validator, installed by scripts/setup.sh) over every export: no error, no warning.
 #
 # Usage: gltf_validate.sh PENUMBRA SOURCE_DIR
@@ -43,4 +44,7 @@ SCENE
 "$penumbra" export "$root/scenes/robot-room.json" "$tmp/robot-room.glb" --converge 1e-2
 "$penumbra" export "$tmp/mixed.json" "$tmp/mixed.gltf" --converge 1e-2
 "$penumbra" export "$tmp/mixed.json" "$tmp/mixed.glb" --converge 1e-2
+# The high-fidelity mesh's triangles (issue 23).
+"$penumbra" export "$root/scenes/cornell-box.json" "$tmp/cornell-box-hifi.glb" --converge 1e-2 --hifi
+"$penumbra" export "$tmp/mixed.json" "$tmp/mixed-hifi.gltf" --converge 1e-2 --hifi
 node "$validate" "$tmp"/*.gltf "$tmp"/*.glb

@@ -201,5 +201,65 @@ TEST_F(ExportRoundTrip, GlbReadsBackWithTinyGltf) {
     for (std::size_t o = 0; o < seen.size(); ++o) EXPECT_EQ(seen[o], 1) << disc->objects()[o].id;
 }
 
+TEST_F(ExportRoundTrip, TrianglesWeldWhereTheLightIsContinuousAndSplitWhereItJumps) {
+    // Three floor triangles (the floor is object 0, y = 0): two share an edge with the same
+    // radiosity at both its corners; the third meets them at a corner with another value,
+    // as across a contact line.
+    int floorElement = -1;
+    for (std::size_t e = 0; e < disc->elements().size() && floorElement < 0; ++e)
+        if (disc->elements()[e].object == 0) floorElement = static_cast<int>(e);
+    ASSERT_GE(floorElement, 0);
+    const Vec3 a(0, 0, 0), bb(0.1, 0, 0), c(0.1, 0, -0.1), d(0, 0, -0.1), e(-0.1, 0, 0);
+    const Rgb lo(0.2, 0.3, 0.4), hi(0.5, 0.6, 0.7), dark(0.01, 0.02, 0.03);
+    const std::vector<LitTriangle> triangles = {
+        {floorElement, {a, bb, c}, {lo, hi, lo}},
+        {floorElement, {a, c, d}, {lo, lo, hi}},
+        {floorElement, {e, a, d}, {dark, dark, dark}},
+    };
+    const std::string path = pathFor("tri.glb");
+    exportLitTriangles(*disc, triangles, path, &scene);
+    tinygltf::TinyGLTF loader;
+    tinygltf::Model model;
+    std::string error, warning;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&model, &error, &warning, path)) << error;
+    const tinygltf::Node* floor = nullptr;
+    for (const tinygltf::Node& node : model.nodes)
+        if (node.name == "floor" && node.mesh >= 0) floor = &node;
+    ASSERT_NE(floor, nullptr);
+    const tinygltf::Primitive& p = model.meshes.at(floor->mesh).primitives.at(0);
+    auto readVec3 = [&](int accessorIndex) {
+        const tinygltf::Accessor& acc = model.accessors.at(accessorIndex);
+        const tinygltf::BufferView& view = model.bufferViews.at(acc.bufferView);
+        const unsigned char* data =
+            model.buffers.at(view.buffer).data.data() + view.byteOffset + acc.byteOffset;
+        std::vector<Vec3> out(acc.count);
+        for (std::size_t i = 0; i < acc.count; ++i) {
+            float f[3];
+            std::memcpy(f, data + i * 3 * sizeof(float), sizeof f);
+            out[i] = Vec3(f[0], f[1], f[2]);
+        }
+        return out;
+    };
+    const std::vector<Vec3> positions = readVec3(p.attributes.at("POSITION"));
+    const std::vector<Vec3> radianceRead = readVec3(p.attributes.at("_RADIANCE"));
+    // a, b, c, d shared by the two lit triangles; e, a, d again for the dark one.
+    EXPECT_EQ(positions.size(), 7u);
+    const tinygltf::Accessor& indices = model.accessors.at(p.indices);
+    EXPECT_EQ(indices.count, 9u);
+    // Every corner read back carries its triangle's radiance B/π at its position.
+    for (const LitTriangle& t : triangles)
+        for (int k = 0; k < 3; ++k) {
+            bool found = false;
+            for (std::size_t v = 0; v < positions.size(); ++v)
+                if (glm::length(positions[v] - t.p[k]) < 1e-6 &&
+                    glm::length(radianceRead[v] - t.radiosity[k] / kPi) < 1e-6)
+                    found = true;
+            EXPECT_TRUE(found) << t.p[k].x << " " << t.p[k].z;
+        }
+    // An element index out of range is bad input.
+    EXPECT_THROW(exportLitTriangles(*disc, {{-1, {a, bb, c}, {lo, lo, lo}}}, path, &scene),
+                 std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace penumbra
