@@ -7,68 +7,20 @@ A collection node holds the room, a table, two chairs that share one mesh and on
 Nodes use translation/rotation/scale except the table, which uses a matrix. Run it from any
 folder; it writes next to itself.
 """
-import base64
-import json
 import math
 import os
-import struct
 
-buffer = bytearray()
-doc = {
-    "asset": {"version": "2.0", "generator": "penumbra scenes/gltf/make_studio.py"},
-    "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_emissive_strength"],
-    "scene": 0,
-    "scenes": [{"name": "Scene", "nodes": [0]}],
-    "nodes": [], "meshes": [], "materials": [], "accessors": [], "bufferViews": [],
-    "cameras": [], "extensions": {"KHR_lights_punctual": {"lights": []}},
-}
+from gltf_doc import GltfDoc
 
-
-def view(data, target):
-    while len(buffer) % 4:
-        buffer.append(0)
-    offset = len(buffer)
-    buffer.extend(data)
-    doc["bufferViews"].append({"buffer": 0, "byteOffset": offset, "byteLength": len(data),
-                               "target": target})
-    return len(doc["bufferViews"]) - 1
-
-
-def mesh(name, quads, material):
-    """quads: lists of four corners, counter-clockwise seen from the side they face."""
-    positions, indices = [], []
-    for q in quads:
-        base = len(positions)
-        positions.extend(q)
-        indices.extend([base, base + 1, base + 2, base, base + 2, base + 3])
-    lo = [min(p[i] for p in positions) for i in range(3)]
-    hi = [max(p[i] for p in positions) for i in range(3)]
-    pv = view(b"".join(struct.pack("<3f", *p) for p in positions), 34962)
-    doc["accessors"].append({"bufferView": pv, "componentType": 5126, "count": len(positions),
-                             "type": "VEC3", "min": lo, "max": hi})
-    iv = view(b"".join(struct.pack("<H", i) for i in indices), 34963)
-    doc["accessors"].append({"bufferView": iv, "componentType": 5123, "count": len(indices),
-                             "type": "SCALAR"})
-    doc["meshes"].append({"name": name, "primitives": [{
-        "attributes": {"POSITION": len(doc["accessors"]) - 2},
-        "indices": len(doc["accessors"]) - 1, "material": material}]})
-    return len(doc["meshes"]) - 1
+g = GltfDoc("penumbra scenes/gltf/make_studio.py", "Scene",
+            ["KHR_lights_punctual", "KHR_materials_emissive_strength"])
+doc = g.doc
+doc["extensions"] = {"KHR_lights_punctual": {"lights": []}}
+mesh, node = g.mesh, g.node
 
 
 def material(name, colour, emissive=None, strength=None):
-    m = {"name": name, "pbrMetallicRoughness": {"baseColorFactor": colour + [1.0],
-                                                "metallicFactor": 0.0, "roughnessFactor": 0.8}}
-    if emissive:
-        m["emissiveFactor"] = emissive
-    if strength:
-        m["extensions"] = {"KHR_materials_emissive_strength": {"emissiveStrength": strength}}
-    doc["materials"].append(m)
-    return len(doc["materials"]) - 1
-
-
-def node(**fields):
-    doc["nodes"].append(fields)
-    return len(doc["nodes"]) - 1
+    return g.material(name, colour, 0.8, emissive, strength)
 
 
 def box(sx, sy, sz, inward=False):
@@ -96,6 +48,7 @@ fabric = material("Fabric", [0.20, 0.30, 0.55])
 panel_light = material("PanelLight", [0.0, 0.0, 0.0], [1.0, 0.95, 0.85], 6.0)
 
 collection = node(name="Collection", children=[])
+doc["scenes"][0]["nodes"].append(collection)
 children = doc["nodes"][collection]["children"]
 # The room: 5 x 2.8 x 4 m, floor at y = 0.
 children.append(node(name="Room", mesh=mesh("Room", box(5.0, 2.8, 4.0, inward=True), plaster),
@@ -135,11 +88,4 @@ q = [qy[3] * qx[0] + qy[0] * qx[3] + qy[1] * qx[2] - qy[2] * qx[1],
      qy[3] * qx[3] - qy[0] * qx[0] - qy[1] * qx[1] - qy[2] * qx[2]]
 children.append(node(name="Camera", camera=0, translation=[2.1, 1.7, 1.8], rotation=q))
 
-doc["buffers"] = [{"byteLength": len(buffer),
-                   "uri": "data:application/octet-stream;base64," +
-                          base64.b64encode(bytes(buffer)).decode()}]
-out = os.path.join(os.path.dirname(os.path.abspath(__file__)), "studio.gltf")
-with open(out, "w") as f:
-    json.dump(doc, f, indent=1)
-    f.write("\n")
-print(out)
+g.write(os.path.join(os.path.dirname(os.path.abspath(__file__)), "studio.gltf"))

@@ -129,19 +129,32 @@ TEST(HifiMesh, ShadowEventsLieOnTheCardsPenumbraBoundaries) {
     EXPECT_GT(onBoundary, 0);
 }
 
-TEST(HifiMesh, ABoxOnTheFloorLeavesItsOutlineAsContactLines) {
+/// A 2 m floor (patches 0.5 m, elements 0.25 m) with a 0.4 m box resting on it off the
+/// floor's element grid: footprint x ∈ [−0.1, 0.3], z ∈ [−0.16, 0.24]; with a lamp to its
+/// side when `lit`.
+Scene boxOnFloor(bool lit) {
     Scene scene;
     test::addMaterial(scene, "grey", Rgb(0.5));
     scene.objects.push_back(test::makeQuad("floor", 2, 2, "grey", {0, 0, 0}));
+    if (lit) {
+        test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(10.0));
+        scene.objects.push_back(
+            test::makeQuad("lamp", 0.5, 0.5, "lamp", {-0.6, 1.2, 0}, {180, 0, 0}));
+    }
     SceneObject box;
     box.id = "box";
     box.shape.type = ShapeType::Box;
     box.shape.size = Vec3(0.4, 0.4, 0.4);
     box.material = "grey";
-    box.transform.translate = Vec3(0.1, 0.2, 0.04);  // off the floor's element grid
+    box.transform.translate = Vec3(0.1, 0.2, 0.04);
     scene.objects.push_back(box);
     scene.settings.patchSize = 0.5;
     scene.settings.elementSize = 0.25;
+    return scene;
+}
+
+TEST(HifiMesh, ABoxOnTheFloorLeavesItsOutlineAsContactLines) {
+    const Scene scene = boxOnFloor(false);
     Discretization disc(scene);
     double length = 0;
     for (std::size_t e = 0; e < disc.elements().size(); ++e) {
@@ -162,20 +175,7 @@ TEST(HifiMesh, ABoxOnTheFloorLeavesItsOutlineAsContactLines) {
 }
 
 TEST(HifiMesh, SharesSamplesWhereIrradianceIsContinuousAndSplitsThemAtContacts) {
-    Scene scene;
-    test::addMaterial(scene, "grey", Rgb(0.5));
-    test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(10.0));
-    scene.objects.push_back(test::makeQuad("floor", 2, 2, "grey", {0, 0, 0}));
-    scene.objects.push_back(test::makeQuad("lamp", 0.5, 0.5, "lamp", {-0.6, 1.2, 0}, {180, 0, 0}));
-    SceneObject box;
-    box.id = "box";
-    box.shape.type = ShapeType::Box;
-    box.shape.size = Vec3(0.4, 0.4, 0.4);
-    box.material = "grey";
-    box.transform.translate = Vec3(0.1, 0.2, 0.04);  // footprint x ∈ [−0.1, 0.3], z ∈ [−0.16, 0.24]
-    scene.objects.push_back(box);
-    scene.settings.patchSize = 0.5;
-    scene.settings.elementSize = 0.25;
+    const Scene scene = boxOnFloor(true);
     Discretization disc(scene);
     RayTracer tracer(disc);
     ProgressiveSolver solver(disc, tracer, SolverOptions{});

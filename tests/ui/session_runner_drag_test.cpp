@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "render/camera_rays.h"
+#include "runner_test_support.h"
 #include "test_scenes.h"
 #include "ui/session_runner.h"
 
@@ -30,19 +31,7 @@ ViewRequest view(bool interactive) {
     return v;
 }
 
-/// Pumps until `done` holds for the latest image (at most `seconds`).
-std::shared_ptr<const ViewportImage> pumpUntil(
-    SessionRunner& runner, double seconds, const std::function<bool(const ViewportImage&)>& done) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    std::shared_ptr<const ViewportImage> img;
-    while (std::chrono::steady_clock::now() < end) {
-        runner.pump();
-        img = runner.image();
-        if (img && done(*img)) break;
-        std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    return img;
-}
+using test::pumpUntil;
 
 struct Rgba {
     int r, g, b;

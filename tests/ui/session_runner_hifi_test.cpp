@@ -13,6 +13,7 @@
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
 #include "render/gouraud_renderer.h"
+#include "runner_test_support.h"
 #include "test_scenes.h"
 #include "ui/session_runner.h"
 
@@ -29,31 +30,8 @@ ViewRequest view() {
     return v;
 }
 
-std::shared_ptr<const ViewportImage> pumpUntil(
-    SessionRunner& runner, double seconds, const std::function<bool(const ViewportImage&)>& done) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    std::shared_ptr<const ViewportImage> img;
-    while (std::chrono::steady_clock::now() < end) {
-        if (!runner.image() || !done(*runner.image())) {
-            runner.pump();
-        }
-        img = runner.image();
-        if (img && done(*img)) break;
-    }
-    return img;
-}
-
-std::shared_ptr<const ViewportImage> waitUntil(
-    SessionRunner& runner, double seconds, const std::function<bool(const ViewportImage&)>& done) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    std::shared_ptr<const ViewportImage> img;
-    while (std::chrono::steady_clock::now() < end) {
-        img = runner.image();
-        if (img && done(*img)) break;
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return img;
-}
+using test::pumpUntil;
+using test::waitUntil;
 
 double relativeDifference(const Image& a, const Image& b) {
     double num = 0, den = 0;
