@@ -134,6 +134,7 @@ nlohmann::json hifiReport(const HifiMesh& mesh) {
             {"contact_segments", st.contactSegments},
             {"samples", st.samples},
             {"centre_samples", st.centreSamples},
+            {"covered_triangles", st.coveredTriangles},
             {"build_seconds", st.seconds}};
 }
 

@@ -116,6 +116,8 @@ public:
     std::size_t blockerCount() const { return mBlockers.size(); }
     std::size_t emitterCount() const { return mEmitters.size(); }
     const ExactIrradianceOptions& options() const { return mOptions; }
+    /// The ray tracer given at construction (null without one).
+    const RayTracer* tracer() const { return mTracer; }
     std::string toString() const;
 
 private:

@@ -450,6 +450,8 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     const double grid = 1e-9 * std::max(1.0, glm::length(sceneHi - sceneLo));
     SampleCache cache;
     std::atomic<bool> cancelled{false};
+    std::atomic<int> covered{0};
+    const RayTracer* tracer = exact.tracer();
 
     auto work = [&] {
         tbb::parallel_for(0, elementCount, [&](int e) {
@@ -590,6 +592,18 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                 if (std::abs(cross) <= 1e-14 * size * size) continue;  // degenerate
                 if (cross < 0) std::swap(p[1], p[2]);
                 const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
+                // A triangle inside another object (the floor under a box resting on it: the
+                // first surface above it is seen from behind) is never visible; dropped, it
+                // cannot win a depth tie along the contact line either.
+                if (tracer) {
+                    const RayTracer::FirstHit above = tracer->firstHit(
+                        g.frame.to3(centre) + tracer->epsilon() * el.normal, el.normal);
+                    if (above.element >= 0 && above.backFace &&
+                        disc.elements()[above.element].object != el.object) {
+                        covered.fetch_add(1, std::memory_order_relaxed);
+                        continue;
+                    }
+                }
                 const std::array<ExactIrradiance::Parts, 6> r = {
                     sampleAt(p[0], centre), sampleAt(0.5 * (p[0] + p[1]), centre),
                     sampleAt(p[1], centre), sampleAt(0.5 * (p[1] + p[2]), centre),
@@ -623,6 +637,7 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     mStats.shadowSegments = shadowSegs.load();
     mStats.contactSegments = contactSegs.load();
     mStats.cancelled = cancelled.load();
+    mStats.coveredTriangles = covered.load();
     mStats.samples = samples.load();
     mStats.centreSamples = centreSamples.load();
     mStats.seconds =

@@ -77,6 +77,8 @@ struct HifiStats {
     int centreSamples = 0;    ///< exact-part evaluations at centres (the refinement test)
     double seconds = 0;
     bool cancelled = false;  ///< HifiOptions::cancelled stopped the build
+    /// Triangles dropped inside other objects (with ExactIrradiance's ray tracer).
+    int coveredTriangles = 0;
 };
 
 /// Built once for a scene state; rebuild after an edit.

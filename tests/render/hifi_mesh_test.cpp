@@ -233,6 +233,39 @@ TEST(HifiMesh, SharesSamplesWhereIrradianceIsContinuousAndSplitsThemAtContacts) 
     EXPECT_GT(outline, 0);
 }
 
+TEST(HifiMesh, TrianglesInsideAnotherObjectAreDropped) {
+    const Scene scene = boxOnFloor(true);
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ProgressiveSolver solver(disc, tracer, SolverOptions{});
+    solver.converge(1e-4, 100000);
+    auto floorTrianglesUnderTheBox = [&](const HifiMesh& mesh) {
+        int under = 0;
+        for (const HifiTriangle& t : mesh.triangles()) {
+            const Vec3 c = (t.p[0] + t.p[1] + t.p[2]) / 3.0;
+            if (disc.elements()[t.element].object == 0 && c.x > -0.1 && c.x < 0.3 && c.z > -0.16 &&
+                c.z < 0.24)
+                ++under;
+        }
+        return under;
+    };
+    // Without a tracer nothing is dropped; with one, the floor under the box goes and the
+    // floor around it stays.
+    ExactIrradiance plain(disc);
+    plain.setReflected(reflectedRadiosity(disc, solver));
+    HifiMesh all;
+    all.build(disc, plain);
+    EXPECT_GT(floorTrianglesUnderTheBox(all), 0);
+    EXPECT_EQ(all.stats().coveredTriangles, 0);
+    ExactIrradiance traced(disc, {}, &tracer);
+    traced.setReflected(reflectedRadiosity(disc, solver));
+    HifiMesh culled;
+    culled.build(disc, traced);
+    EXPECT_EQ(floorTrianglesUnderTheBox(culled), 0);
+    EXPECT_GT(culled.stats().coveredTriangles, 0);
+    EXPECT_EQ(culled.triangles().size() + floorTrianglesUnderTheBox(all), all.triangles().size());
+}
+
 TEST(HifiMesh, InterpolantsFollowTheExactIrradianceCloserThanConstantElements) {
     CardScene s(0.25);
     ProgressiveSolver solver(*s.disc, *s.tracer, SolverOptions{});
