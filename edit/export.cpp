@@ -21,6 +21,7 @@
 #include <system_error>
 #include <tuple>
 
+#include "core/colour.h"
 #include "edit/scene_io.h"
 #include "solver/discretization.h"
 
@@ -30,24 +31,6 @@ namespace {
 
 // ---------------------------------------------------------------------------------------
 // Helpers
-
-/// IEC 61966-2-1 sRGB encoding (the same function as render/image.h's srgbEncode; edit/
-/// does not depend on render/).
-double encodeSrgb(double linear) {
-    if (linear <= 0.0031308) return 12.92 * linear;
-    return 1.055 * std::pow(linear, 1.0 / 2.4) - 0.055;
-}
-
-/// sRGB-encoded and clipped to [0,1]; NaN becomes 0.
-double encodeSrgbClipped(double linear) {
-    const double v = encodeSrgb(linear);
-    if (!(v > 0.0)) return 0.0;
-    return std::min(v, 1.0);
-}
-
-std::uint8_t encodeSrgbByte(double linear) {
-    return static_cast<std::uint8_t>(std::lround(encodeSrgbClipped(linear) * 255.0));
-}
 
 /// Appends a space and the shortest round-trip decimal form of `value` (locale-independent).
 template <typename T>
@@ -269,9 +252,9 @@ std::string encodePly(const std::vector<LitObject>& lit,
             appendLittleEndian(out, static_cast<float>(p.x));
             appendLittleEndian(out, static_cast<float>(p.y));
             appendLittleEndian(out, static_cast<float>(p.z));
-            out.push_back(static_cast<char>(encodeSrgbByte(b.x * invPi)));
-            out.push_back(static_cast<char>(encodeSrgbByte(b.y * invPi)));
-            out.push_back(static_cast<char>(encodeSrgbByte(b.z * invPi)));
+            out.push_back(static_cast<char>(srgbByte(b.x * invPi)));
+            out.push_back(static_cast<char>(srgbByte(b.y * invPi)));
+            out.push_back(static_cast<char>(srgbByte(b.z * invPi)));
             appendLittleEndian(out, static_cast<float>(b.x));
             appendLittleEndian(out, static_cast<float>(b.y));
             appendLittleEndian(out, static_cast<float>(b.z));
@@ -632,7 +615,7 @@ std::string encodeObj(const std::vector<LitObject>& lit, const std::vector<std::
             out.push_back('v');
             for (int c = 0; c < 3; ++c) appendNumber(out, p[c]);
             // Six decimals keep the colour exact to well below one 8-bit step.
-            for (int c = 0; c < 3; ++c) appendFixed(out, encodeSrgbClipped(b[c] * invPi), 6);
+            for (int c = 0; c < 3; ++c) appendFixed(out, srgbEncodeClipped(b[c] * invPi), 6);
             out.push_back('\n');
         }
         int current = -1;

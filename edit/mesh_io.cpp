@@ -33,6 +33,7 @@
 #include <tiny_gltf.h>
 #include <tiny_obj_loader.h>
 
+#include "core/colour.h"
 #include "edit/input_error.h"
 #include "edit/lit_scene.h"
 
@@ -1076,9 +1077,8 @@ MeshFileScene readGltfScene(const std::string& path, bool binary) {
     scene.assetExtras = model.asset.extras_json_string;
     // Extensions: required ones the reader cannot honour make the geometry wrong.
     // (KHR_materials_unlit: a shading-model hint the radiosity solution replaces.)
-    const std::vector<std::string> known = {"KHR_lights_punctual",
-                                            "KHR_materials_emissive_strength",
-                                            "KHR_materials_unlit"};
+    const std::vector<std::string> known = {
+        "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_unlit"};
     for (const std::string& e : model.extensionsRequired)
         if (std::find(known.begin(), known.end(), e) == known.end())
             throw InputError(path, "", "requires the extension " + e + ", which is not supported");
@@ -1109,8 +1109,7 @@ MeshFileScene readGltfScene(const std::string& path, bool binary) {
                     for (std::size_t t = 0; t < texels; ++t)
                         for (int c = 0; c < 3; ++c) {
                             const double v = image.image[t * channels + c] / 255.0;
-                            sum[c] += v <= 0.04045 ? v / 12.92
-                                                   : std::pow((v + 0.055) / 1.055, 2.4);
+                            sum[c] += srgbDecode(v);
                         }
                     material.baseColor *= sum / static_cast<double>(texels);
                     material.textured = false;  // read
@@ -1124,9 +1123,9 @@ MeshFileScene readGltfScene(const std::string& path, bool binary) {
             extension->second.Get("emissiveStrength").IsNumber())
             strength = extension->second.Get("emissiveStrength").GetNumberAsDouble();
         if (source.emissiveFactor.size() >= 3)
-            material.emissive = Rgb(source.emissiveFactor[0], source.emissiveFactor[1],
-                                    source.emissiveFactor[2]) *
-                                strength;
+            material.emissive =
+                Rgb(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]) *
+                strength;
         material.extras = source.extras_json_string;
         scene.materials.push_back(material);
     }
@@ -1233,8 +1232,8 @@ MeshFileScene readObjScene(const std::string& path) {
             soup.addFace(face.data(), face.size(), material);
         }
         if (soup.faceCount() == 0) continue;
-        MeshFilePart part = buildPart(soup, scene.materials.size(),
-                                      path + " (object " + shape.name + ")");
+        MeshFilePart part =
+            buildPart(soup, scene.materials.size(), path + " (object " + shape.name + ")");
         part.name = shape.name;
         scene.parts.push_back(std::move(part));
     }

@@ -10,6 +10,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "core/timing.h"
 #include "edit/edit_log.h"
 #include "edit/edit_session.h"
 #include "edit/input_error.h"
@@ -18,12 +19,6 @@
 namespace penumbra {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point start) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 // ---------------------------------------------------------------------------------------------
 // References and George et al.'s eq. 7.
@@ -146,7 +141,8 @@ nlohmann::json runReplay(const ReplayOptions& options) {
     // Read every input before solving anything, so bad input fails fast.
     std::vector<ProbePoint> points;
     if (!options.pointsPath.empty()) points = readProbePoints(options.pointsPath);
-    std::unique_ptr<EditSession> session = EditSession::open(options.scenePath, options.solver, options.import);
+    std::unique_ptr<EditSession> session =
+        EditSession::open(options.scenePath, options.solver, options.import);
     const std::string sceneDir = std::filesystem::path(options.scenePath).parent_path().string();
     const std::vector<LoggedEdit> edits = readEditLog(options.logPath, sceneDir);
     RayTracer& tracer = session->tracer();

@@ -19,6 +19,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/timing.h"
+
 #if defined(__SSE2__)
 #include <immintrin.h>
 #endif
@@ -132,11 +134,6 @@ inline Quad scaleQuad(Quad a, float w) { return a * w; }
 inline Quad zeroQuad() { return Quad(0.0f); }
 inline glm::vec4 toVec4(Quad q) { return q; }
 #endif
-
-double millisecondsSince(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-        .count();
-}
 
 /// body(y) for y in [0, height): rows in parallel, or in order when !parallel.
 template <typename F>
@@ -287,7 +284,7 @@ void EdgePointImage::build(const std::vector<ScreenEdge>& edges,
                            const std::vector<ScreenPoint>& points) {
     const auto start = std::chrono::steady_clock::now();
     placePoints(points);
-    const double pointsMs = millisecondsSince(start);
+    const double pointsMs = msSince(start);
     build(edges);
     mTimes.pointsMs = pointsMs;
 }
@@ -296,15 +293,15 @@ void EdgePointImage::build(const std::vector<ScreenEdge>& edges) {
     mTimes = {};
     auto start = std::chrono::steady_clock::now();
     filterDepth();
-    mTimes.depthFilterMs = millisecondsSince(start);
+    mTimes.depthFilterMs = msSince(start);
 
     start = std::chrono::steady_clock::now();
     rasterizeEdges(edges);
-    mTimes.rasterizeMs = millisecondsSince(start);
+    mTimes.rasterizeMs = msSince(start);
 
     start = std::chrono::steady_clock::now();
     classifyPixels();
-    mTimes.classifyMs = millisecondsSince(start);
+    mTimes.classifyMs = msSince(start);
 }
 
 // ---- Points (§4.3) ------------------------------------------------------------------------
@@ -1468,37 +1465,37 @@ Image EdgePointImage::reconstruct(bool useEdges) {
         forRows(mOptions.parallel, mHeight, [&](int y) {
             for (int x = 0; x < mWidth; ++x) out.at(x, y) = Rgb(mPlain[index(x, y)]);
         });
-        mTimes.interpolateMs = millisecondsSince(start);
+        mTimes.interpolateMs = msSince(start);
         markHoles(false);
         return out;
     }
 
     auto start = std::chrono::steady_clock::now();
     computeReachabilityMap();
-    mTimes.reachabilityMs = millisecondsSince(start);
+    mTimes.reachabilityMs = msSince(start);
 
     start = std::chrono::steady_clock::now();
     interpolatePlain();
     interpolatePrimary(out);
-    mTimes.interpolateMs = millisecondsSince(start);
+    mTimes.interpolateMs = msSince(start);
 
     if (mOptions.antiAlias) {
         start = std::chrono::steady_clock::now();
         antiAlias(out);
-        mTimes.antiAliasMs = millisecondsSince(start);
+        mTimes.antiAliasMs = msSince(start);
     }
     if (mOptions.denseComplexLimit > 0) markDenseComplex();
     if (mOptions.complexFilter) {
         start = std::chrono::steady_clock::now();
         filterComplexPixels(out);
-        mTimes.complexFilterMs = millisecondsSince(start);
+        mTimes.complexFilterMs = msSince(start);
     }
     if (mOptions.smoothRadius > 0) {
         // Last: it replaces whole pixels, whatever the stages above gave them. A stage of
         // its own (not one of the paper's three filters).
         start = std::chrono::steady_clock::now();
         smoothEdgeFreeRegions(out);
-        mTimes.smoothMs = millisecondsSince(start);
+        mTimes.smoothMs = msSince(start);
     }
     markHoles(true);
     return out;

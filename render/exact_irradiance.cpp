@@ -6,6 +6,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "core/random.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/progressive_solver.h"
@@ -47,29 +48,6 @@ void clipConvex(const std::vector<P>& poly, Side side, std::vector<P>& out) {
     }
     if (out.size() < 3) out.clear();
 }
-
-Vec3 newellNormal(const std::vector<Vec3>& p) {
-    Vec3 n(0.0);
-    for (std::size_t i = 0, k = p.size(); i < k; ++i) {
-        const Vec3& a = p[i];
-        const Vec3& b = p[(i + 1) % k];
-        n += Vec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
-    }
-    const double len = glm::length(n);
-    return len > 0 ? n / len : n;
-}
-
-/// An orthonormal frame of a source polygon's plane: origin, axes u and v with u × v = the
-/// polygon's normal, so counter-clockwise in 2D is counter-clockwise seen from the front.
-struct PlaneFrame {
-    Vec3 origin, u, v, n;
-    explicit PlaneFrame(const std::vector<Vec3>& poly) : origin(poly[0]), n(newellNormal(poly)) {
-        u = glm::normalize(poly[1] - poly[0]);
-        v = glm::cross(n, u);
-    }
-    Vec2 to2(const Vec3& p) const { return {glm::dot(p - origin, u), glm::dot(p - origin, v)}; }
-    Vec3 to3(const Vec2& p) const { return origin + p.x * u + p.y * v; }
-};
 
 }  // namespace
 
@@ -204,7 +182,7 @@ void ExactIrradiance::rebuild() {
             }
             ob.lo = glm::min(ob.lo, b.lo);
             ob.hi = glm::max(ob.hi, b.hi);
-            b.normal = newellNormal(poly);
+            b.normal = unitNormal(poly);
             b.polygon = std::move(poly);
             b.object = static_cast<int>(o);
             mBlockers.push_back(std::move(b));
@@ -475,18 +453,15 @@ double ExactIrradiance::sampledVisibleFraction(const Vec3& x, const Vec3& n,
         cumulative.push_back(total);
     }
     if (!(total > 0)) return 0.0;
-    const Vec3 sn = newellNormal(source);
+    const Vec3 sn = unitNormal(source);
     // The same points of the source for every x: the estimate then changes with x only where
     // a ray's blocker changes, smoothly enough for the interpolants and their refinement test
     // (independent patterns would put noise between neighbouring samples).
     std::uint64_t state = 0;
     for (double c : {source[0].x, source[0].y, source[0].z, source[1].x, source[1].y, source[1].z})
         state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
-    auto next = [&] {
-        const std::uint64_t r = splitmix64(state);
-        state += 0x9e3779b97f4a7c15ull;
-        return static_cast<double>(r >> 11) * 0x1.0p-53;
-    };
+    SplitMix random(state);
+    auto next = [&] { return random.next(); };
     const double eps = mTracer->epsilon();
     const Vec3 from = x + eps * n;
     const int m = std::max(1, mOptions.blockedRays);
@@ -618,11 +593,8 @@ Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
     std::uint64_t state = 0;
     for (double c : {x.x, x.y, x.z})
         state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
-    auto next = [&] {
-        const std::uint64_t r = splitmix64(state);
-        state += 0x9e3779b97f4a7c15ull;
-        return static_cast<double>(r >> 11) * 0x1.0p-53;
-    };
+    SplitMix random(state);
+    auto next = [&] { return random.next(); };
     const Vec3 origin = x + mTracer->epsilon() * n;
     Rgb sum(0.0);
     for (int i = 0; i < side; ++i)

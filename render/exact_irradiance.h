@@ -22,8 +22,6 @@ class ProgressiveSolver;
 class RayTracer;
 struct SolverOptions;
 
-/// 2D point of a source polygon's plane.
-using Vec2 = glm::dvec2;
 
 /// A region of a plane as disjoint convex polygons (counter-clockwise): what is left of a
 /// convex polygon after convex polygons are subtracted from it, one at a time.

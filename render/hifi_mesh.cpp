@@ -12,6 +12,7 @@
 #include <sstream>
 #include <thread>
 
+#include "core/random.h"
 #include "render/camera_rays.h"
 #include "render/cdt.h"
 #include "render/edge_tree.h"
@@ -37,19 +38,6 @@ QuadraticInterpolant QuadraticInterpolant::fromSamples(const std::array<Rgb, 6>&
 }
 
 namespace {
-
-/// A planar frame of an element: 2D coordinates in its plane.
-struct Frame {
-    Vec3 origin, u, v, n;
-    Frame(const std::vector<Vec3>& poly, const Vec3& normal) : origin(poly[0]), n(normal) {
-        u = glm::normalize(poly[1] - poly[0]);
-        v = glm::cross(n, u);
-    }
-    glm::dvec2 to2(const Vec3& p) const {
-        return {glm::dot(p - origin, u), glm::dot(p - origin, v)};
-    }
-    Vec3 to3(const glm::dvec2& p) const { return origin + p.x * u + p.y * v; }
-};
 
 /// The part of segment a–b inside the convex polygon `poly` (counter-clockwise, 2D);
 /// false when nothing is left (Cyrus–Beck).
@@ -211,7 +199,7 @@ std::vector<Wedge> allWedges(const Discretization& disc) {
 }
 
 /// The segment a wedge cuts on element `e` (2D in its frame, clipped) and its weight.
-bool wedgeOnElement(const Wedge& w, const Element& el, const Frame& frame,
+bool wedgeOnElement(const Wedge& w, const Element& el, const PlaneFrame& frame,
                     const std::vector<glm::dvec2>& poly, glm::dvec2& a, glm::dvec2& b,
                     double& weight) {
     if (w.blockerObject == el.object || w.emitterObject == el.object) return false;
@@ -237,12 +225,12 @@ bool wedgeOnElement(const Wedge& w, const Element& el, const Frame& frame,
 struct ElementGeometry {
     std::vector<Vec3> poly;
     std::vector<glm::dvec2> poly2;
-    Frame frame;
+    PlaneFrame frame;
 };
 
 ElementGeometry geometryOf(const Discretization& disc, int e) {
     std::vector<Vec3> poly = disc.elementPolygon(e);
-    Frame frame(poly, disc.elements()[e].normal);
+    PlaneFrame frame(poly, disc.elements()[e].normal);
     std::vector<glm::dvec2> poly2;
     for (const Vec3& p : poly) poly2.push_back(frame.to2(p));
     return {std::move(poly), std::move(poly2), frame};

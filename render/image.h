@@ -2,25 +2,16 @@
 // Linear RGB images and their files: PNG (sRGB-encoded, clipped, 8-bit) through stb and
 // EXR (linear 32-bit float) through tinyexr. See DESIGN.md "Images".
 //
-// Index: sRGB transfer function · Image · writing · reading
+// Index: Image · writing · reading (the sRGB transfer function: core/colour.h)
 
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "core/colour.h"
 #include "solver/scene.h"
 
 namespace penumbra {
-
-/// IEC 61966-2-1 sRGB encoding of a linear value. Defined for any finite input; values
-/// above 1 encode above 1 (the caller clips), negative values map to 12.92·x.
-double srgbEncode(double linear);
-/// Inverse of srgbEncode.
-double srgbDecode(double encoded);
-/// The 8-bit display value of a linear value: sRGB-encoded, clipped to [0, 1] (NaN → 0) and
-/// rounded, by table lookup (for whole frames: no pow per channel). Equals
-/// round(255 · srgbEncode(v)) except within a rounding error of a byte boundary.
-std::uint8_t srgbByte(double linear);
 
 /// A linear RGB image, row-major, top row first. For renders the unit is radiance
 /// (W/m²/sr = radiosity/π).

@@ -17,6 +17,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/random.h"
+#include "core/timing.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/ray_tracer.h"
@@ -27,12 +29,6 @@ namespace {
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point start) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 /// Frame number of reference samples: far from any frame a cache reaches, so the reference's
 /// shadow-ray patterns are independent of the cached points'.

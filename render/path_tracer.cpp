@@ -8,6 +8,7 @@
 #include <cmath>
 #include <thread>
 
+#include "core/random.h"
 #include "render/camera_rays.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
@@ -16,16 +17,6 @@
 namespace penumbra {
 
 namespace {
-
-/// A uniform double in [0, 1) from a SplitMix64 stream.
-struct Random {
-    std::uint64_t state;
-    double next() {
-        const std::uint64_t r = splitmix64(state);
-        state += 0x9e3779b97f4a7c15ull;
-        return static_cast<double>(r >> 11) * 0x1.0p-53;
-    }
-};
 
 /// One emitting triangle (a fan triangle of an emitting element's front).
 struct EmitterTriangle {
@@ -61,7 +52,7 @@ struct Emitters {
         }
     }
     /// A triangle by power and a uniform point on it; `pdfArea` the density per unit area.
-    const EmitterTriangle& sample(Random& rng, Vec3& point, double& pdfArea) const {
+    const EmitterTriangle& sample(SplitMix& rng, Vec3& point, double& pdfArea) const {
         const double u = rng.next() * total;
         std::size_t i =
             std::upper_bound(cumulative.begin(), cumulative.end(), u) - cumulative.begin();
@@ -76,7 +67,7 @@ struct Emitters {
 };
 
 /// A unit vector distributed by cos θ about n (Malley's method).
-Vec3 cosineDirection(const Vec3& n, Random& rng) {
+Vec3 cosineDirection(const Vec3& n, SplitMix& rng) {
     const double r = std::sqrt(rng.next()), phi = 2 * M_PI * rng.next();
     const Vec3 t = std::abs(n.x) > 0.5 ? glm::normalize(glm::cross(n, Vec3(0, 1, 0)))
                                        : glm::normalize(glm::cross(n, Vec3(1, 0, 0)));
@@ -98,7 +89,7 @@ double powerHeuristic(double a, double b) {
 /// combination keeps the variance finite where an emitter meets the surface (a lamp's
 /// corner, a glowing wall), where area sampling alone has heavy tails.
 Rgb tracePath(const Discretization& disc, const RayTracer& tracer, const Emitters& emitters,
-              Vec3 origin, Vec3 dir, Random& rng, const PathTraceOptions& o) {
+              Vec3 origin, Vec3 dir, SplitMix& rng, const PathTraceOptions& o) {
     const double eps = tracer.epsilon();
     Rgb radiance(0.0), throughput(1.0);
     double directionPdf = 0;  ///< solid-angle density of `dir` (0: a camera ray)
@@ -204,7 +195,7 @@ PathTraceResult pathTrace(const Discretization& disc, const RayTracer& tracer,
         tbb::parallel_for(0, rays.height(), [&](int y) {
             for (int x = 0; x < rays.width(); ++x) {
                 const std::uint64_t pixel = static_cast<std::uint64_t>(y) * rays.width() + x;
-                Random rng{hashPair(options.seed, pixel)};
+                SplitMix rng(hashPair(options.seed, pixel));
                 Rgb sum(0.0);
                 for (int s = 0; s < spp; ++s) {
                     double jx = rng.next(), jy = rng.next();

@@ -19,6 +19,7 @@
 #include <unistd.h>
 #endif
 
+#include "core/random.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/ray_tracer.h"
@@ -73,13 +74,6 @@ std::vector<int> convexHull2d(const std::vector<glm::dvec2>& p) {
     }
     hull.resize(k - 1);
     return hull;
-}
-
-Vec3 newellNormal(const std::vector<Vec3>& poly) {
-    Vec3 n(0.0);
-    for (std::size_t i = 0; i < poly.size(); ++i)
-        n += glm::cross(poly[i], poly[(i + 1) % poly.size()]);
-    return n;
 }
 
 }  // namespace
@@ -926,8 +920,7 @@ void PointShader::rememberDropped() {
 
 void PointShader::rebuildIndirect() {
     const std::vector<Rgb>& H = mElementH;
-    const std::size_t n =
-        std::min({H.size(), mElementHEmission.size(), mDisc.elements().size()});
+    const std::size_t n = std::min({H.size(), mElementHEmission.size(), mDisc.elements().size()});
     // Every element's direct light, also of versions newer than the solution (a preview, an
     // object just added): the fallback shows them lit by it.
     if (mElementDirect.size() < mDisc.elements().size()) {
@@ -950,8 +943,7 @@ void PointShader::rebuildIndirect() {
     }
     const int preview = next->previewObject;
     next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
-    for (std::size_t e = 0; e < n; ++e)
-        next->elementIndirect[e] = H[e] - mElementHEmission[e];
+    for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementHEmission[e];
     // An object just dropped after a drag: until the solver's redistribution reaches its
     // elements, the indirect part of its last preview buffer's irradiance stands in (the
     // larger of the two), so it does not show lit by its direct light alone; forgotten once

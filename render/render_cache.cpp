@@ -1,6 +1,7 @@
 // Index: construction · insertion and replacement · reprojection and depth culling (Walter et
 //        al. 1999) · priority image and sample requests · plain interpolation · invalidation
 //        · toString
+#include "core/random.h"
 #include "render/render_cache.h"
 
 #include <tbb/blocked_range.h>

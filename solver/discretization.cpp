@@ -20,17 +20,6 @@ ElementMesh::Point toPoint(const Vec3& v) { return ElementMesh::Point(v.x, v.y, 
 
 Vec3 transformPoint(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
-/// Newell's method: area-weighted normal (length = 2 × area) of a polygon.
-Vec3 newellNormal(const std::vector<Vec3>& poly) {
-    Vec3 n(0.0);
-    for (std::size_t i = 0; i < poly.size(); ++i) {
-        const Vec3& a = poly[i];
-        const Vec3& b = poly[(i + 1) % poly.size()];
-        n += glm::cross(a, b);
-    }
-    return n;
-}
-
 int cellsFor(double length, double target) {
     if (!(length > 0) || !(target > 0)) return 1;
     return std::max(1, static_cast<int>(std::ceil(length / target - 1e-9)));

@@ -20,14 +20,6 @@ class RayTracer;
 /// Lambert's formula: F = 1/(2π) Σ_k β_k (n · γ̂_k), β_k the angle each edge subtends.
 double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon);
 
-/// SplitMix64's output for generator state `state` (Steele, Lea, Flood 2014): the state
-/// advanced by the golden-ratio increment, through the 64-bit mixer. The next state is
-/// state + 0x9e3779b97f4a7c15.
-std::uint64_t splitmix64(std::uint64_t state);
-
-/// Deterministic 64-bit hash for pair-seeded sample patterns.
-std::uint64_t hashPair(std::uint64_t a, std::uint64_t b);
-
 /// Number of visibility rays used for a pair with unoccluded form factor `fUnoccluded`.
 /// Depends on geometry only, never on energy, so a later recomputation of the same pair
 /// traces the same rays.

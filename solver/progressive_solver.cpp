@@ -1,6 +1,7 @@
 // Index: set-up · step/converge (scheduling propagation and redistribution) · one shot
 //        (Cohen et al. 1988 §4 pseudo-code) · stochastic tail · adaptive subdivision (§3.4)
 //        · edits: change log and redistribution shots (George et al. 1990) · queries
+#include "core/random.h"
 #include "solver/progressive_solver.h"
 
 #include <tbb/blocked_range.h>

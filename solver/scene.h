@@ -3,19 +3,13 @@
 // Plain data; no files, no GL. edit/ reads and writes it, solver/ discretizes it.
 
 #include <array>
-#include <glm/glm.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "core/math.h"
+
 namespace penumbra {
-
-using Vec3 = glm::dvec3;
-using Rgb = glm::dvec3;  ///< Radiometric RGB triple (W/m² for radiosity and irradiance).
-using Mat4 = glm::dmat4;
-
-/// Luminance Y of a linear RGB triple (Rec. 709 primaries).
-inline double luminance(const Rgb& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
 
 /// A diffuse material. reflectance in [0,1) per channel; emission is emitted radiosity, W/m².
 struct Material {

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/timing.h"
 #include "render/camera_rays.h"
 #include "render/hifi_mesh.h"
 #include "solver/discretization.h"
@@ -55,10 +56,6 @@ unsigned compile(GLenum type, const char* source) {
         throw std::runtime_error(std::string("interpolant shader: ") + log);
     }
     return s;
-}
-
-double msSince(std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
 }
 
 }  // namespace

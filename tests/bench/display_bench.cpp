@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "bench/bench.h"
+#include "core/timing.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
 #include "render/image.h"
@@ -23,12 +24,6 @@
 namespace penumbra {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point start) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 /// Per case: the scene, how much solving (converge threshold; 0 shots = direct light only),
 /// and the object moved for the shadow-update figure.
@@ -260,13 +255,13 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
         int k = options.frames;
         const std::size_t capacity = display.cache().capacity();
         while (display.cache().points().size() < capacity && res.fillFrames < kFillFrames) {
-            display.renderFrame(
-                CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H), true);
+            display.renderFrame(CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H),
+                                true);
             ++res.fillFrames;
         }
         for (int f = 0; f < kSteadyFrames; ++f) {
-            display.renderFrame(
-                CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H), true);
+            display.renderFrame(CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H),
+                                true);
             add(res.steady, display.lastFrame().times, 1.0 / kSteadyFrames);
         }
         res.steadyPoints = display.cache().points().size();

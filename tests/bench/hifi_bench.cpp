@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "bench/bench.h"
+#include "core/timing.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
@@ -28,12 +29,6 @@
 namespace penumbra {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 struct HifiCase {
     std::string name;

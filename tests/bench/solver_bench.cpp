@@ -26,18 +26,14 @@
 #include <vector>
 
 #include "bench/bench.h"
+#include "core/random.h"
+#include "core/timing.h"
 #include "edit/lit_scene.h"
 #include "solver/form_factor.h"
 
 namespace penumbra {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point t) {
-    return std::chrono::duration<double>(Clock::now() - t).count();
-}
 
 /// Random element-to-element occlusion segments, the same kind of query a shot makes.
 struct Segments {

@@ -9,6 +9,7 @@
 //
 // Index: helpers and closed forms · unoccluded part · reciprocity · visibility · determinism
 
+#include "core/random.h"
 #include "solver/form_factor.h"
 
 #include <gtest/gtest.h>
