@@ -139,12 +139,10 @@ struct InteractiveDisplayOptions {
     /// Asynchronous: requests go to the shader's worker threads; each frame takes what is done.
     bool synchronous = true;
     /// Render cache capacity as a multiple of the pixel count. Every cached point is
-    /// reprojected every frame, so once the cache is full the points stage grows with it: at
-    /// 512×512, 4 per pixel (1M points) cost 20–21 ms a frame, 1.5 (393k) 12–14 ms. The
-    /// extra points are hidden or off-screen ones from earlier views, and did not help the
-    /// picture: 120 frames into the bench's orbit of robot-room, epi 0.0160 with 1.5 against
-    /// 0.0180 with 4 (cache 0.0310 / 0.0304); armadillo-field after 150 frames 0.0569 with
-    /// 1.25, 0.0567 with 4. (Bala et al. give the points ~9 MB, the Render Cache's size.)
+    /// reprojected every frame, so once the cache is full the points stage grows with it;
+    /// the points beyond about 1.5 per pixel are hidden or off-screen ones from earlier views
+    /// and do not improve the picture (docs/display.md has the figures). Bala et al. give the
+    /// points ~9 MB, the Render Cache's size.
     double cacheCapacityPerPixel = 1.5;
     /// Near-plane distance (metres along the view axis) edges are clipped against.
     double nearPlane = 1e-3;

@@ -42,9 +42,9 @@ struct SolverOptions {
     /// its rays is below a deterministic shot's mean ray count. A batch ray is a closest-hit
     /// ray (it enters the instance and finds the nearest triangle; an occlusion ray stops at
     /// any hit) and carries its own set-up (shooter, point, direction) and receiving, so it
-    /// costs several deterministic rays; 3 is the ratio measured in the solver on cube-room,
-    /// where the choice matters most (docs/solver.md), and the time to converge is flat
-    /// around it.
+    /// costs several deterministic rays. The default is the ratio of the two kinds' costs
+    /// in the solver on cube-room, where the choice matters most (docs/solver.md); the time
+    /// to converge is flat around it.
     double hitRayCost = 3.0;
     /// A stochastic batch (propagation or redistribution) takes the strongest shooters up
     /// to about this many rays; the rest wait for the next batch.
