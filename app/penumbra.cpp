@@ -17,6 +17,7 @@
 
 #include "app/import_flags.h"
 #include "bench/bench.h"
+#include "core/log.h"
 #include "edit/edit_log.h"
 #include "edit/edit_session.h"
 #include "edit/export.h"
@@ -122,6 +123,12 @@ HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
         if (tty) std::fprintf(stderr, "\rmeshing and sampling %3.0f%%", 100 * f);
     });
     if (tty) std::fprintf(stderr, "\n");
+    const HifiStats& st = mesh.stats();
+    spdlog::debug(
+        "interpolants: {} elements ({} meshed), {} triangles, {} samples, {} centre "
+        "tests, {} covered, built in {:.2f} s",
+        st.elements, st.meshedElements, st.triangles, st.samples, st.centreSamples,
+        st.coveredTriangles, st.seconds);
     return mesh;
 }
 
@@ -573,6 +580,8 @@ int main(int argc, char** argv) {
     omerr().disable();
     CLI::App app{"Penumbra: interactive radiosity lighting editor, command line"};
     app.require_subcommand(1);
+    bool verbose = false;
+    app.add_flag("--verbose", verbose, "debug lines on stderr (what runs, and how long it takes)");
     SolveArgs solve;
     std::string pointsPath;
     RenderArgs render;
@@ -775,6 +784,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "penumbra: %s\n", e.what());
         return 2;
     }
+    initLogging(verbose);
 
     std::optional<tbb::global_control> threads;
     const int threadCount = *replayCmd ? replay.threads : solve.threads;

@@ -11,6 +11,7 @@
 #include <iostream>
 
 #include "app/import_flags.h"
+#include "core/log.h"
 #include "edit/input_error.h"
 #include "ui/editor_app.h"
 
@@ -42,6 +43,9 @@ int main(int argc, char** argv) {
     app.add_flag("!--no-references", options.benchReferences,
                  "with --bench-drag: skip the reference renders (errors against references)");
     app.add_flag("--quiet", options.quiet, "no status lines on stderr");
+    bool verbose = false;
+    app.add_flag("--verbose", verbose,
+                 "debug lines on stderr (the solver, render and display threads' work and times)");
     app.add_option("--display-divisor", options.displayDivisor,
                    "edge-and-point modes render the viewport at 1/N resolution (upscaled)")
         ->check(CLI::PositiveNumber);
@@ -61,6 +65,7 @@ int main(int argc, char** argv) {
     } catch (const CLI::ParseError& e) {
         return app.exit(e) == 0 ? 0 : 2;
     }
+    penumbra::initLogging(verbose);
     options.mode = *penumbra::parseViewMode(mode);
     if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
     try {

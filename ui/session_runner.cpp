@@ -17,6 +17,7 @@
 #include <unistd.h>
 #endif
 
+#include "core/log.h"
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
 #include "solver/discretization.h"
@@ -384,9 +385,8 @@ bool SessionRunner::solverIteration() {
         lock.unlock();
         publishDocument();
         publishLight();
-        if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-            std::fprintf(stderr, "apply: waited %.1f ms, applied %zu in %.1f ms\n", (a1 - a0) * 1e3,
-                         commands.size(), (nowSeconds() - a1) * 1e3);
+        spdlog::debug("apply: waited {:.1f} ms, applied {} in {:.1f} ms", (a1 - a0) * 1e3,
+                      commands.size(), (nowSeconds() - a1) * 1e3);
     }
 
     // Shots, one at a time, for the budget. The sequence of shots depends only on the edits
@@ -413,9 +413,7 @@ bool SessionRunner::solverIteration() {
         if (shots > 0 && lastPublish < nowSeconds() - 1e-9) publishLight();
     }
     const double solverMs = (nowSeconds() - t0) * 1e3;
-    if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-        std::fprintf(stderr, "solver: %zu edits, %llu shots in %.1f ms\n", commands.size(),
-                     static_cast<unsigned long long>(shots), solverMs);
+    spdlog::debug("solver: {} edits, {} shots in {:.1f} ms", commands.size(), shots, solverMs);
     publishSolver(solverMs);
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
@@ -545,9 +543,7 @@ bool SessionRunner::renderIteration() {
         return false;
     }
     img->renderMs = (nowSeconds() - r0) * 1e3;
-    if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-        std::fprintf(stderr, "render %dx%d %.1f ms light %llu\n", w, h, img->renderMs,
-                     static_cast<unsigned long long>(light.serial));
+    spdlog::debug("render {}x{} {:.1f} ms light {}", w, h, img->renderMs, light.serial);
     const double perPixel = img->renderMs / (double(w) * h);
     mMsPerPixel = mMsPerPixel > 0 ? 0.7 * mMsPerPixel + 0.3 * perPixel : perPixel;
     img->camera = view.camera;
@@ -578,6 +574,11 @@ const HifiMesh* SessionRunner::hifiLanded(const ViewRequest& view, const Light& 
         if (built && mHifiBuildSerial == light.serial) {
             mHifi = std::move(built);
             mHifiSerial = light.serial;
+            spdlog::debug("interpolants: {} triangles built in {:.1f} s (light {})",
+                          mHifi->stats().triangles, mHifi->stats().seconds, light.serial);
+        } else {
+            spdlog::debug("interpolants: build for light {} dropped (light {} now)",
+                          mHifiBuildSerial, light.serial);
         }
     }
     if (mHifi && mHifiSerial == light.serial) {
@@ -658,10 +659,8 @@ void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>&
                 const double t0 = nowSeconds();
                 const std::size_t dropped = d.endDrag(unselectAdded);
                 slot.solution = mLightSerial + 1;  // publishLight follows the edits
-                if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-                    std::fprintf(stderr, "display %dx%d: endDrag %d in %.1f ms, %zu dropped\n",
-                                 d.width(), d.height(), unselectAdded, (nowSeconds() - t0) * 1e3,
-                                 dropped);
+                spdlog::debug("display {}x{}: endDrag {} in {:.1f} ms, {} dropped", d.width(),
+                              d.height(), unselectAdded, (nowSeconds() - t0) * 1e3, dropped);
                 return;
             }
             // The edits themselves (the subset still is the previous preview's).
@@ -675,9 +674,8 @@ void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>&
                 const double t0 = nowSeconds();
                 d.notifyChanged(changed, &mSession->solver());
                 slot.solution = mLightSerial + 1;  // publishLight follows the edits
-                if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-                    std::fprintf(stderr, "display %dx%d: notifyChanged %zu in %.1f ms\n", d.width(),
-                                 d.height(), changed.size(), (nowSeconds() - t0) * 1e3);
+                spdlog::debug("display {}x{}: notifyChanged {} in {:.1f} ms", d.width(), d.height(),
+                              changed.size(), (nowSeconds() - t0) * 1e3);
             }
             return;
         }
@@ -686,9 +684,8 @@ void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>&
             const double t0 = nowSeconds();
             const std::size_t dropped = d.setPreview(preview, mPreviewSubset.visibility());
             // The new position's buffer comes with the light published next (render thread).
-            if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-                std::fprintf(stderr, "display %dx%d: preview %d in %.1f ms, %zu points dropped\n",
-                             d.width(), d.height(), preview, (nowSeconds() - t0) * 1e3, dropped);
+            spdlog::debug("display {}x{}: preview {} in {:.1f} ms, {} points dropped", d.width(),
+                          d.height(), preview, (nowSeconds() - t0) * 1e3, dropped);
         }
     } catch (const std::exception& e) {
         report(std::string("display: ") + e.what());
@@ -735,9 +732,9 @@ void SessionRunner::catchUpDisplay(DisplaySlot& slot, const Light& light) {
     } catch (const std::exception& e) {
         report(std::string("display: ") + e.what());
     }
-    if (missed > 0 && std::getenv("PENUMBRA_EDITOR_TRACE"))
-        std::fprintf(stderr, "display %dx%d: caught up (%zu changed objects) in %.1f ms\n",
-                     d.width(), d.height(), missed, (nowSeconds() - t0) * 1e3);
+    if (missed > 0)
+        spdlog::debug("display {}x{}: caught up ({} changed objects) in {:.1f} ms", d.width(),
+                      d.height(), missed, (nowSeconds() - t0) * 1e3);
 }
 
 InteractiveDisplayOptions SessionRunner::displayOptions(int slot, const ViewRequest& view) const {
@@ -806,9 +803,8 @@ bool SessionRunner::displayLanded(const ViewRequest& view) {
                 built.display.reset();
                 report(std::string("display: ") + e.what());
             }
-            if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-                std::fprintf(stderr, "display %dx%d: built in the background in %.1f ms\n",
-                             options.width, options.height, (nowSeconds() - t0) * 1e3);
+            spdlog::debug("display {}x{}: built in the background in {:.1f} ms", options.width,
+                          options.height, (nowSeconds() - t0) * 1e3);
             return built;
         });
         return false;
@@ -888,9 +884,8 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
             wanted.frameMs = 0;
             wanted.frames = 0;
             wanted.display->warmUp(CameraRays(view.camera, w, h));
-            if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-                std::fprintf(stderr, "display %dx%d: made (%s) in %.1f ms\n", w, h,
-                             copy ? "copy" : "built", (nowSeconds() - t0) * 1e3);
+            spdlog::debug("display {}x{}: made ({}) in {:.1f} ms", w, h, copy ? "copy" : "built",
+                          (nowSeconds() - t0) * 1e3);
         } catch (const std::exception& e) {
             wanted.display.reset();
             report(std::string("display: ") + e.what());
@@ -987,9 +982,8 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
         return false;
     }
     img->reduced = mActiveSlot == 1;
-    if (std::getenv("PENUMBRA_EDITOR_TRACE"))
-        std::fprintf(stderr, "display %dx%d %.1f ms %s\n", w, h, img->renderMs,
-                     img->display.toString().c_str());
+    if (spdlog::should_log(spdlog::level::debug))
+        spdlog::debug("display {}x{} {:.1f} ms {}", w, h, img->renderMs, img->display.toString());
     img->camera = view.camera;
     img->viewSerial = view.serial;
     img->stateSerial = light.serial;
