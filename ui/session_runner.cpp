@@ -605,7 +605,8 @@ const HifiMesh* SessionRunner::hifiLanded(const ViewRequest& view, const Light& 
     mHifiOutdated = false;
     note = "interpolants: building 0% (Gouraud meanwhile)";
     if (!mOptions.threaded) {
-        mHifi = buildHifi(light.radiosity);
+        // renderIteration already holds the structure shared.
+        mHifi = buildHifiHeld(light.radiosity);
         mHifiSerial = light.serial;
         return mHifi.get();
     }
@@ -619,6 +620,11 @@ const HifiMesh* SessionRunner::hifiLanded(const ViewRequest& view, const Light& 
 std::unique_ptr<HifiMesh> SessionRunner::buildHifi(
     std::shared_ptr<const std::vector<Rgb>> radiosity) {
     std::shared_lock<std::shared_mutex> structure(mStructure);
+    return buildHifiHeld(std::move(radiosity));
+}
+
+std::unique_ptr<HifiMesh> SessionRunner::buildHifiHeld(
+    std::shared_ptr<const std::vector<Rgb>> radiosity) {
     const Discretization& disc = mSession->discretization();
     if (radiosity->size() != disc.elements().size()) return nullptr;
     try {

@@ -245,8 +245,11 @@ private:
     const HifiMesh* hifiLanded(const ViewRequest& view, const Light& light, bool still,
                                std::string& note);
     /// The build itself (any thread): the interpolants of the structure now and `radiosity`;
-    /// null when an edit came first.
+    /// null when an edit came first. buildHifi takes the structure shared; buildHifiHeld is
+    /// for a caller that holds it already (a shared_mutex must not be locked twice by one
+    /// thread).
     std::unique_ptr<HifiMesh> buildHifi(std::shared_ptr<const std::vector<Rgb>> radiosity);
+    std::unique_ptr<HifiMesh> buildHifiHeld(std::shared_ptr<const std::vector<Rgb>> radiosity);
     void publishDocument();
     void publishLight();
     void publishSolver(double solverMs);
