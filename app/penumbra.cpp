@@ -152,14 +152,16 @@ std::vector<LitTriangle> interpolantTriangles(const Discretization& disc, const 
     out.reserve(4 * mesh.triangles().size());
     for (std::size_t t = 0; t < mesh.triangles().size(); ++t) {
         const HifiTriangle& tri = mesh.triangles()[t];
-        // (s, t) of the corners and midpoints: p = p0 + s (p1 − p0) + t (p2 − p0).
+        // The corners and midpoints in the interpolant's order (A, AB, B, BC, C, CA) at (s, t),
+        // p = p0 + s (p1 − p0) + t (p2 − p0). Positions are the corners themselves and the
+        // symmetric midpoints, so a neighbour sharing an edge computes the same bits.
         const glm::dvec2 st[6] = {{0, 0}, {0.5, 0}, {1, 0}, {0.5, 0.5}, {0, 1}, {0, 0.5}};
-        Vec3 p[6];
+        const Vec3 p[6] = {tri.p[0], 0.5 * (tri.p[0] + tri.p[1]),
+                           tri.p[1], 0.5 * (tri.p[1] + tri.p[2]),
+                           tri.p[2], 0.5 * (tri.p[2] + tri.p[0])};
         Rgb b[6];
-        for (int k = 0; k < 6; ++k) {
-            p[k] = tri.p[0] + st[k].x * (tri.p[1] - tri.p[0]) + st[k].y * (tri.p[2] - tri.p[0]);
+        for (int k = 0; k < 6; ++k)
             b[k] = mesh.radiosity(disc, static_cast<int>(t), st[k].x, st[k].y);
-        }
         const int corners[4][3] = {{0, 1, 5}, {1, 2, 3}, {5, 3, 4}, {1, 3, 5}};
         for (const auto& c : corners)
             out.push_back({tri.element, {p[c[0]], p[c[1]], p[c[2]]}, {b[c[0]], b[c[1]], b[c[2]]}});

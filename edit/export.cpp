@@ -743,8 +743,17 @@ void exportLitTriangles(const Discretization& disc, const std::vector<LitTriangl
         object.polygons.clear();
         object.polygonMaterial.clear();
     }
-    // Welding: one vertex per object, position, normal and radiosity.
-    using Key = std::array<double, 9>;
+    // Welding: one vertex per object, position, normal and radiosity, on grids far finer
+    // than any element or visible difference (neighbours' corners come from different
+    // element frames and interpolants: equal up to rounding, not bit for bit).
+    Vec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+    for (const LitTriangle& tri : triangles)
+        for (const Vec3& p : tri.p) {
+            lo = glm::min(lo, p);
+            hi = glm::max(hi, p);
+        }
+    const double grid = 1e-9 * std::max(1.0, glm::length(hi - lo));
+    using Key = std::array<long long, 9>;
     std::vector<std::map<Key, int>> welded(lit.size());
     std::vector<std::pair<int, int>> faces;
     for (std::size_t t = 0; t < triangles.size(); ++t) {
@@ -758,9 +767,16 @@ void exportLitTriangles(const Discretization& disc, const std::vector<LitTriangl
         LitObject& object = lit[element.object];
         std::vector<int> polygon;
         for (int k = 0; k < 3; ++k) {
-            const Key key{tri.p[k].x,         tri.p[k].y,         tri.p[k].z,
-                          element.normal.x,   element.normal.y,   element.normal.z,
-                          tri.radiosity[k].x, tri.radiosity[k].y, tri.radiosity[k].z};
+            Key key;
+            for (int c = 0; c < 3; ++c) {
+                key[c] = std::llround(tri.p[k][c] / grid);
+                key[3 + c] = std::llround(element.normal[c] * 1e6);
+                // Radiosity to float precision: what the files store.
+                const float b = static_cast<float>(tri.radiosity[k][c]);
+                std::int32_t bits;
+                std::memcpy(&bits, &b, sizeof bits);
+                key[6 + c] = bits;
+            }
             auto [it, added] =
                 welded[element.object].emplace(key, static_cast<int>(object.positions.size()));
             if (added) {

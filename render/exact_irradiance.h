@@ -7,6 +7,7 @@
 //
 // Index: PolygonSet2 · ExactIrradianceOptions · ExactIrradiance
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <string>
@@ -21,7 +22,6 @@ class Discretization;
 class ProgressiveSolver;
 class RayTracer;
 struct SolverOptions;
-
 
 /// A region of a plane as disjoint convex polygons (counter-clockwise): what is left of a
 /// convex polygon after convex polygons are subtracted from it, one at a time.
@@ -158,7 +158,10 @@ private:
     bool nearElement(int element, const Vec3& x) const;
     /// The patch distance (in its radii) within which a patch may hold near sources.
     double nearPatchRadii() const {
-        return mOptions.nearElementRadii > 0 ? mOptions.nearElementRadii + 1 : mOptions.nearRadii;
+        // An element within k of its radii r_e of x lies in a patch whose centroid is within
+        // k·r_e + |c_e − c_p| of x; for convex elements that is at most (4k + 1)/3 patch radii.
+        const double k = mOptions.nearElementRadii;
+        return k > 0 ? std::max(k + 1, (4 * k + 1) / 3) : mOptions.nearRadii;
     }
     /// visiblePart, giving up (and setting `tooMany`) once more than `maxBlockers` (> 0)
     /// blockers reach into the pyramid.

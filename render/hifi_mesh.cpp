@@ -259,6 +259,7 @@ struct ContactIndex {
         Vec3 lo{1e300}, hi{-1e300};
         std::vector<std::vector<Vec3>> polygons;
         std::vector<std::pair<Vec3, Vec3>> sharpEdges;
+        bool sealed = false;  ///< bounds a solid (EdgeMesh::sealed): its inside is hidden
     };
     std::vector<Object> objects;
     explicit ContactIndex(const Discretization& disc) : objects(disc.objects().size()) {
@@ -280,6 +281,7 @@ struct ContactIndex {
             const int front =
                 std::min(surface.firstBackFace, static_cast<int>(surface.mesh.n_faces()));
             const EdgeMesh mesh = EdgeMesh::fromElementMesh(surface.mesh, 30.0, front);
+            objects[i].sealed = mesh.sealed();
             for (int edge : mesh.sharpEdges()) {
                 const MeshEdge& me = mesh.edges()[edge];
                 objects[i].sharpEdges.emplace_back(
@@ -290,8 +292,12 @@ struct ContactIndex {
     }
 };
 
-std::vector<Discontinuity> contactsOn(const Discretization& disc, int e, const ElementGeometry& g,
-                                      const ContactIndex& index, double contactFraction) {
+/// The contact lines on element e, clipped to it. `unclipped`, when given, receives them
+/// before clipping (in the element's plane): a point on one of those is on a contact whether
+/// or not the clip kept it (a contact along the element's edge may fall either way).
+std::vector<Discontinuity> contactsOn(
+    const Discretization& disc, int e, const ElementGeometry& g, const ContactIndex& index,
+    double contactFraction, std::vector<std::pair<glm::dvec2, glm::dvec2>>* unclipped = nullptr) {
     const Element& el = disc.elements()[e];
     const double delta = contactFraction * std::sqrt(el.area);
     Vec3 lo(1e300), hi(-1e300);
@@ -310,6 +316,7 @@ std::vector<Discontinuity> contactsOn(const Discretization& disc, int e, const E
         auto height = [&](const Vec3& p) { return glm::dot(p - g.frame.origin, el.normal); };
         auto keep = [&](const Vec3& p, const Vec3& q) {
             glm::dvec2 a = g.frame.to2(p), b = g.frame.to2(q);
+            if (unclipped) unclipped->emplace_back(a, b);
             if (clipSegment(g.poly2, a, b)) out.push_back({g.frame.to3(a), g.frame.to3(b), inf});
         };
         // Where a polygon crosses the plane (an object standing through it).
@@ -462,10 +469,12 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                 segs.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
                 ++kept;
             }
-            for (const Discontinuity& d : contactsOn(disc, e, g, contacts, options.contactFraction))
+            std::vector<std::pair<glm::dvec2, glm::dvec2>> allContacts;
+            for (const Discontinuity& d :
+                 contactsOn(disc, e, g, contacts, options.contactFraction, &allContacts))
                 contactSegsHere.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
-            // Points on a contact line (those on the boundary included) sample their side.
-            const std::vector<std::pair<glm::dvec2, glm::dvec2>> allContacts = contactSegsHere;
+            // Points on a contact line (unclipped: those on the boundary included) sample their
+            // side.
             dropBoundarySegments(g.poly2, segs, 1e-6 * size);
             dropBoundarySegments(g.poly2, contactSegsHere, 1e-6 * size);
             shadowSegs.fetch_add(static_cast<int>(segs.size()), std::memory_order_relaxed);
@@ -511,8 +520,10 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                 // twice to the same value.
                 samples.fetch_add(1, std::memory_order_relaxed);
                 const ExactIrradiance::Parts value = exact.irradianceParts(x, el.normal);
-                cache.insert({key, value});
-                return value;
+                // The first value stored wins, so every triangle sharing the point sees one.
+                SampleCache::accessor stored;
+                if (cache.insert(stored, key)) stored->second = value;
+                return stored->second;
             };
             // The refinement test's centre sample lies inside one triangle (never shared) and
             // needs only the exact part.
@@ -580,14 +591,18 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                 if (std::abs(cross) <= 1e-14 * size * size) continue;  // degenerate
                 if (cross < 0) std::swap(p[1], p[2]);
                 const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
-                // A triangle inside another object (the floor under a box resting on it: the
-                // first surface above it is seen from behind) is never visible; dropped, it
-                // cannot win a depth tie along the contact line either.
+                // A triangle inside another object that bounds a solid (the floor under a box
+                // resting on it: the first surface above it is the box, seen from behind) is
+                // never visible; dropped, it cannot win a depth tie along the contact line
+                // either. Behind an open surface (a one-sided panel hung under a ceiling) it
+                // may be seen from the side, and stays.
                 if (tracer) {
                     const RayTracer::FirstHit above = tracer->firstHit(
                         g.frame.to3(centre) + tracer->epsilon() * el.normal, el.normal);
-                    if (above.element >= 0 && above.backFace &&
-                        disc.elements()[above.element].object != el.object) {
+                    const int blocker =
+                        above.element >= 0 ? disc.elements()[above.element].object : -1;
+                    if (above.backFace && blocker >= 0 && blocker != el.object &&
+                        contacts.objects[blocker].sealed) {
                         covered.fetch_add(1, std::memory_order_relaxed);
                         continue;
                     }
