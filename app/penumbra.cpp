@@ -108,10 +108,8 @@ void writeReport(const std::string& path, const nlohmann::json& report) {
 /// terminal.
 HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
     const Discretization& disc = lit.discretization();
-    ExactIrradianceOptions exactOptions;
-    exactOptions.farRays = a.gatherRays;
-    exactOptions.maxExactBlockers = 48;
-    ExactIrradiance exact(disc, exactOptions, &lit.tracer());
+    ExactIrradiance exact(disc, ExactIrradianceOptions::forInterpolants(a.gatherRays),
+                          &lit.tracer());
     SolverOptions leafOptions = interactiveSolverOptions();
     leafOptions.seed = a.seed;
     leafOptions.stochasticBelow = a.stochasticBelow;

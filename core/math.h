@@ -2,8 +2,9 @@
 // The math types every module shares (glm's double vectors), the luminance of a colour and
 // the geometry of planar polygons: Newell's normal and a 2D frame of a polygon's plane.
 //
-// Index: types · luminance · newellNormal · PlaneFrame
+// Index: types · luminance · distanceToSegment · newellNormal · PlaneFrame
 
+#include <algorithm>
 #include <glm/glm.hpp>
 #include <vector>
 
@@ -16,6 +17,15 @@ using Vec2 = glm::dvec2;
 
 /// Luminance Y of a linear RGB triple (Rec. 709 primaries).
 inline double luminance(const Rgb& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
+
+/// Distance from p to the segment a–b (2D or 3D; a point when a = b).
+template <typename V>
+double distanceToSegment(const V& p, const V& a, const V& b) {
+    const V d = b - a;
+    const double dd = glm::dot(d, d);
+    const double t = dd > 0 ? std::clamp(glm::dot(p - a, d) / dd, 0.0, 1.0) : 0.0;
+    return glm::length(p - (a + t * d));
+}
 
 /// Newell's method: the area vector of a polygon (normal direction, length twice the area),
 /// exact for planar polygons and the best-fit normal of nearly planar ones.

@@ -461,17 +461,16 @@ double ExactIrradiance::sampledVisibleFraction(const Vec3& x, const Vec3& n,
     for (double c : {source[0].x, source[0].y, source[0].z, source[1].x, source[1].y, source[1].z})
         state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
     SplitMix random(state);
-    auto next = [&] { return random.next(); };
     const double eps = mTracer->epsilon();
     const Vec3 from = x + eps * n;
     const int m = std::max(1, mOptions.blockedRays);
     double all = 0, seen = 0;
     for (int i = 0; i < m; ++i) {
-        const double u = (i + next()) / m * total;
+        const double u = (i + random.next()) / m * total;
         const std::size_t k = std::min<std::size_t>(
             std::upper_bound(cumulative.begin(), cumulative.end(), u) - cumulative.begin(),
             cumulative.size() - 1);
-        double r0 = next(), r1 = next();
+        double r0 = random.next(), r1 = random.next();
         if (r0 + r1 > 1) r0 = 1 - r0, r1 = 1 - r1;
         const Vec3 y =
             source[0] + r0 * (source[k + 1] - source[0]) + r1 * (source[k + 2] - source[0]);
@@ -594,12 +593,11 @@ Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
     for (double c : {x.x, x.y, x.z})
         state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
     SplitMix random(state);
-    auto next = [&] { return random.next(); };
     const Vec3 origin = x + mTracer->epsilon() * n;
     Rgb sum(0.0);
     for (int i = 0; i < side; ++i)
         for (int k = 0; k < side; ++k) {
-            const double u = (i + next()) / side, v = (k + next()) / side;
+            const double u = (i + random.next()) / side, v = (k + random.next()) / side;
             const double r = std::sqrt(u), phi = 2 * M_PI * v;
             const Vec3 d =
                 r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u)) * n;
@@ -614,7 +612,10 @@ Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
 }
 
 std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const ProgressiveSolver& solver) {
-    const std::vector<Rgb> b = solver.displayRadiosity();
+    return reflectedRadiosity(disc, solver.displayRadiosity());
+}
+
+std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const std::vector<Rgb>& b) {
     std::vector<Rgb> out(b.size());
     for (std::size_t e = 0; e < b.size(); ++e)
         out[e] = glm::max(b[e] - disc.elementMaterial(static_cast<int>(e)).emission, Rgb(0.0));

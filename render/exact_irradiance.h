@@ -66,6 +66,14 @@ struct ExactIrradianceOptions {
     /// (the ratio estimator of formFactorToPatch; the unoccluded part stays exact).
     int maxExactBlockers = 0;
     int blockedRays = 256;
+    /// What the interpolants use (`render --mode interpolant`, `export --hifi`, the editor,
+    /// `bench hifi`): `farRays` rays for the far field, sampled visibility past 48 blockers.
+    static ExactIrradianceOptions forInterpolants(int farRays) {
+        ExactIrradianceOptions o;
+        o.farRays = farRays;
+        o.maxExactBlockers = 48;
+        return o;
+    }
 };
 
 /// Thread safety: const functions may be called from any thread. The Discretization must not
@@ -208,6 +216,8 @@ private:
 /// Per element, the radiosity the solution reflects: B − E (ρ·H plus the solver's ambient
 /// estimate of the light not yet shot, Cohen eq. 13), for ExactIrradiance::setReflected.
 std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const ProgressiveSolver& solver);
+/// The same from a radiosity per element (a copy the solver published).
+std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const std::vector<Rgb>& radiosity);
 
 /// The reflected radiosity of `disc`'s elements from a second solve of `scene` in which every
 /// element is its own shooter (as the paper's hierarchical solution links leaf elements),

@@ -401,14 +401,6 @@ struct SampleKeyHash {
 
 using SampleCache = tbb::concurrent_hash_map<SampleKey, ExactIrradiance::Parts, SampleKeyHash>;
 
-/// Distance from p to segment a–b.
-double segmentDistance(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b) {
-    const glm::dvec2 d = b - a;
-    const double len2 = glm::dot(d, d);
-    const double t = len2 > 0 ? std::clamp(glm::dot(p - a, d) / len2, 0.0, 1.0) : 0.0;
-    return glm::length(p - (a + t * d));
-}
-
 }  // namespace
 
 std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element) {
@@ -499,7 +491,7 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
             auto sampleAt = [&](const glm::dvec2& q, const glm::dvec2& centre) {
                 bool onContact = false;
                 for (const auto& [a, b] : allContacts)
-                    if (segmentDistance(q, a, b) <= 1e-6 * size) {
+                    if (distanceToSegment(q, a, b) <= 1e-6 * size) {
                         onContact = true;
                         break;
                     }

@@ -319,13 +319,6 @@ SmallPolygon clipToBox(const SmallPolygon& input, const Box3& clip, Box3& out) {
     return result;
 }
 
-double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
-    Vec3 d = b - a;
-    double dd = glm::dot(d, d);
-    double t = dd > 0 ? std::clamp(glm::dot(p - a, d) / dd, 0.0, 1.0) : 0.0;
-    return glm::length(p - (a + t * d));
-}
-
 /// The event's region as convex polygons (one for VE, two for EV: before and beyond the
 /// vertex), long enough to leave `clip`; false when degenerate.
 bool regionPolygons(const ShadowEvent& ev, const Box3& clip, SmallPolygon (&poly)[2], int& count) {

@@ -120,13 +120,6 @@ bool isPlane(GizmoHandle h) {
     return h == GizmoHandle::PlaneYZ || h == GizmoHandle::PlaneZX || h == GizmoHandle::PlaneXY;
 }
 
-double distanceToSegment(glm::dvec2 p, glm::dvec2 a, glm::dvec2 b) {
-    const glm::dvec2 ab = b - a;
-    const double len2 = glm::dot(ab, ab);
-    const double t = len2 > 0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
-    return glm::length(p - (a + t * ab));
-}
-
 bool insideConvex(glm::dvec2 p, const std::vector<glm::dvec2>& poly) {
     if (poly.size() < 3) return false;
     int sign = 0;

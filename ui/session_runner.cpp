@@ -628,15 +628,10 @@ std::unique_ptr<HifiMesh> SessionRunner::buildHifiHeld(
     const Discretization& disc = mSession->discretization();
     if (radiosity->size() != disc.elements().size()) return nullptr;
     try {
-        ExactIrradianceOptions exactOptions;
-        exactOptions.farRays = mOptions.hifiGatherRays;
-        exactOptions.maxExactBlockers = 48;  // as `render --mode interpolant`
-        ExactIrradiance exact(disc, exactOptions, &mSession->tracer());
-        std::vector<Rgb> reflected(radiosity->size());
-        for (std::size_t e = 0; e < reflected.size(); ++e)
-            reflected[e] =
-                glm::max((*radiosity)[e] - disc.elementMaterial(int(e)).emission, Rgb(0.0));
-        exact.setReflected(std::move(reflected));
+        ExactIrradiance exact(disc,
+                              ExactIrradianceOptions::forInterpolants(mOptions.hifiGatherRays),
+                              &mSession->tracer());
+        exact.setReflected(reflectedRadiosity(disc, *radiosity));
         HifiOptions options;
         options.cancelled = [this] { return mEditsWaiting.load() > 0 || mHifiOutdated.load(); };
         auto mesh = std::make_unique<HifiMesh>();

@@ -55,10 +55,7 @@ HifiCase runCase(const HifiBenchOptions& o, const std::string& name, nlohmann::j
                                                              : session->scene().cameras.front();
 
     auto start = Clock::now();
-    ExactIrradianceOptions exactOptions;
-    exactOptions.farRays = o.gatherRays;
-    exactOptions.maxExactBlockers = 48;  // as `render --mode interpolant`
-    ExactIrradiance exact(disc, exactOptions, &tracer);
+    ExactIrradiance exact(disc, ExactIrradianceOptions::forInterpolants(o.gatherRays), &tracer);
     exact.setReflected(leafReflectedRadiosity(session->scene(), disc, session->solver(), options,
                                               o.converge, 100000000));
     c.leafSolveSeconds = secondsSince(start);

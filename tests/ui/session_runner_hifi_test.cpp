@@ -13,6 +13,7 @@
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
 #include "render/gouraud_renderer.h"
+#include "render/path_tracer.h"
 #include "runner_test_support.h"
 #include "test_scenes.h"
 #include "ui/session_runner.h"
@@ -33,15 +34,8 @@ ViewRequest view() {
 using test::pumpUntil;
 using test::waitUntil;
 
-double relativeDifference(const Image& a, const Image& b) {
-    double num = 0, den = 0;
-    for (std::size_t i = 0; i < a.pixels.size(); ++i) {
-        const Rgb d = a.pixels[i] - b.pixels[i];
-        num += glm::dot(d, d);
-        den += glm::dot(b.pixels[i], b.pixels[i]);
-    }
-    return std::sqrt(num / den);
-}
+/// Relative RMSE over all pixels (path_tracer.h's measure, nothing masked).
+double relativeDifference(const Image& a, const Image& b) { return relativeRmse(a, b); }
 
 /// The interpolants of `scene` converged to 1e-3 as the runner converges it, drawn from
 /// the test view, and the Gouraud image of the same lighting.
@@ -50,10 +44,7 @@ std::pair<Image, Image> independentImages(const Scene& scene) {
     while (!session.solver().converged(1e-3) && session.solve(1) > 0) {
     }
     const Discretization& disc = session.discretization();
-    ExactIrradianceOptions exactOptions;
-    exactOptions.farRays = 256;
-    exactOptions.maxExactBlockers = 48;
-    ExactIrradiance exact(disc, exactOptions, &session.tracer());
+    ExactIrradiance exact(disc, ExactIrradianceOptions::forInterpolants(256), &session.tracer());
     exact.setReflected(reflectedRadiosity(disc, session.solver()));
     HifiMesh mesh;
     mesh.build(disc, exact);
