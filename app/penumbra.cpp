@@ -331,16 +331,12 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
         // One log line per frame (frame 0 shows the scene before the log).
         if (k >= 1 && k - 1 < static_cast<int>(edits.size())) {
             const LoggedEdit& logged = edits[k - 1];
-            EditResult result = session->apply(logged.command, EditSource{r.log, logged.line});
+            const EditEvent event = session->apply(logged.command, EditSource{r.log, logged.line});
             if (!logged.command.isSolverWork()) session->converge(a.converge, a.maxShots);
-            std::vector<int> changed = result.added;
-            changed.insert(changed.end(), result.removed.begin(), result.removed.end());
-            changed.insert(changed.end(), result.materialChanged.begin(),
-                           result.materialChanged.end());
-            if (!changed.empty())
-                display.notifyChanged(changed, &session->solver());
-            else
-                display.updateSolution(session->solver());
+            // A drag's preview is traced without a subset of its own (the whole scene,
+            // filtered): one frame per line, nothing to amortize.
+            display.apply(event, {}, &session->solver());
+            display.updateSolution(session->solver());
             entry["edit"] = {{"line", logged.line}, {"op", logged.command.opName()}};
         }
         const Camera frameCamera = r.log.empty() ? orbitCamera(camera, k * r.orbitDeg) : camera;

@@ -1,4 +1,4 @@
-// Index: EditResult · construction and log · apply (validate, log, perform, history) ·
+// Index: construction and log · apply (validate, log, perform, history) ·
 //        planning each op (validation first, mutation in `perform`) · versions and materials
 //        · solver work · output (display, save, export, report)
 
@@ -33,25 +33,7 @@ bool sameTransform(const Transform& a, const Transform& b) {
     return a.translate == b.translate && a.rotateDeg == b.rotateDeg && a.scale == b.scale;
 }
 
-std::string listVersions(const std::vector<int>& v) {
-    std::string s = "[";
-    for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + std::to_string(v[i]);
-    return s + "]";
-}
-
 }  // namespace
-
-// ---------------------------------------------------------------------------------------------
-// EditResult.
-
-std::string EditResult::toString() const {
-    std::ostringstream s;
-    s << "EditResult{geometry " << geometry << ", material " << material << ", emitter " << emitter
-      << ", selection " << selection << ", added " << listVersions(added) << ", removed "
-      << listVersions(removed) << ", materialChanged " << listVersions(materialChanged)
-      << ", preview " << preview << ", shots " << shots << "}";
-    return s.str();
-}
 
 // ---------------------------------------------------------------------------------------------
 // Construction and log.
@@ -82,7 +64,7 @@ void EditSession::closeLog() { mLog.reset(); }
 // ---------------------------------------------------------------------------------------------
 // apply.
 
-EditResult EditSession::apply(const EditCommand& command, const EditSource& source) {
+EditEvent EditSession::apply(const EditCommand& command, const EditSource& source) {
     checkEditValues(command, source);
 
     // Validate: plan the edit (undo and redo plan their recorded command) without changing
@@ -109,14 +91,12 @@ EditResult EditSession::apply(const EditCommand& command, const EditSource& sour
     }
 
     // Commit: the log line first (write-ahead: on disk before the solution changes), then the
-    // document and solution.
+    // document and structure, then the solver takes the event.
     if (mLog) mLog->append(command);
-    EditResult result = planned.perform();
-    // The selected object's preview was computed in the scene as it was: start it again.
-    if (!mSelected.empty() && result.solutionChanged() && !result.selection) {
-        solver().setPreview(mVersionOf.at(mSelected));
-        result.preview = mVersionOf.at(mSelected);
-    }
+    EditEvent event = planned.perform();
+    if (event.kind == EditEvent::Kind::Changed && !mSelected.empty()) event.origin = mDragOrigin;
+    solver().apply(event);
+    event.preview = solver().previewObject();
 
     // History.
     switch (history) {
@@ -135,7 +115,7 @@ EditResult EditSession::apply(const EditCommand& command, const EditSource& sour
             mRedo.pop_back();
             break;
     }
-    return result;
+    return event;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -163,7 +143,7 @@ EditSession::Plan EditSession::plan(const EditCommand& command, const EditSource
     if (auto* c = std::get_if<SolveCommand>(&command.op)) {
         const int shots = c->shots;
         return {[this, shots] {
-                    EditResult r;
+                    EditEvent r;
                     r.shots = solve(shots);
                     return r;
                 },
@@ -172,7 +152,7 @@ EditSession::Plan EditSession::plan(const EditCommand& command, const EditSource
     if (auto* c = std::get_if<ConvergeCommand>(&command.op)) {
         const double eps = c->threshold;
         return {[this, eps] {
-                    EditResult r;
+                    EditEvent r;
                     r.shots = converge(eps);
                     return r;
                 },
@@ -203,8 +183,9 @@ EditSession::Plan EditSession::planAdd(const AddCommand& c, const EditSource& so
         Scene& d = mLit->scene();
         d.objects.insert(d.objects.begin() + at, object);
         const int v = addVersion(at, true);
-        mLit->solver().applyChange({{}, {v}});
-        EditResult r;
+        EditEvent r;
+        r.kind = EditEvent::Kind::Changed;
+        r.object = object.id;
         r.geometry = true;
         r.emitter = versionEmits(v);
         r.added = {v};
@@ -228,8 +209,9 @@ EditSession::Plan EditSession::planRemove(const RemoveCommand& c, const EditSour
         const int v = mVersionOf.at(id);
         mVersionOf.erase(id);
         setVersionAlive(v, false);
-        mLit->solver().applyChange({{v}, {}});
-        EditResult r;
+        EditEvent r;
+        r.kind = EditEvent::Kind::Changed;
+        r.object = id;
         r.geometry = true;
         r.emitter = versionEmits(v);
         r.removed = {v};
@@ -261,20 +243,21 @@ EditSession::Plan EditSession::planTransform(const std::string& id, const Transf
         SceneObject& object = mLit->scene().objects[index];
         object.transform = transform;
         const int old = mVersionOf.at(object.id);
-        EditResult r;
+        EditEvent r;
+        r.object = object.id;
         r.geometry = true;
         r.emitter = versionEmits(old);
         if (dragging) {
             // George et al.: the dragged object's corrections go to a temporary buffer that
             // the next position discards.
-            const int v = addVersion(index, false);
-            mLit->solver().setPreview(v);
-            r.preview = v;
+            r.kind = EditEvent::Kind::PreviewMoved;
+            r.origin = mDragOrigin;
+            r.preview = addVersion(index, false);
         } else {
             // A move is a removal plus an addition.
             const int v = addVersion(index, true);
             setVersionAlive(old, false);
-            mLit->solver().applyChange({{old}, {v}});
+            r.kind = EditEvent::Kind::Changed;
             r.removed = {old};
             r.added = {v};
         }
@@ -303,7 +286,8 @@ EditSession::Plan EditSession::planMaterial(const MaterialCommand& c, const Edit
         setDocumentMaterial(index, after);
         const std::string& id = mLit->scene().objects[index].id;
         const int old = mVersionOf.at(id);
-        EditResult r;
+        EditEvent r;
+        r.object = id;
         r.material = true;
         r.emitter = before.emission != after.emission;
         // Which side reflects is geometry: a two_sided change rebuilds the object.
@@ -315,19 +299,22 @@ EditSession::Plan EditSession::planMaterial(const MaterialCommand& c, const Edit
                 v = addVersion(index, false);
             else
                 mLit->discretization().setObjectMaterial(v, after);
-            mLit->solver().setPreview(v);
+            r.kind = EditEvent::Kind::PreviewMoved;
+            r.origin = mDragOrigin;
             r.preview = v;
         } else if (rebuild) {
             const int v = addVersion(index, true);
             setVersionAlive(old, false);
-            mLit->solver().applyChange({{old}, {v}});
+            r.kind = EditEvent::Kind::Changed;
             r.geometry = true;
             r.removed = {old};
             r.added = {v};
         } else {
-            // George et al.: a radiosity correction Δρ·H + ΔE from the object's patches.
-            mLit->solver().changeMaterial(old, after);
+            // George et al.: a radiosity correction Δρ·H + ΔE from the object's patches (the
+            // solver sets the material once it has read the old one).
+            r.kind = EditEvent::Kind::Changed;
             r.materialChanged = {old};
+            r.newMaterial = after;
         }
         return r;
     };
@@ -347,15 +334,16 @@ EditSession::Plan EditSession::planSelect(const SelectCommand& c, const EditSour
         // from the radiosity solution"; the preview shows it where it is.
         const int v = mVersionOf.at(id);
         setVersionAlive(v, false);
-        mLit->solver().applyChange({{v}, {}});
         mSelected = id;
         mSelectedFrom = mLit->scene().objects[index].transform;
-        mLit->solver().setPreview(v);
-        EditResult r;
-        r.selection = true;
+        mDragOrigin = v;
+        EditEvent r;
+        r.kind = EditEvent::Kind::DragBegan;
+        r.object = id;
         r.emitter = versionEmits(v);
-        r.removed = {v};
+        r.origin = v;
         r.preview = v;
+        r.removed = {v};
         return r;
     };
     return p;
@@ -372,14 +360,15 @@ EditSession::Plan EditSession::planUnselect(const EditSource& source) {
     p.perform = [this] {
         // "When the object is unselected, it is added back into the environment."
         const int v = mVersionOf.at(mSelected);
-        mLit->solver().clearPreview();
         setVersionAlive(v, true);
-        mLit->solver().applyChange({{}, {v}});
-        mSelected.clear();
-        EditResult r;
-        r.selection = true;
+        EditEvent r;
+        r.kind = EditEvent::Kind::DragEnded;
+        r.object = mSelected;
         r.emitter = versionEmits(v);
+        r.origin = mDragOrigin;
         r.added = {v};
+        mSelected.clear();
+        mDragOrigin = -1;
         return r;
     };
     return p;

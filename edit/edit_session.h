@@ -20,26 +20,9 @@
 #include "edit/edit_command.h"
 #include "edit/edit_log.h"
 #include "edit/lit_scene.h"
+#include "solver/edit_event.h"
 
 namespace penumbra {
-
-/// What an applied edit changed (STYLE.md "An edit says what it changed").
-struct EditResult {
-    bool geometry = false;     ///< an object was added, removed or moved (document geometry)
-    bool material = false;     ///< an object's material changed
-    bool emitter = false;      ///< emission entered, left, moved or changed
-    bool selection = false;    ///< the selection changed
-    std::vector<int> added;    ///< versions that entered the solution
-    std::vector<int> removed;  ///< versions that left the solution
-    std::vector<int> materialChanged;  ///< versions in the solution whose material changed
-    int preview = -1;                  ///< the dead version now in the preview buffer, or -1
-    std::uint64_t shots = 0;           ///< solver shots done (solve, converge), preview included
-    /// The lit scene a from-scratch solve would see changed (objects or materials).
-    bool solutionChanged() const {
-        return !added.empty() || !removed.empty() || !materialChanged.empty();
-    }
-    std::string toString() const;
-};
 
 class EditSession {
 public:
@@ -60,21 +43,22 @@ public:
     const EditLogWriter* log() const { return mLog.get(); }
 
     /// Validates `command` against the current document, then applies it: updates the
-    /// document, performs the structural change on the discretization and tracer, tells the
-    /// solver (applyChange, changeMaterial, preview), records the inverse for undo and appends
-    /// the command to the log. Invalid edits (unknown id, duplicate add, bad value, select
-    /// while another object is selected, unselect with nothing selected, undo with nothing
-    /// to undo, ...) throw InputError naming `source`, and change neither the document, the
-    /// solution nor the log. The log line is written and synced after validation and before
-    /// anything changes (write-ahead): when it cannot be written, std::runtime_error is thrown
-    /// and the edit is not applied.
+    /// document, performs the structural change on the discretization and tracer, hands the
+    /// resulting EditEvent to the solver (ProgressiveSolver::apply), records the inverse for
+    /// undo and appends the command to the log. Returns the event, for the display and the
+    /// editor to consume as the solver did (its `preview` is previewVersion() after it). Invalid
+    /// edits (unknown id, duplicate add, bad value, select while another object is selected,
+    /// unselect with nothing selected, undo with nothing to undo, ...) throw InputError naming
+    /// `source`, and change neither the document, the solution nor the log. The log line is written
+    /// and synced after validation and before anything changes (write-ahead): when it cannot be
+    /// written, std::runtime_error is thrown and the edit is not applied.
     ///
     /// Selection follows George et al.: select takes the object out of the solution (it stays
     /// in the document); transform and move then build a dead version at the new place and
     /// show it through the solver's preview buffer; material edits update the dead version;
     /// unselect puts the object back where it is and records the whole drag as one undo step.
     /// Removing the selected object, and undo/redo while an object is selected, are refused.
-    EditResult apply(const EditCommand& command, const EditSource& source = {});
+    EditEvent apply(const EditCommand& command, const EditSource& source = {});
 
     /// Solver work without logging: up to `shots` shots, and as many preview shots while an
     /// object is selected. Returns the shots done.
@@ -95,6 +79,10 @@ public:
     int objectVersion(const std::string& id) const;
     /// Id of the selected object, "" when none.
     const std::string& selected() const { return mSelected; }
+    /// The version the drag previews (the selected object where it is now), -1 when nothing
+    /// is selected. The solver holds it (ProgressiveSolver::previewObject); every other copy
+    /// is a snapshot of it published to another thread.
+    int previewVersion() const { return solver().previewObject(); }
     std::size_t undoDepth() const { return mUndo.size(); }
     std::size_t redoDepth() const { return mRedo.size(); }
 
@@ -130,7 +118,7 @@ private:
     };
     /// A validated edit, ready to perform.
     struct Plan {
-        std::function<EditResult()> perform;
+        std::function<EditEvent()> perform;
         std::optional<UndoRecord> record;  ///< pushed on the undo stack once performed
     };
     enum class History { Record, Undo, Redo };
@@ -169,6 +157,7 @@ private:
     std::vector<UndoRecord> mUndo, mRedo;
     std::string mSelected;
     Transform mSelectedFrom;  ///< the selected object's transform when it was selected
+    int mDragOrigin = -1;     ///< the selected object's version when it was selected
     std::unique_ptr<EditLogWriter> mLog;
 };
 

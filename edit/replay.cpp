@@ -167,7 +167,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
         const EditCommand& command = logged.command;
         start = Clock::now();
         rays0 = tracer.rayCount();
-        EditResult result = session->apply(command, EditSource{options.logPath, logged.line});
+        EditEvent result = session->apply(command, EditSource{options.logPath, logged.line});
         std::uint64_t shots = result.shots;
         if (!command.isSolverWork() && options.budgetShots > 0)
             shots += session->solve(options.budgetShots);

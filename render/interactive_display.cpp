@@ -600,6 +600,36 @@ std::size_t InteractiveDisplay::hideOccluded(const CameraRays& camera) {
     });
 }
 
+std::size_t InteractiveDisplay::apply(const EditEvent& event, const DragVisibility& drag,
+                                      const ProgressiveSolver* solver) {
+    using Kind = EditEvent::Kind;
+    std::size_t n = 0;
+    switch (event.kind) {
+        case Kind::Solved:
+            return 0;
+        case Kind::Changed:
+            n = notifyChanged(event.changed(), solver);
+            if (event.preview >= 0) n += setPreview(event.preview, drag.preview, solver);
+            return n;
+        case Kind::DragBegan:
+            if (previewVersion() >= 0) n += clearPreview(solver);
+            beginDrag(event.origin, drag.origin);
+            return n + setPreview(event.preview, drag.preview, solver);
+        case Kind::PreviewMoved:
+            return setPreview(event.preview, drag.preview, solver);
+        case Kind::DragEnded: {
+            const int added = event.added.empty() ? -1 : event.added.front();
+            // The drag this display followed ends where it last saw it: its last change joins
+            // the direct light, nothing recomputed.
+            if (added >= 0 && dragOrigin() >= 0 && previewVersion() == added)
+                return endDrag(added, solver);
+            if (previewVersion() >= 0) n += clearPreview(solver);
+            return n + notifyChanged(event.added, solver);
+        }
+    }
+    return n;
+}
+
 std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObjects,
                                               const ProgressiveSolver* solver) {
     // Work from before the edit is stale.

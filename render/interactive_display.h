@@ -284,8 +284,28 @@ public:
                                const std::vector<Rgb>* previewRadiosity = nullptr,
                                const std::vector<Rgb>* previewFromEmission = nullptr,
                                int previewObject = -1, bool previewComplete = false);
+    /// Takes an edit (EditSession::apply's event; the structure already changed, shader paused
+    /// in asynchronous mode): the one way the display learns of edits. Changed → notifyChanged
+    /// (event.changed(), `solver`), then setPreview(event.preview) when a drag goes on;
+    /// DragBegan → beginDrag(origin) and setPreview(preview); PreviewMoved → setPreview;
+    /// DragEnded → endDrag when this display followed the drag to its last preview, else
+    /// clearPreview and notifyChanged(added); Solved → nothing. `drag` holds the RayTracer
+    /// subsets the caller keeps alive for the drag (its origin alone from DragBegan to
+    /// DragEnded; the preview alone until the next preview); `solver`, when given, is passed
+    /// to each step (a snapshot of its solution, instead of the next updateSolution). Returns
+    /// the points moved, dropped or marked.
+    struct DragVisibility {
+        Visibility origin;
+        Visibility preview;
+    };
+    std::size_t apply(const EditEvent& event, const DragVisibility& drag = {},
+                      const ProgressiveSolver* solver = nullptr);
+
+    // The steps apply() takes, public for tests that check one of them alone and for
+    // catching up a display that missed edits.
+
     /// After an edit changed `changedObjects` (Discretization object versions added, removed,
-    /// or with a new material; EditResult's added/removed/materialChanged): a version that
+    /// or with a new material; EditEvent::changed()): a version that
     /// replaced another of the same object (a move) takes its points; a removed object's
     /// points go; an added object hides what it covers for kOccluderFrames frames; points on
     /// an object with a new material are stale. Then brings the edge finder up to date

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "solver/discretization.h"
+#include "solver/edit_event.h"
 #include "solver/ray_tracer.h"
 
 namespace penumbra {
@@ -128,6 +129,14 @@ public:
     Rgb patchRadiosity(int patch) const;
     const Rgb& unshotRadiosity(int patch) const { return mPatchUnshot[patch]; }
 
+    /// Takes an edit as EditSession made it (the discretization and tracer already changed):
+    /// Changed → applyChange (versions added or removed) or changeMaterial (newMaterial), then
+    /// setPreview(previewObject()) again while a drag goes on, since the preview was computed
+    /// in the scene as it was; DragBegan → applyChange of the origin's removal, setPreview
+    /// (origin); PreviewMoved → setPreview(preview); DragEnded → clearPreview, applyChange of
+    /// the addition; Solved → nothing. Throws std::invalid_argument for a material change
+    /// without newMaterial.
+    void apply(const EditEvent& event);
     /// Records an edit (George et al.): removed objects' elements are zeroed and the energy
     /// their patches shot is queued for cancellation; added patches start with their emission
     /// unshot; every patch's already-shot radiosity B − ΔB is queued for redistribution by

@@ -280,77 +280,43 @@ bool SessionRunner::solverIteration() {
         for (int i = 0; i < 2; ++i)
             if (mSlots[i].display) pauses[i].emplace(mSlots[i].display->shader());
         const double a1 = nowSeconds();
-        std::vector<int> changed;
-        bool structural = false;
-        bool previewTouched = false;  // a preview version was (re)set: its points are stale
-        // George et al.'s select and unselect, when alone with the drag positions in this batch:
-        // the displays start (beginDrag) and end (endDrag) the drag without recomputing.
-        int selectOrigin = -1, unselectAdded = -1, selections = 0;
+        std::vector<EditEvent> events;
+        bool structural = false;  // a task ran: it may have changed anything
         for (Queued& q : commands) {
             try {
                 if (q.task) {
                     q.task(*mSession);
-                    structural = true;  // a task may change anything
+                    structural = true;
                 } else {
-                    const EditResult r = mSession->apply(q.command, q.source);
-                    changed.insert(changed.end(), r.added.begin(), r.added.end());
-                    changed.insert(changed.end(), r.removed.begin(), r.removed.end());
-                    changed.insert(changed.end(), r.materialChanged.begin(),
-                                   r.materialChanged.end());
-                    previewTouched = previewTouched || r.preview >= 0 || r.selection;
-                    if (r.selection) {
-                        ++selections;
-                        if (r.preview >= 0 && r.removed.size() == 1 && r.removed[0] == r.preview)
-                            selectOrigin = r.preview;
-                        else if (r.preview < 0 && r.added.size() == 1)
-                            unselectAdded = r.added[0];
-                    }
+                    events.push_back(mSession->apply(q.command, q.source));
                 }
             } catch (const std::exception& e) {
                 report(e.what());
             }
         }
-        // The drag preview (George et al.'s temporary buffer): the dragged object's current
-        // version, alone in a tracer subset the display's rays test besides the scene.
-        const int preview = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
-        const bool previewMoved = preview != mPreviewVersion || (preview >= 0 && previewTouched);
-        std::sort(changed.begin(), changed.end());
-        changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
-        if (selections != 1 || structural ||
-            changed != std::vector<int>{selectOrigin >= 0 ? selectOrigin : unselectAdded})
-            selectOrigin = unselectAdded = -1;
-        if (selectOrigin >= 0)
-            mOriginSubset = RayTracer::SubsetHandle(mSession->tracer(), {selectOrigin});
-        // Unselect, select: live displays leave the preview before they see the object added
-        // back, and see it removed before they show the preview; then the subset follows.
-        for (int i = 0; i < 2; ++i) {
-            DisplaySlot& slot = mSlots[i];
-            if (!slot.display) continue;
-            if (liveSlot(i) && !slot.behind) {
-                applyDisplayEdits(slot, changed, structural, false, selectOrigin, unselectAdded);
-            } else if (!changed.empty() || structural || previewTouched) {
-                slot.behind = true;
-                slot.pendingChanged.insert(slot.pendingChanged.end(), changed.begin(),
-                                           changed.end());
-                slot.pendingStructural = slot.pendingStructural || structural;
+        // The displays see a batch of drag positions as its last one.
+        coalescePreviews(events);
+        for (const EditEvent& event : events) applyDisplayEvent(event);
+        if (structural) {
+            for (int i = 0; i < 2; ++i) {
+                DisplaySlot& slot = mSlots[i];
+                if (!slot.display) continue;
+                if (liveSlot(i) && !slot.behind) {
+                    try {
+                        slot.display->notifyChanged({}, &mSession->solver());
+                        slot.solution = mLightSerial + 1;  // publishLight follows the edits
+                    } catch (const std::exception& e) {
+                        report(std::string("display: ") + e.what());
+                    }
+                } else {
+                    slot.behind = true;
+                    slot.pendingStructural = true;
+                }
             }
         }
-        if (preview != mPreviewVersion) {
-            // A display's background estimate may still trace the previous preview's subset:
-            // kept until no estimate uses it.
-            if (mPreviewVersion >= 0)
-                mOldSubsets.emplace_back(mPreviewVersion, std::move(mPreviewSubset));
-            mPreviewSubset.reset();
-            if (preview >= 0)
-                mPreviewSubset = RayTracer::SubsetHandle(mSession->tracer(), {preview});
-            mPreviewVersion = preview;
-        }
-        for (int i = 0; i < 2; ++i)
-            if (mSlots[i].display && liveSlot(i) && !mSlots[i].behind)
-                applyDisplayEdits(mSlots[i], {}, false, previewMoved);
-        std::erase_if(mOldSubsets, [&](const auto& s) {
+        std::erase_if(mOldSubsets, [&](const VersionSubset& s) {
             for (const DisplaySlot& slot : mSlots)
-                if (slot.display && slot.display->directJobPreview() == s.first) return false;
+                if (slot.display && slot.display->directJobPreview() == s.version) return false;
             return true;
         });
         // Objects that hide points behind them trace a subset of their own, not a filter
@@ -359,24 +325,23 @@ bool SessionRunner::solverIteration() {
             if (!slot.display || !slot.display->occluderNeedsSubset()) continue;
             const int occluder = slot.display->occluder();
             auto it = std::find_if(mOccluderSubsets.begin(), mOccluderSubsets.end(),
-                                   [&](const auto& s) { return s.first == occluder; });
+                                   [&](const VersionSubset& s) { return s.version == occluder; });
             if (it == mOccluderSubsets.end())
-                it = mOccluderSubsets.emplace(
-                    mOccluderSubsets.end(), occluder,
-                    RayTracer::SubsetHandle(mSession->tracer(), {occluder}));
-            slot.display->setOccluderSubset(occluder, it->second.visibility());
+                it = mOccluderSubsets.insert(mOccluderSubsets.end(),
+                                             VersionSubset(mSession->tracer(), occluder));
+            slot.display->setOccluderSubset(occluder, it->visibility());
         }
-        std::erase_if(mOccluderSubsets, [&](const auto& s) {
+        std::erase_if(mOccluderSubsets, [&](const VersionSubset& s) {
             for (const DisplaySlot& slot : mSlots)
-                if (slot.display && slot.display->occluder() == s.first) return false;
+                if (slot.display && slot.display->occluder() == s.version) return false;
             return true;
         });
         // The drag's origin subset lives while a display may still use it.
-        if (preview < 0) {
+        if (mSession->previewVersion() < 0) {
             bool used = false;
             for (const DisplaySlot& slot : mSlots)
                 used = used || (slot.display && slot.display->dragOrigin() >= 0);
-            if (!used) mOriginSubset.reset();
+            if (!used) mOriginSubset = VersionSubset();
         }
         ++mEditBatches;
         for (auto& pause : pauses) pause.reset();
@@ -647,49 +612,44 @@ std::unique_ptr<HifiMesh> SessionRunner::buildHifiHeld(
 // ---------------------------------------------------------------------------------------------
 // The display modes.
 
-void SessionRunner::applyDisplayEdits(DisplaySlot& slot, const std::vector<int>& changed,
-                                      bool structural, bool previewMoved, int selectOrigin,
-                                      int unselectAdded) {
-    InteractiveDisplay& d = *slot.display;
-    const int preview = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
-    try {
-        if (!previewMoved) {
-            // Unselect of a drag the display follows: the preview's last change joins the
-            // direct light (nothing recomputed, the preview subset is still alive).
-            if (unselectAdded >= 0 && d.dragOrigin() >= 0 && d.previewVersion() == unselectAdded) {
-                const double t0 = nowSeconds();
-                const std::size_t dropped = d.endDrag(unselectAdded);
-                slot.solution = mLightSerial + 1;  // publishLight follows the edits
-                spdlog::debug("display {}x{}: endDrag {} in {:.1f} ms, {} dropped", d.width(),
-                              d.height(), unselectAdded, (nowSeconds() - t0) * 1e3, dropped);
-                return;
-            }
-            // The edits themselves (the subset still is the previous preview's).
-            if (d.previewVersion() >= 0 && preview < 0) d.clearPreview();
-            // Select: the object is previewed where it was removed; nothing shown changes.
-            if (selectOrigin >= 0 && d.previewVersion() < 0) {
-                d.beginDrag(selectOrigin, mOriginSubset.visibility());
-                return;
-            }
-            if (!changed.empty() || structural) {
-                const double t0 = nowSeconds();
-                d.notifyChanged(changed, &mSession->solver());
-                slot.solution = mLightSerial + 1;  // publishLight follows the edits
-                spdlog::debug("display {}x{}: notifyChanged {} in {:.1f} ms", d.width(), d.height(),
-                              changed.size(), (nowSeconds() - t0) * 1e3);
-            }
-            return;
+void SessionRunner::applyDisplayEvent(const EditEvent& event) {
+    using Kind = EditEvent::Kind;
+    if (event.kind == Kind::Solved) return;
+    // The subsets first: the drag's origin alone from its start; the preview alone whenever
+    // another version is previewed (the old one kept while a background estimate traces it).
+    if (event.kind == Kind::DragBegan)
+        mOriginSubset = VersionSubset(mSession->tracer(), event.origin);
+    if (event.preview != mPreviewSubset.version) {
+        if (mPreviewSubset.version >= 0) mOldSubsets.push_back(std::move(mPreviewSubset));
+        mPreviewSubset =
+            event.preview >= 0 ? VersionSubset(mSession->tracer(), event.preview) : VersionSubset();
+    }
+    const InteractiveDisplay::DragVisibility drag{mOriginSubset.visibility(),
+                                                  mPreviewSubset.visibility()};
+    // Changes of the solution take the solver's snapshot at once; a preview's buffer comes
+    // with the light published next (the render thread), so a drag position costs no copy.
+    const bool solution = event.kind == Kind::Changed || event.kind == Kind::DragEnded;
+    const ProgressiveSolver* solver = solution ? &mSession->solver() : nullptr;
+    for (int i = 0; i < 2; ++i) {
+        DisplaySlot& slot = mSlots[i];
+        if (!slot.display) continue;
+        if (!liveSlot(i) || slot.behind) {
+            // Caught up before it is shown (catchUpDisplay).
+            slot.behind = true;
+            const std::vector<int> changed = event.changed();
+            slot.pendingChanged.insert(slot.pendingChanged.end(), changed.begin(), changed.end());
+            continue;
         }
-        // After the subset follows mPreviewVersion: the new preview position.
-        if (preview >= 0) {
+        InteractiveDisplay& d = *slot.display;
+        try {
             const double t0 = nowSeconds();
-            const std::size_t dropped = d.setPreview(preview, mPreviewSubset.visibility());
-            // The new position's buffer comes with the light published next (render thread).
-            spdlog::debug("display {}x{}: preview {} in {:.1f} ms, {} points dropped", d.width(),
-                          d.height(), preview, (nowSeconds() - t0) * 1e3, dropped);
+            const std::size_t points = d.apply(event, drag, solver);
+            if (solution) slot.solution = mLightSerial + 1;  // publishLight follows the edits
+            spdlog::debug("display {}x{}: {} in {:.1f} ms, {} points", d.width(), d.height(),
+                          event.toString(), (nowSeconds() - t0) * 1e3, points);
+        } catch (const std::exception& e) {
+            report(std::string("display: ") + e.what());
         }
-    } catch (const std::exception& e) {
-        report(std::string("display: ") + e.what());
     }
 }
 
@@ -719,7 +679,8 @@ void SessionRunner::catchUpDisplay(DisplaySlot& slot, const Light& light) {
             std::sort(changed.begin(), changed.end());
             changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
             if (!changed.empty() || slot.pendingStructural) d.notifyChanged(changed);
-            if (mPreviewVersion >= 0) d.setPreview(mPreviewVersion, mPreviewSubset.visibility());
+            const int preview = mSession->previewVersion();
+            if (preview >= 0) d.setPreview(preview, mPreviewSubset.visibility());
             slot.pendingChanged.clear();
             slot.pendingStructural = false;
             slot.behind = false;
@@ -797,8 +758,8 @@ bool SessionRunner::displayLanded(const ViewRequest& view) {
                 built.display = std::make_unique<InteractiveDisplay>(
                     mSession->discretization(), mSession->tracer(), interactiveSolverOptions(),
                     options);
-                if (mPreviewVersion >= 0)
-                    built.display->setPreview(mPreviewVersion, mPreviewSubset.visibility());
+                const int preview = mSession->previewVersion();
+                if (preview >= 0) built.display->setPreview(preview, mPreviewSubset.visibility());
                 built.display->warmUp(CameraRays(camera, options.width, options.height));
             } catch (const std::exception& e) {
                 built.display.reset();
@@ -874,8 +835,8 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                 wanted.solution = 0;
                 // A drag in progress: the preview version and its subset are current (the
                 // solver thread changes them only with the structure held exclusively).
-                if (mPreviewVersion >= 0)
-                    wanted.display->setPreview(mPreviewVersion, mPreviewSubset.visibility());
+                const int preview = mSession->previewVersion();
+                if (preview >= 0) wanted.display->setPreview(preview, mPreviewSubset.visibility());
             }
             wanted.viewWidth = view.width;
             wanted.viewHeight = view.height;
@@ -920,7 +881,7 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
         if (highlight >= 0 && view.mode != ViewMode::Difference)
             objectAt =
                 selectionPixels(mSession->discretization(), mSession->tracer(), view.camera, w, h,
-                                highlight, mPreviewVersion, mPreviewSubset.visibility());
+                                highlight, mSession->previewVersion(), mPreviewSubset.visibility());
         displayLock.unlock();
         structure.unlock();
         try {
@@ -1038,7 +999,7 @@ void SessionRunner::publishDocument() {
 void SessionRunner::publishLight() {
     Light light;
     light.radiosity = std::make_shared<const std::vector<Rgb>>(mSession->displayRadiosity());
-    light.previewVersion = mSession->selected().empty() ? -1 : mSession->solver().previewObject();
+    light.previewVersion = mSession->previewVersion();
     light.irradiance = std::make_shared<const std::vector<Rgb>>(mSession->solver().irradiance());
     light.fromEmission =
         std::make_shared<const std::vector<Rgb>>(mSession->solver().irradianceFromEmission());
@@ -1116,7 +1077,7 @@ void SessionRunner::publishSolver(double solverMs) {
     s.undoDepth = mSession->undoDepth();
     s.redoDepth = mSession->redoDepth();
     s.selected = mSession->selected();
-    s.previewVersion = s.selected.empty() ? -1 : solver.previewObject();
+    s.previewVersion = mSession->previewVersion();
     s.solverMsPerIteration = solverMs;
     s.strategy = solver.options().strategy;
     s.redistributionThreshold = solver.options().redistributionThreshold;

@@ -20,6 +20,24 @@
 // the solver thread hands it each published solution (updateSolution, between shots, under
 // mDisplayMutex) and, with the display's shader paused, tells it what an edit changed
 // (notifyChanged) while holding mStructure exclusively.
+// An edit reaches the displays as the EditEvent EditSession::apply returns (the solver took
+// the same event inside apply): applyDisplayEvent hands it to each live display
+// (InteractiveDisplay::apply) and keeps the drag's tracer subsets in step with it.
+//
+// Locking (enforced here; the order is top to bottom, nothing is taken while a lock lower
+// in the table is held):
+//   lock           solver thread                  render thread                  UI thread
+//   mStructure     exclusive: edits, tasks        shared: a frame (released      shared: pick
+//                  (solverIteration)              while the EPI reconstructs),
+//                                                 display and interpolant builds
+//   mDisplayMutex  with mStructure: events to     every call on a display        —
+//                  the displays, shaders paused
+//   mQueueMutex    takes the queue and flags      reads the view request         submit, setView,
+//                                                                                flags
+//   mPublishMutex  publishes light, document,     publishes the image            reads snapshots
+//                  solver figures
+// A shot takes no lock: it reads the structure, which only the solver thread changes, and
+// writes the solver's own arrays, which the render thread sees only as published copies.
 // With `threaded` false nothing runs in the background and pump() does one iteration of
 // each (tests, deterministic stepping). Adaptive element subdivision (which rebuilds the
 // tracer inside a shot) must be off: interactiveSolverOptions() has it off.
@@ -319,11 +337,10 @@ private:
         int frames = 0;      ///< frames rendered
         bool ready() const { return display && !behind && solution != 0; }
     };
-    /// Tells a live slot's display about edits (solver thread, shader paused).
-    /// `selectOrigin` ≥ 0: the batch was a select of that version (beginDrag instead of
-    /// notifyChanged); `unselectAdded` ≥ 0: an unselect adding it back (endDrag).
-    void applyDisplayEdits(DisplaySlot& slot, const std::vector<int>& changed, bool structural,
-                           bool previewMoved, int selectOrigin = -1, int unselectAdded = -1);
+    /// Hands an edit's event to the live displays (InteractiveDisplay::apply) and marks the
+    /// others behind (solver thread, structure exclusive, display mutex held, shaders paused);
+    /// keeps the drag's subsets in step with it.
+    void applyDisplayEvent(const EditEvent& event);
     /// Brings a slot up to date: missed edits, then `light`'s solution (render thread,
     /// structure shared, display mutex held).
     void catchUpDisplay(DisplaySlot& slot, const Light& light);
@@ -341,18 +358,26 @@ private:
     int mActiveSlot = 0;             ///< the slot rendered
     int mWantedSlot = 0;             ///< the slot the view asks for (1 while interactive)
     double mLastDisplayFrame = 0;
-    /// The drag preview version (-1 none) and a tracer subset of it alone; written by the
-    /// solver thread with mStructure held exclusively and the display's shader paused.
-    int mPreviewVersion = -1;
-    RayTracer::SubsetHandle mPreviewSubset;
+    /// A RayTracer subset admitting one object version alone.
+    struct VersionSubset {
+        int version = -1;
+        RayTracer::SubsetHandle handle;
+        VersionSubset() = default;
+        VersionSubset(RayTracer& tracer, int v) : version(v), handle(tracer, {v}) {}
+        Visibility visibility() const { return handle.visibility(); }
+    };
+    /// The subset of the version the drag previews (EditSession::previewVersion(), which the
+    /// solver holds); written by the solver thread with mStructure held exclusively and the
+    /// displays' shaders paused.
+    VersionSubset mPreviewSubset;
     /// Previous previews' subsets a display's background estimate still traces
     /// (InteractiveDisplay::directJobPreview), released at a later edit.
-    std::vector<std::pair<int, RayTracer::SubsetHandle>> mOldSubsets;
-    /// Subsets of the objects the displays hide points behind (InteractiveDisplay::occluder),
-    /// by version; same thread and lock as mPreviewSubset.
-    std::vector<std::pair<int, RayTracer::SubsetHandle>> mOccluderSubsets;
+    std::vector<VersionSubset> mOldSubsets;
+    /// Subsets of the objects the displays hide points behind (InteractiveDisplay::occluder);
+    /// same thread and lock as mPreviewSubset.
+    std::vector<VersionSubset> mOccluderSubsets;
     /// The drag's origin (the version selected) alone, for the displays' drag estimates.
-    RayTracer::SubsetHandle mOriginSubset;
+    VersionSubset mOriginSubset;
     Image mReference;  ///< difference mode
     Camera mReferenceCamera;
     std::uint64_t mReferenceDone = 0;

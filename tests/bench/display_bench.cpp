@@ -234,10 +234,7 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
         for (int k = 0; k < kMoves; ++k) {
             EditCommand move;
             move.op = MoveCommand{spec.moved, k % 2 == 0 ? spec.by : -spec.by};
-            EditResult r = session->apply(move);
-            std::vector<int> changed = r.added;
-            changed.insert(changed.end(), r.removed.begin(), r.removed.end());
-            display.notifyChanged(changed, nullptr);
+            display.apply(session->apply(move));
             display.renderFrame(lastRays, true);
             times.push_back(display.lastShadowUpdateMs());
         }

@@ -149,7 +149,7 @@ Snapshot snapshot(const EditSession& session) {
 
 TEST(EditSession, AddEqualsRecomputation) {
     auto session = openRoom(false);
-    EditResult r = session->apply(AddCommand{makeBox("crate", {0.1, -0.55, 0.0}, "red")});
+    EditEvent r = session->apply(AddCommand{makeBox("crate", {0.1, -0.55, 0.0}, "red")});
     EXPECT_TRUE(r.geometry) << r.toString();
     EXPECT_FALSE(r.emitter) << r.toString();
     ASSERT_EQ(r.added.size(), 1u) << r.toString();
@@ -161,7 +161,7 @@ TEST(EditSession, AddEqualsRecomputation) {
 TEST(EditSession, RemoveEqualsRecomputation) {
     auto session = openRoom();
     const int crate = session->objectVersion("crate");
-    EditResult r = session->apply(RemoveCommand{"crate"});
+    EditEvent r = session->apply(RemoveCommand{"crate"});
     EXPECT_EQ(r.removed, std::vector<int>{crate}) << r.toString();
     EXPECT_EQ(session->scene().findObject("crate"), -1);
     EXPECT_EQ(session->objectVersion("crate"), -1);
@@ -172,7 +172,7 @@ TEST(EditSession, RemoveEqualsRecomputation) {
 TEST(EditSession, MoveEqualsRecomputation) {
     auto session = openRoom();
     const int before = session->objectVersion("crate");
-    EditResult r = session->apply(MoveCommand{"crate", {-0.9, -0.75, 0.6}});
+    EditEvent r = session->apply(MoveCommand{"crate", {-0.9, -0.75, 0.6}});
     EXPECT_EQ(r.removed, std::vector<int>{before}) << r.toString();
     ASSERT_EQ(r.added.size(), 1u);
     const Transform& t = session->scene().objects[session->scene().findObject("crate")].transform;
@@ -200,7 +200,7 @@ TEST(EditSession, ReflectanceEqualsRecomputation) {
     MaterialCommand c;
     c.id = "crate";
     c.reflectance = Rgb(0.1, 0.8, 0.3);
-    EditResult r = session->apply(c);
+    EditEvent r = session->apply(c);
     EXPECT_TRUE(r.material) << r.toString();
     EXPECT_FALSE(r.emitter) << r.toString();
     EXPECT_EQ(r.materialChanged, std::vector<int>{session->objectVersion("crate")});
@@ -215,7 +215,7 @@ TEST(EditSession, ReflectanceEqualsRecomputation) {
 
 TEST(EditSession, EmitterAddMoveRemoveAndEmissionChange) {
     auto session = openRoom();
-    EditResult r = session->apply(AddCommand{makeBox("lamp2", {-0.9, 0.5, -0.9}, "lamp")});
+    EditEvent r = session->apply(AddCommand{makeBox("lamp2", {-0.9, 0.5, -0.9}, "lamp")});
     EXPECT_TRUE(r.emitter) << r.toString();
     session->apply(ConvergeCommand{1e-3});  // interrupted: pending work stays in the change log
     r = session->apply(MoveCommand{"lamp2", {1.8, -0.2, 0.2}});
@@ -237,7 +237,7 @@ TEST(EditSession, TwoSidedChangeRebuildsTheObject) {
     MaterialCommand c;
     c.id = "slab";
     c.twoSided = true;
-    EditResult r = session->apply(c);
+    EditEvent r = session->apply(c);
     EXPECT_EQ(r.removed.size(), 1u) << r.toString();
     EXPECT_EQ(r.added.size(), 1u) << r.toString();
     EXPECT_TRUE(session->discretization().objects()[session->objectVersion("slab")].twoSided);
@@ -247,8 +247,12 @@ TEST(EditSession, TwoSidedChangeRebuildsTheObject) {
 TEST(EditSession, SelectDragUnselect) {
     auto session = openRoom();
     const int original = session->objectVersion("crate");
-    EditResult r = session->apply(SelectCommand{"crate"});
-    EXPECT_TRUE(r.selection);
+    EditEvent r = session->apply(SelectCommand{"crate"});
+    EXPECT_EQ(r.kind, EditEvent::Kind::DragBegan) << r.toString();
+    EXPECT_EQ(r.object, "crate");
+    EXPECT_EQ(r.origin, original);
+    EXPECT_EQ(r.preview, original) << "previewed where it was";
+    EXPECT_EQ(session->previewVersion(), original);
     EXPECT_EQ(r.removed, std::vector<int>{original});
     EXPECT_EQ(session->selected(), "crate");
     EXPECT_FALSE(session->discretization().objects()[original].alive)
@@ -260,17 +264,22 @@ TEST(EditSession, SelectDragUnselect) {
     int previous = original;
     for (Vec3 by : {Vec3(-0.3, 0, 0.2), Vec3(-0.3, 0, 0.2), Vec3(-0.3, -0.75, 0.2)}) {
         r = session->apply(MoveCommand{"crate", by});
+        EXPECT_EQ(r.kind, EditEvent::Kind::PreviewMoved) << r.toString();
+        EXPECT_EQ(r.origin, original);
         ASSERT_GE(r.preview, 0) << r.toString();
         EXPECT_NE(r.preview, previous);
         EXPECT_FALSE(session->discretization().objects()[r.preview].alive);
         EXPECT_EQ(session->solver().previewObject(), r.preview);
         EXPECT_TRUE(r.added.empty() && r.removed.empty()) << r.toString();
         previous = r.preview;
-        EditResult solved = session->apply(SolveCommand{5});
+        EditEvent solved = session->apply(SolveCommand{5});
         EXPECT_GT(solved.shots, 0u);
     }
     const std::size_t undoBefore = session->undoDepth();
     r = session->apply(UnselectCommand{});
+    EXPECT_EQ(r.kind, EditEvent::Kind::DragEnded) << r.toString();
+    EXPECT_EQ(r.origin, original);
+    EXPECT_EQ(r.preview, -1);
     EXPECT_EQ(r.added, std::vector<int>{previous}) << r.toString();
     EXPECT_TRUE(session->selected().empty());
     EXPECT_EQ(session->solver().previewObject(), -1);
@@ -284,6 +293,58 @@ TEST(EditSession, SelectDragUnselect) {
     expectMatchesFromScratch(*session, "drag-undo");
 }
 
+TEST(EditSession, AnEditDuringADragIsAChangeThatRestartsThePreview) {
+    // Another object removed while the crate is dragged: the solution changes, the drag goes
+    // on, and its preview (computed in the scene as it was) starts again.
+    auto session = openRoom();
+    const int original = session->objectVersion("crate");
+    session->apply(SelectCommand{"crate"});
+    const int preview = session->apply(MoveCommand{"crate", {-0.3, 0, 0.2}}).preview;
+    session->apply(SolveCommand{20});
+    const int slab = session->objectVersion("slab");
+    const EditEvent r = session->apply(RemoveCommand{"slab"});
+    EXPECT_EQ(r.kind, EditEvent::Kind::Changed) << r.toString();
+    EXPECT_EQ(r.removed, std::vector<int>{slab});
+    EXPECT_EQ(r.origin, original) << "the drag goes on";
+    EXPECT_EQ(r.preview, preview) << "the same version, previewed again";
+    EXPECT_TRUE(r.previewChanged());
+    EXPECT_FALSE(session->solver().previewComplete()) << "its buffer started again";
+    const EditEvent solved = session->apply(SolveCommand{5});
+    EXPECT_EQ(solved.kind, EditEvent::Kind::Solved);
+    EXPECT_FALSE(solved.previewChanged());
+    EXPECT_EQ(solved.preview, preview);
+    session->apply(UnselectCommand{});
+    expectMatchesFromScratch(*session, "remove-during-drag");
+}
+
+TEST(EditSession, ABatchOfDragPositionsCoalescesToItsLast) {
+    // coalescePreviews against the events one by one: a select followed by positions becomes
+    // one DragBegan previewing the last; positions in a row become their last; a change of
+    // another object in between, and the drop, stay where they are.
+    auto session = openRoom();
+    std::vector<EditEvent> events;
+    events.push_back(session->apply(SelectCommand{"crate"}));
+    events.push_back(session->apply(MoveCommand{"crate", {-0.1, 0, 0}}));
+    events.push_back(session->apply(MoveCommand{"crate", {-0.1, 0, 0}}));
+    events.push_back(session->apply(AddCommand{makeBox("cube", {0.9, -0.55, 0.9}, "red")}));
+    events.push_back(session->apply(MoveCommand{"crate", {-0.1, 0, 0}}));
+    events.push_back(session->apply(MoveCommand{"crate", {-0.1, 0, 0}}));
+    events.push_back(session->apply(UnselectCommand{}));
+    const std::vector<EditEvent> all = events;
+    coalescePreviews(events);
+    using Kind = EditEvent::Kind;
+    ASSERT_EQ(events.size(), 4u);
+    EXPECT_EQ(events[0].kind, Kind::DragBegan);
+    EXPECT_EQ(events[0].origin, all[0].origin);
+    EXPECT_EQ(events[0].preview, all[2].preview) << "the select previews the batch's last place";
+    EXPECT_EQ(events[1].kind, Kind::Changed);
+    EXPECT_EQ(events[1].added, all[3].added);
+    EXPECT_EQ(events[2].kind, Kind::PreviewMoved);
+    EXPECT_EQ(events[2].preview, all[5].preview);
+    EXPECT_EQ(events[3].kind, Kind::DragEnded);
+    EXPECT_EQ(events[3].added, std::vector<int>{all[5].preview});
+}
+
 TEST(EditSession, MaterialEditOnSelectedObjectAppliesOnUnselect) {
     auto session = openRoom();
     session->apply(SelectCommand{"crate"});
@@ -291,8 +352,9 @@ TEST(EditSession, MaterialEditOnSelectedObjectAppliesOnUnselect) {
     c.id = "crate";
     c.emission = Rgb(3.0, 1.0, 0.0);
     const double emittedBefore = session->solver().emittedEnergy();
-    EditResult r = session->apply(c);
+    EditEvent r = session->apply(c);
     EXPECT_TRUE(r.material);
+    EXPECT_EQ(r.kind, EditEvent::Kind::PreviewMoved) << r.toString();
     EXPECT_FALSE(r.solutionChanged()) << r.toString();
     EXPECT_EQ(session->solver().emittedEnergy(), emittedBefore) << "not in the solution yet";
     session->apply(MoveCommand{"crate", {0.0, 0.5, 0.0}});
@@ -308,7 +370,7 @@ TEST(EditSession, UndoReturnsToThePreEditSolutionAndRedoReapplies) {
     session->apply(ConvergeCommand{kEps});
     const Snapshot moved = snapshot(*session);
 
-    EditResult r = session->apply(UndoCommand{});
+    EditEvent r = session->apply(UndoCommand{});
     EXPECT_EQ(r.added.size(), 1u) << "undo redistributes like any other edit: " << r.toString();
     EXPECT_EQ(session->redoDepth(), 1u);
     session->apply(ConvergeCommand{kEps});

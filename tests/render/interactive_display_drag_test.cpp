@@ -68,8 +68,8 @@ std::vector<int> aliveElements(const Discretization& disc) {
     return out;
 }
 
-/// The editor's order of calls for a select of `id` and a move to `place`: the display sees
-/// the select (beginDrag, nothing recomputed), then each position (setPreview).
+/// The editor's select of `id` and move to `place`: the display takes each edit's event (the
+/// select: beginDrag, nothing recomputed; each position: setPreview).
 struct Drag {
     std::unique_ptr<EditSession> session;
     int origin = -1, preview = -1;
@@ -77,22 +77,26 @@ struct Drag {
 };
 
 void select(Drag& d, InteractiveDisplay& display, const std::string& id) {
-    const EditResult r = d.session->apply(SelectCommand{id});
-    d.origin = r.preview;
+    const EditEvent r = d.session->apply(SelectCommand{id});
+    ASSERT_EQ(r.kind, EditEvent::Kind::DragBegan);
+    d.origin = r.origin;
     d.originSubset = RayTracer::SubsetHandle(d.session->tracer(), {d.origin});
-    display.beginDrag(d.origin, d.originSubset.visibility());
     d.previewSubset = RayTracer::SubsetHandle(d.session->tracer(), {d.origin});
-    display.setPreview(d.origin, d.previewSubset.visibility());
+    display.apply(r, {d.originSubset.visibility(), d.previewSubset.visibility()});
+    EXPECT_EQ(display.dragOrigin(), d.origin);
+    EXPECT_EQ(display.previewVersion(), d.origin);
 }
 
 void move(Drag& d, InteractiveDisplay& display, const std::string& id, const Vec3& place) {
     TransformCommand t;
     t.id = id;
     t.translate = place;
-    const EditResult r = d.session->apply(t);
+    const EditEvent r = d.session->apply(t);
+    ASSERT_EQ(r.kind, EditEvent::Kind::PreviewMoved);
     d.preview = r.preview;
     d.previewSubset = RayTracer::SubsetHandle(d.session->tracer(), {d.preview});
-    display.setPreview(d.preview, d.previewSubset.visibility());
+    display.apply(r, {d.originSubset.visibility(), d.previewSubset.visibility()});
+    EXPECT_EQ(display.previewVersion(), d.preview);
 }
 
 /// The scene with `id` really at `place`, solved from scratch.
@@ -146,8 +150,9 @@ TEST(InteractiveDisplayDrag, DraggedLampLightsTheSceneFromItsNewPlace) {
     EXPECT_LT(previewError, 0.012);
 
     // Dropped there: the same light without a preview.
-    drag.session->apply(UnselectCommand{});
-    display.endDrag(drag.preview, &drag.session->solver());
+    display.apply(drag.session->apply(UnselectCommand{}),
+                  {drag.originSubset.visibility(), drag.previewSubset.visibility()},
+                  &drag.session->solver());
     drag.session->converge(1e-3);
     display.updateSolution(drag.session->solver());
     const double droppedError = displayRmse(shaded(display), expected);
@@ -169,7 +174,7 @@ TEST(InteractiveDisplayDrag, OriginRelativeDirectLightMatchesRecomputation) {
     const std::vector<Rgb> atStart = display.shader().elementDirect();
 
     // The select: nothing recomputed, nothing changed.
-    const EditResult sel = drag.session->apply(SelectCommand{"slab"});
+    const EditEvent sel = drag.session->apply(SelectCommand{"slab"});
     drag.origin = sel.preview;
     drag.originSubset = RayTracer::SubsetHandle(drag.session->tracer(), {drag.origin});
     display.beginDrag(drag.origin, drag.originSubset.visibility());
@@ -192,8 +197,8 @@ TEST(InteractiveDisplayDrag, OriginRelativeDirectLightMatchesRecomputation) {
     EXPECT_LT(error, 0.2 * moved);
 
     // The drop: the folded estimate against H_direct computed from scratch for the scene.
-    drag.session->apply(UnselectCommand{});
-    display.endDrag(drag.preview);
+    display.apply(drag.session->apply(UnselectCommand{}),
+                  {drag.originSubset.visibility(), drag.previewSubset.visibility()});
     InteractiveDisplay fresh(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
     const std::vector<int> after = aliveElements(disc);
     const double dropError =
@@ -221,13 +226,13 @@ TEST(InteractiveDisplayDrag, BackgroundEstimateEqualsTheSynchronousOne) {
     background.updateSolution(drag.session->solver());
     inline_.updateSolution(drag.session->solver());
 
-    const EditResult sel = drag.session->apply(SelectCommand{"slab"});
+    const EditEvent sel = drag.session->apply(SelectCommand{"slab"});
     drag.origin = sel.preview;
     drag.originSubset = RayTracer::SubsetHandle(drag.session->tracer(), {drag.origin});
     TransformCommand t;
     t.id = "slab";
     t.translate = kNewPlace;
-    const EditResult r = drag.session->apply(t);
+    const EditEvent r = drag.session->apply(t);
     drag.preview = r.preview;
     drag.previewSubset = RayTracer::SubsetHandle(drag.session->tracer(), {drag.preview});
     std::vector<Rgb> bg;

@@ -209,7 +209,7 @@ TEST(InteractiveDisplay, EditInvalidatesMovedObjectAndConvergesToTheNewReference
     ASSERT_GT(onOld, 0u) << "the box must be visible before the move";
     EditCommand move;
     move.op = MoveCommand{id, Vec3(-0.2, 0, 0.15)};
-    EditResult result = session->apply(move);
+    EditEvent result = session->apply(move);
     session->converge(1e-2);
     std::vector<int> changed = result.added;
     changed.insert(changed.end(), result.removed.begin(), result.removed.end());

@@ -269,7 +269,7 @@ TEST(InteractiveDisplayMove, ADroppedObjectKeepsItsReflectedLightUntilTheNextSna
     display.setPreview(preview, subset.visibility(), &s.session->solver());
     s.session->solve(200);  // the preview buffer complete
     display.updateSolution(s.session->solver());
-    const EditResult r = s.session->apply(UnselectCommand{});
+    const EditEvent r = s.session->apply(UnselectCommand{});
     ASSERT_EQ(r.added.size(), 1u);
     const int dropped = r.added[0];
     display.endDrag(dropped);  // no snapshot yet
@@ -306,7 +306,7 @@ TEST(InteractiveDisplayMove, ADropJustAfterAMoveKeepsTheDragsLightNotABufferThat
     s.session->solve(1);
     display.updateSolution(s.session->solver());
     ASSERT_FALSE(s.session->solver().previewComplete());
-    const EditResult r = s.session->apply(UnselectCommand{});
+    const EditEvent r = s.session->apply(UnselectCommand{});
     ASSERT_EQ(r.added.size(), 1u);
     const int dropped = r.added[0];
     display.endDrag(dropped);

@@ -64,7 +64,7 @@ Dragged dragSlab() {
     TransformCommand t;
     t.id = "slab";
     t.translate = kNewPlace;
-    const EditResult r = d.session->apply(t);
+    const EditEvent r = d.session->apply(t);
     d.preview = r.preview;
     d.session->converge(1e-3);  // the preview buffer is finished too
     return d;

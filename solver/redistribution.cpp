@@ -1,0 +1,695 @@
+// Edits (George, Sillion, Greenberg 1990): the change log and its redistribution shots, and
+// the drag preview's temporary buffer. Propagation is in progressive_solver.cpp.
+//
+// Index: edits (change entries, apply, material changes) · redistribution shots · drag
+//        preview
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "solver/form_factor.h"
+#include "solver/progressive_solver.h"
+#include "solver/progressive_solver_internal.h"
+
+namespace penumbra {
+
+using namespace solver_detail;
+
+// ---------------------------------------------------------------------------------------------
+// Edits (George, Sillion, Greenberg 1990)
+
+namespace {
+
+struct Bounds {
+    Vec3 lo{std::numeric_limits<double>::max()}, hi{-std::numeric_limits<double>::max()};
+    void add(const Vec3& p) { lo = glm::min(lo, p), hi = glm::max(hi, p); }
+    bool empty() const { return lo.x > hi.x; }
+};
+
+/// Whether the sphere (c, r) can meet a segment from x to a point within distance pr of p.
+/// Those segments fill the union of the balls B(x + t(p − x), t·pr), t ∈ [0, 1]; the
+/// sphere meets it iff g(t) = |x + t(p − x) − c| − t·pr < r for some t. g is convex, so its
+/// minimum over [0, 1] is the clamped stationary point, in closed form.
+bool sphereMeetsCone(const Vec3& x, const Vec3& p, double pr, const Vec3& c, double r) {
+    const Vec3 d = p - x;
+    const double l2 = glm::dot(d, d);
+    if (l2 <= pr * pr) return true;  // x is within the patch's bounds
+    const Vec3 w = x - c;
+    const double k = glm::dot(w, d);
+    const double t0 = -k / l2;                                     // closest point on the line
+    const double q2 = std::max(0.0, glm::dot(w, w) - k * k / l2);  // squared line distance
+    const double s = pr * std::sqrt(q2) / (std::sqrt(l2) * std::sqrt(l2 - pr * pr));
+    const double t = std::clamp(t0 + s, 0.0, 1.0);
+    return std::sqrt(l2 * (t - t0) * (t - t0) + q2) - pr * t < r;
+}
+
+}  // namespace
+
+ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const {
+    const auto& patches = mDisc.patches();
+    const std::size_t nObjects = mDisc.objects().size();
+    ChangeEntry entry;
+    entry.added = change.added;
+    entry.removed = change.removed;
+    entry.after.assign(nObjects, 0);
+    for (std::size_t o = 0; o < nObjects; ++o) entry.after[o] = mDisc.objects()[o].alive ? 1 : 0;
+    entry.before = entry.after;
+    for (int o : change.added) entry.before[o] = 0;
+    for (int o : change.removed) entry.before[o] = 1;
+
+    // Bounds of everything that changed, and sample points for the importance estimate.
+    Bounds bounds;
+    double changedArea = 0;
+    std::vector<char> changed(nObjects, 0);
+    for (const auto* list : {&change.added, &change.removed})
+        for (int o : *list) {
+            changed[o] = 1;
+            for (const Vec3& w : mDisc.objects()[o].worldPositions) bounds.add(w);
+        }
+    for (const Patch& P : patches)
+        if (changed[P.object]) changedArea += P.area;
+    std::vector<int> changedObjects;
+    for (std::size_t o = 0; o < nObjects; ++o) {
+        if (!changed[o]) continue;
+        changedObjects.push_back(static_cast<int>(o));
+        Bounds b;
+        for (const Vec3& w : mDisc.objects()[o].worldPositions) b.add(w);
+        if (b.empty()) continue;
+        const Vec3 c = 0.5 * (b.lo + b.hi);
+        double r = 0;
+        for (const Vec3& w : mDisc.objects()[o].worldPositions) r = std::max(r, glm::length(w - c));
+        entry.spheres.push_back({c, r});
+    }
+    entry.changed = RayTracer::SubsetHandle(mTracer, changedObjects);
+    if (!bounds.empty()) {
+        entry.centre = 0.5 * (bounds.lo + bounds.hi);
+        entry.radius = 0.5 * glm::length(bounds.hi - bounds.lo);
+    }
+    std::vector<Vec3> samples{entry.centre};
+    if (!bounds.empty())
+        for (int k = 0; k < 8; ++k)
+            samples.push_back(entry.centre +
+                              0.5 * Vec3((k & 1 ? 0.5 : -0.5) * (bounds.hi.x - bounds.lo.x),
+                                         (k & 2 ? 0.5 : -0.5) * (bounds.hi.y - bounds.lo.y),
+                                         (k & 4 ? 0.5 : -0.5) * (bounds.hi.z - bounds.lo.z)));
+
+    // Snapshot the radiosity already shot, B − ΔB, and rank the shooters by the power they
+    // would send toward the changed objects: George et al.'s point-sample estimate, a
+    // differential area at each sample point facing the patch, F ≈ A cosθ / (πr² + A).
+    entry.shot.assign(patches.size(), Rgb(0.0));
+    entry.shotEmissionShare.assign(patches.size(), Rgb(0.0));
+    entry.pending.reset(patches.size());
+    for (std::size_t j = 0; j < patches.size(); ++j) {
+        const Patch& P = patches[j];
+        if (!entry.before[P.object] ||
+            entry.added.end() != std::find(entry.added.begin(), entry.added.end(), P.object))
+            continue;
+        Rgb shot = patchRadiosity(static_cast<int>(j)) - mPatchUnshot[j];
+        if (isZero(shot)) continue;
+        entry.shot[j] = shot;
+        entry.shotEmissionShare[j] = shareOf(
+            mDisc.patchMaterial(static_cast<int>(j)).emission - mPatchUnshotEmission[j], shot);
+        double power = energyKey(shot, P.area);
+        double importance;
+        if (changed[P.object]) {
+            importance = power;  // a removed shooter: all it shot is cancelled
+        } else {
+            double f = 0;
+            for (const Vec3& sp : samples) {
+                Vec3 d = sp - P.centroid;
+                double r2 = glm::dot(d, d);
+                double cosj = r2 > 0 ? glm::dot(P.normal, d) / std::sqrt(r2) : 0;
+                if (cosj > 0) f += P.area * cosj / (M_PI * r2 + P.area);
+            }
+            f /= static_cast<double>(samples.size());
+            // Power reaching the objects: radiosity × F × (about a quarter of their area
+            // faces any one direction); at least a tiny amount so every shooter is visited.
+            importance = std::max(energyKey(shot, 1.0) * f * changedArea / 4, 1e-300);
+        }
+        entry.pending.update(static_cast<int>(j), importance);
+        entry.totalPending += importance;
+    }
+    return entry;
+}
+
+void ProgressiveSolver::buildWorldScenes(ChangeEntry& entry) const {
+    std::vector<int> before, after;
+    for (std::size_t o = 0; o < entry.before.size(); ++o) {
+        if (entry.before[o]) before.push_back(static_cast<int>(o));
+        if (entry.after[o]) after.push_back(static_cast<int>(o));
+    }
+    entry.beforeScene = RayTracer::SubsetHandle(mTracer, before);
+    entry.afterScene = RayTracer::SubsetHandle(mTracer, after);
+}
+
+void ProgressiveSolver::applyChange(const SceneChange& change, bool redistribute) {
+    ensureSizes();
+    clearPreview();
+    ChangeEntry entry = makeChangeEntry(change);
+    const auto& patches = mDisc.patches();
+
+    // Removed objects leave the solution: their radiosity and unshot energy are gone.
+    for (int o : change.removed)
+        for (std::size_t j = 0; j < patches.size(); ++j) {
+            if (patches[j].object != o) continue;
+            for (int e : patches[j].elements)
+                mElementB[e] = mElementH[e] = mElementHEmission[e] = Rgb(0.0);
+            mPatchUnshot[j] = mPatchUnshotEmission[j] = Rgb(0.0);
+            updatePriority(static_cast<int>(j));
+        }
+    // Added objects start with their emission unshot (Cohen's initialization).
+    for (int o : change.added)
+        for (std::size_t j = 0; j < patches.size(); ++j) {
+            if (patches[j].object != o) continue;
+            const Rgb& e = mDisc.patchMaterial(static_cast<int>(j)).emission;
+            for (int el : patches[j].elements)
+                mElementB[el] = e, mElementH[el] = mElementHEmission[el] = Rgb(0.0);
+            mPatchUnshot[j] = mPatchUnshotEmission[j] = e;
+            updatePriority(static_cast<int>(j));
+        }
+    recomputeEmitted();
+    if (redistribute && entry.totalPending > 0) {
+        buildWorldScenes(entry);
+        mImpl->changes.push_back(std::move(entry));
+    }
+}
+
+void ProgressiveSolver::apply(const EditEvent& event) {
+    using Kind = EditEvent::Kind;
+    switch (event.kind) {
+        case Kind::Solved:
+            return;
+        case Kind::Changed: {
+            const int preview = previewObject();  // applyChange ends it
+            if (!event.materialChanged.empty()) {
+                if (!event.newMaterial)
+                    throw std::invalid_argument("ProgressiveSolver::apply: " + event.toString() +
+                                                " has no new material");
+                for (int object : event.materialChanged) changeMaterial(object, *event.newMaterial);
+            }
+            if (!event.added.empty() || !event.removed.empty())
+                applyChange({event.removed, event.added});
+            // The preview was computed in the scene as it was: start it again.
+            if (preview >= 0) setPreview(preview);
+            return;
+        }
+        case Kind::DragBegan:
+            // George et al.: "when the user selects an object for change, the object is
+            // removed from the radiosity solution"; the preview shows it where it is.
+            applyChange({{event.origin}, {}});
+            setPreview(event.origin);
+            return;
+        case Kind::PreviewMoved:
+            setPreview(event.preview);
+            return;
+        case Kind::DragEnded:
+            // "When the object is unselected, it is added back into the environment."
+            clearPreview();
+            applyChange({{}, event.added});
+            return;
+    }
+}
+
+void ProgressiveSolver::recomputeEmitted() {
+    mEmittedEnergy = 0;
+    for (std::size_t p = 0; p < mDisc.patches().size(); ++p) {
+        if (!mDisc.patchAlive(static_cast<int>(p))) continue;
+        const Rgb& e = mDisc.patchMaterial(static_cast<int>(p)).emission;
+        mEmittedEnergy += (e.x + e.y + e.z) * mDisc.patches()[p].area;
+    }
+}
+
+void ProgressiveSolver::changeMaterial(int object, const Material& material) {
+    ensureSizes();
+    // George et al.: "it is sufficient to compute and propagate a radiosity correction for
+    // each patch on the object": ΔB = Δρ·H + ΔE, all of it unshot.
+    const auto& patches = mDisc.patches();
+    std::vector<std::pair<int, Rgb>> old;
+    for (std::size_t j = 0; j < patches.size(); ++j)
+        if (patches[j].object == object) old.push_back({static_cast<int>(j), Rgb(0.0)});
+    if (old.empty()) return;
+    const Material before = mDisc.patchMaterial(old.front().first);
+    mDisc.setObjectMaterial(object, material);
+    const Rgb dRho = material.reflectance - before.reflectance;
+    const Rgb dE = material.emission - before.emission;
+    for (const auto& [j, unused] : old) {
+        const Patch& P = patches[j];
+        Rgb sum(0.0);
+        for (int e : P.elements) {
+            Rgb dB = dRho * mElementH[e] + dE;
+            mElementB[e] += dB;
+            sum += dB * mDisc.elements()[e].area;
+        }
+        mPatchUnshot[j] += sum / P.area;
+        mPatchUnshotEmission[j] += dE;
+        updatePriority(j);
+    }
+    recomputeEmitted();
+}
+
+double ProgressiveSolver::bestRedistribution(int* entryIndex) const {
+    double best = 0;
+    for (std::size_t k = 0; k < mImpl->changes.size(); ++k) {
+        const ChangeEntry& c = mImpl->changes[k];
+        int top = c.pending.top();
+        if (top < 0 || c.pending.key(top) <= 0) continue;
+        if (c.pending.key(top) > best) {
+            best = c.pending.key(top);
+            if (entryIndex) *entryIndex = static_cast<int>(k);
+        }
+    }
+    return best;
+}
+
+double ProgressiveSolver::pendingRedistribution() const {
+    double sum = 0;
+    for (const ChangeEntry& c : mImpl->changes) sum += c.totalPending;
+    return sum;
+}
+
+std::size_t ProgressiveSolver::pendingChanges() const { return mImpl->changes.size(); }
+
+bool ProgressiveSolver::afterIsCurrentScene(const ChangeEntry& c, bool preview) const {
+    if (preview) return false;
+    for (std::size_t o = 0; o < mDisc.objects().size(); ++o)
+        if ((o < c.after.size() && c.after[o]) != mDisc.objects()[o].alive) return false;
+    return true;
+}
+
+void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool preview,
+                                            std::vector<Rgb>& delta) const {
+    const Rgb shot = c.shot[j];
+    const Patch& P = mDisc.patches()[j];
+    const bool shooterRemoved =
+        std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
+    Visibility before = c.beforeWorld(), after = c.afterWorld();
+
+    // Receivers: elements present after the edit (and still alive, or the previewed object).
+    // Elements of added objects gain F(t) (F(t−1) = 0: they did not exist); others change
+    // only if the changed objects can block a segment between them and the shooter: a
+    // conservative shaft, the capsule around the segment from the patch centre to the
+    // receiver widened by the patch radius, tested against the changed objects' bounding
+    // sphere. Unchanged visibility cancels exactly: F(t) and F(t−1) trace the same
+    // pair-seeded rays.
+    // The world after the edit is usually the current scene: trace it without a filter.
+    if (afterIsCurrentScene(c, preview)) after = Visibility{};
+    const Visibility changed = c.changed.visibility();
+    const double margin = 4 * mTracer.epsilon();
+    const bool gathered = c.isGathered(j);
+
+    const auto& elements = mDisc.elements();
+    const std::size_t n = elements.size();
+    delta.assign(n, Rgb(0.0));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+        for (std::size_t e = range.begin(); e != range.end(); ++e) {
+            const Element& el = elements[e];
+            if (el.object >= static_cast<int>(c.after.size()) || !c.after[el.object]) continue;
+            if (!mDisc.objects()[el.object].alive &&
+                !(preview && el.object == mImpl->previewObject))
+                continue;
+            const bool receiverAdded = !c.before[el.object];
+            const int ie = static_cast<int>(e);
+            if (shooterRemoved) {
+                // Cancel what the removed patch shot: −F(t−1) (George et al.: "energy that
+                // was distributed by patches on the dynamic object is canceled").
+                if (receiverAdded) continue;
+                delta[e] = -irradianceFrom(j, ie, shot, before);
+            } else if (receiverAdded) {
+                if (gathered) continue;  // gatherToAdded delivered it
+                delta[e] = irradianceFrom(j, ie, shot, after);
+            } else {
+                // Haines–Wallace style shaft: can any changed object meet a segment from
+                // the receiver to the shooter patch?
+                bool inShaft = false;
+                for (const auto& [centre, radius] : c.spheres)
+                    if (sphereMeetsCone(el.centroid, P.centroid, P.radius + margin, centre,
+                                        radius + margin)) {
+                        inShaft = true;
+                        break;
+                    }
+                if (!inShaft) continue;
+                delta[e] = irradianceChange(j, ie, shot, before, after, changed);
+            }
+        }
+    });
+}
+
+bool ProgressiveSolver::shouldGather(const ChangeEntry& c, double best) const {
+    const double below = mOptions.gatherBelow > 0 ? mOptions.gatherBelow : mOptions.stochasticBelow;
+    return mOptions.gatherRays > 0 && !c.added.empty() && c.gathered.empty() &&
+           best < below * mEmittedEnergy;
+}
+
+void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<Rgb>& delta) {
+    const auto& patches = mDisc.patches();
+    const auto& elements = mDisc.elements();
+    // The entry knows the patches that existed at its edit; later edits append more.
+    const std::size_t np = c.shot.size();
+    c.gathered.assign(np, 0);
+    // Emitters keep their shots: a gather would see a small bright light with few rays.
+    for (std::size_t j = 0; j < np; ++j)
+        if (c.pending.key(static_cast<int>(j)) > 0 &&
+            !mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
+            c.gathered[j] = 1;
+    // Receivers: the elements of the added objects (the previewed one in a preview).
+    std::vector<int> receivers;
+    for (int o : c.added) {
+        if (!mDisc.objects()[o].alive && !(preview && o == mImpl->previewObject)) continue;
+        for (const Patch& P : patches)
+            if (P.object == o)
+                receivers.insert(receivers.end(), P.elements.begin(), P.elements.end());
+    }
+    std::sort(receivers.begin(), receivers.end());
+    delta.assign(elements.size(), Rgb(0.0));
+    Visibility after = c.afterWorld();
+    if (afterIsCurrentScene(c, preview)) after = Visibility{};
+    // Stratified cosine directions: nx × ny strata over (φ, sin²θ).
+    int n = std::max(1, mOptions.gatherRays);
+    if (mOptions.gatherRayBudget > 0 && !receivers.empty())
+        n = std::clamp(
+            static_cast<int>(mOptions.gatherRayBudget / static_cast<double>(receivers.size())),
+            std::min(n, std::max(1, mOptions.minGatherRays)), n);
+    int nx = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n))));
+    const int ny = (n + nx - 1) / nx;
+    const double eps = mTracer.epsilon();
+    const std::uint64_t seed = hashPair(hashPair(mOptions.seed, 0x6a7e5ull), mStats.shots);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, receivers.size(), 16), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const int e = receivers[i];
+            const Element& el = elements[e];
+            RayRandom rng{hashPair(seed, static_cast<std::uint64_t>(e))};
+            Vec3 tx, ty;
+            frameAround(el.normal, tx, ty);
+            const Vec3 origin = el.centroid + el.normal * eps;
+            Rgb sum(0.0);
+            for (int k = 0; k < nx * ny; ++k) {
+                const double u = (k % nx + rng.next()) / nx, v = (k / nx + rng.next()) / ny;
+                const double phi = 2 * M_PI * u, rr = std::sqrt(v);
+                const Vec3 dir = rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
+                                 std::sqrt(std::max(0.0, 1 - v)) * el.normal;
+                const RayTracer::FirstHit h = mTracer.firstHit(origin, dir, after);
+                if (h.element < 0 || h.backFace) continue;
+                const int j = elements[h.element].patch;
+                if (j == el.patch || !c.isGathered(j)) continue;
+                sum += c.shot[j];
+            }
+            delta[e] = sum / static_cast<double>(nx * ny);
+        }
+    });
+}
+
+bool ProgressiveSolver::shootRedistribution() {
+    int k = -1;
+    double best = bestRedistribution(&k);
+    if (best <= 0 || k < 0) return false;
+    ChangeEntry& c = mImpl->changes[k];
+    const bool gather = shouldGather(c, best);
+    if (!gather && mOptions.stochasticBelow > 0 &&
+        best < mOptions.stochasticBelow * mEmittedEnergy) {
+        shootRedistributionBatch(k);
+        return true;
+    }
+    const unsigned long long raysBefore = mTracer.rayCount();
+    auto& delta = mImpl->delta;
+    Rgb share(0.0);  // gathered shooters are not emitters: no emission share
+    if (gather) {
+        // The added objects' elements gather what the weak shooters would send them: far
+        // less noise than the same rays shot, and the edit's most changed elements.
+        gatherToAdded(c, false, delta);
+    } else {
+        const int j = c.pending.top();
+        c.totalPending -= c.pending.key(j);
+        c.pending.update(j, 0.0);
+        redistributionDelta(c, j, false, delta);
+        share = c.shotEmissionShare[j];
+    }
+    for (std::size_t e = 0; e < delta.size(); ++e)
+        if (!isZero(delta[e])) {
+            receive(static_cast<int>(e), delta[e], share);
+            touchElement(static_cast<int>(e));
+        }
+    updateTouchedPriorities();
+
+    if (c.pending.key(c.pending.top()) <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
+    ++mStats.shots;
+    ++mStats.redistributionShots;
+    mStats.rays += mTracer.rayCount() - raysBefore;
+    return true;
+}
+
+void ProgressiveSolver::shootRedistributionBatch(int k) {
+    // The weak tail of an edit's redistribution, stochastically (as the propagation tail):
+    // rays leave the pending shooters in proportion to their importance, aimed into the cone
+    // that the changed objects' bounding sphere subtends (no other ray can change), and are
+    // traced in the world before and after the edit. Where the first hits differ, the ray's
+    // power leaves the old receiver (negative energy into the new shadow, or the cancelled
+    // light of a removed object) and reaches the new one. In expectation this is exactly
+    // ρ_i S_j (F_ij(after) − F_ij(before)) summed over the batch.
+    ChangeEntry& c = mImpl->changes[k];
+    const auto& patches = mDisc.patches();
+    const unsigned long long raysBefore = mTracer.rayCount();
+    std::vector<int> shooters;
+    std::vector<double> cdf;
+    double total = 0;
+    // The most important shooters first, as many as fit in one batch of rays; the rest stay
+    // pending for the next batch, so the first corrections arrive quickly.
+    const double raysPerEmitted = mOptions.redistributionRaysPerEmittedPower > 0
+                                      ? mOptions.redistributionRaysPerEmittedPower
+                                      : mOptions.raysPerEmittedPower;
+    const double raysPerWatt = raysPerEmitted / std::max(mEmittedEnergy, 1e-300);
+    while (c.pending.top() >= 0 && c.pending.key(c.pending.top()) > 0) {
+        int j = c.pending.top();
+        if (!shooters.empty() && (total + c.pending.key(j)) * raysPerWatt > mOptions.maxBatchRays)
+            break;
+        shooters.push_back(j);
+        cdf.push_back(total += c.pending.key(j));
+        c.totalPending -= c.pending.key(j);
+        c.pending.update(j, 0.0);
+    }
+    if (shooters.empty()) return;
+    const double share = mEmittedEnergy > 0 ? total / mEmittedEnergy : 1.0;
+    const std::size_t rays = static_cast<std::size_t>(std::clamp(
+        std::ceil(share * raysPerEmitted), static_cast<double>(mOptions.minStochasticRays), 6.4e7));
+    const std::uint64_t batchSeed =
+        hashPair(hashPair(mOptions.seed, 0x7ed157ull), mStats.redistributionShots);
+    Visibility before = c.beforeWorld(), after = c.afterWorld();
+    if (afterIsCurrentScene(c, false)) after = Visibility{};
+    const Visibility changed = c.changed.visibility();
+    const bool onlyAdded = c.removed.empty();
+    // Per ray: what leaves the element it reached before the edit (2r) and what reaches the
+    // element it reaches after (2r + 1).
+    auto& out = mImpl->rayHits;
+    out.assign(2 * rays, Received{});
+    const double eps = mTracer.epsilon();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays, 256), [&](const auto& range) {
+        thread_local PatchPoints points;
+        std::size_t current = shooters.size();  // none yet in this block
+        for (std::size_t r = range.begin(); r != range.end(); ++r) {
+            RayRandom rng{hashPair(batchSeed, r)};
+            double u = (static_cast<double>(r) + rng.next()) / static_cast<double>(rays) * total;
+            const std::size_t pick = shooterAt(cdf, current, u);
+            const int j = shooters[pick];
+            const double pj = (cdf[pick] - (pick ? cdf[pick - 1] : 0.0)) / total;
+            const Patch& P = patches[j];
+            const bool removed =
+                std::find(c.removed.begin(), c.removed.end(), P.object) != c.removed.end();
+            if (pick != current) points.set(mDisc, P), current = pick;
+            Vec3 origin, nz, tx, ty;
+            points.sample(rng, origin, nz, tx, ty);
+            origin += nz * eps;
+            // Direction: into the cones the changed objects' bounding spheres subtend (one
+            // picked by solid angle; the density counts every cone holding the direction), or
+            // the hemisphere when the point is inside a sphere or the shooter was removed.
+            double weight;  // cos/π over the sampling density: ∫ cos/π dω per unit area
+            Vec3 dir;
+            struct Cone {
+                Vec3 axis;
+                double cosMax, solidAngle;
+            };
+            Cone cones[8];
+            std::size_t nCones = 0;
+            bool inside = removed || c.spheres.size() > 8;
+            double totalSolidAngle = 0;
+            for (std::size_t k = 0; !inside && k < c.spheres.size(); ++k) {
+                Vec3 axis = c.spheres[k].first - origin;
+                const double dist = glm::length(axis), r = c.spheres[k].second;
+                if (dist <= r) {
+                    inside = true;
+                    break;
+                }
+                const double cosMax = std::sqrt(std::max(0.0, 1 - (r / dist) * (r / dist)));
+                cones[nCones++] = {axis / dist, cosMax, 2 * M_PI * (1 - cosMax)};
+                totalSolidAngle += 2 * M_PI * (1 - cosMax);
+            }
+            if (inside || nCones == 0) {
+                dir = cosineDirection(nz, tx, ty, rng);
+                weight = 1.0;  // cosine sampling of the whole hemisphere
+            } else {
+                double pickCone = rng.next() * totalSolidAngle;
+                std::size_t k = 0;
+                while (k + 1 < nCones && pickCone > cones[k].solidAngle)
+                    pickCone -= cones[k++].solidAngle;
+                const Cone& cone = cones[k];
+                double cosT = 1 - rng.next() * (1 - cone.cosMax);
+                double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+                double phi = 2 * M_PI * rng.next();
+                Vec3 tx, ty;
+                frameAround(cone.axis, tx, ty);
+                dir = sinT * std::cos(phi) * tx + sinT * std::sin(phi) * ty + cosT * cone.axis;
+                double cosSrc = glm::dot(dir, nz);
+                if (cosSrc <= 0) continue;
+                int holding = 0;
+                for (std::size_t m = 0; m < nCones; ++m)
+                    if (m == k || glm::dot(dir, cones[m].axis) >= cones[m].cosMax) ++holding;
+                weight = totalSolidAngle / holding * cosSrc / M_PI;
+            }
+            const Rgb carried = c.shot[j] * (P.area * weight / (static_cast<double>(rays) * pj));
+            // A ray that misses every changed object hits the same element in both worlds.
+            RayTracer::FirstHit hc;
+            if (!removed && (hc = mTracer.firstHit(origin, dir, changed)).element < 0) continue;
+            RayTracer::FirstHit hb = mTracer.firstHit(origin, dir, before);
+            RayTracer::FirstHit ha;
+            if (removed) {
+                // The shooter is gone: nothing reaches anything after the edit.
+            } else if (onlyAdded) {
+                // After = before ∪ added: the nearer of the two first hits (the same
+                // instances and transforms give the same t as tracing the union).
+                ha = hb.element < 0 || hc.t < hb.t ? hc : hb;
+            } else {
+                ha = mTracer.firstHit(origin, dir, after);
+            }
+            int eb = hb.element >= 0 && !hb.backFace ? hb.element : -1;
+            int ea = ha.element >= 0 && !ha.backFace ? ha.element : -1;
+            if (eb == ea) continue;
+            auto receives = [&](int e) {
+                int o = mDisc.elements()[e].object;
+                return mDisc.objects()[o].alive && c.after[o] && mDisc.elements()[e].patch != j;
+            };
+            if (eb >= 0 && c.before[mDisc.elements()[eb].object] && receives(eb)) {
+                const Element& el = mDisc.elements()[eb];
+                out[2 * r] = {eb, el.patch, el.area, -carried / el.area, j};
+            }
+            if (ea >= 0 && receives(ea) &&
+                !(c.isGathered(j) && !c.before[mDisc.elements()[ea].object])) {
+                const Element& el = mDisc.elements()[ea];
+                out[2 * r + 1] = {ea, el.patch, el.area, carried / el.area, j};
+            }
+        }
+    });
+    // Apply in ray order: independent of the thread count.
+    receiveAll(out, c.shotEmissionShare);
+    if (c.pending.top() < 0 || c.pending.key(c.pending.top()) <= 0)
+        mImpl->changes.erase(mImpl->changes.begin() + k);
+    ++mStats.shots;
+    ++mStats.redistributionShots;
+    ++mStats.stochasticBatches;
+    mStats.rays += mTracer.rayCount() - raysBefore;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Drag preview: the temporary buffer
+
+void ProgressiveSolver::setPreview(int object) {
+    ensureSizes();
+    clearPreview();
+    mImpl->previewObject = object;
+    mImpl->previewEntry = makeChangeEntry({{}, {object}});
+    mImpl->previewEntry.after[object] = 1;
+    buildWorldScenes(mImpl->previewEntry);
+    mImpl->previewEmitters.clear();
+    for (std::size_t j = 0; j < mDisc.patches().size(); ++j)
+        if (mDisc.patches()[j].object == object &&
+            mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
+            mImpl->previewEmitters.push_back(static_cast<int>(j));
+    mImpl->temp.assign(mDisc.elements().size(), Rgb(0.0));
+    mImpl->tempEmission.assign(mDisc.elements().size(), Rgb(0.0));
+    // The object shows its own emission at once.
+    for (int j : mImpl->previewEmitters)
+        for (int e : mDisc.patches()[j].elements)
+            mImpl->temp[e] = mImpl->tempEmission[e] = mDisc.patchMaterial(j).emission;
+}
+
+int ProgressiveSolver::stepPreview(int maxShots) {
+    if (mImpl->previewObject < 0) return 0;
+    auto start = std::chrono::steady_clock::now();
+    const unsigned long long raysBefore = mTracer.rayCount();
+    ChangeEntry& c = mImpl->previewEntry;
+    auto& delta = mImpl->delta;
+    int done = 0;
+    for (; done < maxShots; ++done) {
+        Rgb share(0.0);  // of the shot's radiosity that is emission
+        if (!mImpl->previewEmitters.empty()) {
+            // The dragged object's own light first (direct only): E·F to every receiver.
+            int j = mImpl->previewEmitters.back();
+            mImpl->previewEmitters.pop_back();
+            const Rgb e = mDisc.patchMaterial(j).emission;
+            const Visibility after = c.afterWorld();
+            const std::size_t n = mDisc.elements().size();
+            delta.assign(n, Rgb(0.0));
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+                for (std::size_t el = range.begin(); el != range.end(); ++el)
+                    delta[el] = irradianceFrom(j, static_cast<int>(el), e, after);
+            });
+            share = Rgb(1.0);
+        } else {
+            int j = c.pending.top();
+            if (j < 0 || c.pending.key(j) <= 0) break;
+            if (shouldGather(c, c.pending.key(j))) {
+                // The weak shooters reach the dragged object in one gather (as in
+                // shootRedistribution); their shots that follow only correct the shadows.
+                gatherToAdded(c, true, delta);
+            } else {
+                c.pending.update(j, 0.0);
+                redistributionDelta(c, j, true, delta);
+                share = c.shotEmissionShare[j];
+            }
+        }
+        mImpl->tempEmission.resize(mImpl->temp.size(), Rgb(0.0));
+        for (std::size_t el = 0; el < delta.size(); ++el)
+            if (!isZero(delta[el])) {
+                const Rgb dB = mDisc.elementMaterial(static_cast<int>(el)).reflectance * delta[el];
+                mImpl->temp[el] += dB;
+                mImpl->tempEmission[el] += dB * share;
+            }
+    }
+    mStats.shots += static_cast<std::uint64_t>(done);
+    mStats.rays += mTracer.rayCount() - raysBefore;
+    mStats.seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return done;
+}
+
+void ProgressiveSolver::clearPreview() {
+    mImpl->previewObject = -1;
+    mImpl->previewEmitters.clear();
+    mImpl->previewEntry = ChangeEntry{};
+    std::fill(mImpl->temp.begin(), mImpl->temp.end(), Rgb(0.0));
+    std::fill(mImpl->tempEmission.begin(), mImpl->tempEmission.end(), Rgb(0.0));
+}
+
+int ProgressiveSolver::previewObject() const { return mImpl->previewObject; }
+
+bool ProgressiveSolver::previewComplete() const {
+    if (mImpl->previewObject < 0) return false;
+    const ChangeEntry& c = mImpl->previewEntry;
+    if (!mImpl->previewEmitters.empty()) return false;
+    const int j = c.pending.top();
+    return !c.gathered.empty() || j < 0 || c.pending.key(j) <= 0;
+}
+
+const std::vector<Rgb>& ProgressiveSolver::previewRadiosity() const {
+    mImpl->temp.resize(mDisc.elements().size(), Rgb(0.0));
+    return mImpl->temp;
+}
+
+const std::vector<Rgb>& ProgressiveSolver::previewRadiosityFromEmission() const {
+    mImpl->tempEmission.resize(mDisc.elements().size(), Rgb(0.0));
+    return mImpl->tempEmission;
+}
+
+}  // namespace penumbra
