@@ -568,21 +568,25 @@ void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPix
         ->check(CLI::Range(0.0, 1e6));
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-    // OpenMesh reports non-manifold faces it cannot link (which the edge finder handles by
-    // giving them their own vertices) on its own error stream; Penumbra reports its errors.
-    omerr().disable();
-    CLI::App app{"Penumbra: interactive radiosity lighting editor, command line"};
-    app.require_subcommand(1);
-    bool verbose = false;
-    app.add_flag("--verbose", verbose, "debug lines on stderr (what runs, and how long it takes)");
+/// Every subcommand's options land here; the CLI::App pointers say which one ran.
+struct Commands {
     SolveArgs solve;
     std::string pointsPath;
     RenderArgs render;
+    ReplayArgs replay;
+    BenchOptions bench;
+    RedistributionBenchOptions redist;
+    DisplayBenchOptions display;
+    HifiBenchOptions hifi;
+    CLI::App *solveCmd = nullptr, *probeCmd = nullptr, *exportCmd = nullptr, *renderCmd = nullptr,
+             *replayCmd = nullptr, *benchSolver = nullptr, *benchRedist = nullptr,
+             *benchDisplay = nullptr, *benchHifi = nullptr;
+};
 
-    CLI::App* solveCmd = app.add_subcommand("solve", "solve a scene to convergence");
+/// solve, probe and export.
+void addSolveCommands(CLI::App& app, Commands& c) {
+    SolveArgs& solve = c.solve;
+    CLI::App* solveCmd = c.solveCmd = app.add_subcommand("solve", "solve a scene to convergence");
     addSolveOptions(solveCmd, solve);
     solveCmd->add_option("--save", solve.save, "write the solution (JSON)");
     solveCmd->add_option("--export", solve.exportPath,
@@ -592,11 +596,12 @@ int main(int argc, char** argv) {
                          "write the scene as penumbra-scene/1 JSON (an imported one's meshes "
                          "beside it)");
 
-    CLI::App* probeCmd = app.add_subcommand("probe", "print irradiance at points");
+    CLI::App* probeCmd = c.probeCmd = app.add_subcommand("probe", "print irradiance at points");
     addSolveOptions(probeCmd, solve);
-    probeCmd->add_option("--points", pointsPath, "file of \"x y z nx ny nz\" lines")->required();
+    probeCmd->add_option("--points", c.pointsPath, "file of \"x y z nx ny nz\" lines")->required();
 
-    CLI::App* exportCmd = app.add_subcommand("export", "solve and export the lit scene");
+    CLI::App* exportCmd = c.exportCmd =
+        app.add_subcommand("export", "solve and export the lit scene");
     addSolveOptions(exportCmd, solve);
     exportCmd->add_option("OUT", solve.exportPath, "output (.ply .gltf .glb .obj)")->required();
     exportCmd->add_option("--report", solve.report, "write a JSON report");
@@ -609,8 +614,12 @@ int main(int argc, char** argv) {
                      "--hifi: sample the far field's indirect light with this many rays per "
                      "point (default 256; 0: every patch exactly)")
         ->check(CLI::Range(0, 1 << 20));
+}
 
-    CLI::App* renderCmd = app.add_subcommand("render", "solve and render an image");
+void addRenderCommand(CLI::App& app, Commands& c) {
+    SolveArgs& solve = c.solve;
+    RenderArgs& render = c.render;
+    CLI::App* renderCmd = c.renderCmd = app.add_subcommand("render", "solve and render an image");
     addSolveOptions(renderCmd, solve);
     renderCmd->add_option("--camera", render.camera,
                           "camera name (default: 'default' or the first)");
@@ -654,9 +663,12 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(-360.0, 360.0));
     renderCmd->add_option("--rmse", render.rmseFrames,
                           "frames compared with the reference: last (default), all, none");
+}
 
-    ReplayArgs replay;
-    CLI::App* replayCmd = app.add_subcommand("replay", "replay an edit log over a scene");
+void addReplayCommand(CLI::App& app, Commands& c) {
+    ReplayArgs& replay = c.replay;
+    CLI::App* replayCmd = c.replayCmd =
+        app.add_subcommand("replay", "replay an edit log over a scene");
     replayCmd->add_option("SCENE", replay.options.scenePath, kSceneHelp)->required();
     addImportFlags(replayCmd, replay.options.import);
     replayCmd->add_option("LOG", replay.options.logPath, "edit log (*.jsonl)")->required();
@@ -697,11 +709,14 @@ int main(int argc, char** argv) {
                      "shoot stochastically when a shot carries less than this fraction of "
                      "the emitted power (0: every shot deterministic)")
         ->check(CLI::Range(0.0, 1.0));
+}
 
+void addBenchCommands(CLI::App& app, Commands& c) {
     CLI::App* benchCmd = app.add_subcommand("bench", "benchmarks (Google Benchmark + tables)");
     benchCmd->require_subcommand(1);
-    BenchOptions bench;
-    CLI::App* benchSolver = benchCmd->add_subcommand("solver", "solver throughput and convergence");
+    BenchOptions& bench = c.bench;
+    CLI::App* benchSolver = c.benchSolver =
+        benchCmd->add_subcommand("solver", "solver throughput and convergence");
     benchSolver->add_option("--scenes", bench.scenes, "scene files")
         ->default_val(std::vector<std::string>{"scenes/cube-room.json", "scenes/cubicles.json",
                                                "scenes/robot-room.json", "scenes/large.json"});
@@ -709,8 +724,8 @@ int main(int argc, char** argv) {
     benchSolver->add_option("--json", bench.jsonOut, "write every figure as JSON");
     benchSolver->add_option("--child-scene", bench.childScene, "internal: one scene, JSON out")
         ->group("");
-    RedistributionBenchOptions redist;
-    CLI::App* benchRedist = benchCmd->add_subcommand(
+    RedistributionBenchOptions& redist = c.redist;
+    CLI::App* benchRedist = c.benchRedist = benchCmd->add_subcommand(
         "redistribution", "George et al. Figures 6 and 7: error against time after an edit");
     benchRedist->add_option("--cases", redist.cases, "cube-room and/or robot-room");
     benchRedist->add_option("--scene-dir", redist.sceneDir, "folder with the scenes");
@@ -723,9 +738,9 @@ int main(int argc, char** argv) {
                             "read the converged references from PATH-<scene>, or write them");
     benchRedist->add_flag("--split", redist.split,
                           "print the top-1% error on the added objects and on the rest");
-    DisplayBenchOptions display;
-    HifiBenchOptions hifi;
-    CLI::App* benchHifi = benchCmd->add_subcommand(
+    DisplayBenchOptions& display = c.display;
+    HifiBenchOptions& hifi = c.hifi;
+    CLI::App* benchHifi = c.benchHifi = benchCmd->add_subcommand(
         "hifi", "Hardt & Teller: interpolant build, evaluation fps, error against reference");
     benchHifi->add_option("--cases", hifi.cases, "scenes by name (default: cornell-box cube-room)");
     benchHifi->add_option("--scene-dir", hifi.sceneDir, "folder with the scenes");
@@ -735,7 +750,7 @@ int main(int argc, char** argv) {
     benchHifi->add_option("--plot-dir", hifi.plotDir, "write the error images there");
     benchHifi->add_option("--json", hifi.jsonOut, "write every figure as JSON");
 
-    CLI::App* benchDisplay = benchCmd->add_subcommand(
+    CLI::App* benchDisplay = c.benchDisplay = benchCmd->add_subcommand(
         "display", "Bala et al. Table 2: display stage times, fps, epi vs cache error");
     benchDisplay->add_option("--cases", display.cases, "robot-room and/or armadillo-field");
     benchDisplay->add_option("--scene-dir", display.sceneDir, "folder with the scenes");
@@ -771,6 +786,23 @@ int main(int argc, char** argv) {
                            "render two converged references (different seeds): their noise");
     benchDisplay->add_flag("--no-converged-reference", display.skipConvergedReference,
                            "errors against the plain reference only (no converged one)");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    // OpenMesh reports non-manifold faces it cannot link (which the edge finder handles by
+    // giving them their own vertices) on its own error stream; Penumbra reports its errors.
+    omerr().disable();
+    CLI::App app{"Penumbra: interactive radiosity lighting editor, command line"};
+    app.require_subcommand(1);
+    bool verbose = false;
+    app.add_flag("--verbose", verbose, "debug lines on stderr (what runs, and how long it takes)");
+    Commands c;
+    addSolveCommands(app, c);
+    addRenderCommand(app, c);
+    addReplayCommand(app, c);
+    addBenchCommands(app, c);
 
     try {
         app.parse(argc, argv);
@@ -783,19 +815,19 @@ int main(int argc, char** argv) {
     initLogging(verbose);
 
     std::optional<tbb::global_control> threads;
-    const int threadCount = *replayCmd ? replay.threads : solve.threads;
+    const int threadCount = *c.replayCmd ? c.replay.threads : c.solve.threads;
     if (threadCount > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, threadCount);
 
     try {
-        if (*solveCmd) return runSolve(solve);
-        if (*probeCmd) return runProbe(solve, pointsPath);
-        if (*exportCmd) return runSolve(solve);
-        if (*renderCmd) return runRender(solve, render);
-        if (*replayCmd) return runReplayCommand(replay);
-        if (*benchSolver) return runSolverBench(bench);
-        if (*benchRedist) return runRedistributionBench(redist);
-        if (*benchDisplay) return runDisplayBench(display);
-        if (*benchHifi) return runHifiBench(hifi);
+        if (*c.solveCmd) return runSolve(c.solve);
+        if (*c.probeCmd) return runProbe(c.solve, c.pointsPath);
+        if (*c.exportCmd) return runSolve(c.solve);
+        if (*c.renderCmd) return runRender(c.solve, c.render);
+        if (*c.replayCmd) return runReplayCommand(c.replay);
+        if (*c.benchSolver) return runSolverBench(c.bench);
+        if (*c.benchRedist) return runRedistributionBench(c.redist);
+        if (*c.benchDisplay) return runDisplayBench(c.display);
+        if (*c.benchHifi) return runHifiBench(c.hifi);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "penumbra: %s\n", e.what());
         return 2;

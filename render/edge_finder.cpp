@@ -232,7 +232,7 @@ void EdgeFinder::findSilhouettes(const Vec3& eye, std::vector<std::vector<WorldE
         for (int o = 0; o < n; ++o) one(o, ids);
         return;
     }
-    // One task per object (a 50k-triangle mesh is ~0.5 ms of traversal).
+    // One task per object (a mesh's traversal is large enough to be a task of its own).
     tbb::parallel_for(tbb::blocked_range<int>(0, n, 1), [&](const tbb::blocked_range<int>& r) {
         std::vector<int> ids;
         for (int o = r.begin(); o != r.end(); ++o) one(o, ids);
@@ -795,9 +795,8 @@ void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
                 offsets.push_back(total);
                 total += ee.size();
             }
-    // Room to grow by half: a move that adds edges (the first one after the initial
-    // computation added 8% on armadillo-field) would otherwise move the list into a fresh
-    // block, and first writes to 18 MB of fresh pages cost 40 ms of page faults here.
+    // Room to grow by half: a move that adds edges would otherwise move the list into a
+    // fresh block, whose first writes cost a page fault per page.
     reserveForOverwrite(out, total);
     out.resize(total);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lists.size(), 256),

@@ -67,8 +67,8 @@ RenderCache::RenderCache(int width, int height, std::size_t capacity, RenderCach
 std::vector<int> RenderCache::evictionSlots(std::size_t count) const {
     // The `count` smallest keys (visible in the last frame, birth frame, index): every hidden
     // point when there are not enough of them, then the oldest of one class, ties in index
-    // order. Not a sort (nth_element over the cache's index order read both arrays at random:
-    // 3.3 ms a frame at 393k points), but a radix select: one parallel pass counts ages per
+    // order. Not a sort (nth_element over the cache's index order reads both arrays at
+    // random, a cost that grows with the cache), but a radix select: one parallel pass counts ages per
     // chunk of points and class, which gives the threshold age and each chunk's share of the
     // slots, and a second parallel pass writes them. Which class a point is in follows no
     // pattern, so both passes decide by selects. Only when more than the needed points of the

@@ -2,8 +2,8 @@
 // Runs an EditSession for the editor without blocking the frame loop.
 //
 // EditSession is not thread-safe (plain members, no locks) and one solver shot cannot be
-// interrupted (ProgressiveSolver::step(1): ~1 ms in cube-room, 0.1–0.2 s per deterministic
-// shot in robot-room, seconds for a stochastic tail batch). So:
+// interrupted (ProgressiveSolver::step(1) is one shot, long in a large scene, longest for a
+// stochastic tail batch). So:
 // - the solver thread owns the session: it applies queued edits and tasks, then shoots one
 //   shot at a time for a time budget, publishing a copy of the display radiosity as it goes;
 // - the render thread draws the viewport image from the latest published radiosity while

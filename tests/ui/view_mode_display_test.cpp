@@ -127,7 +127,7 @@ TEST(ViewModeDisplay, EdgeAndPointMatchesGouraudAndTheEdgesOverlayDiffers) {
     const double epiVsGouraud = sum / (3.0 * 255.0 * double(n));
     const double edgesVsEpi = double(changed) / double(n);
     // Bound: the two renderers differ in shading (per-pixel point shading with exact direct
-    // light vs per-vertex interpolation) and at silhouettes; measured 0.005 when settled. A mean
+    // light vs per-vertex interpolation) and at silhouettes, a small part of it. A mean
     // sRGB difference of 0.02 is five grey levels in every pixel; an empty, unlit or direct-only
     // image is far beyond it.
     EXPECT_LT(epiVsGouraud, 0.02);

@@ -227,8 +227,8 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
     }
 
     // Move an object there and back, kMoves times: shadow edges of the stale light–blocker
-    // pairs are recomputed after each move. One 50 ms figure moved by ±10% between runs on
-    // a shared machine, so the median is reported, with the first and the slowest.
+    // pairs are recomputed after each move. One figure moves with what else the machine
+    // runs, so the median is reported, with the first and the slowest.
     if (!spec.moved.empty() && session->objectVersion(spec.moved) >= 0) {
         std::vector<double> times;
         for (int k = 0; k < kMoves; ++k) {

@@ -118,9 +118,8 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     Segments segs = makeSegments(lit->discretization(), 1 << 20);
     rawOcclusionRate(lit->tracer(), segs);  // warm up
     // Each raw rate is the median of ten passes over the 2^20 segments, five before the solve
-    // and five after it: one pass is 30 ms on a small scene, single passes moved by ±10% on a
-    // shared machine, and medians of five taken minutes apart still differed by up to 20% on
-    // large, so the solve is bracketed.
+    // and five after it: single passes are short and move with what else the machine runs,
+    // and so do medians taken minutes apart, so the solve is bracketed.
     int threadsSeen = 0;
     auto passes = [](auto&& rate, std::vector<double>& into) {
         for (int k = 0; k < 5; ++k) into.push_back(rate());
