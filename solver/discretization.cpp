@@ -201,41 +201,107 @@ struct ParamGrid {
     int minCellsU = 1, minCellsV = 1;
 };
 
-}  // namespace
+/// Lays an object's shape out as faces of a SurfaceBuilder: parametric shapes as grids of
+/// patches (groups) of elements, meshes as their triangles split to the element size.
+struct ShapeFaces {
+    ShapeFaces(SurfaceBuilder& b, const glm::dmat3& linearPart, double patch, double element,
+               int material, const std::vector<int>& perMesh)
+        : builder(b),
+          surface(b.surface),
+          linear(linearPart),
+          patchSize(patch),
+          elementSize(element),
+          objectMaterial(material),
+          meshMaterials(perMesh) {}
 
-void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
-    mObjects.push_back({});
-    ObjectSurface& surface = mObjects.back();
-    surface.id = obj.id;
-    surface.worldFromObject = obj.transform.worldFromObject();
-    const Mat4& M = surface.worldFromObject;
-    const glm::dmat3 linear(M);
-    const double patchSize = obj.patchSize > 0 ? obj.patchSize : scene.settings.patchSize;
-    const double elementSize = scene.settings.elementSize;
+    SurfaceBuilder& builder;
+    ObjectSurface& surface;
+    glm::dmat3 linear;  ///< object to world, without the translation
+    double patchSize, elementSize;
+    int objectMaterial;  ///< -1: each triangle takes its mesh material
+    const std::vector<int>& meshMaterials;
+    int nextGroup = 0;
+    std::map<int, std::vector<Vec3>> groupOutline;  ///< per group, its boundary (object space)
 
-    // Materials: the object's, or the mesh's own per triangle.
-    int objectMaterial = -1;
-    std::vector<int> meshMaterials;
-    if (!obj.material.empty()) {
-        const Material* m = scene.findMaterial(obj.material);
-        if (!m)
-            throw std::invalid_argument("object '" + obj.id + "': unknown material '" +
-                                        obj.material + "'");
-        objectMaterial = addMaterial(*m);
-        surface.twoSided = m->twoSided;
-    } else {
-        for (const Material& m : obj.shape.mesh.materials) meshMaterials.push_back(addMaterial(m));
-        if (meshMaterials.empty()) objectMaterial = addMaterial(Material{});
+    void addShape(const Shape& shape) {
+        switch (shape.type) {
+            case ShapeType::Quad: {
+                double sx = shape.size.x, sz = shape.size.z;
+                if (shape.size.z == 0 && shape.size.y != 0) sz = shape.size.y;
+                addGrid(
+                    {[=](double u, double v) { return Vec3(-sx / 2 + u * sx, 0, sz / 2 - v * sz); },
+                     Vec3(0, 1, 0)});
+                break;
+            }
+            case ShapeType::Box: {
+                Vec3 h = shape.size / 2.0;
+                const Vec3 axes[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+                for (int k = 0; k < 3; ++k)
+                    for (double sign : {1.0, -1.0}) {
+                        Vec3 n = sign * axes[k];
+                        Vec3 a = axes[(k + 1) % 3], b = axes[(k + 2) % 3];
+                        double la = glm::dot(shape.size, a), lb = glm::dot(shape.size, b);
+                        Vec3 centre = n * glm::dot(h, axes[k]);
+                        addGrid({[=](double u, double v) {
+                                     return centre + a * ((u - 0.5) * la) + b * ((v - 0.5) * lb);
+                                 },
+                                 n});
+                    }
+                break;
+            }
+            case ShapeType::Sphere: {
+                double r = shape.radius;
+                ParamGrid g{[=](double u, double v) {
+                                double phi = 2 * M_PI * u, theta = M_PI * v;
+                                return Vec3(r * std::sin(theta) * std::cos(phi),
+                                            r * std::cos(theta),
+                                            r * std::sin(theta) * std::sin(phi));
+                            },
+                            Vec3(0, 0, 1)};
+                // (0.5, 0.5) is at phi = π, on the equator: outward is -X.
+                g.outwardAt = Vec3(-1, 0, 0);
+                g.wrapU = true;
+                g.collapseV0 = g.collapseV1 = true;
+                g.minCellsU = shape.segments;
+                g.minCellsV = std::max(2, shape.segments / 2);
+                addGrid(g);
+                break;
+            }
+            case ShapeType::Cylinder: {
+                double r = shape.radius, hh = shape.height / 2;
+                ParamGrid side{[=](double u, double v) {
+                                   double phi = 2 * M_PI * u;
+                                   return Vec3(r * std::cos(phi), -hh + v * 2 * hh,
+                                               r * std::sin(phi));
+                               },
+                               Vec3(-1, 0, 0)};
+                side.wrapU = true;
+                side.minCellsU = shape.segments;
+                addGrid(side);
+                for (double sign : {1.0, -1.0}) {
+                    ParamGrid cap{[=](double u, double v) {
+                                      double phi = 2 * M_PI * u;
+                                      return Vec3(v * r * std::cos(phi), sign * hh,
+                                                  v * r * std::sin(phi));
+                                  },
+                                  Vec3(0, sign, 0)};
+                    cap.wrapU = true;
+                    cap.collapseV0 = true;
+                    cap.minCellsU = shape.segments;
+                    addGrid(cap);
+                }
+                break;
+            }
+            case ShapeType::Mesh: {
+                addMesh(shape.mesh);
+                break;
+            }
+        }
     }
 
-    SurfaceBuilder builder{surface, {}, {}, {}};
-    builder.mirrored = glm::determinant(linear) < 0;
-    int nextGroup = 0;
-    std::map<int, std::vector<Vec3>> groupOutline;  // object space
-
-    // Grid a parametric surface: patches of about patchSize, elements of about elementSize,
-    // measured in world space.
-    auto addGrid = [&](ParamGrid grid) {
+    /// Grids a parametric surface: patches of about patchSize, elements of about
+    /// elementSize, measured in world space.
+    void addGrid(const ParamGrid& grid) {
         auto worldLen = [&](Vec3 a, Vec3 b) { return glm::length(linear * (b - a)); };
         // Longest world-space length of a u-line and of a v-line.
         double lenU = 0, lenV = 0;
@@ -297,142 +363,105 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
                              verts[(j + 1) * (nu + 1) + i + 1], verts[(j + 1) * (nu + 1) + i]},
                             group, objectMaterial);
             }
-    };
-
-    const Shape& shape = obj.shape;
-    switch (shape.type) {
-        case ShapeType::Quad: {
-            double sx = shape.size.x, sz = shape.size.z;
-            if (shape.size.z == 0 && shape.size.y != 0) sz = shape.size.y;
-            addGrid({[=](double u, double v) { return Vec3(-sx / 2 + u * sx, 0, sz / 2 - v * sz); },
-                     Vec3(0, 1, 0)});
-            break;
-        }
-        case ShapeType::Box: {
-            Vec3 h = shape.size / 2.0;
-            const Vec3 axes[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-            for (int k = 0; k < 3; ++k)
-                for (double sign : {1.0, -1.0}) {
-                    Vec3 n = sign * axes[k];
-                    Vec3 a = axes[(k + 1) % 3], b = axes[(k + 2) % 3];
-                    double la = glm::dot(shape.size, a), lb = glm::dot(shape.size, b);
-                    Vec3 centre = n * glm::dot(h, axes[k]);
-                    addGrid({[=](double u, double v) {
-                                 return centre + a * ((u - 0.5) * la) + b * ((v - 0.5) * lb);
-                             },
-                             n});
-                }
-            break;
-        }
-        case ShapeType::Sphere: {
-            double r = shape.radius;
-            ParamGrid g{[=](double u, double v) {
-                            double phi = 2 * M_PI * u, theta = M_PI * v;
-                            return Vec3(r * std::sin(theta) * std::cos(phi), r * std::cos(theta),
-                                        r * std::sin(theta) * std::sin(phi));
-                        },
-                        Vec3(0, 0, 1)};
-            // (0.5, 0.5) is at phi = π, on the equator: outward is -X.
-            g.outwardAt = Vec3(-1, 0, 0);
-            g.wrapU = true;
-            g.collapseV0 = g.collapseV1 = true;
-            g.minCellsU = shape.segments;
-            g.minCellsV = std::max(2, shape.segments / 2);
-            addGrid(g);
-            break;
-        }
-        case ShapeType::Cylinder: {
-            double r = shape.radius, hh = shape.height / 2;
-            ParamGrid side{[=](double u, double v) {
-                               double phi = 2 * M_PI * u;
-                               return Vec3(r * std::cos(phi), -hh + v * 2 * hh, r * std::sin(phi));
-                           },
-                           Vec3(-1, 0, 0)};
-            side.wrapU = true;
-            side.minCellsU = shape.segments;
-            addGrid(side);
-            for (double sign : {1.0, -1.0}) {
-                ParamGrid cap{[=](double u, double v) {
-                                  double phi = 2 * M_PI * u;
-                                  return Vec3(v * r * std::cos(phi), sign * hh,
-                                              v * r * std::sin(phi));
-                              },
-                              Vec3(0, sign, 0)};
-                cap.wrapU = true;
-                cap.collapseV0 = true;
-                cap.minCellsU = shape.segments;
-                addGrid(cap);
-            }
-            break;
-        }
-        case ShapeType::Mesh: {
-            const TriMesh& tm = shape.mesh;
-            std::vector<VHandle> base;
-            base.reserve(tm.positions.size());
-            for (const Vec3& p : tm.positions) base.push_back(builder.addVertex(p));
-            // Points on a split edge are shared by both triangles: key (lo, hi, step from lo).
-            std::map<std::tuple<int, int, int>, VHandle> edgePoints;
-            for (std::size_t t = 0; t < tm.triangles.size(); ++t) {
-                const auto& tri = tm.triangles[t];
-                int material = objectMaterial;
-                if (material < 0) {
-                    int tmi = t < tm.triangleMaterial.size() ? tm.triangleMaterial[t] : 0;
-                    material = meshMaterials.at(std::clamp(tmi, 0, int(meshMaterials.size()) - 1));
-                }
-                Vec3 p[3];
-                for (int k = 0; k < 3; ++k) p[k] = tm.positions[tri[k]];
-                double longest = 0;
-                for (int k = 0; k < 3; ++k)
-                    longest = std::max(longest, glm::length(linear * (p[(k + 1) % 3] - p[k])));
-                int n = cellsFor(longest, elementSize);
-                if (n == 1) {
-                    builder.addFace({base[tri[0]], base[tri[1]], base[tri[2]]}, -1, material);
-                    continue;
-                }
-                // Regular split into n² triangles; lattice point (i, j): i steps from vertex 0
-                // toward 1, j toward 2.
-                auto latticeVertex = [&](int i, int j) -> VHandle {
-                    int k0 = n - i - j;
-                    if (i == n) return base[tri[1]];
-                    if (j == n) return base[tri[2]];
-                    if (k0 == n) return base[tri[0]];
-                    Vec3 pos =
-                        (double(k0) * p[0] + double(i) * p[1] + double(j) * p[2]) / double(n);
-                    auto edgeKey = [&](int a, int b, int stepsFromA) {
-                        int va = tri[a], vb = tri[b];
-                        return va < vb ? std::make_tuple(va, vb, stepsFromA)
-                                       : std::make_tuple(vb, va, n - stepsFromA);
-                    };
-                    std::tuple<int, int, int> key;
-                    if (j == 0)
-                        key = edgeKey(0, 1, i);
-                    else if (i == 0)
-                        key = edgeKey(0, 2, j);
-                    else if (k0 == 0)
-                        key = edgeKey(1, 2, j);
-                    else
-                        return builder.addVertex(pos);  // interior point
-                    auto it = edgePoints.find(key);
-                    if (it != edgePoints.end()) return it->second;
-                    return edgePoints[key] = builder.addVertex(pos);
-                };
-                std::vector<VHandle> lattice;
-                auto at = [&](int i, int j) { return lattice[j * (n + 1) + i]; };
-                lattice.resize((n + 1) * (n + 1));
-                for (int j = 0; j <= n; ++j)
-                    for (int i = 0; i + j <= n; ++i) lattice[j * (n + 1) + i] = latticeVertex(i, j);
-                for (int j = 0; j < n; ++j)
-                    for (int i = 0; i + j < n; ++i) {
-                        builder.addFace({at(i, j), at(i + 1, j), at(i, j + 1)}, -1, material);
-                        if (i + j + 1 < n)
-                            builder.addFace({at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}, -1,
-                                            material);
-                    }
-            }
-            break;
-        }
     }
 
+    void addMesh(const TriMesh& tm) {
+        std::vector<VHandle> base;
+        base.reserve(tm.positions.size());
+        for (const Vec3& p : tm.positions) base.push_back(builder.addVertex(p));
+        // Points on a split edge are shared by both triangles: key (lo, hi, step from lo).
+        std::map<std::tuple<int, int, int>, VHandle> edgePoints;
+        for (std::size_t t = 0; t < tm.triangles.size(); ++t) {
+            const auto& tri = tm.triangles[t];
+            int material = objectMaterial;
+            if (material < 0) {
+                int tmi = t < tm.triangleMaterial.size() ? tm.triangleMaterial[t] : 0;
+                material = meshMaterials.at(std::clamp(tmi, 0, int(meshMaterials.size()) - 1));
+            }
+            Vec3 p[3];
+            for (int k = 0; k < 3; ++k) p[k] = tm.positions[tri[k]];
+            double longest = 0;
+            for (int k = 0; k < 3; ++k)
+                longest = std::max(longest, glm::length(linear * (p[(k + 1) % 3] - p[k])));
+            int n = cellsFor(longest, elementSize);
+            if (n == 1) {
+                builder.addFace({base[tri[0]], base[tri[1]], base[tri[2]]}, -1, material);
+                continue;
+            }
+            // Regular split into n² triangles; lattice point (i, j): i steps from vertex 0
+            // toward 1, j toward 2.
+            auto latticeVertex = [&](int i, int j) -> VHandle {
+                int k0 = n - i - j;
+                if (i == n) return base[tri[1]];
+                if (j == n) return base[tri[2]];
+                if (k0 == n) return base[tri[0]];
+                Vec3 pos = (double(k0) * p[0] + double(i) * p[1] + double(j) * p[2]) / double(n);
+                auto edgeKey = [&](int a, int b, int stepsFromA) {
+                    int va = tri[a], vb = tri[b];
+                    return va < vb ? std::make_tuple(va, vb, stepsFromA)
+                                   : std::make_tuple(vb, va, n - stepsFromA);
+                };
+                std::tuple<int, int, int> key;
+                if (j == 0)
+                    key = edgeKey(0, 1, i);
+                else if (i == 0)
+                    key = edgeKey(0, 2, j);
+                else if (k0 == 0)
+                    key = edgeKey(1, 2, j);
+                else
+                    return builder.addVertex(pos);  // interior point
+                auto it = edgePoints.find(key);
+                if (it != edgePoints.end()) return it->second;
+                return edgePoints[key] = builder.addVertex(pos);
+            };
+            std::vector<VHandle> lattice;
+            auto at = [&](int i, int j) { return lattice[j * (n + 1) + i]; };
+            lattice.resize((n + 1) * (n + 1));
+            for (int j = 0; j <= n; ++j)
+                for (int i = 0; i + j <= n; ++i) lattice[j * (n + 1) + i] = latticeVertex(i, j);
+            for (int j = 0; j < n; ++j)
+                for (int i = 0; i + j < n; ++i) {
+                    builder.addFace({at(i, j), at(i + 1, j), at(i, j + 1)}, -1, material);
+                    if (i + j + 1 < n)
+                        builder.addFace({at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}, -1,
+                                        material);
+                }
+        }
+    }
+};
+
+}  // namespace
+
+void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
+    mObjects.push_back({});
+    ObjectSurface& surface = mObjects.back();
+    surface.id = obj.id;
+    surface.worldFromObject = obj.transform.worldFromObject();
+    const Mat4& M = surface.worldFromObject;
+    const glm::dmat3 linear(M);
+    const double patchSize = obj.patchSize > 0 ? obj.patchSize : scene.settings.patchSize;
+
+    // Materials: the object's, or the mesh's own per triangle.
+    int objectMaterial = -1;
+    std::vector<int> meshMaterials;
+    if (!obj.material.empty()) {
+        const Material* m = scene.findMaterial(obj.material);
+        if (!m)
+            throw std::invalid_argument("object '" + obj.id + "': unknown material '" +
+                                        obj.material + "'");
+        objectMaterial = addMaterial(*m);
+        surface.twoSided = m->twoSided;
+    } else {
+        for (const Material& m : obj.shape.mesh.materials) meshMaterials.push_back(addMaterial(m));
+        if (meshMaterials.empty()) objectMaterial = addMaterial(Material{});
+    }
+
+    // Faces.
+    SurfaceBuilder builder{surface, {}, {}, {}};
+    builder.mirrored = glm::determinant(linear) < 0;
+    ShapeFaces faces(builder, linear, patchSize, scene.settings.elementSize, objectMaterial,
+                     meshMaterials);
+    faces.addShape(obj.shape);
     if (builder.faceVertices.empty())
         throw std::invalid_argument("object '" + obj.id + "': no valid faces");
 
@@ -459,7 +488,23 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         finishElement(firstElement + f);
     }
 
-    // Patches: gridded groups as given; mesh faces grown into regions over OpenMesh adjacency.
+    // Patches, their outlines, the back sheet.
+    const std::map<int, int> groupPatch =
+        makePatches(objIdx, firstElement, builder.faceGroup, builder.faceMaterial, patchSize);
+    outlinePlanarPatches(groupPatch, faces.groupOutline, M, builder.mirrored);
+    addBackSheet(objIdx, firstPatch);
+    for (int p = firstPatch; p < static_cast<int>(mPatches.size()); ++p) {
+        finishPatch(p);
+        mTotalArea += mPatches[p].area;
+    }
+}
+
+std::map<int, int> Discretization::makePatches(int objIdx, int firstElement,
+                                               const std::vector<int>& faceGroup,
+                                               const std::vector<int>& faceMaterial,
+                                               double patchSize) {
+    // Gridded groups as given; mesh faces grown into regions over OpenMesh adjacency.
+    const int faceCount = static_cast<int>(faceGroup.size());
     std::map<int, int> groupPatch;
     std::vector<int> facePatch(faceCount, -1);
     auto newPatch = [&](int material) {
@@ -470,17 +515,16 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         return static_cast<int>(mPatches.size()) - 1;
     };
     for (int f = 0; f < faceCount; ++f) {
-        int g = builder.faceGroup[f];
+        int g = faceGroup[f];
         if (g < 0) continue;
         auto it = groupPatch.find(g);
-        int p = it != groupPatch.end() ? it->second
-                                       : (groupPatch[g] = newPatch(builder.faceMaterial[f]));
+        int p = it != groupPatch.end() ? it->second : (groupPatch[g] = newPatch(faceMaterial[f]));
         facePatch[f] = p;
     }
     const double targetArea = patchSize * patchSize;
     for (int seed = 0; seed < faceCount; ++seed) {
         if (facePatch[seed] >= 0) continue;
-        int p = newPatch(builder.faceMaterial[seed]);
+        int p = newPatch(faceMaterial[seed]);
         const Vec3 seedNormal = mElements[firstElement + seed].normal;
         double area = 0;
         std::vector<int> frontier{seed};
@@ -488,10 +532,10 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         for (std::size_t k = 0; k < frontier.size() && area < targetArea; ++k) {
             int f = frontier[k];
             area += mElements[firstElement + f].area;
-            for (auto ff : surface.mesh.ff_range(FHandle(f))) {
+            for (auto ff : mObjects[objIdx].mesh.ff_range(FHandle(f))) {
                 int g = ff.idx();
                 if (g >= faceCount || facePatch[g] >= 0) continue;
-                if (builder.faceMaterial[g] != builder.faceMaterial[seed]) continue;
+                if (faceMaterial[g] != faceMaterial[seed]) continue;
                 if (glm::dot(mElements[firstElement + g].normal, seedNormal) < kMeshPatchNormalCos)
                     continue;
                 if (area >= targetArea) break;
@@ -506,6 +550,12 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
         mElements[e].patch = facePatch[f];
         mPatches[facePatch[f]].elements.push_back(e);
     }
+    return groupPatch;
+}
+
+void Discretization::outlinePlanarPatches(const std::map<int, int>& groupPatch,
+                                          std::map<int, std::vector<Vec3>>& groupOutline,
+                                          const Mat4& worldFromObject, bool mirrored) {
     for (auto [group, patch] : groupPatch) {
         // A planar gridded patch integrates as one polygon (collapsed pole corners removed).
         Patch& P = mPatches[patch];
@@ -515,9 +565,9 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
                 planar && glm::dot(mElements[e].normal, mElements[P.elements[0]].normal) > 1 - 1e-9;
         if (!planar) continue;
         std::vector<Vec3> ring;
-        if (builder.mirrored) std::reverse(groupOutline[group].begin(), groupOutline[group].end());
+        if (mirrored) std::reverse(groupOutline[group].begin(), groupOutline[group].end());
         for (const Vec3& c : groupOutline[group]) {
-            Vec3 w = transformPoint(M, c);
+            Vec3 w = transformPoint(worldFromObject, c);
             if (ring.empty() || glm::length(ring.back() - w) > 1e-12) ring.push_back(w);
         }
         while (ring.size() > 1 && glm::length(ring.back() - ring.front()) <= 1e-12) ring.pop_back();
@@ -542,11 +592,6 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
             convex = glm::dot(glm::cross(b - a, c - b), n0) > -1e-12 * glm::dot(n0, n0);
         }
         if (convex) P.outline = std::move(ring);
-    }
-    addBackSheet(objIdx, firstPatch);
-    for (int p = firstPatch; p < static_cast<int>(mPatches.size()); ++p) {
-        finishPatch(p);
-        mTotalArea += mPatches[p].area;
     }
 }
 

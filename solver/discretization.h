@@ -5,6 +5,7 @@
 
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <limits>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -132,6 +133,17 @@ public:
 
 private:
     void buildObject(const Scene& scene, const SceneObject& object);
+    /// The patches of object objIdx's faces (elements firstElement on, one per face): faces of
+    /// a group (a grid's patch) make one patch; the others grow patches of about patchSize²
+    /// over OpenMesh adjacency, one material and within 45° of their seed's normal. Returns
+    /// group → patch.
+    std::map<int, int> makePatches(int objIdx, int firstElement, const std::vector<int>& faceGroup,
+                                   const std::vector<int>& faceMaterial, double patchSize);
+    /// Gives each planar gridded patch its outline (groupOutline, object space) in world space,
+    /// straight runs merged, when it is convex (the contour integral's polygon).
+    void outlinePlanarPatches(const std::map<int, int>& groupPatch,
+                              std::map<int, std::vector<Vec3>>& groupOutline,
+                              const Mat4& worldFromObject, bool mirrored);
     int addMaterial(const Material& m);
     void finishElement(int element);
     void finishPatch(int patch);
