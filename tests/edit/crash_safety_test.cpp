@@ -1,0 +1,244 @@
+// kill -9 at random moments loses nothing acknowledged (DESIGN.md "Edit log"; issue 26):
+// - an editing session (crash_child: EditSession with an edit log, as the editor's runner
+//   drives it) is killed 100 times, each at a random moment: every line of its log is whole
+//   and parses, every edit it acknowledged is there (at most the one in flight more), each
+//   line is the edit the session applied, the saved scene is the last acknowledged save or
+//   the one in flight, never a torn file; and replaying the recovered log converges to the
+//   lighting of the same edits applied directly;
+// - `penumbra replay --save-scene` is killed 20 times over a scene file that already exists:
+//   the file is afterwards either the old scene or the finished one.
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cli/cli_support.h"
+#include "core/random.h"
+#include "crash_edits.h"
+#include "edit/edit_log.h"
+#include "edit/edit_session.h"
+#include "edit/scene_io.h"
+
+extern char** environ;
+
+namespace penumbra {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A child process whose stdout is a pipe.
+struct Child {
+    pid_t pid = -1;
+    int out = -1;
+};
+
+Child spawn(const std::vector<std::string>& args) {
+    int fds[2];
+    if (::pipe(fds) != 0) throw std::runtime_error("pipe failed");
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+    posix_spawn_file_actions_addclose(&actions, fds[0]);
+    posix_spawn_file_actions_addclose(&actions, fds[1]);
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    Child c;
+    const int rc = posix_spawn(&c.pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    ::close(fds[1]);
+    if (rc != 0) {
+        ::close(fds[0]);
+        throw std::runtime_error("cannot start " + args[0]);
+    }
+    c.out = fds[0];
+    return c;
+}
+
+/// Kills `c` with SIGKILL after `delay`, reaps it and returns everything it wrote; `killed`
+/// says whether the signal ended it (false: it finished first).
+std::string killAfter(Child& c, std::chrono::microseconds delay, bool& killed) {
+    std::this_thread::sleep_for(delay);
+    ::kill(c.pid, SIGKILL);
+    int status = 0;
+    ::waitpid(c.pid, &status, 0);
+    killed = WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
+    std::string text;
+    char buffer[4096];
+    for (ssize_t n; (n = ::read(c.out, buffer, sizeof buffer)) > 0;) text.append(buffer, n);
+    ::close(c.out);
+    return text;
+}
+
+/// The last "WORD N" line's N in `text`, 0 when none.
+int lastAcknowledged(const std::string& text, const std::string& word) {
+    int last = 0;
+    std::istringstream in(text);
+    for (std::string w; in >> w;) {
+        int n = 0;
+        in >> n;
+        if (w == word) last = n;
+    }
+    return last;
+}
+
+/// The highest K of the "box-K" objects in `scene`.
+int lastRound(const Scene& scene) {
+    int last = 0;
+    for (int k = 1; k < 1000; ++k)
+        if (scene.findObject(test::crashBoxId(k)) >= 0) last = k;
+    return last;
+}
+
+/// The session of edits 1 … n, converged.
+std::vector<Rgb> convergedAfter(const std::vector<EditCommand>& edits) {
+    EditSession session(test::makeLitRoom("red"), SolverOptions{});
+    session.converge(1e-2);
+    for (const EditCommand& c : edits) session.apply(c);
+    session.converge(1e-3);
+    return session.displayRadiosity();
+}
+
+class CrashSafety : public ::testing::Test {
+protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        mDir = fs::temp_directory_path() /
+               (std::string("penumbra_crash_") + info->name() + "_" + std::to_string(::getpid()));
+        fs::remove_all(mDir);
+        fs::create_directories(mDir);
+    }
+    void TearDown() override { fs::remove_all(mDir); }
+    fs::path mDir;
+};
+
+TEST_F(CrashSafety, AKilledEditingSessionKeepsEveryAcknowledgedEditAndAWholeScene) {
+    constexpr int kTrials = 100;
+    SplitMix random(26);
+    int killedTrials = 0, recoveredEdits = 0, replays = 0, mostEdits = 0;
+    for (int trial = 0; trial < kTrials; ++trial) {
+        const fs::path dir = mDir / std::to_string(trial);
+        fs::create_directories(dir);
+        Child child = spawn({PENUMBRA_CRASH_CHILD, dir.string()});
+        bool killed = false;
+        // Start-up (loading, a first solve) takes tens of milliseconds: the kills fall before,
+        // during and well into the edits.
+        const auto delay = std::chrono::microseconds(static_cast<long>(random.next() * 120000));
+        const std::string acks = killAfter(child, delay, killed);
+        ASSERT_TRUE(killed) << "trial " << trial << ": the child ended by itself";
+        ++killedTrials;
+        const int acknowledged = lastAcknowledged(acks, "edit");
+        const int saved = lastAcknowledged(acks, "save");
+
+        // The log: whole lines that parse, the acknowledged edits and at most one more, each
+        // the edit applied.
+        const fs::path log = dir / "edits.jsonl";
+        std::vector<EditCommand> recovered;
+        if (fs::exists(log)) {
+            const std::string text = test::readFile(log);
+            EXPECT_TRUE(text.empty() || text.back() == '\n')
+                << "trial " << trial << ": a torn last line";
+            std::vector<LoggedEdit> edits;
+            ASSERT_NO_THROW(edits = readEditLog(log.string())) << "trial " << trial;
+            for (LoggedEdit& e : edits) {
+                e.command.tMs.reset();
+                ASSERT_EQ(e.command.toString(), test::crashEdit(e.line).toString())
+                    << "trial " << trial << ", line " << e.line;
+                recovered.push_back(e.command);
+            }
+        }
+        const int lines = static_cast<int>(recovered.size());
+        EXPECT_GE(lines, acknowledged) << "trial " << trial << ": an acknowledged edit is lost";
+        EXPECT_LE(lines, acknowledged + 1) << "trial " << trial;
+        recoveredEdits += lines;
+        mostEdits = std::max(mostEdits, lines);
+
+        // The scene: the last acknowledged save or the one in flight, whole.
+        const fs::path scene = dir / "scene.json";
+        if (saved > 0) {
+            ASSERT_TRUE(fs::exists(scene)) << "trial " << trial;
+        }
+        if (fs::exists(scene)) {
+            Scene s;
+            ASSERT_NO_THROW(s = loadScene(scene.string())) << "trial " << trial;
+            const int rounds = lastRound(s);
+            EXPECT_TRUE(rounds == saved || rounds == saved + 1)
+                << "trial " << trial << ": the scene holds " << rounds << " rounds, " << saved
+                << " acknowledged";
+        }
+
+        // About every twentieth trial (the first with edits after each twenty): the recovered
+        // log replays to the lighting of the same edits applied directly (both deterministic:
+        // the same bits).
+        if (replays * 20 <= trial && lines > 0) {
+            std::vector<EditCommand> direct;
+            for (int i = 1; i <= lines; ++i) direct.push_back(test::crashEdit(i));
+            const std::vector<Rgb> a = convergedAfter(recovered), b = convergedAfter(direct);
+            ASSERT_EQ(a.size(), b.size());
+            double worst = 0;
+            for (std::size_t e = 0; e < a.size(); ++e)
+                worst = std::max(worst, std::abs(luminance(a[e]) - luminance(b[e])));
+            EXPECT_EQ(worst, 0.0) << "trial " << trial << " (" << lines << " edits)";
+            ++replays;
+        }
+        fs::remove_all(dir);
+    }
+    std::printf("%d kills; %d edits recovered (at most %d in one log); %d replays compared\n",
+                killedTrials, recoveredEdits, mostEdits, replays);
+    EXPECT_GT(mostEdits, 2 * test::kCrashRound) << "the kills should reach far into the edits";
+}
+
+TEST_F(CrashSafety, AKilledReplayLeavesTheOldSceneOrTheNewOne) {
+    // The old file: the room as it starts. The new one: what a finished replay of 24 edits of
+    // the crash session writes.
+    const fs::path start = mDir / "start.json", log = mDir / "edits.jsonl";
+    saveScene(test::makeLitRoom("red"), start.string());
+    {
+        EditLogWriter writer(log.string());
+        for (int i = 1; i <= 3 * test::kCrashRound; ++i) writer.append(test::crashEdit(i));
+    }
+    const auto replay = [&](const fs::path& out) {
+        return std::vector<std::string>{PENUMBRA_EXE,   "replay",     start.string(), log.string(),
+                                        "--save-scene", out.string(), "--converge",   "0.01"};
+    };
+    const fs::path finished = mDir / "finished.json";
+    {
+        Child c = spawn(replay(finished));
+        int status = 0;
+        ::waitpid(c.pid, &status, 0);
+        ::close(c.out);
+        ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    }
+    const std::string oldText = test::readFile(start), newText = test::readFile(finished);
+    ASSERT_NE(oldText, newText);
+
+    SplitMix random(25);
+    int sawOld = 0, sawNew = 0;
+    for (int trial = 0; trial < 20; ++trial) {
+        const fs::path out = mDir / "out.json";
+        fs::copy_file(start, out, fs::copy_options::overwrite_existing);
+        Child c = spawn(replay(out));
+        bool killed = false;
+        killAfter(c, std::chrono::microseconds(static_cast<long>(random.next() * 400000)), killed);
+        const std::string text = test::readFile(out);
+        EXPECT_TRUE(text == oldText || text == newText)
+            << "trial " << trial << ": " << text.size() << " bytes, neither scene";
+        sawOld += text == oldText;
+        sawNew += text == newText;
+    }
+    std::printf("killed replays: %d left the old scene, %d the new one\n", sawOld, sawNew);
+}
+
+}  // namespace
+}  // namespace penumbra
