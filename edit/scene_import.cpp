@@ -185,8 +185,8 @@ struct Importer {
             nlohmann::json source = extras["object"];
             source["id"] = object.id;
             source["material"] = fromExtras;
-            scene.objects.push_back(objectFromJson(source, scene, path,
-                                                   "node '" + part.name + "' extras.object", ""));
+            scene.objects.push_back(
+                objectFromJson(source, scene, path, "node '" + part.name + "' extras.object", ""));
             return;
         }
         std::set<int> used(part.triangleMaterial.begin(), part.triangleMaterial.end());
@@ -271,7 +271,12 @@ struct Importer {
         m.reflectance = Rgb(0.0);
         m.emission = Rgb(1.0);
         object.material = materialNames.take("light-" + name, "light");
-        m.emission = power / facetedArea(object, m);
+        try {
+            m.emission = power / facetedArea(object, m);
+        } catch (const std::invalid_argument& e) {
+            // The light's sphere at the element size the meshes' area chose.
+            throw InputError(path, "light '" + name + "'", e.what());
+        }
         scene.materials.push_back({object.material, m});
         scene.objects.push_back(std::move(object));
     }
@@ -311,7 +316,8 @@ struct Importer {
         for (const MeshFileCamera& camera : file.cameras) addCamera(camera);
         const bool lit = std::any_of(scene.materials.begin(), scene.materials.end(),
                                      [](const NamedMaterial& m) { return m.material.isEmitter(); });
-        if (!lit) warn("nothing emits light (no emissive material, no point light): the scene is dark");
+        if (!lit)
+            warn("nothing emits light (no emissive material, no point light): the scene is dark");
         return std::move(scene);
     }
 

@@ -20,9 +20,30 @@ ElementMesh::Point toPoint(const Vec3& v) { return ElementMesh::Point(v.x, v.y, 
 
 Vec3 transformPoint(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 
+/// Cells along one side of a grid, or edge steps of a split triangle, at most: a count beyond
+/// it comes from a size far out of scale with the element size (and no memory would hold it).
+constexpr double kMaxCells = 1 << 15;
+/// Elements one object may have at most (an object of 8M elements would already need gigabytes).
+constexpr double kMaxObjectElements = 1 << 23;
+
+/// Cells of about `target` along `length`. Throws std::invalid_argument beyond kMaxCells.
 int cellsFor(double length, double target) {
     if (!(length > 0) || !(target > 0)) return 1;
-    return std::max(1, static_cast<int>(std::ceil(length / target - 1e-9)));
+    const double cells = std::ceil(length / target - 1e-9);
+    if (!(cells <= kMaxCells))
+        throw std::invalid_argument("a length of " + std::to_string(length) + " needs " +
+                                    std::to_string(cells) + " cells of " + std::to_string(target) +
+                                    " (at most " + std::to_string(static_cast<int>(kMaxCells)) +
+                                    "): sizes out of scale with the element size");
+    return std::max(1, static_cast<int>(cells));
+}
+
+/// Throws std::invalid_argument when an object would have more than kMaxObjectElements.
+void checkElementCount(double elements) {
+    if (elements > kMaxObjectElements)
+        throw std::invalid_argument(std::to_string(elements) + " elements (at most " +
+                                    std::to_string(static_cast<long>(kMaxObjectElements)) +
+                                    "): sizes out of scale with the element size");
 }
 
 constexpr double kMeshPatchNormalCos = 0.7071;  // cos 45°: mesh patches stay roughly flat
@@ -318,6 +339,7 @@ struct ShapeFaces {
         int eu = cellsFor(lenU / pu, elementSize), ev = cellsFor(lenV / pv, elementSize);
         while (pu * eu < grid.minCellsU) ++eu;
         while (pv * ev < grid.minCellsV) ++ev;
+        checkElementCount(static_cast<double>(pu) * eu * pv * ev);
         int nu = pu * eu, nv = pv * ev;
         // Orientation: cross(dP/du, dP/dv) must point outward.
         Vec3 du = grid.point(0.51, 0.5) - grid.point(0.49, 0.5);
@@ -366,6 +388,7 @@ struct ShapeFaces {
     }
 
     void addMesh(const TriMesh& tm) {
+        double planned = 0;  // elements so far
         std::vector<VHandle> base;
         base.reserve(tm.positions.size());
         for (const Vec3& p : tm.positions) base.push_back(builder.addVertex(p));
@@ -384,6 +407,8 @@ struct ShapeFaces {
             for (int k = 0; k < 3; ++k)
                 longest = std::max(longest, glm::length(linear * (p[(k + 1) % 3] - p[k])));
             int n = cellsFor(longest, elementSize);
+            planned += static_cast<double>(n) * n;
+            checkElementCount(planned);
             if (n == 1) {
                 builder.addFace({base[tri[0]], base[tri[1]], base[tri[2]]}, -1, material);
                 continue;
@@ -461,7 +486,11 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
     builder.mirrored = glm::determinant(linear) < 0;
     ShapeFaces faces(builder, linear, patchSize, scene.settings.elementSize, objectMaterial,
                      meshMaterials);
-    faces.addShape(obj.shape);
+    try {
+        faces.addShape(obj.shape);
+    } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument("object '" + obj.id + "': " + e.what());
+    }
     if (builder.faceVertices.empty())
         throw std::invalid_argument("object '" + obj.id + "': no valid faces");
 

@@ -1,0 +1,99 @@
+// What scripts/fuzz.sh found, as regression tests: each input in tests/edit/fuzz_findings/
+// (named TARGET-what.EXT) goes through the parser its target fuzzes and must be taken or
+// refused with InputError; and the limits the findings led to hold on their own.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "edit/edit_log.h"
+#include "edit/input_error.h"
+#include "edit/mesh_io.h"
+#include "edit/scene_import.h"
+#include "edit/scene_io.h"
+#include "solver/discretization.h"
+#include "test_scenes.h"
+
+namespace penumbra {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Runs the parser of fuzz target `target` (the file name's prefix) on `path`.
+void parseAs(const std::string& target, const std::string& path) {
+    if (target == "scene") {
+        (void)loadScene(path);
+    } else if (target == "log") {
+        (void)readEditLog(path);
+    } else if (target.rfind("import_", 0) == 0) {
+        (void)importScene(path);
+    } else {
+        (void)loadMeshFile(path);
+    }
+}
+
+TEST(FuzzFindings, EveryFindingIsTakenOrRefusedWithOneInputError) {
+    const fs::path dir = fs::path(PENUMBRA_SOURCE_DIR) / "tests/edit/fuzz_findings";
+    int findings = 0;
+    for (const auto& entry : fs::directory_iterator(dir)) {
+        const std::string name = entry.path().filename().string();
+        const std::string target = name.substr(0, name.find('-'));
+        ++findings;
+        try {
+            parseAs(target, entry.path().string());
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(entry.path().string()), std::string::npos)
+                << name << ": the error names the file: " << e.what();
+        } catch (const std::exception& e) {
+            ADD_FAILURE() << name << ": " << e.what();
+        }
+    }
+    EXPECT_GE(findings, 1);
+}
+
+TEST(FuzzFindings, AnImportWhoseLightIsOutOfScaleWithItsMeshesIsRefused) {
+    // The first finding: a GLB whose misaligned buffer view gives its triangle a surface area
+    // near 1e-40 m², so the element size chosen from it would split the point light's sphere
+    // into 1e39 cells (an int overflow, and no memory to hold them).
+    const fs::path glb =
+        fs::path(PENUMBRA_SOURCE_DIR) / "tests/edit/fuzz_findings/import_glb-tiny-area-light.glb";
+    try {
+        (void)importScene(glb.string());
+        FAIL() << "imported";
+    } catch (const InputError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("light '"), std::string::npos) << what;
+        EXPECT_NE(what.find("out of scale"), std::string::npos) << what;
+    }
+}
+
+TEST(FuzzFindings, ADiscretizationOutOfScaleIsRefusedNotAttempted) {
+    // A box a million times its element size along each side, and a mesh triangle as long:
+    // std::invalid_argument naming the object, before any element is made.
+    for (int kind = 0; kind < 2; ++kind) {
+        Scene scene = test::emptyScene(0.5, 0.1);
+        test::addMaterial(scene, "white", Rgb(0.5));
+        SceneObject o;
+        o.id = "huge";
+        o.material = "white";
+        if (kind == 0) {
+            o.shape.type = ShapeType::Box;
+            o.shape.size = Vec3(1e5, 1e5, 1e5);
+        } else {
+            o.shape.type = ShapeType::Mesh;
+            o.shape.mesh.positions = {Vec3(0.0), Vec3(1e5, 0, 0), Vec3(0, 0, 1e5)};
+            o.shape.mesh.triangles = {{0, 1, 2}};
+        }
+        scene.objects.push_back(o);
+        try {
+            const Discretization disc(scene);
+            ADD_FAILURE() << "kind " << kind << ": " << disc.elements().size() << " elements";
+        } catch (const std::invalid_argument& e) {
+            EXPECT_NE(std::string(e.what()).find("object 'huge'"), std::string::npos) << e.what();
+        }
+    }
+}
+
+}  // namespace
+}  // namespace penumbra
