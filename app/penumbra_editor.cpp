@@ -1,5 +1,5 @@
 // penumbra-editor [SCENE] [--emission-scale S] [--light-size R] [--units mm|cm|m] [--log LOG]
-// [--play LOG] [--screenshot PNG --frames N] [--mode NAME]
+// [--play LOG] [--screenshot PNG --frames N] [--mode NAME] [--recover] [--no-journal]
 //                 [--display-divisor N] [--interactive-divisor N]
 //                 [--bench-drag ID [--frames N] [--record DIR] [--no-references]]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
@@ -42,6 +42,10 @@ int main(int argc, char** argv) {
                    "references into this folder");
     app.add_flag("!--no-references", options.benchReferences,
                  "with --bench-drag: skip the reference renders (errors against references)");
+    app.add_flag("--recover", options.recover,
+                 "replay the edits an earlier session on SCENE left unsaved without asking");
+    app.add_flag("!--no-journal", options.journal,
+                 "keep no recovery journal of this session's edits");
     app.add_flag("--quiet", options.quiet, "no status lines on stderr");
     bool verbose = false;
     app.add_flag("--verbose", verbose,
@@ -68,6 +72,7 @@ int main(int argc, char** argv) {
     penumbra::initLogging(verbose);
     options.mode = *penumbra::parseViewMode(mode);
     if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
+    if (!options.benchDrag.empty()) options.journal = false;
     try {
         penumbra::EditorApp editor(options);
         return editor.run();

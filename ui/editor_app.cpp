@@ -137,6 +137,7 @@ void EditorApp::setViewMode(ViewMode mode) {
 
 EditorApp::~EditorApp() {
     mRunner.reset();  // stop the worker before the window goes
+    removeEmptyJournal();
     if (mWindow) {
         if (mTexture) glDeleteTextures(1, &mTexture);
         ImGui_ImplOpenGL3_Shutdown();
@@ -152,17 +153,37 @@ EditorApp::~EditorApp() {
 
 void EditorApp::openScene(const std::string& path) {
     auto session = EditSession::open(path, interactiveSolverOptions(), mOptions.import);
+    // An imported scene (glTF, OBJ) is saved as a Penumbra scene beside it, never over it.
+    const std::string scenePath =
+        isImportableScene(path) ? std::filesystem::path(path).replace_extension(".json").string()
+                                : path;
     if (!mOptions.log.empty()) session->openLog(mOptions.log);
+    // The previous scene's journal ends with its session (below); this one's starts now, after
+    // what an earlier session left unsaved was set aside.
     mRunner.reset();
+    removeEmptyJournal();
+    mUnsaved = {};  // an unanswered offer stays set aside for the next session on its scene
+    mJournal.clear();
+    if (mOptions.journal && mOptions.log.empty()) {
+        mJournal = recoveryJournalPath(scenePath);
+        mUnsaved = takeUnsavedEdits(mJournal, std::filesystem::path(path).parent_path().string());
+        session->openLog(mJournal);
+    }
     SessionRunnerOptions runnerOptions;
     runnerOptions.displayDivisor = std::max(1, mOptions.displayDivisor);
     runnerOptions.interactiveDisplayDivisor = std::max(0, mOptions.interactiveDisplayDivisor);
     mRunner = std::make_unique<SessionRunner>(std::move(session), runnerOptions);
     mRunner->setConvergeEps(mConvergeEps);
-    // An imported scene (glTF, OBJ) is saved as a Penumbra scene beside it, never over it.
-    mScenePath = isImportableScene(path)
-                     ? std::filesystem::path(path).replace_extension(".json").string()
-                     : path;
+    mScenePath = scenePath;
+    if (!mUnsaved.error.empty()) mStatus = "recovery: " + mUnsaved.error;
+    const bool waitsForUser =
+        mOptions.screenshot.empty() && mOptions.play.empty() && mOptions.benchDrag.empty();
+    if (!mUnsaved.edits.empty() && (mOptions.recover || !waitsForUser)) {
+        if (mOptions.recover)
+            recoverUnsaved();
+        else
+            mUnsaved = {};  // kept aside for a session that asks
+    }
     mSelection.clear();
     const auto doc = mRunner->document();
     if (doc && !doc->cameras.empty()) {
@@ -180,9 +201,68 @@ void EditorApp::openScene(const std::string& path) {
 
 void EditorApp::saveScene(const std::string& path) {
     if (!mRunner) return;
-    // Written atomically by the solver thread (edit/scene_io.h), in order with the edits.
-    mRunner->post([path](EditSession& s) { s.saveScene(path); });
+    // Written atomically by the solver thread (edit/scene_io.h), in order with the edits; once
+    // it is written, the journal starts again (for `path`: Save as moves it).
+    std::string journal;
+    if (!mJournal.empty()) journal = recoveryJournalPath(path);
+    mRunner->post([path, old = mJournal, journal](EditSession& s) {
+        s.saveScene(path);
+        if (journal.empty()) return;
+        s.closeLog();
+        std::error_code ignored;
+        std::filesystem::remove(old, ignored);
+        s.openLog(journal);
+    });
+    if (!journal.empty()) mJournal = journal;
     mStatus = "saving " + path;
+}
+
+void EditorApp::recoverUnsaved() {
+    if (!mRunner) return;
+    for (const EditCommand& c : mUnsaved.edits) mRunner->submit(c, EditSource{mUnsaved.file, 0});
+    mStatus = "recovered " + std::to_string(mUnsaved.edits.size()) + " unsaved edits";
+    discardUnsaved(mUnsaved);
+    mUnsaved = {};
+}
+
+void EditorApp::removeEmptyJournal() {
+    // A session that saved everything leaves nothing to recover.
+    std::error_code ignored;
+    if (!mJournal.empty() && std::filesystem::exists(mJournal) &&
+        std::filesystem::file_size(mJournal, ignored) == 0)
+        std::filesystem::remove(mJournal, ignored);
+}
+
+void EditorApp::drawRecoveryPrompt() {
+    if (mUnsaved.edits.empty() || mPopup != 0) return;
+    const char* title = "Recover unsaved edits";
+    if (!ImGui::IsPopupOpen(title)) ImGui::OpenPopup(title);
+    const ImGuiIO& io = ImGui::GetIO();
+    ImGui::SetNextWindowPos(ImVec2(io.DisplaySize.x * 0.5f, io.DisplaySize.y * 0.4f),
+                            ImGuiCond_Appearing, ImVec2(0.5f, 0.5f));
+    ImGui::SetNextWindowSize(ImVec2(std::min(io.DisplaySize.x - 40.0f, 520.0f), 0.0f));
+    if (!ImGui::BeginPopupModal(title, nullptr, ImGuiWindowFlags_NoResize)) return;
+    const std::string name = std::filesystem::path(mScenePath).filename().string();
+    ImGui::TextWrapped(
+        "%zu edits made to %s were not saved when its last session ended. "
+        "Recover replays them (the scene file is not changed until you save); "
+        "Discard drops them.",
+        mUnsaved.edits.size(), name.c_str());
+    ImGui::PushTextWrapPos(0.0f);
+    ImGui::TextDisabled("%s", mUnsaved.file.c_str());
+    ImGui::PopTextWrapPos();
+    if (ImGui::Button("Recover")) {
+        recoverUnsaved();
+        ImGui::CloseCurrentPopup();
+    }
+    ImGui::SameLine();
+    if (ImGui::Button("Discard")) {
+        discardUnsaved(mUnsaved);
+        mUnsaved = {};
+        mStatus = "discarded the unsaved edits";
+        ImGui::CloseCurrentPopup();
+    }
+    ImGui::EndPopup();
 }
 
 void EditorApp::submit(const EditCommand& c) {
@@ -348,6 +428,7 @@ bool EditorApp::frame() {
     drawPanels();
     drawStatusBar();
     drawPopups();
+    drawRecoveryPrompt();
     handleKeys();
 
     // Tell the worker what to render.

@@ -24,6 +24,7 @@
 #include "ui/file_dialog.h"
 #include "ui/gizmo.h"
 #include "ui/mesh_library.h"
+#include "ui/recovery.h"
 #include "ui/session_runner.h"
 #include "ui/view_camera.h"
 
@@ -57,6 +58,12 @@ struct EditorOptions {
     /// Display modes while interacting: 1 full resolution (default), d ≥ 2 a reduced display,
     /// 0 automatic (SessionRunnerOptions::interactiveDisplayDivisor).
     int interactiveDisplayDivisor = 1;
+    /// The recovery journal (ui/recovery.h): kept unless `log` names a log of the user's own
+    /// or a drag is benchmarked.
+    bool journal = true;
+    /// Unsaved edits an earlier session left: replayed at once (--recover) instead of asked
+    /// about. Runs that do not wait for the user (--screenshot, --play, --bench-drag) never ask.
+    bool recover = false;
 };
 
 /// No window could be opened (no DISPLAY, no GL 3.3 core context).
@@ -129,6 +136,15 @@ public:
     std::optional<Gizmo> gizmo() const;
     double gizmoSize(const Vec3& pivot) const;
     bool playing() const { return mPlayNext < mPlay.size(); }
+    /// An earlier session's unsaved edits the editor offers to recover (the prompt is open
+    /// while they are not empty).
+    const UnsavedEdits& unsaved() const { return mUnsaved; }
+    /// The prompt's Recover: replays unsaved() through the runner (each edit validated and
+    /// journaled again as it applies), then discards what was set aside.
+    void recoverUnsaved();
+    /// File ▸ Save (Ctrl+S) when `path` is the scene's, Save as otherwise: written by the
+    /// solver thread in order with the edits; the recovery journal then starts again.
+    void saveScene(const std::string& path);
     const FrameStats& frameStats() const { return mStats; }
     /// --bench-drag: the images seen so far (nullptr before the select), and whether the
     /// benchmark has its settled image (run() then prints DragBench::analyse()).
@@ -173,11 +189,14 @@ private:
     void drawViewport();
     void drawStatusBar();
     void drawPopups();
+    /// The modal that offers an earlier session's unsaved edits (recovery.h).
+    void drawRecoveryPrompt();
+    /// Removes the journal when it holds no edit (everything was saved).
+    void removeEmptyJournal();
     void handleViewportInput(const PointerInput& in, bool hovered);
     void handleKeys();
     void uploadImage();
     void submit(const EditCommand& c);
-    void saveScene(const std::string& path);
     void frameSelection();
     void stepBenchmark();
 
@@ -185,6 +204,8 @@ private:
     GLFWwindow* mWindow = nullptr;
     std::unique_ptr<SessionRunner> mRunner;
     std::string mScenePath;
+    std::string mJournal;   ///< the recovery journal of mScenePath, "" when off
+    UnsavedEdits mUnsaved;  ///< an earlier session's unsaved edits, while not yet answered
 
     // View and interaction.
     ViewCamera mView;
