@@ -825,8 +825,10 @@ void PointShader::copyDirectFrom(const PointShader& source) {
     mDragOrigin = source.mDragOrigin;
     mOriginOnly = source.mOriginOnly;
     {
+        // The source's state first: one shader's mutex is never taken while another's is held.
+        std::shared_ptr<const State> state = source.state();  // its serial stays: the same shading
         std::lock_guard lock(mStateMutex);
-        mState = source.state();  // its serial stays: the same shading
+        mState = std::move(state);
     }
     if (source.directUpdatePending()) queueDirectJob();
 }

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Fresh Debian 12 machine to a passing test suite: install, build, run every test; then the
-# unit and integration tests again under AddressSanitizer and UndefinedBehaviorSanitizer.
+# unit and integration tests again under AddressSanitizer and UndefinedBehaviorSanitizer, and
+# the threaded ones (the editor's runner, the display, background builds) under
+# ThreadSanitizer.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -8,3 +10,10 @@ bash scripts/build.sh build
 ctest --test-dir build --output-on-failure -j2 --timeout 300
 bash scripts/build.sh build-asan -DPENUMBRA_SANITIZE=ON
 ctest --test-dir build-asan --output-on-failure -j2 --timeout 600 -LE golden
+cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=Release -DPENUMBRA_TSAN=ON >/dev/null
+cmake --build build-tsan -j2 --target tsan_tests
+# Address-space randomization off where allowed: ThreadSanitizer's fixed memory layout does not
+# fit the wider randomization of recent kernels.
+norandom=()
+if setarch "$(uname -m)" -R true 2>/dev/null; then norandom=(setarch "$(uname -m)" -R); fi
+"${norandom[@]}" ctest --test-dir build-tsan --output-on-failure -j2 --timeout 900

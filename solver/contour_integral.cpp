@@ -32,12 +32,19 @@ inline double atan2Lane(double y, double x) {
 
 }  // namespace
 
+// GCC's load-time clones (ifunc resolvers) run before a ThreadSanitizer runtime is set up,
+// and an instrumented resolver crashes the program at load: TSan builds take the default
+// code only.
+#if defined(PENUMBRA_NO_TARGET_CLONES)
+#define PENUMBRA_CLONES(...)
+#else
+#define PENUMBRA_CLONES(...) __attribute__((target_clones(__VA_ARGS__)))
+#endif
+
 double angleAtan2(double y, double x) { return atan2Lane(y, x); }
 
-__attribute__((target_clones("avx2", "default"))) double integrateContour(const Vec3& x,
-                                                                          const Vec3& n,
-                                                                          const Vec3* v,
-                                                                          std::size_t count) {
+PENUMBRA_CLONES("avx2", "default")
+double integrateContour(const Vec3& x, const Vec3& n, const Vec3* v, std::size_t count) {
     // The vertices' offsets from x in coordinate arrays, the first repeated at the end: each
     // edge's term is an independent lane.
     constexpr std::size_t kMax = 16;
@@ -68,8 +75,9 @@ __attribute__((target_clones("avx2", "default"))) double integrateContour(const 
     return sum;
 }
 
-__attribute__((target_clones("avx", "default"))) void integrateContourLanes(
-    const Vec3* xs, const Vec3* ns, const Vec3* v, std::size_t count, double* sums) {
+PENUMBRA_CLONES("avx", "default")
+void integrateContourLanes(const Vec3* xs, const Vec3* ns, const Vec3* v, std::size_t count,
+                           double* sums) {
     constexpr int L = kContourLanes;
     double px[L], py[L], pz[L], nx[L], ny[L], nz[L], sum[L];
     for (int l = 0; l < L; ++l) {

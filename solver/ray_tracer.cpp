@@ -1,9 +1,10 @@
 #include "solver/ray_tracer.h"
 
 #include <embree3/rtcore.h>
-#include <tbb/enumerable_thread_specific.h>
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -142,12 +143,20 @@ struct RayTracer::Impl {
             hit.backFace = false;
         }
     }
-    /// Per-thread ray counters. ets_key_per_instance finds the calling thread's counter
-    /// through a native thread-local key, not a hash-table lookup: a few ns per ray.
-    mutable tbb::enumerable_thread_specific<unsigned long long,
-                                            tbb::cache_aligned_allocator<unsigned long long>,
-                                            tbb::ets_key_per_instance>
-        rays{0ull};
+    /// Ray counts in slots of their own cache line, one per thread (numbered in the order of
+    /// their first ray, modulo kCounterSlots; threads that share a slot still add atomically):
+    /// any thread may read the total while others trace (rayCount).
+    static constexpr int kCounterSlots = 64;
+    struct alignas(64) CounterSlot {
+        std::atomic<unsigned long long> n{0};
+    };
+    mutable std::array<CounterSlot, kCounterSlots> rays;
+    void countRays(unsigned long long k) const {
+        static std::atomic<int> threads{0};
+        thread_local const int slot =
+            threads.fetch_add(1, std::memory_order_relaxed) % kCounterSlots;
+        rays[slot].n.fetch_add(k, std::memory_order_relaxed);
+    }
 
     void release() {
         for (Subset& s : subsets)
@@ -322,7 +331,7 @@ bool RayTracer::occluded(const Vec3& from, const Vec3& to, const Visibility& vis
     ray.id = 0;
     ray.flags = 0;
     rtcOccluded1(scene, &ctx.context, &ray);
-    ++mImpl->rays.local();
+    mImpl->countRays(1);
     return ray.tfar < 0.0f;
 }
 
@@ -383,7 +392,7 @@ void RayTracer::occludedPacket(const Vec3& from, const Vec3* to, int count, bool
     else
         traced =
             tracePacket<16, RTCRay16>(scene, &ctx.context, from, to, count, blocked, rtcOccluded16);
-    mImpl->rays.local() += static_cast<unsigned long long>(traced);
+    mImpl->countRays(static_cast<unsigned long long>(traced));
 }
 
 RayHit RayTracer::intersect(const Vec3& origin, const Vec3& dir, double tNear, double tFar,
@@ -393,7 +402,7 @@ RayHit RayTracer::intersect(const Vec3& origin, const Vec3& dir, double tNear, d
     RTCRayHit rh = makeRayHit(origin, dir, static_cast<float>(tNear),
                               static_cast<float>(std::min(tFar, 1e30)));
     rtcIntersect1(scene, &ctx.context, &rh);
-    ++mImpl->rays.local();
+    mImpl->countRays(1);
     RayHit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
     int object = static_cast<int>(rh.hit.instID[0]);
@@ -427,7 +436,7 @@ RayTracer::FirstHit RayTracer::firstHit(const Vec3& origin, const Vec3& dir,
     RTCScene scene = mImpl->prepare(ctx, visibility);
     RTCRayHit rh = makeRayHit(origin, dir, 0.0f, std::numeric_limits<float>::infinity());
     rtcIntersect1(scene, &ctx.context, &rh);
-    ++mImpl->rays.local();
+    mImpl->countRays(1);
     FirstHit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
     Impl::readHit(mImpl->triangleHit[rh.hit.instID[0]][rh.hit.primID], dir, mDisc, hit);
@@ -477,7 +486,7 @@ void RayTracer::firstHits(const Vec3* origins, const Vec3* dirs, int count, Firs
             __builtin_prefetch(&mImpl->triangleHit[h.element][h.patch]);
         }
     }
-    mImpl->rays.local() += static_cast<unsigned long long>(count);
+    mImpl->countRays(static_cast<unsigned long long>(count));
     // Pass 2: the records, as firstHit reads them.
     for (int i = 0; i < count; ++i) {
         FirstHit& hit = hits[i];
@@ -488,7 +497,7 @@ void RayTracer::firstHits(const Vec3* origins, const Vec3* dirs, int count, Firs
 
 unsigned long long RayTracer::rayCount() const {
     unsigned long long total = 0;
-    for (auto c : mImpl->rays) total += c;
+    for (const auto& slot : mImpl->rays) total += slot.n.load(std::memory_order_relaxed);
     return total;
 }
 

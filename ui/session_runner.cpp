@@ -74,6 +74,8 @@ SessionRunner::SessionRunner(std::unique_ptr<EditSession> session, SessionRunner
     publishLight();
     publishSolver(0);
     if (mOptions.threaded) {
+        // spdlog makes its registry at the first log call: here, not racing in two threads.
+        (void)spdlog::default_logger_raw();
         mSolverThread = std::thread([this] { runSolver(); });
         mRenderThread = std::thread([this] { runRender(); });
     }
