@@ -57,7 +57,10 @@ EditSession::EditSession(Scene scene, const SolverOptions& options, const std::s
 
 EditSession::~EditSession() = default;
 
-void EditSession::openLog(const std::string& path) { mLog = std::make_unique<EditLogWriter>(path); }
+void EditSession::openLog(const std::string& path, bool resolveHistory) {
+    mLog = std::make_unique<EditLogWriter>(path);
+    mLogResolvesHistory = resolveHistory;
+}
 
 void EditSession::closeLog() { mLog.reset(); }
 
@@ -92,7 +95,14 @@ EditEvent EditSession::apply(const EditCommand& command, const EditSource& sourc
 
     // Commit: the log line first (write-ahead: on disk before the solution changes), then the
     // document and structure, then the solver takes the event.
-    if (mLog) mLog->append(command);
+    if (mLog) {
+        if (mLogResolvesHistory && history != History::Record) {
+            const UndoRecord& record = history == History::Undo ? mUndo.back() : mRedo.back();
+            mLog->append(history == History::Undo ? record.inverse : record.forward);
+        } else {
+            mLog->append(command);
+        }
+    }
     EditEvent event = planned.perform();
     if (event.kind == EditEvent::Kind::Changed && !mSelected.empty()) event.origin = mDragOrigin;
     solver().apply(event);

@@ -38,7 +38,10 @@ public:
     EditSession& operator=(const EditSession&) = delete;
 
     /// Appends every committed edit to the log at `path` from now on (see EditLogWriter).
-    void openLog(const std::string& path);
+    /// `resolveHistory`: undo and redo are logged as the edits they perform (a log that
+    /// starts after the history it undoes, as the editor's recovery journal does after a save,
+    /// then replays on its own).
+    void openLog(const std::string& path, bool resolveHistory = false);
     void closeLog();
     const EditLogWriter* log() const { return mLog.get(); }
 
@@ -159,6 +162,7 @@ private:
     Transform mSelectedFrom;  ///< the selected object's transform when it was selected
     int mDragOrigin = -1;     ///< the selected object's version when it was selected
     std::unique_ptr<EditLogWriter> mLog;
+    bool mLogResolvesHistory = false;  ///< see openLog
 };
 
 }  // namespace penumbra

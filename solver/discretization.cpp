@@ -243,6 +243,7 @@ struct ShapeFaces {
     const std::vector<int>& meshMaterials;
     int nextGroup = 0;
     std::map<int, std::vector<Vec3>> groupOutline;  ///< per group, its boundary (object space)
+    double planned = 0;  ///< elements of the object so far (checkElementCount)
 
     void addShape(const Shape& shape) {
         switch (shape.type) {
@@ -339,7 +340,8 @@ struct ShapeFaces {
         int eu = cellsFor(lenU / pu, elementSize), ev = cellsFor(lenV / pv, elementSize);
         while (pu * eu < grid.minCellsU) ++eu;
         while (pv * ev < grid.minCellsV) ++ev;
-        checkElementCount(static_cast<double>(pu) * eu * pv * ev);
+        planned += static_cast<double>(pu) * eu * pv * ev;
+        checkElementCount(planned);
         int nu = pu * eu, nv = pv * ev;
         // Orientation: cross(dP/du, dP/dv) must point outward.
         Vec3 du = grid.point(0.51, 0.5) - grid.point(0.49, 0.5);
@@ -388,7 +390,6 @@ struct ShapeFaces {
     }
 
     void addMesh(const TriMesh& tm) {
-        double planned = 0;  // elements so far
         std::vector<VHandle> base;
         base.reserve(tm.positions.size());
         for (const Vec3& p : tm.positions) base.push_back(builder.addVertex(p));

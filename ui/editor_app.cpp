@@ -164,10 +164,21 @@ void EditorApp::openScene(const std::string& path) {
     removeEmptyJournal();
     mUnsaved = {};  // an unanswered offer stays set aside for the next session on its scene
     mJournal.clear();
-    if (mOptions.journal && mOptions.log.empty()) {
-        mJournal = recoveryJournalPath(scenePath);
-        mUnsaved = takeUnsavedEdits(mJournal, std::filesystem::path(path).parent_path().string());
-        session->openLog(mJournal);
+    // Runs that do not wait for the user (a screenshot, a played log, a benchmark) keep no
+    // journal and leave an earlier one as it is, unless told to recover it.
+    const bool waitsForUser =
+        mOptions.screenshot.empty() && mOptions.play.empty() && mOptions.benchDrag.empty();
+    if (mOptions.journal && mOptions.log.empty() && (waitsForUser || mOptions.recover)) {
+        try {
+            const std::string journal = recoveryJournalPath(scenePath);
+            mUnsaved =
+                takeUnsavedEdits(journal, std::filesystem::path(path).parent_path().string());
+            session->openLog(journal, true);
+            mJournal = journal;
+        } catch (const std::exception& e) {
+            // No journal is no reason not to open the scene.
+            mUnsaved.error = std::string("no recovery journal: ") + e.what();
+        }
     }
     SessionRunnerOptions runnerOptions;
     runnerOptions.displayDivisor = std::max(1, mOptions.displayDivisor);
@@ -175,15 +186,7 @@ void EditorApp::openScene(const std::string& path) {
     mRunner = std::make_unique<SessionRunner>(std::move(session), runnerOptions);
     mRunner->setConvergeEps(mConvergeEps);
     mScenePath = scenePath;
-    if (!mUnsaved.error.empty()) mStatus = "recovery: " + mUnsaved.error;
-    const bool waitsForUser =
-        mOptions.screenshot.empty() && mOptions.play.empty() && mOptions.benchDrag.empty();
-    if (!mUnsaved.edits.empty() && (mOptions.recover || !waitsForUser)) {
-        if (mOptions.recover)
-            recoverUnsaved();
-        else
-            mUnsaved = {};  // kept aside for a session that asks
-    }
+    if (!mUnsaved.edits.empty() && mOptions.recover) recoverUnsaved();
     mSelection.clear();
     const auto doc = mRunner->document();
     if (doc && !doc->cameras.empty()) {
@@ -197,6 +200,7 @@ void EditorApp::openScene(const std::string& path) {
     refreshMeshLibrary();
     mStatus = mScenePath == path ? "opened " + path
                                  : "imported " + path + " (Save writes " + mScenePath + ")";
+    if (!mUnsaved.error.empty()) mStatus += "; recovery: " + mUnsaved.error;
 }
 
 void EditorApp::saveScene(const std::string& path) {
@@ -208,10 +212,13 @@ void EditorApp::saveScene(const std::string& path) {
     mRunner->post([path, old = mJournal, journal](EditSession& s) {
         s.saveScene(path);
         if (journal.empty()) return;
+        // What the journals held is in the file now, and so is whatever an earlier session left
+        // unsaved for `path` (the file replaces it).
         s.closeLog();
         std::error_code ignored;
-        std::filesystem::remove(old, ignored);
-        s.openLog(journal);
+        for (const std::string& stale : {old, journal, journal + ".unsaved"})
+            std::filesystem::remove(stale, ignored);
+        s.openLog(journal, true);
     });
     if (!journal.empty()) mJournal = journal;
     mStatus = "saving " + path;
@@ -220,8 +227,9 @@ void EditorApp::saveScene(const std::string& path) {
 void EditorApp::recoverUnsaved() {
     if (!mRunner) return;
     for (const EditCommand& c : mUnsaved.edits) mRunner->submit(c, EditSource{mUnsaved.file, 0});
+    // Dropped once they are applied, and so journaled again.
+    mRunner->post([unsaved = mUnsaved](EditSession&) { discardUnsaved(unsaved); });
     mStatus = "recovered " + std::to_string(mUnsaved.edits.size()) + " unsaved edits";
-    discardUnsaved(mUnsaved);
     mUnsaved = {};
 }
 

@@ -2,7 +2,6 @@
 
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <sstream>
 
@@ -22,7 +21,9 @@ fs::path stateFolder() {
     return fs::temp_directory_path() / "penumbra-recovery";
 }
 
-/// The edits of the log at `path` (none when it does not exist), into `out`.
+/// The edits of the log at `path` (none when it does not exist), into `out`. A log that
+/// cannot be read is moved to PATH.unreadable for the user to look at (the error names it),
+/// never deleted.
 void readInto(const fs::path& path, const std::string& sceneDir, UnsavedEdits& out) {
     if (!fs::exists(path)) return;
     try {
@@ -34,7 +35,10 @@ void readInto(const fs::path& path, const std::string& sceneDir, UnsavedEdits& o
             out.edits.push_back(std::move(c));
         }
     } catch (const std::exception& e) {
-        out.error = e.what();
+        const fs::path kept = path.string() + ".unreadable";
+        std::error_code ignored;
+        fs::rename(path, kept, ignored);
+        out.error = std::string(e.what()) + " (kept as " + kept.string() + ")";
     }
 }
 
@@ -69,11 +73,13 @@ UnsavedEdits takeUnsavedEdits(const std::string& journal, const std::string& sce
         if (std::holds_alternative<UnselectCommand>(c.op)) selected = 0;
     }
     if (selected) out.edits.push_back(UnselectCommand{});
-    // Set aside as one log (written to a temporary name and renamed), then the journal goes.
+    // Set aside as one log (each line synced, written to a temporary name and renamed), then
+    // the journal goes.
     const fs::path temporary = journal + ".unsaved.tmp";
+    fs::remove(temporary, ignored);
     {
-        std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-        for (const EditCommand& c : out.edits) file << c.toString() << '\n';
+        EditLogWriter file(temporary.string());
+        for (const EditCommand& c : out.edits) file.append(c);
     }
     fs::rename(temporary, aside);
     fs::remove(journal, ignored);

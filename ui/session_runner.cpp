@@ -321,6 +321,13 @@ bool SessionRunner::solverIteration() {
                 if (slot.display && slot.display->directJobPreview() == s.version) return false;
             return true;
         });
+        std::erase_if(mOldOrigins, [&](const VersionSubset& s) {
+            for (const DisplaySlot& slot : mSlots)
+                if (slot.display && (slot.display->dragOrigin() == s.version ||
+                                     slot.display->directJobPreview() >= 0))
+                    return false;
+            return true;
+        });
         // Objects that hide points behind them trace a subset of their own, not a filter
         // over the whole scene; kept while a display hides behind them.
         for (DisplaySlot& slot : mSlots) {
@@ -619,8 +626,11 @@ void SessionRunner::applyDisplayEvent(const EditEvent& event) {
     if (event.kind == Kind::Solved) return;
     // The subsets first: the drag's origin alone from its start; the preview alone whenever
     // another version is previewed (the old one kept while a background estimate traces it).
-    if (event.kind == Kind::DragBegan)
+    if (event.kind == Kind::DragBegan) {
+        // A display that missed the last drag's end may still estimate against its origin.
+        if (mOriginSubset.version >= 0) mOldOrigins.push_back(std::move(mOriginSubset));
         mOriginSubset = VersionSubset(mSession->tracer(), event.origin);
+    }
     if (event.preview != mPreviewSubset.version) {
         if (mPreviewSubset.version >= 0) mOldSubsets.push_back(std::move(mPreviewSubset));
         mPreviewSubset =

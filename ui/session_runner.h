@@ -376,8 +376,10 @@ private:
     /// Subsets of the objects the displays hide points behind (InteractiveDisplay::occluder);
     /// same thread and lock as mPreviewSubset.
     std::vector<VersionSubset> mOccluderSubsets;
-    /// The drag's origin (the version selected) alone, for the displays' drag estimates.
+    /// The drag's origin (the version selected) alone, for the displays' drag estimates; earlier
+    /// drags' origins while a display (one that missed their end) may still use them.
     VersionSubset mOriginSubset;
+    std::vector<VersionSubset> mOldOrigins;
     Image mReference;  ///< difference mode
     Camera mReferenceCamera;
     std::uint64_t mReferenceDone = 0;

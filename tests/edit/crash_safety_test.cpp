@@ -66,17 +66,29 @@ Child spawn(const std::vector<std::string>& args) {
     return c;
 }
 
-/// Kills `c` with SIGKILL after `delay`, reaps it and returns everything it wrote; `killed`
-/// says whether the signal ended it (false: it finished first).
-std::string killAfter(Child& c, std::chrono::microseconds delay, bool& killed) {
+/// Waits until `c` has written the line `line` (none: at once), then `delay`; kills it with
+/// SIGKILL, reaps it and returns everything it wrote; `killed` says whether the signal ended it
+/// (false: it finished first). Waiting for a line puts the kill at a point of the session
+/// whatever the machine's speed (a sanitizer build runs several times slower); the delay then
+/// puts it at a random moment of the edits that follow.
+std::string killAfter(Child& c, const std::string& line, std::chrono::microseconds delay,
+                      bool& killed) {
+    std::string text;
+    char buffer[4096];
+    if (!line.empty()) {
+        const std::string wanted = line + "\n";
+        ssize_t n;
+        while (text.find(wanted) == std::string::npos &&
+               (n = ::read(c.out, buffer, sizeof buffer)) > 0)
+            text.append(buffer, static_cast<std::size_t>(n));
+    }
     std::this_thread::sleep_for(delay);
     ::kill(c.pid, SIGKILL);
     int status = 0;
     ::waitpid(c.pid, &status, 0);
     killed = WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
-    std::string text;
-    char buffer[4096];
-    for (ssize_t n; (n = ::read(c.out, buffer, sizeof buffer)) > 0;) text.append(buffer, n);
+    for (ssize_t n; (n = ::read(c.out, buffer, sizeof buffer)) > 0;)
+        text.append(buffer, static_cast<std::size_t>(n));
     ::close(c.out);
     return text;
 }
@@ -132,10 +144,14 @@ TEST_F(CrashSafety, AKilledEditingSessionKeepsEveryAcknowledgedEditAndAWholeScen
         fs::create_directories(dir);
         Child child = spawn({PENUMBRA_CRASH_CHILD, dir.string()});
         bool killed = false;
-        // Start-up (loading, a first solve) takes tens of milliseconds: the kills fall before,
-        // during and well into the edits.
-        const auto delay = std::chrono::microseconds(static_cast<long>(random.next() * 120000));
-        const std::string acks = killAfter(child, delay, killed);
+        // One trial in ten during start-up (loading, a first solve); the others after a random
+        // edit of the first 150 and up to 3 ms more (an edit takes about 1.5 ms here).
+        const bool early = random.next() < 0.1;
+        const int after = early ? 0 : 1 + static_cast<int>(random.next() * 150);
+        const auto delay =
+            std::chrono::microseconds(static_cast<long>(random.next() * (early ? 50000 : 3000)));
+        const std::string acks =
+            killAfter(child, after ? "edit " + std::to_string(after) : "", delay, killed);
         ASSERT_TRUE(killed) << "trial " << trial << ": the child ended by itself";
         ++killedTrials;
         const int acknowledged = lastAcknowledged(acks, "edit");
@@ -230,7 +246,8 @@ TEST_F(CrashSafety, AKilledReplayLeavesTheOldSceneOrTheNewOne) {
         fs::copy_file(start, out, fs::copy_options::overwrite_existing);
         Child c = spawn(replay(out));
         bool killed = false;
-        killAfter(c, std::chrono::microseconds(static_cast<long>(random.next() * 400000)), killed);
+        killAfter(c, "", std::chrono::microseconds(static_cast<long>(random.next() * 400000)),
+                  killed);
         const std::string text = test::readFile(out);
         EXPECT_TRUE(text == oldText || text == newText)
             << "trial " << trial << ": " << text.size() << " bytes, neither scene";

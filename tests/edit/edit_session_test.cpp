@@ -14,6 +14,7 @@
 #include <memory>
 #include <sstream>
 
+#include "edit/edit_log.h"
 #include "edit/input_error.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_io.h"
@@ -343,6 +344,36 @@ TEST(EditSession, ABatchOfDragPositionsCoalescesToItsLast) {
     EXPECT_EQ(events[2].preview, all[5].preview);
     EXPECT_EQ(events[3].kind, Kind::DragEnded);
     EXPECT_EQ(events[3].added, std::vector<int>{all[5].preview});
+}
+
+TEST(EditSession, ALogThatResolvesHistoryWritesWhatUndoAndRedoDid) {
+    // The editor's recovery journal starts again at every save, after history it may undo:
+    // its undo and redo lines are the edits they performed, and it replays on its own.
+    const std::string path = (std::filesystem::temp_directory_path() /
+                              ("penumbra_resolved_" + std::to_string(::getpid()) + ".jsonl"))
+                                 .string();
+    std::filesystem::remove(path);
+    auto session = openRoom();
+    session->apply(MoveCommand{"crate", {-0.4, 0.0, 0.2}});
+    session->openLog(path, true);
+    session->apply(UndoCommand{});
+    session->apply(RedoCommand{});
+    session->apply(UndoCommand{});
+    session->closeLog();
+    const std::vector<LoggedEdit> lines = readEditLog(path);
+    ASSERT_EQ(lines.size(), 3u);
+    for (const LoggedEdit& e : lines) EXPECT_STREQ(e.command.opName(), "transform");
+
+    // Replayed from the saved state (the move done), without its history: the same document.
+    auto replayed = openRoom();
+    replayed->apply(MoveCommand{"crate", {-0.4, 0.0, 0.2}});
+    auto fresh = std::make_unique<EditSession>(replayed->scene(), SolverOptions{});
+    for (const LoggedEdit& e : lines) fresh->apply(e.command);
+    const auto at = [](const EditSession& s) {
+        return s.scene().objects[s.scene().findObject("crate")].transform.translate;
+    };
+    EXPECT_EQ(at(*fresh), at(*session));
+    std::filesystem::remove(path);
 }
 
 TEST(EditSession, MaterialEditOnSelectedObjectAppliesOnUnselect) {
