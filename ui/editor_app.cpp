@@ -668,7 +668,7 @@ std::string EditorApp::addFromLibrary(const LibraryEntry& entry) {
         // scene file as scene files and logs name meshes.
         const std::string file = entry.path;
         const std::string relative = sceneRelativePath(file, mScenePath);
-        mRunner->post([id, file, relative, material, target](EditSession& s) {
+        mRunner->submitMade([id, file, relative, material, target](EditSession&) -> EditCommand {
             SceneObject o;
             o.id = id;
             o.shape.type = ShapeType::Mesh;
@@ -676,7 +676,7 @@ std::string EditorApp::addFromLibrary(const LibraryEntry& entry) {
             o.shape.mesh = loadMeshFile(file);
             if (o.shape.mesh.triangleMaterial.empty()) o.material = material;
             o.transform = placeInBox(shapeBounds(o.shape), kMeshSize, target);
-            s.apply(AddCommand{std::move(o)});
+            return AddCommand{std::move(o)};
         });
     }
     mSelection = id;
@@ -867,13 +867,13 @@ void EditorApp::drawObjectPanel(const DocumentSummary& doc) {
         }
         const std::string from = o->id;
         const double dx = 0.6 * (o->boundsMax.x - o->boundsMin.x) + 0.1;
-        mRunner->post([from, id, dx](EditSession& s) {
+        mRunner->submitMade([from, id, dx](EditSession& s) -> EditCommand {
             const int i = s.scene().findObject(from);
-            if (i < 0) return;
+            if (i < 0) throw std::runtime_error("duplicate: object '" + from + "' is gone");
             SceneObject copy = s.scene().objects[i];
             copy.id = id;
             copy.transform.translate.x += dx;
-            s.apply(AddCommand{copy});
+            return AddCommand{copy};
         });
         mSelection = id;
         return;

@@ -136,7 +136,7 @@ void SessionRunner::report(const std::string& message) {
 void SessionRunner::submit(const EditCommand& command, const EditSource& source) {
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
-        mQueue.push_back({command, source, {}});
+        mQueue.push_back({command, source, {}, {}});
     }
     mWake.notify_all();
 }
@@ -145,13 +145,13 @@ void SessionRunner::submitCoalescing(const EditCommand& command) {
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         const auto* t = std::get_if<TransformCommand>(&command.op);
-        const auto* last = mQueue.empty() || mQueue.back().task
+        const auto* last = mQueue.empty() || mQueue.back().task || mQueue.back().make
                                ? nullptr
                                : std::get_if<TransformCommand>(&mQueue.back().command.op);
         if (t && last && last->id == t->id)
             mQueue.back().command = command;
         else
-            mQueue.push_back({command, EditSource{}, {}});
+            mQueue.push_back({command, EditSource{}, {}, {}});
     }
     mWake.notify_all();
 }
@@ -160,7 +160,15 @@ void SessionRunner::post(std::function<void(EditSession&)> task) {
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         // Tasks run in order with the edits.
-        mQueue.push_back({EditCommand{}, EditSource{}, std::move(task)});
+        mQueue.push_back({EditCommand{}, EditSource{}, std::move(task), {}});
+    }
+    mWake.notify_all();
+}
+
+void SessionRunner::submitMade(std::function<EditCommand(EditSession&)> make) {
+    {
+        std::lock_guard<std::mutex> lock(mQueueMutex);
+        mQueue.push_back({EditCommand{}, EditSource{}, {}, std::move(make)});
     }
     mWake.notify_all();
 }
@@ -289,6 +297,8 @@ bool SessionRunner::solverIteration() {
                 if (q.task) {
                     q.task(*mSession);
                     structural = true;
+                } else if (q.make) {
+                    events.push_back(mSession->apply(q.make(*mSession), q.source));
                 } else {
                     events.push_back(mSession->apply(q.command, q.source));
                 }

@@ -184,9 +184,15 @@ public:
     /// Like submit, but replaces a queued, not yet applied transform of the same object
     /// (a drag sends positions faster than the lighting can follow; only the newest counts).
     void submitCoalescing(const EditCommand& command);
-    /// Queues work on the session (save, export, duplicate), run by the solver thread
-    /// between shots, in order with the edits. Exceptions are reported through takeMessages().
+    /// Queues work on the session (save, export), run by the solver thread between shots, in
+    /// order with the edits. Exceptions are reported through takeMessages(). A task that edits
+    /// should be an edit made there (submitMade): the displays see a task's changes only as
+    /// "anything may have changed".
     void post(std::function<void(EditSession&)> task);
+    /// Queues an edit that the solver thread makes when its turn comes, from the session as it
+    /// is then (a duplicate of an object as the edits before it left it, a mesh loaded there),
+    /// and applies like a submitted one. Exceptions are reported through takeMessages().
+    void submitMade(std::function<EditCommand(EditSession&)> make);
     void setView(const ViewRequest& request);
     /// Pauses the automatic solver work (queued edits, including solve/converge, still run).
     void setPaused(bool paused);
@@ -280,11 +286,12 @@ private:
     mutable std::mutex mQueueMutex;       ///< guards the queue, view request and flags
     std::condition_variable mWake;        ///< solver thread
     std::condition_variable mRenderWake;  ///< render thread
-    /// An edit, or a task when `task` is set.
+    /// An edit, an edit to make (`make`), or a task (`task`).
     struct Queued {
         EditCommand command;
         EditSource source;
         std::function<void(EditSession&)> task;
+        std::function<EditCommand(EditSession&)> make;
     };
     std::deque<Queued> mQueue;
     ViewRequest mView;
