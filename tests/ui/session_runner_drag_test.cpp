@@ -68,7 +68,8 @@ TEST(SessionRunnerDrag, EdgeAndPointModeShowsTheDraggedObjectAndItsOutline) {
     SessionRunner runner(std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{}),
                          options);
     runner.setView(view(false));
-    auto settled = pumpUntil(runner, 20, [&](const ViewportImage&) { return runner.quiescent(); });
+    // Generous: a sanitizer build converges several times slower.
+    auto settled = pumpUntil(runner, 90, [&](const ViewportImage&) { return runner.quiescent(); });
     ASSERT_TRUE(settled);
     ASSERT_TRUE(runner.quiescent());
     EXPECT_EQ(settled->render.radiance.width, kSize);
@@ -95,7 +96,7 @@ TEST(SessionRunnerDrag, EdgeAndPointModeShowsTheDraggedObjectAndItsOutline) {
     const glm::dvec2 newTopHalf = *half.projectToPixel(kNewPlace + Vec3(0, 0.05, 0));
     const glm::dvec2 oldTopHalf = *half.projectToPixel(kOldPlace + Vec3(0, 0.05, 0));
     int frames = 0;
-    auto dragging = pumpUntil(runner, 20, [&](const ViewportImage& img) {
+    auto dragging = pumpUntil(runner, 60, [&](const ViewportImage& img) {
         if (!img.reduced) return false;
         return ++frames > 30 && reddish(pixel(img, newTopHalf));
     });
@@ -115,7 +116,7 @@ TEST(SessionRunnerDrag, EdgeAndPointModeShowsTheDraggedObjectAndItsOutline) {
     // Drop it: full resolution again, the slab (alive again) where it was dropped.
     runner.submit(UnselectCommand{});
     runner.setView(view(false));
-    auto dropped = pumpUntil(runner, 30, [&](const ViewportImage&) { return runner.quiescent(); });
+    auto dropped = pumpUntil(runner, 90, [&](const ViewportImage&) { return runner.quiescent(); });
     ASSERT_TRUE(dropped);
     EXPECT_TRUE(runner.quiescent());
     EXPECT_FALSE(dropped->reduced);
