@@ -241,7 +241,8 @@ nlohmann::json readReplayReport(const std::string& path) {
     nlohmann::json json;
     try {
         json = nlohmann::json::parse(text.str());
-    } catch (const nlohmann::json::parse_error& e) {
+    } catch (const nlohmann::json::exception& e) {
+        // parse_error, and out_of_range for a number beyond a double ("1e999").
         throw InputError(path, "", std::string("not valid JSON: ") + e.what());
     }
     if (!json.is_object() || !json.contains("edits") || !json["edits"].is_array())

@@ -496,6 +496,13 @@ Json parseSceneText(const std::string& text, const std::string& sourceName) {
     } catch (const Json::parse_error& error) {
         const size_t offset = error.byte > 0 ? error.byte - 1 : 0;
         throw InputError(sourceName, lineAndColumn(text, offset), parseProblem(error.what()));
+    } catch (const Json::exception& error) {
+        // out_of_range: a number beyond a double ("number overflow parsing '1e999'").
+        std::string problem = error.what();
+        const size_t bracket = problem.find("] ");
+        if (problem.rfind("[json.exception", 0) == 0 && bracket != std::string::npos)
+            problem = problem.substr(bracket + 2);
+        throw InputError(sourceName, "", problem);
     }
     if (problem) {
         if (problem->tooDeep)
