@@ -27,6 +27,13 @@ while [ $# -gt 0 ]; do
 done
 [ ${#targets[@]} -gt 0 ] || targets=(scene log obj off ply gltf glb import_gltf import_glb import_obj)
 
+# The build's dependencies, and Clang (libFuzzer ships with Debian's clang package).
+bash scripts/setup.sh
+if ! command -v clang++ >/dev/null; then
+  SUDO=$([ "$(id -u)" -eq 0 ] || echo sudo)
+  $SUDO apt-get install -y -qq --no-install-recommends clang >/dev/null
+fi
+
 dir=build-fuzz
 CC=clang CXX=clang++ cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DPENUMBRA_FUZZ=ON -DPENUMBRA_BUILD_TESTS=OFF >/dev/null

@@ -61,7 +61,7 @@ struct EditorOptions {
     /// The recovery journal (ui/recovery.h): kept unless `log` names a log of the user's own
     /// or a drag is benchmarked.
     bool journal = true;
-    /// Unsaved edits an earlier session left: replayed at once (--recover) instead of asked
+    /// Unsaved edits an earlier editor run left: replayed at once (--recover) instead of asked
     /// about. Runs that do not wait for the user (--screenshot, --play, --bench-drag) never ask.
     bool recover = false;
 };
@@ -136,7 +136,7 @@ public:
     std::optional<Gizmo> gizmo() const;
     double gizmoSize(const Vec3& pivot) const;
     bool playing() const { return mPlayNext < mPlay.size(); }
-    /// An earlier session's unsaved edits the editor offers to recover (the prompt is open
+    /// An earlier editor run's unsaved edits the editor offers to recover (the prompt is open
     /// while they are not empty).
     const UnsavedEdits& unsaved() const { return mUnsaved; }
     /// The prompt's Recover: replays unsaved() through the runner (each edit validated and
@@ -189,7 +189,7 @@ private:
     void drawViewport();
     void drawStatusBar();
     void drawPopups();
-    /// The modal that offers an earlier session's unsaved edits (recovery.h).
+    /// The modal that offers an earlier editor run's unsaved edits (recovery.h).
     void drawRecoveryPrompt();
     /// Removes the journal when it holds no edit (everything was saved).
     void removeEmptyJournal();
@@ -205,7 +205,7 @@ private:
     std::unique_ptr<SessionRunner> mRunner;
     std::string mScenePath;
     std::string mJournal;   ///< the recovery journal of mScenePath, "" when off
-    UnsavedEdits mUnsaved;  ///< an earlier session's unsaved edits, while not yet answered
+    UnsavedEdits mUnsaved;  ///< an earlier editor run's unsaved edits, while not yet answered
 
     // View and interaction.
     ViewCamera mView;

@@ -18,7 +18,7 @@ namespace penumbra {
 /// NAME-HASH.jsonl, NAME the file's stem and HASH of its absolute path. Creates the folder.
 std::string recoveryJournalPath(const std::string& scenePath);
 
-/// What an earlier session left unsaved for the journal at `journal`: its edits (and those of
+/// What an earlier editor run left unsaved for the journal at `journal`: its edits (and those of
 /// a JOURNAL.unsaved that an earlier start set aside and nobody recovered or discarded) in
 /// order, solver work left out, and an unselect appended when they end with an object
 /// selected. They are set aside in JOURNAL.unsaved (the journal itself is removed: the new
@@ -27,7 +27,7 @@ std::string recoveryJournalPath(const std::string& scenePath);
 struct UnsavedEdits {
     std::vector<EditCommand> edits;
     std::string file;   ///< JOURNAL.unsaved, "" when there was nothing
-    double lastMs = 0;  ///< t_ms of the last edit (session time of the earlier session)
+    double lastMs = 0;  ///< t_ms of the last edit (time since that run began)
     std::string error;
 };
 UnsavedEdits takeUnsavedEdits(const std::string& journal, const std::string& sceneDir);
