@@ -28,7 +28,6 @@ void readInto(const fs::path& path, const std::string& sceneDir, UnsavedEdits& o
     if (!fs::exists(path)) return;
     try {
         for (const LoggedEdit& e : readEditLog(path.string(), sceneDir)) {
-            if (e.command.tMs) out.lastMs = *e.command.tMs;
             if (e.command.isSolverWork()) continue;
             EditCommand c = e.command;
             c.tMs.reset();

@@ -27,7 +27,6 @@ std::string recoveryJournalPath(const std::string& scenePath);
 struct UnsavedEdits {
     std::vector<EditCommand> edits;
     std::string file;   ///< JOURNAL.unsaved, "" when there was nothing
-    double lastMs = 0;  ///< t_ms of the last edit (time since that run began)
     std::string error;
 };
 UnsavedEdits takeUnsavedEdits(const std::string& journal, const std::string& sceneDir);
