@@ -253,158 +253,165 @@ std::size_t SessionRunner::queued() const {
 // The solver iteration.
 
 bool SessionRunner::solverIteration() {
-    std::deque<Queued> commands;
-    bool solve;
-    double eps;
-    std::optional<std::pair<RedistributionStrategy, double>> strategy;
+    SolverWork work;
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
-        commands.swap(mQueue);
-        mApplying = !commands.empty();
-        solve = mAutoSolve && !mPaused;
-        eps = mEps;
-        if (mStrategyChanged) strategy.emplace(mStrategy, mThreshold);
+        work.commands.swap(mQueue);
+        mApplying = !work.commands.empty();
+        work.solve = mAutoSolve && !mPaused;
+        work.eps = mEps;
+        if (mStrategyChanged) work.strategy.emplace(mStrategy, mThreshold);
         mStrategyChanged = false;
     }
     // A strategy switch only reorders pending work: applied between shots, no structure lock
     // (the render thread never reads the solver's options).
-    if (strategy) {
+    if (work.strategy) {
         try {
-            mSession->solver().setStrategy(strategy->first, strategy->second);
+            mSession->solver().setStrategy(work.strategy->first, work.strategy->second);
         } catch (const std::exception& e) {
             report(std::string("strategy: ") + e.what());
         }
     }
+    if (!work.commands.empty()) applyCommands(work.commands);
 
-    // Edits (and tasks, in their place) change the structure: exclusively.
-    if (!commands.empty()) {
-        const double a0 = nowSeconds();
-        // An interpolant build holding the structure stops at its next element.
-        ++mEditsWaiting;
-        std::unique_lock<std::shared_mutex> lock(mStructure);
-        --mEditsWaiting;
-        // The display's asynchronous shader reads the structure: paused while it changes, and
-        // told what changed before it resumes.
-        std::unique_lock<std::mutex> displayLock(mDisplayMutex);
-        std::optional<PointShader::Pause> pauses[2];
-        for (int i = 0; i < 2; ++i)
-            if (mSlots[i].display) pauses[i].emplace(mSlots[i].display->shader());
-        const double a1 = nowSeconds();
-        std::vector<EditEvent> events;
-        bool structural = false;  // a task ran: it may have changed anything
-        for (Queued& q : commands) {
-            try {
-                if (q.task) {
-                    q.task(*mSession);
-                    structural = true;
-                } else if (q.make) {
-                    events.push_back(mSession->apply(q.make(*mSession), q.source));
-                } else {
-                    events.push_back(mSession->apply(q.command, q.source));
-                }
-            } catch (const std::exception& e) {
-                report(e.what());
-            }
-        }
-        // The displays see a batch of drag positions as its last one.
-        coalescePreviews(events);
-        for (const EditEvent& event : events) applyDisplayEvent(event);
-        if (structural) {
-            for (int i = 0; i < 2; ++i) {
-                DisplaySlot& slot = mSlots[i];
-                if (!slot.display) continue;
-                if (liveSlot(i) && !slot.behind) {
-                    try {
-                        slot.display->notifyChanged({}, &mSession->solver());
-                        slot.solution = mLightSerial + 1;  // publishLight follows the edits
-                    } catch (const std::exception& e) {
-                        report(std::string("display: ") + e.what());
-                    }
-                } else {
-                    slot.behind = true;
-                    slot.pendingStructural = true;
-                }
-            }
-        }
-        std::erase_if(mOldSubsets, [&](const VersionSubset& s) {
-            for (const DisplaySlot& slot : mSlots)
-                if (slot.display && slot.display->directJobPreview() == s.version) return false;
-            return true;
-        });
-        std::erase_if(mOldOrigins, [&](const VersionSubset& s) {
-            for (const DisplaySlot& slot : mSlots)
-                if (slot.display && (slot.display->dragOrigin() == s.version ||
-                                     slot.display->directJobPreview() >= 0))
-                    return false;
-            return true;
-        });
-        // Objects that hide points behind them trace a subset of their own, not a filter
-        // over the whole scene; kept while a display hides behind them.
-        for (DisplaySlot& slot : mSlots) {
-            if (!slot.display || !slot.display->occluderNeedsSubset()) continue;
-            const int occluder = slot.display->occluder();
-            auto it = std::find_if(mOccluderSubsets.begin(), mOccluderSubsets.end(),
-                                   [&](const VersionSubset& s) { return s.version == occluder; });
-            if (it == mOccluderSubsets.end())
-                it = mOccluderSubsets.insert(mOccluderSubsets.end(),
-                                             VersionSubset(mSession->tracer(), occluder));
-            slot.display->setOccluderSubset(occluder, it->visibility());
-        }
-        std::erase_if(mOccluderSubsets, [&](const VersionSubset& s) {
-            for (const DisplaySlot& slot : mSlots)
-                if (slot.display && slot.display->occluder() == s.version) return false;
-            return true;
-        });
-        // The drag's origin subset lives while a display may still use it.
-        if (mSession->previewVersion() < 0) {
-            bool used = false;
-            for (const DisplaySlot& slot : mSlots)
-                used = used || (slot.display && slot.display->dragOrigin() >= 0);
-            if (!used) mOriginSubset = VersionSubset();
-        }
-        ++mEditBatches;
-        for (auto& pause : pauses) pause.reset();
-        displayLock.unlock();
-        // The snapshots only read what this thread alone writes: outside the exclusive section.
-        lock.unlock();
-        publishDocument();
-        publishLight();
-        spdlog::debug("apply: waited {:.1f} ms, applied {} in {:.1f} ms", (a1 - a0) * 1e3,
-                      commands.size(), (nowSeconds() - a1) * 1e3);
-    }
-
-    // Shots, one at a time, for the budget. The sequence of shots depends only on the edits
-    // between them, not on timing.
     const double t0 = nowSeconds();
-    double lastPublish = t0;
-    std::uint64_t shots = 0;
-    mSolverIdle = true;
-    const bool dragging = !mSession->selected().empty();
-    if (solve && (dragging || !mSession->solver().converged(eps))) {
-        mSolverIdle = false;
-        while (nowSeconds() - t0 < mOptions.solveBudgetMs * 1e-3) {
-            const std::uint64_t n = mSession->solve(1);
-            shots += n;
-            const bool done = n == 0 || (!dragging && mSession->solver().converged(eps));
-            if (done) mSolverIdle = true;
-            // Show progress of long shots as it comes.
-            if (done || nowSeconds() - lastPublish > 0.03) {
-                if (n > 0) publishLight();
-                lastPublish = nowSeconds();
-            }
-            if (done) break;
-        }
-        if (shots > 0 && lastPublish < nowSeconds() - 1e-9) publishLight();
-    }
+    const std::uint64_t shots = shootForBudget(work.solve, work.eps, t0);
     const double solverMs = (nowSeconds() - t0) * 1e3;
-    spdlog::debug("solver: {} edits, {} shots in {:.1f} ms", commands.size(), shots, solverMs);
+    spdlog::debug("solver: {} edits, {} shots in {:.1f} ms", work.commands.size(), shots, solverMs);
     publishSolver(solverMs);
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         mApplying = false;
     }
-    if (!commands.empty() || shots > 0) mRenderWake.notify_all();
-    return !commands.empty() || !mSolverIdle;
+    if (!work.commands.empty() || shots > 0) mRenderWake.notify_all();
+    return !work.commands.empty() || !mSolverIdle;
+}
+
+void SessionRunner::applyCommands(std::deque<Queued>& commands) {
+    const double a0 = nowSeconds();
+    // An interpolant build holding the structure stops at its next element.
+    ++mEditsWaiting;
+    std::unique_lock<std::shared_mutex> lock(mStructure);
+    --mEditsWaiting;
+    // The display's asynchronous shader reads the structure: paused while it changes, and
+    // told what changed before it resumes.
+    std::unique_lock<std::mutex> displayLock(mDisplayMutex);
+    std::optional<PointShader::Pause> pauses[2];
+    for (int i = 0; i < 2; ++i)
+        if (mSlots[i].display) pauses[i].emplace(mSlots[i].display->shader());
+    const double a1 = nowSeconds();
+    std::vector<EditEvent> events;
+    bool structural = false;  // a task ran: it may have changed anything
+    for (Queued& q : commands) {
+        try {
+            if (q.task) {
+                q.task(*mSession);
+                structural = true;
+            } else if (q.make) {
+                events.push_back(mSession->apply(q.make(*mSession), q.source));
+            } else {
+                events.push_back(mSession->apply(q.command, q.source));
+            }
+        } catch (const std::exception& e) {
+            report(e.what());
+        }
+    }
+    // The displays see a batch of drag positions as its last one.
+    coalescePreviews(events);
+    for (const EditEvent& event : events) applyDisplayEvent(event);
+    if (structural) notifyStructuralChange();
+    pruneSubsets();
+    ++mEditBatches;
+    for (auto& pause : pauses) pause.reset();
+    displayLock.unlock();
+    // The snapshots only read what this thread alone writes: outside the exclusive section.
+    lock.unlock();
+    publishDocument();
+    publishLight();
+    spdlog::debug("apply: waited {:.1f} ms, applied {} in {:.1f} ms", (a1 - a0) * 1e3,
+                  commands.size(), (nowSeconds() - a1) * 1e3);
+}
+
+void SessionRunner::notifyStructuralChange() {
+    for (int i = 0; i < 2; ++i) {
+        DisplaySlot& slot = mSlots[i];
+        if (!slot.display) continue;
+        if (liveSlot(i) && !slot.behind) {
+            try {
+                slot.display->notifyChanged({}, &mSession->solver());
+                slot.solution = mLightSerial + 1;  // publishLight follows the edits
+            } catch (const std::exception& e) {
+                report(std::string("display: ") + e.what());
+            }
+        } else {
+            slot.behind = true;
+            slot.pendingStructural = true;
+        }
+    }
+}
+
+void SessionRunner::pruneSubsets() {
+    std::erase_if(mOldSubsets, [&](const VersionSubset& s) {
+        for (const DisplaySlot& slot : mSlots)
+            if (slot.display && slot.display->directJobPreview() == s.version) return false;
+        return true;
+    });
+    std::erase_if(mOldOrigins, [&](const VersionSubset& s) {
+        for (const DisplaySlot& slot : mSlots)
+            if (slot.display &&
+                (slot.display->dragOrigin() == s.version || slot.display->directJobPreview() >= 0))
+                return false;
+        return true;
+    });
+    // Objects that hide points behind them trace a subset of their own, not a filter over the
+    // whole scene; kept while a display hides behind them.
+    for (DisplaySlot& slot : mSlots) {
+        if (!slot.display || !slot.display->occluderNeedsSubset()) continue;
+        const int occluder = slot.display->occluder();
+        auto it = std::find_if(mOccluderSubsets.begin(), mOccluderSubsets.end(),
+                               [&](const VersionSubset& s) { return s.version == occluder; });
+        if (it == mOccluderSubsets.end())
+            it = mOccluderSubsets.insert(mOccluderSubsets.end(),
+                                         VersionSubset(mSession->tracer(), occluder));
+        slot.display->setOccluderSubset(occluder, it->visibility());
+    }
+    std::erase_if(mOccluderSubsets, [&](const VersionSubset& s) {
+        for (const DisplaySlot& slot : mSlots)
+            if (slot.display && slot.display->occluder() == s.version) return false;
+        return true;
+    });
+    // The drag's origin subset lives while a display may still use it.
+    if (mSession->previewVersion() < 0) {
+        bool used = false;
+        for (const DisplaySlot& slot : mSlots)
+            used = used || (slot.display && slot.display->dragOrigin() >= 0);
+        if (!used) mOriginSubset = VersionSubset();
+    }
+}
+
+std::uint64_t SessionRunner::shootForBudget(bool solve, double eps, double t0) {
+    // Shots, one at a time, for the budget. The sequence of shots depends only on the edits
+    // between them, not on timing.
+    double lastPublish = t0;
+    std::uint64_t shots = 0;
+    mSolverIdle = true;
+    const bool dragging = !mSession->selected().empty();
+    if (!solve || (!dragging && mSession->solver().converged(eps))) return 0;
+    mSolverIdle = false;
+    while (nowSeconds() - t0 < mOptions.solveBudgetMs * 1e-3) {
+        const std::uint64_t n = mSession->solve(1);
+        shots += n;
+        const bool done = n == 0 || (!dragging && mSession->solver().converged(eps));
+        if (done) mSolverIdle = true;
+        // Show progress of long shots as it comes.
+        if (done || nowSeconds() - lastPublish > 0.03) {
+            if (n > 0) publishLight();
+            lastPublish = nowSeconds();
+        }
+        if (done) break;
+    }
+    if (shots > 0 && lastPublish < nowSeconds() - 1e-9) publishLight();
+    return shots;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -448,17 +455,24 @@ bool SessionRunner::renderIteration() {
         loading = true;
     }
     // The interpolant mode shows Gouraud until its mesh of this lighting lands.
-    const HifiMesh* hifi = nullptr;
-    std::string hifiNote;
+    TracedView traced;
+    traced.loading = loading;
     if (view.mode == ViewMode::Interpolant) {
         const bool still = solverIdle && dragged.empty() && light.previewVersion < 0;
-        hifi = hifiLanded(view, light, still, hifiNote);
-        loading = hifi == nullptr;
+        traced.hifi = hifiLanded(view, light, still, traced.hifiNote);
+        traced.loading = traced.hifi == nullptr;
     }
+    return renderTracedView(view, light, last, highlight, traced);
+}
+
+bool SessionRunner::renderTracedView(const ViewRequest& view, const Light& light,
+                                     const std::shared_ptr<const ViewportImage>& last,
+                                     int highlight, const TracedView& traced) {
+    const bool loading = traced.loading;
     const bool need = !last || last->stateSerial != light.serial ||
                       last->viewSerial != view.serial || (last->reduced && !view.interactive) ||
                       (!loading && last->mode != view.mode) ||
-                      (view.mode == ViewMode::Interpolant && last->note != hifiNote);
+                      (view.mode == ViewMode::Interpolant && last->note != traced.hifiNote);
     if (!need || !light.radiosity) return false;
     // While the display is built, new lighting is shown at most every loadingImageMs (the
     // cores go to the build); view changes at once.
@@ -469,63 +483,17 @@ bool SessionRunner::renderIteration() {
         return false;
     if (loading) mLastLoadingImage = nowSeconds();
 
-    // Interactive images: a resolution that renders in about interactiveImageMs.
-    int d = 1;
-    if (view.interactive) {
-        d = 2;
-        if (mMsPerPixel > 0) {
-            const double pixels = mOptions.interactiveImageMs / mMsPerPixel;
-            d = static_cast<int>(std::ceil(std::sqrt(double(view.width) * view.height / pixels)));
-        }
-        d = std::clamp(d, 1, std::max(1, mOptions.maxReducedDivisor));
-    }
+    const int d = reducedDivisor(view);
     const int w = std::max(1, view.width / d), h = std::max(1, view.height / d);
-
-    // A drag appends a version (its elements) before the solver publishes lighting for it:
-    // elements of versions this image does not show (dead, not the light's preview) get 0;
-    // any other gap waits for the next published lighting.
-    const Discretization& disc = mSession->discretization();
-    auto covering = [&](const std::shared_ptr<const std::vector<Rgb>>& values)
-        -> std::shared_ptr<const std::vector<Rgb>> {
-        const std::size_t n = disc.elements().size();
-        if (!values || values->size() >= n) return values;
-        for (std::size_t e = values->size(); e < n; ++e) {
-            const int o = disc.elements()[e].object;
-            if (disc.objects()[o].alive || o == light.previewVersion) return nullptr;
-        }
-        auto padded = std::make_shared<std::vector<Rgb>>(*values);
-        padded->resize(n, Rgb(0.0));
-        return padded;
-    };
-    const auto radiosity = covering(light.radiosity);
+    const auto radiosity = coverElements(light.radiosity, light.previewVersion);
     if (!radiosity) return false;
-    const auto pendingValues = covering(light.pending);
+    const auto pendingValues = coverElements(light.pending, light.previewVersion);
 
     auto img = std::make_shared<ViewportImage>();
     const double r0 = nowSeconds();
-    try {
-        img->render = renderViewport(disc, mSession->tracer(), *radiosity, view.camera, w, h,
-                                     light.previewVersion, highlight);
-        if (view.mode == ViewMode::OutOfDate && pendingValues) {
-            // The pending |ΔB| interpolated like the image, as a red tint.
-            const ViewportRender pending = renderViewport(disc, mSession->tracer(), *pendingValues,
-                                                          view.camera, w, h, light.previewVersion);
-            tintPending(img->render.rgba, pending.radiance, light.pendingScale / M_PI);
-            img->note = "red: pending unshot / redistribution |dB| (full at 5% of mean B)";
-        }
-        if (hifi) {
-            // One ray per pixel finds the triangle whose interpolant it shows (the editor's GL
-            // context belongs to the UI thread); the outline over it as over Gouraud.
-            img->render.radiance =
-                renderInterpolants(disc, mSession->tracer(), *hifi, CameraRays(view.camera, w, h));
-            img->render.rgba = encodeDisplay(img->render.radiance);
-            if (highlight >= 0)
-                drawSelectionOutline(img->render.rgba, img->render.objectAt, w, h, highlight);
-        }
-    } catch (const std::exception& e) {
-        report(std::string("viewport: ") + e.what());
+    if (!traceImage(view, light, w, h, highlight, traced.hifi, *radiosity, pendingValues.get(),
+                    *img))
         return false;
-    }
     img->renderMs = (nowSeconds() - r0) * 1e3;
     spdlog::debug("render {}x{} {:.1f} ms light {}", w, h, img->renderMs, light.serial);
     const double perPixel = img->renderMs / (double(w) * h);
@@ -536,7 +504,7 @@ bool SessionRunner::renderIteration() {
     img->reduced = d > 1;
     img->mode = loading ? ViewMode::Gouraud : view.mode;
     if (view.mode == ViewMode::Interpolant)
-        img->note = hifiNote;
+        img->note = traced.hifiNote;
     else if (loading)
         img->note = std::string(viewModeLabel(view.mode)) + " display loading: Gouraud meanwhile";
     img->previewVersion = light.previewVersion;
@@ -544,6 +512,61 @@ bool SessionRunner::renderIteration() {
     img->draggedTransform = mRenderDraggedTransform;
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mImage = std::move(img);
+    return true;
+}
+
+int SessionRunner::reducedDivisor(const ViewRequest& view) const {
+    if (!view.interactive) return 1;
+    int d = 2;
+    if (mMsPerPixel > 0) {
+        const double pixels = mOptions.interactiveImageMs / mMsPerPixel;
+        d = static_cast<int>(std::ceil(std::sqrt(double(view.width) * view.height / pixels)));
+    }
+    return std::clamp(d, 1, std::max(1, mOptions.maxReducedDivisor));
+}
+
+std::shared_ptr<const std::vector<Rgb>> SessionRunner::coverElements(
+    const std::shared_ptr<const std::vector<Rgb>>& values, int previewVersion) const {
+    const Discretization& disc = mSession->discretization();
+    const std::size_t n = disc.elements().size();
+    if (!values || values->size() >= n) return values;
+    for (std::size_t e = values->size(); e < n; ++e) {
+        const int o = disc.elements()[e].object;
+        if (disc.objects()[o].alive || o == previewVersion) return nullptr;
+    }
+    auto padded = std::make_shared<std::vector<Rgb>>(*values);
+    padded->resize(n, Rgb(0.0));
+    return padded;
+}
+
+bool SessionRunner::traceImage(const ViewRequest& view, const Light& light, int w, int h,
+                               int highlight, const HifiMesh* hifi,
+                               const std::vector<Rgb>& radiosity, const std::vector<Rgb>* pending,
+                               ViewportImage& img) {
+    const Discretization& disc = mSession->discretization();
+    try {
+        img.render = renderViewport(disc, mSession->tracer(), radiosity, view.camera, w, h,
+                                    light.previewVersion, highlight);
+        if (view.mode == ViewMode::OutOfDate && pending) {
+            // The pending |ΔB| interpolated like the image, as a red tint.
+            const ViewportRender tint = renderViewport(disc, mSession->tracer(), *pending,
+                                                       view.camera, w, h, light.previewVersion);
+            tintPending(img.render.rgba, tint.radiance, light.pendingScale / M_PI);
+            img.note = "red: pending unshot / redistribution |dB| (full at 5% of mean B)";
+        }
+        if (hifi) {
+            // One ray per pixel finds the triangle whose interpolant it shows (the editor's GL
+            // context belongs to the UI thread); the outline over it as over Gouraud.
+            img.render.radiance =
+                renderInterpolants(disc, mSession->tracer(), *hifi, CameraRays(view.camera, w, h));
+            img.render.rgba = encodeDisplay(img.render.radiance);
+            if (highlight >= 0)
+                drawSelectionOutline(img.render.rgba, img.render.objectAt, w, h, highlight);
+        }
+    } catch (const std::exception& e) {
+        report(std::string("viewport: ") + e.what());
+        return false;
+    }
     return true;
 }
 
@@ -834,48 +857,8 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     // and a few frames (its frame time sets the reduction): a drag starts on it at once.
     const bool early = reduce && want == 0 && !mSlots[1].display && mSlots[0].display &&
                        mSlots[0].ready() && mActiveSlot == 0 && mSlots[0].frames >= 4;
-    for (int make : {want, early ? 1 : -1}) {
-        if (make < 0) continue;
-        DisplaySlot& wanted = mSlots[make];
-        if (wanted.display) continue;
-        DisplaySlot& source = mSlots[1 - make];
-        const bool copy = source.display && !source.behind && source.solution != 0;
-        try {
-            const InteractiveDisplayOptions options = displayOptions(make, view);
-            const int w = options.width, h = options.height;
-            const double t0 = nowSeconds();
-            if (copy) {
-                // Copies the other display's edge finder, lights, direct light, solution and
-                // preview (milliseconds; built from scratch it takes seconds in robot-room).
-                PointShader::Pause pause(source.display->shader());
-                wanted.display = std::make_unique<InteractiveDisplay>(*source.display, options);
-                wanted.solution = source.solution;
-            } else {
-                wanted.display = std::make_unique<InteractiveDisplay>(
-                    mSession->discretization(), mSession->tracer(), interactiveSolverOptions(),
-                    options);
-                wanted.solution = 0;
-                // A drag in progress: the preview version and its subset are current (the
-                // solver thread changes them only with the structure held exclusively).
-                const int preview = mSession->previewVersion();
-                if (preview >= 0) wanted.display->setPreview(preview, mPreviewSubset.visibility());
-            }
-            wanted.viewWidth = view.width;
-            wanted.viewHeight = view.height;
-            wanted.behind = false;
-            wanted.pendingChanged.clear();
-            wanted.pendingStructural = false;
-            wanted.frameMs = 0;
-            wanted.frames = 0;
-            wanted.display->warmUp(CameraRays(view.camera, w, h));
-            spdlog::debug("display {}x{}: made ({}) in {:.1f} ms", w, h, copy ? "copy" : "built",
-                          (nowSeconds() - t0) * 1e3);
-        } catch (const std::exception& e) {
-            wanted.display.reset();
-            report(std::string("display: ") + e.what());
-            return false;
-        }
-    }
+    for (int make : {want, early ? 1 : -1})
+        if (make >= 0 && !mSlots[make].display && !makeDisplay(make, view)) return false;
     DisplaySlot& wanted = mSlots[want];
     // Solutions and missed edits, from the published light (structure held shared).
     for (int i = 0; i < 2; ++i)
@@ -919,45 +902,7 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
         img->display = display->lastFrame();
         img->render.rgba = encodeDisplay(img->render.radiance);
         if (!objectAt.empty()) drawSelectionOutline(img->render.rgba, objectAt, w, h, highlight);
-        if (view.mode == ViewMode::EdgesOverlay) {
-            blendEdges(img->render.rgba, display->edgeImage());
-        } else if (view.mode == ViewMode::SamplesOverlay) {
-            // This frame's new samples (age 0 after insertion) as dots.
-            std::vector<std::uint8_t> flags(static_cast<std::size_t>(w) * h, 0);
-            for (const ScreenPoint& p : display->cache().screenPoints()) {
-                const int x = static_cast<int>(p.position.x), y = static_cast<int>(p.position.y);
-                if (p.age == 0 && x >= 0 && y >= 0 && x < w && y < h)
-                    flags[static_cast<std::size_t>(y) * w + x] = 1;
-            }
-            markSamples(img->render.rgba, flags);
-            img->note = std::to_string(img->display.newSamples) + " new samples";
-        } else if (view.mode == ViewMode::Difference) {
-            const int f = std::max(1, mOptions.referenceDivisor);
-            const bool sized = w % f == 0 && h % f == 0;
-            // The reference shows the display's current solution: wait until the solver is
-            // idle and the display has its last published solution.
-            bool solverIdle;
-            {
-                std::lock_guard<std::mutex> lock(mPublishMutex);
-                solverIdle = mSolver.idle;
-            }
-            const bool waiting = view.referenceRequest != mReferenceDone;
-            if (waiting && sized && solverIdle && slot.ready() && slot.solution == light.serial) {
-                const CameraRays low(view.camera, w / f, h / f);
-                mReference = display->renderReference(low, 2);
-                mReferenceCamera = view.camera;
-                mReferenceDone = view.referenceRequest;
-            }
-            if (mReference.width * f == w && mReference.height * f == h &&
-                sameCamera(mReferenceCamera, view.camera)) {
-                img->render.rgba =
-                    differenceImage(img->render.radiance, mReference, 0.1, &img->meanDifference);
-                img->note = "false colour |epi - reference| sRGB, red at 0.1";
-            } else {
-                img->note = waiting ? "reference waits for the solver to settle"
-                                    : "no reference for this view: View > Compute reference";
-            }
-        }
+        overlayDisplayMode(view, light, slot, *img);
         img->renderMs = (nowSeconds() - r0) * 1e3;
         slot.frameMs = slot.frameMs > 0 ? 0.7 * slot.frameMs + 0.3 * img->renderMs : img->renderMs;
         ++slot.frames;
@@ -982,6 +927,93 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mImage = std::move(img);
     return true;
+}
+
+bool SessionRunner::makeDisplay(int make, const ViewRequest& view) {
+    DisplaySlot& wanted = mSlots[make];
+    DisplaySlot& source = mSlots[1 - make];
+    const bool copy = source.display && !source.behind && source.solution != 0;
+    try {
+        const InteractiveDisplayOptions options = displayOptions(make, view);
+        const int w = options.width, h = options.height;
+        const double t0 = nowSeconds();
+        if (copy) {
+            // Copies the other display's edge finder, lights, direct light, solution and
+            // preview (milliseconds; built from scratch it takes seconds in robot-room).
+            PointShader::Pause pause(source.display->shader());
+            wanted.display = std::make_unique<InteractiveDisplay>(*source.display, options);
+            wanted.solution = source.solution;
+        } else {
+            wanted.display =
+                std::make_unique<InteractiveDisplay>(mSession->discretization(), mSession->tracer(),
+                                                     interactiveSolverOptions(), options);
+            wanted.solution = 0;
+            // A drag in progress: the preview version and its subset are current (the solver
+            // thread changes them only with the structure held exclusively).
+            const int preview = mSession->previewVersion();
+            if (preview >= 0) wanted.display->setPreview(preview, mPreviewSubset.visibility());
+        }
+        wanted.viewWidth = view.width;
+        wanted.viewHeight = view.height;
+        wanted.behind = false;
+        wanted.pendingChanged.clear();
+        wanted.pendingStructural = false;
+        wanted.frameMs = 0;
+        wanted.frames = 0;
+        wanted.display->warmUp(CameraRays(view.camera, w, h));
+        spdlog::debug("display {}x{}: made ({}) in {:.1f} ms", w, h, copy ? "copy" : "built",
+                      (nowSeconds() - t0) * 1e3);
+    } catch (const std::exception& e) {
+        wanted.display.reset();
+        report(std::string("display: ") + e.what());
+        return false;
+    }
+    return true;
+}
+
+void SessionRunner::overlayDisplayMode(const ViewRequest& view, const Light& light,
+                                       DisplaySlot& slot, ViewportImage& img) {
+    InteractiveDisplay* display = slot.display.get();
+    const int w = display->width(), h = display->height();
+    if (view.mode == ViewMode::EdgesOverlay) {
+        blendEdges(img.render.rgba, display->edgeImage());
+    } else if (view.mode == ViewMode::SamplesOverlay) {
+        // This frame's new samples (age 0 after insertion) as dots.
+        std::vector<std::uint8_t> flags(static_cast<std::size_t>(w) * h, 0);
+        for (const ScreenPoint& p : display->cache().screenPoints()) {
+            const int x = static_cast<int>(p.position.x), y = static_cast<int>(p.position.y);
+            if (p.age == 0 && x >= 0 && y >= 0 && x < w && y < h)
+                flags[static_cast<std::size_t>(y) * w + x] = 1;
+        }
+        markSamples(img.render.rgba, flags);
+        img.note = std::to_string(img.display.newSamples) + " new samples";
+    } else if (view.mode == ViewMode::Difference) {
+        const int f = std::max(1, mOptions.referenceDivisor);
+        const bool sized = w % f == 0 && h % f == 0;
+        // The reference shows the display's current solution: wait until the solver is idle
+        // and the display has its last published solution.
+        bool solverIdle;
+        {
+            std::lock_guard<std::mutex> lock(mPublishMutex);
+            solverIdle = mSolver.idle;
+        }
+        const bool waiting = view.referenceRequest != mReferenceDone;
+        if (waiting && sized && solverIdle && slot.ready() && slot.solution == light.serial) {
+            const CameraRays low(view.camera, w / f, h / f);
+            mReference = display->renderReference(low, 2);
+            mReferenceCamera = view.camera;
+            mReferenceDone = view.referenceRequest;
+        }
+        if (mReference.width * f == w && mReference.height * f == h &&
+            sameCamera(mReferenceCamera, view.camera)) {
+            img.render.rgba =
+                differenceImage(img.render.radiance, mReference, 0.1, &img.meanDifference);
+            img.note = "false colour |epi - reference| sRGB, red at 0.1";
+        } else {
+            img.note = waiting ? "reference waits for the solver to settle"
+                               : "no reference for this view: View > Compute reference";
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -52,9 +52,11 @@
 #include <future>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "edit/edit_session.h"
@@ -253,6 +255,32 @@ private:
     bool solverIteration();
     /// Renders if the light or the view changed; returns whether it rendered.
     bool renderIteration();
+    /// What renderIteration found for the ray-traced modes: the interpolant mesh (when the
+    /// interpolant mode has one), its build's note, and whether a display or mesh is still
+    /// loading (Gouraud is shown meanwhile).
+    struct TracedView {
+        const HifiMesh* hifi = nullptr;
+        std::string hifiNote;
+        bool loading = false;
+    };
+    /// renderIteration for the ray-traced modes (Gouraud, out of date, interpolants, and the
+    /// display modes while their display loads), at a reduced resolution while interactive.
+    bool renderTracedView(const ViewRequest& view, const Light& light,
+                          const std::shared_ptr<const ViewportImage>& last, int highlight,
+                          const TracedView& traced);
+    /// The divisor of the view's resolution that renders in about interactiveImageMs while
+    /// the view is interactive; 1 otherwise.
+    int reducedDivisor(const ViewRequest& view) const;
+    /// `values` over every element: a drag appends a version (its elements) before the solver
+    /// publishes lighting for it, so elements of versions the image does not show (dead, not
+    /// `previewVersion`) get 0; any other gap gives null (wait for the next lighting).
+    std::shared_ptr<const std::vector<Rgb>> coverElements(
+        const std::shared_ptr<const std::vector<Rgb>>& values, int previewVersion) const;
+    /// Traces the ray-traced image into `img` (its render and note); false, reported, when
+    /// rendering threw.
+    bool traceImage(const ViewRequest& view, const Light& light, int w, int h, int highlight,
+                    const HifiMesh* hifi, const std::vector<Rgb>& radiosity,
+                    const std::vector<Rgb>* pending, ViewportImage& img);
     /// Whether a display exists for the display modes; starts building the first one in the
     /// background (threaded runners) and installs it when done (structure held shared).
     bool displayLanded(const ViewRequest& view);
@@ -294,6 +322,25 @@ private:
         std::function<EditCommand(EditSession&)> make;
     };
     std::deque<Queued> mQueue;
+    /// What one solver iteration takes from the queue and flags (under mQueueMutex).
+    struct SolverWork {
+        std::deque<Queued> commands;
+        bool solve = false;
+        double eps = 0;
+        std::optional<std::pair<RedistributionStrategy, double>> strategy;
+    };
+    /// Applies a batch of edits and tasks with the structure exclusive and the displays'
+    /// shaders paused, hands the events to the displays, then publishes the new state.
+    void applyCommands(std::deque<Queued>& commands);
+    /// After a task (which may have changed anything): the live displays recompute; the
+    /// others are marked behind.
+    void notifyStructuralChange();
+    /// Drops the visibility subsets no display uses any more and makes the occluder subsets
+    /// the displays ask for.
+    void pruneSubsets();
+    /// Shoots one shot at a time until `t0` + the solve budget, or until converged to `eps`
+    /// (not while dragging); publishes the light as it goes. Returns the shots.
+    std::uint64_t shootForBudget(bool solve, double eps, double t0);
     ViewRequest mView;
     std::uint64_t mViewSerial = 0;
     bool mPaused = false;
@@ -352,6 +399,14 @@ private:
     /// structure shared, display mutex held).
     void catchUpDisplay(DisplaySlot& slot, const Light& light);
     bool liveSlot(int i) const { return i == mActiveSlot || i == mWantedSlot; }
+    /// Makes display slot `make` for `view` (render thread, display mutex held): a copy of
+    /// the other slot's display when that one is up to date, built from the structure
+    /// otherwise; false, reported, when it failed.
+    bool makeDisplay(int make, const ViewRequest& view);
+    /// The display mode's layer over a frame of `slot`'s display: its edges, its new samples,
+    /// or the difference from a reference of the same view (computed once the solver is idle).
+    void overlayDisplayMode(const ViewRequest& view, const Light& light, DisplaySlot& slot,
+                            ViewportImage& img);
     std::mutex mDisplayMutex;
     DisplaySlot mSlots[2];
     /// The first display, built on a thread of its own (displayLanded).
