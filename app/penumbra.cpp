@@ -17,11 +17,11 @@
 
 #include "app/import_flags.h"
 #include "bench/bench.h"
+#include "core/input_error.h"
 #include "core/log.h"
 #include "edit/edit_log.h"
 #include "edit/edit_session.h"
 #include "edit/export.h"
-#include "edit/input_error.h"
 #include "edit/lit_scene.h"
 #include "edit/replay.h"
 #include "edit/scene_io.h"

@@ -11,8 +11,8 @@
 #include <iostream>
 
 #include "app/import_flags.h"
+#include "core/input_error.h"
 #include "core/log.h"
-#include "edit/input_error.h"
 #include "ui/editor_app.h"
 
 int main(int argc, char** argv) {

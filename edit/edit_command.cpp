@@ -10,7 +10,7 @@
 #include <string_view>
 #include <vector>
 
-#include "edit/input_error.h"
+#include "core/input_error.h"
 #include "edit/scene_io.h"
 
 namespace penumbra {

@@ -13,7 +13,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "edit/input_error.h"
+#include "core/input_error.h"
 
 namespace penumbra {
 

@@ -10,8 +10,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/input_error.h"
 #include "edit/export.h"
-#include "edit/input_error.h"
 #include "edit/scene_io.h"
 
 namespace penumbra {

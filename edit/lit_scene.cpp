@@ -6,7 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "edit/input_error.h"
+#include "core/input_error.h"
 #include "edit/scene_io.h"
 
 namespace penumbra {

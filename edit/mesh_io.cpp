@@ -34,7 +34,7 @@
 #include <tiny_obj_loader.h>
 
 #include "core/colour.h"
-#include "edit/input_error.h"
+#include "core/input_error.h"
 #include "edit/lit_scene.h"
 
 namespace penumbra {

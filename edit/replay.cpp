@@ -10,10 +10,10 @@
 #include <numeric>
 #include <sstream>
 
+#include "core/input_error.h"
 #include "core/timing.h"
 #include "edit/edit_log.h"
 #include "edit/edit_session.h"
-#include "edit/input_error.h"
 #include "edit/lit_scene.h"
 
 namespace penumbra {

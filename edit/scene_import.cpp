@@ -12,7 +12,7 @@
 #include <set>
 #include <sstream>
 
-#include "edit/input_error.h"
+#include "core/input_error.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_io.h"
 #include "solver/discretization.h"

@@ -22,7 +22,7 @@
 #include <string_view>
 #include <unordered_map>
 
-#include "edit/input_error.h"
+#include "core/input_error.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_import.h"
 
@@ -770,8 +770,9 @@ void saveScene(const Scene& scene, const std::string& path) {
         std::error_code error;
         std::filesystem::create_directories(directory / meshDir, error);
         if (error)
-            throw InputError(path, "", "cannot create " + (directory / meshDir).string() + ": " +
-                                           error.message());
+            throw InputError(
+                path, "",
+                "cannot create " + (directory / meshDir).string() + ": " + error.message());
         std::string file = meshDir + "/" + name + ".obj";
         for (int k = 2; std::any_of(written.objects.begin(), written.objects.end(),
                                     [&](const SceneObject& o) { return o.shape.file == file; });

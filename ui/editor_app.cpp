@@ -21,7 +21,7 @@
 #include <iostream>
 #include <thread>
 
-#include "edit/input_error.h"
+#include "core/input_error.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_import.h"
 #include "render/image.h"

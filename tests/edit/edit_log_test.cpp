@@ -11,9 +11,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/input_error.h"
 #include "edit/edit_command.h"
 #include "edit/edit_session.h"
-#include "edit/input_error.h"
 #include "edit/scene_io.h"
 #include "test_scenes.h"
 

@@ -14,8 +14,8 @@
 #include <memory>
 #include <sstream>
 
+#include "core/input_error.h"
 #include "edit/edit_log.h"
-#include "edit/input_error.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_io.h"
 #include "test_scenes.h"

@@ -7,8 +7,8 @@
 #include <filesystem>
 #include <string>
 
+#include "core/input_error.h"
 #include "edit/edit_log.h"
-#include "edit/input_error.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_import.h"
 #include "edit/scene_io.h"

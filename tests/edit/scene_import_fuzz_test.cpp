@@ -10,8 +10,8 @@
 #include <random>
 #include <sstream>
 
+#include "core/input_error.h"
 #include "edit/export.h"
-#include "edit/input_error.h"
 #include "edit/scene_import.h"
 #include "solver/discretization.h"
 #include "test_scenes.h"
@@ -94,8 +94,8 @@ TEST(SceneImportFuzz, MutatedGlbIsImportedOrRefused) {
     scene.objects.push_back(test::makeQuad("floor", 1, 1, "grey", {0, 0, 0}));
     scene.objects.push_back(test::makeQuad("lamp", 0.5, 0.5, "lamp", {0, 1, 0}, {180, 0, 0}));
     Discretization disc(scene);
-    const fs::path glb = fs::temp_directory_path() /
-                         ("penumbra-import-fuzz-" + std::to_string(::getpid()) + ".glb");
+    const fs::path glb =
+        fs::temp_directory_path() / ("penumbra-import-fuzz-" + std::to_string(::getpid()) + ".glb");
     exportLitScene(disc, std::vector<Rgb>(disc.elements().size(), Rgb(0.5)), glb.string(), &scene);
     const std::string bytes = readBytes(glb);
     fs::remove(glb);

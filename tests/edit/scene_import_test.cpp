@@ -4,6 +4,8 @@
 // Lambert closed forms solved through imported files; Penumbra's own glTF export read back;
 // bad files refused with one line naming the file.
 
+#include "edit/scene_import.h"
+
 #include <gtest/gtest.h>
 
 #include <array>
@@ -14,9 +16,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "core/input_error.h"
 #include "edit/export.h"
-#include "edit/input_error.h"
-#include "edit/scene_import.h"
 #include "edit/scene_io.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
@@ -29,18 +30,17 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path tempDir() {
-    const fs::path dir = fs::temp_directory_path() /
-                         ("penumbra-import-" + std::to_string(::testing::UnitTest::GetInstance()
-                                                                   ->random_seed()) +
-                          "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    const fs::path dir =
+        fs::temp_directory_path() /
+        ("penumbra-import-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+         "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir);
     fs::create_directories(dir);
     return dir;
 }
 
 std::string base64(const std::string& bytes) {
-    static const char* table =
-        "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     std::string out;
     std::size_t i = 0;
     for (; i + 2 < bytes.size(); i += 3) {
@@ -96,8 +96,10 @@ struct Gltf {
                                   {"max", {hi.x, hi.y, hi.z}}});
         const int pa = static_cast<int>(j["accessors"].size()) - 1;
         const int iv = view(indices.data(), indices.size() * 4, 34963);
-        j["accessors"].push_back(
-            {{"bufferView", iv}, {"componentType", 5125}, {"count", indices.size()}, {"type", "SCALAR"}});
+        j["accessors"].push_back({{"bufferView", iv},
+                                  {"componentType", 5125},
+                                  {"count", indices.size()},
+                                  {"type", "SCALAR"}});
         nlohmann::json primitive = {{"attributes", {{"POSITION", pa}}},
                                     {"indices", static_cast<int>(j["accessors"].size()) - 1}};
         if (material >= 0) primitive["material"] = material;
@@ -105,9 +107,9 @@ struct Gltf {
         return static_cast<int>(j["meshes"].size()) - 1;
     }
     int material(const std::string& name, Rgb base, Rgb emissive = Rgb(0.0), double strength = 1) {
-        nlohmann::json m = {{"name", name},
-                            {"pbrMetallicRoughness",
-                             {{"baseColorFactor", {base.x, base.y, base.z, 1.0}}}}};
+        nlohmann::json m = {
+            {"name", name},
+            {"pbrMetallicRoughness", {{"baseColorFactor", {base.x, base.y, base.z, 1.0}}}}};
         if (emissive != Rgb(0.0)) m["emissiveFactor"] = {emissive.x, emissive.y, emissive.z};
         if (strength != 1) {
             m["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = strength;
@@ -184,7 +186,8 @@ TEST(SceneImport, NodeTransformsTrsMatrixAndHierarchyAreBakedIntoTheObjects) {
         const std::vector<Vec3> w = worldPositions(o);
         ASSERT_EQ(w.size(), 3u) << id;
         for (int k = 0; k < 3; ++k)
-            EXPECT_NEAR(glm::length(w[k] - expected(kTriangle[k])), 0, 1e-6) << id << " vertex " << k;
+            EXPECT_NEAR(glm::length(w[k] - expected(kTriangle[k])), 0, 1e-6)
+                << id << " vertex " << k;
     }
     const std::vector<Vec3> c = worldPositions(scene.objects[scene.findObject("child")]);
     for (int k = 0; k < 3; ++k)
@@ -266,11 +269,16 @@ std::string tinyPng(const std::vector<std::array<unsigned char, 3>>& texels) {
     std::uint32_t a = 1, b = 0;
     for (unsigned char c : raw) a = (a + c) % 65521, b = (b + a) % 65521;
     const auto n = static_cast<std::uint16_t>(raw.size());
-    std::string z = {0x78, 0x01, 0x01, static_cast<char>(n & 0xff), static_cast<char>(n >> 8),
-                     static_cast<char>(~n & 0xff), static_cast<char>((~n >> 8) & 0xff)};
+    std::string z = {0x78,
+                     0x01,
+                     0x01,
+                     static_cast<char>(n & 0xff),
+                     static_cast<char>(n >> 8),
+                     static_cast<char>(~n & 0xff),
+                     static_cast<char>((~n >> 8) & 0xff)};
     z += raw + be32((b << 16) | a);
-    const std::string header = be32(static_cast<std::uint32_t>(texels.size())) + be32(1) +
-                               std::string{8, 2, 0, 0, 0};
+    const std::string header =
+        be32(static_cast<std::uint32_t>(texels.size())) + be32(1) + std::string{8, 2, 0, 0, 0};
     return std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", header) + chunk("IDAT", z) +
            chunk("IEND", "");
 }
@@ -279,8 +287,8 @@ TEST(SceneImport, ABaseColourTextureScalesTheFactorByItsLinearMean) {
     const fs::path dir = tempDir();
     Gltf g;
     const int m = g.material("tex", Rgb(0.8, 0.6, 0.4));
-    g.j["images"] = {{{"uri", "data:image/png;base64," +
-                                  base64(tinyPng({{255, 0, 188}, {0, 255, 188}}))}}};
+    g.j["images"] = {
+        {{"uri", "data:image/png;base64," + base64(tinyPng({{255, 0, 188}, {0, 255, 188}}))}}};
     g.j["textures"] = {{{"source", 0}}};
     g.j["materials"][m]["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}};
     g.node({{"name", "t"}, {"mesh", g.mesh(kTriangle, {0, 1, 2}, m)}});
@@ -290,14 +298,14 @@ TEST(SceneImport, ABaseColourTextureScalesTheFactorByItsLinearMean) {
     const double blue = std::pow((188.0 / 255 + 0.055) / 1.055, 2.4);
     const Rgb expected = Rgb(0.8 * 0.5, 0.6 * 0.5, 0.4 * blue);
     EXPECT_NEAR(glm::length(scene.findMaterial("tex")->reflectance - expected), 0, 1e-9);
-    for (const std::string& w : warnings)
-        EXPECT_EQ(w.find("texture"), std::string::npos) << w;
+    for (const std::string& w : warnings) EXPECT_EQ(w.find("texture"), std::string::npos) << w;
 }
 
 TEST(SceneImport, APointLightBecomesASphereOfTheSamePowerAndACameraAViewpoint) {
     const fs::path dir = tempDir();
     Gltf g;
-    g.node({{"name", "floor"}, {"mesh", g.mesh(quadXZ(4, 4), kQuadIndices, g.material("w", Rgb(0.5)))}});
+    g.node({{"name", "floor"},
+            {"mesh", g.mesh(quadXZ(4, 4), kQuadIndices, g.material("w", Rgb(0.5)))}});
     g.j["extensionsUsed"].push_back("KHR_lights_punctual");
     g.j["extensions"]["KHR_lights_punctual"]["lights"] = {
         {{"name", "bulb"}, {"type", "point"}, {"color", {1.0, 0.8, 0.6}}, {"intensity", 3.0}}};
@@ -328,7 +336,8 @@ TEST(SceneImport, APointLightBecomesASphereOfTheSamePowerAndACameraAViewpoint) {
     Discretization disc(scene);
     Rgb power(0.0);
     for (const Element& e : disc.elements())
-        if (e.object == bulb) power += disc.elementMaterial(&e - disc.elements().data()).emission * e.area;
+        if (e.object == bulb)
+            power += disc.elementMaterial(&e - disc.elements().data()).emission * e.area;
     for (int c = 0; c < 3; ++c)
         EXPECT_NEAR(power[c], 4 * M_PI * 3.0 * Rgb(1.0, 0.8, 0.6)[c],
                     1e-9 * 4 * M_PI * 3.0 * Rgb(1.0, 0.8, 0.6)[c]);
@@ -375,8 +384,8 @@ Gltf furnaceGltf(double size, Rgb rho, Rgb emission) {
     const double h = size / 2;
     // Each wall: the floor quad (normal +Y) turned as test::addClosedRoom turns its quads.
     const std::vector<std::pair<Vec3, Vec3>> walls = {
-        {{0, -h, 0}, {0, 0, 0}},   {{0, h, 0}, {180, 0, 0}}, {{0, 0, -h}, {90, 0, 0}},
-        {{0, 0, h}, {-90, 0, 0}},  {{h, 0, 0}, {0, 0, 90}},  {{-h, 0, 0}, {0, 0, -90}}};
+        {{0, -h, 0}, {0, 0, 0}},  {{0, h, 0}, {180, 0, 0}}, {{0, 0, -h}, {90, 0, 0}},
+        {{0, 0, h}, {-90, 0, 0}}, {{h, 0, 0}, {0, 0, 90}},  {{-h, 0, 0}, {0, 0, -90}}};
     for (const auto& [at, deg] : walls) {
         std::vector<Vec3> q = quadXZ(size, size);
         for (Vec3& p : q) {
@@ -401,7 +410,8 @@ TEST(SceneImport, TheFurnaceThroughAnImportedGltfConvergesToTheGeometricSeries) 
     const Rgb expected = emission / (1.0 - rho);
     for (std::size_t e = 0; e < disc.elements().size(); ++e)
         for (int c = 0; c < 3; ++c)
-            ASSERT_NEAR(solver.radiosity()[e][c], expected[c], 5e-3 * expected[c]) << "element " << e;
+            ASSERT_NEAR(solver.radiosity()[e][c], expected[c], 5e-3 * expected[c])
+                << "element " << e;
 }
 
 TEST(SceneImport, AnImportedEmissiveQuadLightsAsTheJsonSceneDoes) {
@@ -501,7 +511,8 @@ TEST(SceneImport, AnImportedSceneSavesAsJsonWithItsMeshesBesideIt) {
     const int glow = g.material("glow", Rgb(0.0), Rgb(1.0));
     // One mesh with two primitives of different materials: the object carries both.
     const int mixed = g.mesh(kTriangle, {0, 1, 2}, red);
-    nlohmann::json second = g.j["meshes"][g.mesh(quadXZ(1, 1), kQuadIndices, glow)]["primitives"][0];
+    nlohmann::json second =
+        g.j["meshes"][g.mesh(quadXZ(1, 1), kQuadIndices, glow)]["primitives"][0];
     g.j["meshes"][mixed]["primitives"].push_back(second);
     g.node({{"name", "two materials"}, {"mesh", mixed}});
     const Scene scene = importScene(g.write(dir / "two.gltf"), quiet());
@@ -546,15 +557,17 @@ TEST(SceneImport, BadFilesAreRefusedWithOneLineNamingTheFileAndIgnoredFeaturesAr
     refused("broken.gltf", "{\"asset\": {\"version\": \"2.0\"", "not a valid glTF");
     refused("broken.glb", "glTF\x02", "not a valid GLB");
     refused("empty.gltf", "{\"asset\": {\"version\": \"2.0\"}}", "no mesh");
-    refused("draco.gltf",
-            "{\"asset\": {\"version\": \"2.0\"}, \"extensionsUsed\": [\"KHR_draco_mesh_compression\"],"
-            " \"extensionsRequired\": [\"KHR_draco_mesh_compression\"]}",
-            "KHR_draco_mesh_compression");
+    refused(
+        "draco.gltf",
+        "{\"asset\": {\"version\": \"2.0\"}, \"extensionsUsed\": [\"KHR_draco_mesh_compression\"],"
+        " \"extensionsRequired\": [\"KHR_draco_mesh_compression\"]}",
+        "KHR_draco_mesh_compression");
     refused("nothing.obj", "# no faces\n", "no mesh");
 
     Gltf g;
     g.node({{"name", "t"}, {"mesh", g.mesh(kTriangle, {0, 1, 2}, -1)}});
-    g.j["animations"] = {{{"channels", nlohmann::json::array()}, {"samplers", nlohmann::json::array()}}};
+    g.j["animations"] = {
+        {{"channels", nlohmann::json::array()}, {"samplers", nlohmann::json::array()}}};
     std::vector<std::string> warnings;
     const Scene scene = importScene(g.write(dir / "anim.gltf"), quiet(&warnings));
     EXPECT_EQ(scene.objects.size(), 1u);

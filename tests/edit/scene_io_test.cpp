@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "edit/input_error.h"
+#include "core/input_error.h"
 #include "edit/mesh_io.h"
 
 namespace penumbra {

@@ -1,7 +1,7 @@
 #pragma once
 // InputError: the one exception type for bad user input (scene files, mesh files, edit logs,
-// command-line values). The command line catches it, prints `penumbra: ` + what() on one line
-// and exits with status 2 (DESIGN.md, "Command line").
+// holodeck files, command-line values). The command line catches it, prints `penumbra: ` + what()
+// on one line and exits with status 2 (DESIGN.md, "Command line").
 
 #include <stdexcept>
 #include <string>
