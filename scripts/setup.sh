@@ -10,6 +10,7 @@ PACKAGES=(
   libosmesa6-dev libegl-dev libegl1-mesa-dev libgl-dev libgles-dev libtbb-dev
   nlohmann-json3-dev libcli11-dev libstb-dev libtinyobjloader-dev libtinygltf-dev
   libgtest-dev libbenchmark-dev libeigen3-dev libtinyexr-dev python3-glad xvfb libspdlog-dev
+  zlib1g-dev
   # xvfb-run needs xauth (only a Recommends of xvfb); llvmpipe comes with libgl1-mesa-dri.
   xauth libgl1-mesa-dri
 )
