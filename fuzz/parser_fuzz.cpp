@@ -1,7 +1,8 @@
 // A libFuzzer target over one of the parsers that read what users hand Penumbra (issue 26):
 // PENUMBRA_FUZZ_KIND picks the scene file (loadScene), the edit log (readEditLog), a mesh file
-// (loadMeshFile; PENUMBRA_FUZZ_EXT names its format: obj, off, ply, gltf, glb) or an imported
-// scene (importScene; .gltf, .glb or .obj). The parsers read paths, as users give them, so each
+// (loadMeshFile; PENUMBRA_FUZZ_EXT names its format: obj, off, ply, gltf, glb), an imported
+// scene (importScene; .gltf, .glb or .obj) or a holodeck file (HoloFile: opened for writing,
+// which repairs a torn tail, and every stored beam read). The parsers read paths, as users give them, so each
 // input is written to a file of its own in a private folder first. A parser returns or throws
 // InputError (the one error for bad input, reported as one line and exit status 2); any other
 // exception, a crash or a sanitizer report is a finding. scripts/fuzz.sh builds and runs these.
@@ -19,11 +20,13 @@
 #include "edit/mesh_io.h"
 #include "edit/scene_import.h"
 #include "edit/scene_io.h"
+#include "render/holodeck/holo_file.h"
 
 #define PENUMBRA_FUZZ_SCENE 1
 #define PENUMBRA_FUZZ_LOG 2
 #define PENUMBRA_FUZZ_MESH 3
 #define PENUMBRA_FUZZ_IMPORT 4
+#define PENUMBRA_FUZZ_HOLODECK 5
 
 namespace {
 
@@ -57,6 +60,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         (void)penumbra::loadMeshFile(path);
 #elif PENUMBRA_FUZZ_KIND == PENUMBRA_FUZZ_IMPORT
         (void)penumbra::importScene(path);
+#elif PENUMBRA_FUZZ_KIND == PENUMBRA_FUZZ_HOLODECK
+        penumbra::HoloFile file(path, {});
+        for (const auto& [section, beam] : file.storedBeams()) (void)file.readBeam(section, beam);
+        (void)file.info();
 #else
 #error "PENUMBRA_FUZZ_KIND must name a parser"
 #endif

@@ -9,7 +9,7 @@
 #   scripts/fuzz.sh [--runs N | --seconds S] [--jobs J] [TARGET ...]
 #
 # Defaults: 10,000,000 runs per target, two targets at a time, every target (scene log obj off
-# ply gltf glb import_gltf import_glb import_obj).
+# ply gltf glb import_gltf import_glb import_obj holodeck).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -25,7 +25,7 @@ while [ $# -gt 0 ]; do
     *) targets+=("$1"); shift ;;
   esac
 done
-[ ${#targets[@]} -gt 0 ] || targets=(scene log obj off ply gltf glb import_gltf import_glb import_obj)
+[ ${#targets[@]} -gt 0 ] || targets=(scene log obj off ply gltf glb import_gltf import_glb import_obj holodeck)
 
 # The build's dependencies, and Clang (libFuzzer ships with Debian's clang package).
 bash scripts/setup.sh
@@ -42,7 +42,7 @@ cmake --build "$dir" -j2 --target "${targets[@]/#/fuzz_}"
 # Seed corpora: the bundled scenes and logs, and a few small files of each mesh format.
 seeds=$dir/seeds
 rm -rf "$seeds"
-mkdir -p "$seeds"/{scene,log,obj,off,ply,gltf,glb,import_gltf,import_glb,import_obj}
+mkdir -p "$seeds"/{scene,log,obj,off,ply,gltf,glb,import_gltf,import_glb,import_obj,holodeck}
 cp scenes/*.json "$seeds/scene/"
 cp scenes/logs/*.jsonl "$seeds/log/"
 cp scenes/gltf/*.gltf "$seeds/import_gltf/"
@@ -142,6 +142,27 @@ glb += struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len
 for d in ("glb", "import_glb"):
     with open(f"{seeds}/{d}/triangle.glb", "wb") as f:
         f.write(glb)
+
+# Holodeck files (docs/holodeck.md): one section, a committed beam, and a copy with an
+# uncommitted beam record and a torn one after it.
+import zlib
+def rec(magic, body):
+    return magic + struct.pack("<I", zlib.crc32(body)) + body
+head = b"PNBRHOLO" + struct.pack("<II", 1, 1)
+head += struct.pack("<6d3IB3x", 0, 0, 0, 4, 3, 2, 6, 5, 4, 0)
+head += struct.pack("<II", zlib.crc32(head), 0)
+start = len(head) + 80
+beam = rec(b"BEAM", struct.pack("<IIq", 0, 2, 5) + bytes(range(20)))
+directory = rec(b"DIRS", struct.pack("<QQ", 1, 1) + struct.pack("<IIqQ", 0, 2, 5, start))
+end = start + len(beam) + len(directory)
+slot = struct.pack("<4Q", 1, start + len(beam), len(directory), end)
+slots = bytes(40) + slot + struct.pack("<II", zlib.crc32(slot), 0)
+committed = head + slots + beam + directory
+with open(f"{seeds}/holodeck/committed.hdk", "wb") as f:
+    f.write(committed)
+appended = rec(b"BEAM", struct.pack("<IIq", 0, 1, 9) + bytes(10))
+with open(f"{seeds}/holodeck/torn.hdk", "wb") as f:
+    f.write(committed + appended + appended[:17])
 PY
 
 # The runs, `jobs` targets at a time; each target's corpus grows in build-fuzz/corpus/TARGET.
