@@ -212,7 +212,9 @@ struct Importer {
     }
 
     /// Element and shooter sizes from the surface area: about kTargetElements receivers
-    /// whatever the scene's scale (the defaults' 0.1 m would give a large hall millions).
+    /// whatever the scene's scale (the defaults' 0.1 m would give a large hall millions). The
+    /// point lights' spheres count too: a light beside meshes far smaller than it would
+    /// otherwise be split into as many elements as its area holds of theirs.
     void chooseSettings() {
         double area = 0;
         for (const SceneObject& o : scene.objects) {
@@ -221,6 +223,9 @@ struct Importer {
                 area += 0.5 * glm::length(glm::cross(m.positions[t[1]] - m.positions[t[0]],
                                                      m.positions[t[2]] - m.positions[t[0]]));
         }
+        for (const MeshFileLight& light : file.lights)
+            if (light.type != "directional")
+                area += 4 * M_PI * options.lightRadius * options.lightRadius;
         if (!(area > 0)) return;
         // Rounded up to two significant digits (0.16, not 0.1573...); divided, not multiplied,
         // by the power of ten below 1 so the value prints as written.
