@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -31,6 +32,8 @@
 #include "render/gl/offscreen_context.h"
 #include "render/gouraud_renderer.h"
 #include "render/hifi_mesh.h"
+#include "render/holodeck/holo_file.h"
+#include "render/holodeck/holo_server.h"
 #include "render/image.h"
 #include "render/interactive_display.h"
 #include "render/path_tracer.h"
@@ -87,12 +90,17 @@ std::function<void(double)> progressPrinter(double eps) {
     };
 }
 
-std::unique_ptr<LitScene> openAndSolve(const SolveArgs& a) {
+/// The solver's options as the command line sets them.
+SolverOptions solverOptionsOf(const SolveArgs& a) {
     SolverOptions options = interactiveSolverOptions();
     options.seed = a.seed;
     options.stochasticBelow = a.stochasticBelow;
     options.gradientThreshold = a.subdivide;
-    auto lit = LitScene::open(a.scene, options, a.import);
+    return options;
+}
+
+std::unique_ptr<LitScene> openAndSolve(const SolveArgs& a) {
+    auto lit = LitScene::open(a.scene, solverOptionsOf(a), a.import);
     lit->solver().converge(a.converge, a.maxShots, progressPrinter(a.converge));
     if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\n");
     return lit;
@@ -296,10 +304,7 @@ double compareWith(const Image& image, const std::string& path, const Discretiza
 int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     using Clock = std::chrono::steady_clock;
     // Read every input before solving.
-    SolverOptions options = interactiveSolverOptions();
-    options.seed = a.seed;
-    options.stochasticBelow = a.stochasticBelow;
-    options.gradientThreshold = a.subdivide;
+    const SolverOptions options = solverOptionsOf(a);
     auto session = EditSession::open(a.scene, options, a.import);
     std::vector<LoggedEdit> edits;
     if (!r.log.empty())
@@ -568,6 +573,93 @@ void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPix
         ->check(CLI::Range(0.0, 1e6));
 }
 
+// ---------------------------------------------------------------------------------------------
+// holodeck fill and info (Ward & Simmons 1999; docs/holodeck.md).
+
+struct HolodeckArgs {
+    std::string file;  ///< fill: --holodeck (default SCENE.hdk); info: FILE
+    std::string camera;
+    double seconds = 0;
+    std::int64_t samples = 0;
+    int width = 512, height = 512;  ///< --camera: the view whose beams are filled
+};
+
+/// The holodeck beside a scene: its path with the extension .hdk.
+std::string defaultHolodeckPath(const std::string& scene) {
+    return std::filesystem::path(scene).replace_extension(".hdk").string();
+}
+
+/// The bounds of the scene's surfaces (alive objects' vertices).
+std::pair<Vec3, Vec3> sceneBounds(const Discretization& disc) {
+    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+    for (const ObjectSurface& o : disc.objects()) {
+        if (!o.alive) continue;
+        for (const Vec3& p : o.worldPositions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    }
+    return {lo, hi};
+}
+
+nlohmann::json holodeckJson(const HoloFile& file) {
+    const HoloFileInfo info = file.info();
+    nlohmann::json sections = nlohmann::json::array();
+    for (const HoloSection& s : file.sections())
+        sections.push_back({{"kind", s.kind() == SectionKind::Interior ? "interior" : "exterior"},
+                            {"origin", {s.origin().x, s.origin().y, s.origin().z}},
+                            {"size", {s.size().x, s.size().y, s.size().z}},
+                            {"grid", {s.grid()[0], s.grid()[1], s.grid()[2]}},
+                            {"beams", s.beamCount()}});
+    return {
+        {"file", file.path()},
+        {"sections", sections},
+        {"beams", info.beams},
+        {"samples", info.samples},
+        {"bytes", info.bytes},
+        {"free_bytes", info.freeBytes},
+        {"fragments", info.fragments},
+        {"bytes_per_sample", info.samples > 0 ? double(info.bytes) / double(info.samples) : 0.0}};
+}
+
+int runHolodeckInfo(const HolodeckArgs& h) {
+    const HoloFile file = HoloFile::openReadOnly(h.file);
+    std::printf("%s\n", holodeckJson(file).dump(2).c_str());
+    return 0;
+}
+
+int runHolodeckFill(const SolveArgs& a, const HolodeckArgs& h) {
+    const std::string path = h.file.empty() ? defaultHolodeckPath(a.scene) : h.file;
+    auto lit = openAndSolve(a);
+    std::optional<CameraRays> view;
+    if (!h.camera.empty())
+        view.emplace(pickCamera(lit->scene(), a.scene, h.camera), h.width, h.height);
+    // The display's own shading: the same options, its seed.
+    PointShaderOptions shading = InteractiveDisplayOptions{}.shader;
+    shading.seed = a.seed;
+    shading.threads = 0;
+    PointShader shader(lit->discretization(), lit->tracer(), solverOptionsOf(a), shading);
+    shader.updateSolution(lit->solver());
+    // A new holodeck gets one interior section over the scene; an existing one keeps its own.
+    const auto [lo, hi] = sceneBounds(lit->discretization());
+    HoloFile file(path, {layoutSection(lo, hi)});
+    HoloServer server(file, &shader);
+    const std::vector<BeamRequest> requests =
+        view ? viewRequests(file.sections(), *view, std::max(1, h.width / 4),
+                            std::max(1, h.height / 4), 1.0)
+             : server.batchRequests(1e6);
+    const bool tty = ::isatty(STDERR_FILENO);
+    const std::int64_t samples = h.samples > 0 || h.seconds > 0 ? h.samples : 1000000;
+    const FillStats stats = server.fill(requests, samples, h.seconds, 5.0, [&](double f) {
+        if (tty) std::fprintf(stderr, "\rholodeck: filling %3.0f%%", 100 * f);
+    });
+    if (tty) std::fprintf(stderr, "\n");
+    nlohmann::json report = holodeckJson(file);
+    report["samples_added"] = stats.samples;
+    report["beams_filled"] = stats.beams;
+    report["seconds"] = stats.seconds;
+    report["samples_per_second"] = stats.seconds > 0 ? stats.samples / stats.seconds : 0.0;
+    std::printf("%s\n", report.dump(2).c_str());
+    return 0;
+}
+
 /// Every subcommand's options land here; the CLI::App pointers say which one ran.
 struct Commands {
     SolveArgs solve;
@@ -578,6 +670,8 @@ struct Commands {
     RedistributionBenchOptions redist;
     DisplayBenchOptions display;
     HifiBenchOptions hifi;
+    HolodeckArgs holodeck;
+    CLI::App *holodeckFill = nullptr, *holodeckInfo = nullptr;
     CLI::App *solveCmd = nullptr, *probeCmd = nullptr, *exportCmd = nullptr, *renderCmd = nullptr,
              *replayCmd = nullptr, *benchSolver = nullptr, *benchRedist = nullptr,
              *benchDisplay = nullptr, *benchHifi = nullptr;
@@ -711,6 +805,32 @@ void addReplayCommand(CLI::App& app, Commands& c) {
         ->check(CLI::Range(0.0, 1.0));
 }
 
+void addHolodeckCommands(CLI::App& app, Commands& c) {
+    CLI::App* holodeck =
+        app.add_subcommand("holodeck", "the persistent ray cache (Ward & Simmons)");
+    holodeck->require_subcommand(1);
+    HolodeckArgs& h = c.holodeck;
+    CLI::App* fill = c.holodeckFill =
+        holodeck->add_subcommand("fill", "solve a scene and fill its holodeck with shaded samples");
+    addSolveOptions(fill, c.solve);
+    fill->add_option("--holodeck", h.file, "the holodeck file (default: SCENE.hdk)");
+    fill->add_option("--camera", h.camera,
+                     "fill the beams this camera's view needs (default: every beam, in "
+                     "proportion to its volume)");
+    fill->add_option("--width", h.width, "--camera: view width in pixels")
+        ->check(CLI::Range(1, 16384));
+    fill->add_option("--height", h.height, "--camera: view height in pixels")
+        ->check(CLI::Range(1, 16384));
+    CLI::Option* seconds =
+        fill->add_option("--seconds", h.seconds, "fill for S seconds")->check(CLI::PositiveNumber);
+    fill->add_option("--samples", h.samples, "fill N new samples (default 1,000,000)")
+        ->check(CLI::PositiveNumber)
+        ->excludes(seconds);
+    CLI::App* info = c.holodeckInfo =
+        holodeck->add_subcommand("info", "print a holodeck's sections, beams, samples and bytes");
+    info->add_option("FILE", h.file, "holodeck file")->required();
+}
+
 void addBenchCommands(CLI::App& app, Commands& c) {
     CLI::App* benchCmd = app.add_subcommand("bench", "benchmarks (Google Benchmark + tables)");
     benchCmd->require_subcommand(1);
@@ -803,6 +923,7 @@ int main(int argc, char** argv) {
     addRenderCommand(app, c);
     addReplayCommand(app, c);
     addBenchCommands(app, c);
+    addHolodeckCommands(app, c);
 
     try {
         app.parse(argc, argv);
@@ -828,6 +949,8 @@ int main(int argc, char** argv) {
         if (*c.benchRedist) return runRedistributionBench(c.redist);
         if (*c.benchDisplay) return runDisplayBench(c.display);
         if (*c.benchHifi) return runHifiBench(c.hifi);
+        if (*c.holodeckFill) return runHolodeckFill(c.solve, c.holodeck);
+        if (*c.holodeckInfo) return runHolodeckInfo(c.holodeck);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "penumbra: %s\n", e.what());
         return 2;

@@ -3,15 +3,39 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
+#include <map>
 #include <queue>
 #include <stdexcept>
 
 #include "core/log.h"
 #include "core/random.h"
 #include "core/timing.h"
+#include "render/camera_rays.h"
 #include "render/point_shader.h"
 
 namespace penumbra {
+
+std::vector<BeamRequest> viewRequests(const std::vector<HoloSection>& sections,
+                                      const CameraRays& camera, int raysX, int raysY,
+                                      double samplesPerRay, std::uint64_t seed) {
+    std::map<std::pair<int, std::int64_t>, int> hits;
+    for (int j = 0; j < raysY; ++j) {
+        for (int i = 0; i < raysX; ++i) {
+            const std::uint64_t r = splitmix64(hashPair(seed, std::uint64_t(j) * raysX + i));
+            const double px = (i + double(r & 0xffff) / 65536.0) * camera.width() / raysX;
+            const double py = (j + double((r >> 16) & 0xffff) / 65536.0) * camera.height() / raysY;
+            const Vec3 d = camera.rayDirection(px, py);
+            for (int s = 0; s < int(sections.size()); ++s)
+                if (const auto ray = sections[s].locate(camera.origin(), d)) ++hits[{s, ray->beam}];
+        }
+    }
+    std::vector<BeamRequest> requests;
+    requests.reserve(hits.size());
+    for (const auto& [key, count] : hits)
+        requests.push_back({key.first, key.second, count * samplesPerRay});
+    return requests;
+}
 
 std::size_t HoloServer::KeyHash::operator()(const Key& k) const {
     return static_cast<std::size_t>(
@@ -175,7 +199,9 @@ FillStats HoloServer::fill(const std::vector<BeamRequest>& requests, std::int64_
                (maxSamples <= 0 || planned < maxSamples)) {
             const std::size_t i = queue.top().second;
             queue.pop();
-            int count = mOptions.packet;
+            // A quarter of the beam's desired samples at a time (1 to `packet`): batch filling
+            // spreads over every beam before it deepens any.
+            int count = std::clamp(int(std::ceil(0.25 * requests[i].desired)), 1, mOptions.packet);
             if (maxSamples > 0) count = int(std::min<std::int64_t>(count, maxSamples - planned));
             planned += count;
             packets.push_back({i, count, {}});

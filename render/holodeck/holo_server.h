@@ -6,7 +6,7 @@
 // Batch mode desires samples in proportion to each beam's volume; a display asks for the beams
 // of its view. Without a shader the server only reads (the paper's display-only mode).
 //
-// Index: HoloServerOptions · BeamRequest · HoloServer
+// Index: HoloServerOptions · BeamRequest · viewRequests · HoloServer
 
 #include <cstdint>
 #include <functional>
@@ -18,12 +18,14 @@
 
 namespace penumbra {
 
+class CameraRays;
 class PointShader;
 
 struct HoloServerOptions {
     std::size_t cacheBytes = std::size_t(64)
                              << 20;  ///< samples held in memory (the paper: 8–24 MB)
-    /// Samples computed for a beam at a time (the paper's packets hold 1 to 21).
+    /// The most samples computed for a beam at a time (the paper's packets hold 1 to 21); a
+    /// beam takes a quarter of its desired samples at a time, at least one.
     int packet = 8;
     std::uint64_t seed = 1;  ///< sample positions depend on (seed, section, beam, index) only
 };
@@ -34,6 +36,13 @@ struct BeamRequest {
     std::int64_t beam = 0;
     double desired = 0;
 };
+
+/// The beams a view needs (§2.4.2): view rays on a jittered `raysX` × `raysY` grid over the
+/// image, located in every section; each beam is desired `samplesPerRay` samples per view ray
+/// through it (a density matched to the view's pixels). Sorted by section and beam.
+std::vector<BeamRequest> viewRequests(const std::vector<HoloSection>& sections,
+                                      const CameraRays& camera, int raysX, int raysY,
+                                      double samplesPerRay, std::uint64_t seed = 1);
 
 /// What a fill did.
 struct FillStats {

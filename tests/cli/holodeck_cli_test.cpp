@@ -1,0 +1,77 @@
+// `penumbra holodeck fill` and `info`: a batch fill and a camera's fill of a bundled scene add
+// exactly the samples asked for to one file that keeps its sections between runs; `info`
+// reports what `fill` wrote; a file that is not a holodeck is one error line and exit 2.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "cli_support.h"
+
+namespace penumbra {
+namespace {
+
+namespace fs = std::filesystem;
+
+class HolodeckCli : public ::testing::Test {
+protected:
+    void SetUp() override {
+        mDir = fs::temp_directory_path() / ("penumbra_cli_holodeck_" + std::to_string(::getpid()));
+        fs::remove_all(mDir);
+        fs::create_directories(mDir);
+    }
+    void TearDown() override { fs::remove_all(mDir); }
+    /// Runs penumbra with `args`; its exit status, stdout in out.txt and stderr in err.txt.
+    int run(const std::string& args) const {
+        return test::runShell(std::string("timeout 300 '") + PENUMBRA_EXE + "' " + args + " > '" +
+                              (mDir / "out.txt").string() + "' 2> '" + (mDir / "err.txt").string() +
+                              "'");
+    }
+    nlohmann::json out() const { return nlohmann::json::parse(test::readFile(mDir / "out.txt")); }
+    std::string err() const { return test::readFile(mDir / "err.txt"); }
+    fs::path mDir;
+};
+
+TEST_F(HolodeckCli, FillAddsTheSamplesAskedForAndInfoReportsThem) {
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cube-room.json";
+    const std::string file = (mDir / "cube-room.hdk").string();
+    ASSERT_EQ(run("holodeck fill '" + scene + "' --holodeck '" + file + "' --samples 20000"), 0)
+        << err();
+    const nlohmann::json filled = out();
+    EXPECT_EQ(filled["samples_added"].get<std::int64_t>(), 20000);
+    EXPECT_EQ(filled["samples"].get<std::int64_t>(), 20000);
+    ASSERT_EQ(filled["sections"].size(), 1u);
+    const std::int64_t sectionBeams = filled["sections"][0]["beams"].get<std::int64_t>();
+    EXPECT_GE(sectionBeams, 50000);
+    EXPECT_LE(sectionBeams, 500000);
+
+    // A camera's view adds to the same file, whose section stays as it was made.
+    ASSERT_EQ(run("holodeck fill '" + scene + "' --holodeck '" + file +
+                  "' --camera default --width 64 --height 48 --samples 3000"),
+              0)
+        << err();
+    EXPECT_EQ(out()["samples"].get<std::int64_t>(), 23000);
+    EXPECT_EQ(out()["sections"][0]["beams"].get<std::int64_t>(), sectionBeams);
+
+    ASSERT_EQ(run("holodeck info '" + file + "'"), 0) << err();
+    const nlohmann::json info = out();
+    EXPECT_EQ(info["samples"].get<std::int64_t>(), 23000);
+    EXPECT_GT(info["beams"].get<std::int64_t>(), 1000);
+    EXPECT_EQ(info["bytes"].get<std::int64_t>(), std::int64_t(fs::file_size(file)));
+}
+
+TEST_F(HolodeckCli, ANonHolodeckFileIsOneErrorLineAndExitTwo) {
+    const fs::path bad = mDir / "notes.hdk";
+    test::writeFile(bad, "these are notes, not samples\n");
+    EXPECT_EQ(run("holodeck info '" + bad.string() + "'"), 2);
+    const std::string message = err();
+    EXPECT_EQ(std::count(message.begin(), message.end(), '\n'), 1) << message;
+    EXPECT_NE(message.find(bad.string()), std::string::npos) << message;
+    EXPECT_NE(message.find("not a holodeck file"), std::string::npos) << message;
+    EXPECT_EQ(run("holodeck info '" + (mDir / "missing.hdk").string() + "'"), 2);
+}
+
+}  // namespace
+}  // namespace penumbra
