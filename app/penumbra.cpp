@@ -671,6 +671,8 @@ struct Commands {
     DisplayBenchOptions display;
     HifiBenchOptions hifi;
     HolodeckArgs holodeck;
+    HolodeckBenchOptions benchHolodeckOptions;
+    CLI::App* benchHolodeck = nullptr;
     CLI::App *holodeckFill = nullptr, *holodeckInfo = nullptr;
     CLI::App *solveCmd = nullptr, *probeCmd = nullptr, *exportCmd = nullptr, *renderCmd = nullptr,
              *replayCmd = nullptr, *benchSolver = nullptr, *benchRedist = nullptr,
@@ -870,6 +872,19 @@ void addBenchCommands(CLI::App& app, Commands& c) {
     benchHifi->add_option("--plot-dir", hifi.plotDir, "write the error images there");
     benchHifi->add_option("--json", hifi.jsonOut, "write every figure as JSON");
 
+    HolodeckBenchOptions& holo = c.benchHolodeckOptions;
+    CLI::App* benchHolodeck = c.benchHolodeck = benchCmd->add_subcommand(
+        "holodeck",
+        "Ward & Simmons: fill rate, bytes per sample, view samples from disk and memory");
+    benchHolodeck->add_option("--cases", holo.cases,
+                              "scenes by name (default: cube-room robot-room)");
+    benchHolodeck->add_option("--scene-dir", holo.sceneDir, "folder with the scenes");
+    benchHolodeck->add_option("--samples", holo.samples, "samples of the batch fill")
+        ->check(CLI::Range(std::int64_t(1), std::int64_t(1) << 40));
+    benchHolodeck->add_option("--width", holo.width)->check(CLI::Range(8, 8192));
+    benchHolodeck->add_option("--height", holo.height)->check(CLI::Range(8, 8192));
+    benchHolodeck->add_option("--json", holo.jsonOut, "write every figure as JSON");
+
     CLI::App* benchDisplay = c.benchDisplay = benchCmd->add_subcommand(
         "display", "Bala et al. Table 2: display stage times, fps, epi vs cache error");
     benchDisplay->add_option("--cases", display.cases, "robot-room and/or armadillo-field");
@@ -949,6 +964,7 @@ int main(int argc, char** argv) {
         if (*c.benchRedist) return runRedistributionBench(c.redist);
         if (*c.benchDisplay) return runDisplayBench(c.display);
         if (*c.benchHifi) return runHifiBench(c.hifi);
+        if (*c.benchHolodeck) return runHolodeckBench(c.benchHolodeckOptions);
         if (*c.holodeckFill) return runHolodeckFill(c.solve, c.holodeck);
         if (*c.holodeckInfo) return runHolodeckInfo(c.holodeck);
     } catch (const std::exception& e) {

@@ -2,6 +2,7 @@
 // Benchmarks behind `penumbra bench`: each prints figures and ratios against a baseline
 // measured in the same run (STYLE: speed lives in benchmarks, never in timed tests).
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -95,5 +96,17 @@ struct HifiBenchOptions {
 /// evaluation frames/s on the offscreen GL pass, and the error of gouraud, epi and
 /// interpolant against the display's reference, per scene.
 int runHifiBench(const HifiBenchOptions& options);
+
+struct HolodeckBenchOptions {
+    std::vector<std::string> cases{"cube-room", "robot-room"};
+    std::string sceneDir = "scenes";
+    std::int64_t samples = 2000000;  ///< the batch fill
+    int width = 512;                 ///< the default camera's view, whose beams are read back
+    int height = 512;
+    std::string jsonOut;
+};
+/// `penumbra bench holodeck`: fill rate and bytes per sample of a batch fill; a view's samples
+/// read back from disk and from memory, against shading them (Ward & Simmons 1999).
+int runHolodeckBench(const HolodeckBenchOptions& options);
 
 }  // namespace penumbra

@@ -75,7 +75,10 @@ void HoloServer::evict() {
     while (mCachedBytes > mOptions.cacheBytes && mLru.size() > 1) {
         const Key key = mLru.back();
         auto it = mCache.find(key);
-        if (it->second.dirty) mFile.writeBeam(key.section, key.beam, it->second.samples);
+        if (it->second.dirty) {
+            mFile.writeBeam(key.section, key.beam, it->second.samples);
+            mWritten = true;
+        }
         mCachedBytes -= it->second.samples.size() * sizeof(HoloSample);
         mCache.erase(it);
         mLru.pop_back();
@@ -99,12 +102,15 @@ void HoloServer::addSamples(int section, std::int64_t beam,
 }
 
 void HoloServer::flush() {
+    bool wrote = mWritten;
     for (auto& [key, c] : mCache) {
         if (!c.dirty) continue;
         mFile.writeBeam(key.section, key.beam, c.samples);
         c.dirty = false;
+        wrote = true;
     }
-    mFile.commit();
+    if (wrote) mFile.commit();
+    mWritten = false;
 }
 
 std::uint32_t HoloServer::sampleCount(int section, std::int64_t beam) const {

@@ -65,7 +65,8 @@ public:
     const std::vector<HoloSample>& beam(int section, std::int64_t beam);
     /// Appends samples to a beam (in memory; written when evicted or flushed).
     void addSamples(int section, std::int64_t beam, const std::vector<HoloSample>& samples);
-    /// Writes every beam changed in memory to the file and commits it.
+    /// Writes every beam changed in memory to the file and commits it (nothing changed:
+    /// nothing written, so a display-only server never writes).
     void flush();
 
     /// Computes samples for `requests` until `maxSamples` new samples or `seconds` have
@@ -118,6 +119,7 @@ private:
     std::unordered_map<Key, Cached, KeyHash> mCache;
     std::list<Key> mLru;  ///< most recently used first
     std::size_t mCachedBytes = 0;
+    bool mWritten = false;  ///< beams evicted to the file since the last commit
 };
 
 }  // namespace penumbra

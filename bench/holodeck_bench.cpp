@@ -1,0 +1,172 @@
+// `penumbra bench holodeck` (Ward & Simmons 1999): per scene, a batch fill of a new holodeck
+// (samples/s on every core, bytes per sample), the default camera's view filled to a sample per
+// pixel, then that view's beams read back from the file with its pages dropped from the
+// operating system's cache ("disk", after opening it) and again from the server's memory, each
+// decoded to world-space samples on one thread. The baseline, measured in the same run, is
+// shading as many of the view's rays with the display's point shader on one thread; the
+// paper's figure is 41,000 samples/s read from file per view.
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "bench/bench.h"
+#include "core/timing.h"
+#include "edit/edit_session.h"
+#include "edit/lit_scene.h"
+#include "render/camera_rays.h"
+#include "render/holodeck/holo_file.h"
+#include "render/holodeck/holo_server.h"
+#include "render/interactive_display.h"
+#include "render/point_shader.h"
+
+namespace penumbra {
+namespace {
+
+struct HolodeckCase {
+    std::string name;
+    std::int64_t beams = 0, samples = 0, bytes = 0;
+    double fillPerSecond = 0;
+    std::int64_t viewBeams = 0, viewSamples = 0;
+    double openMs = 0, diskPerSecond = 0, memoryPerSecond = 0, shadePerSecond = 0;
+};
+
+/// Drops the file's pages from the operating system's cache, so the next reads come from disk.
+void dropFromPageCache(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return;
+    ::fdatasync(fd);
+    ::posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED);
+    ::close(fd);
+}
+
+/// Every sample of the view's beams, read through `server` and decoded; returns how many.
+std::int64_t readView(HoloServer& server, const std::vector<HoloSection>& sections,
+                      const std::vector<BeamRequest>& view, std::vector<DecodedSample>& out) {
+    out.clear();
+    std::vector<DistanceCode> codes;
+    for (const HoloSection& s : sections) codes.emplace_back(s.diagonal());
+    for (const BeamRequest& r : view)
+        for (const HoloSample& sample : server.beam(r.section, r.beam))
+            out.push_back(decodeSample(sample, sections[r.section], r.beam, codes[r.section]));
+    return std::int64_t(out.size());
+}
+
+HolodeckCase runCase(const HolodeckBenchOptions& o, const std::string& name,
+                     const std::string& file) {
+    HolodeckCase c;
+    c.name = name;
+    const SolverOptions options = interactiveSolverOptions();
+    auto session = EditSession::open(o.sceneDir + "/" + name + ".json", options);
+    session->converge(1e-3, 100000000);
+    const Discretization& disc = session->discretization();
+    PointShaderOptions shading = InteractiveDisplayOptions{}.shader;
+    shading.threads = 0;
+    PointShader shader(disc, session->tracer(), options, shading);
+    shader.updateSolution(session->solver());
+    Vec3 lo(1e300), hi(-1e300);
+    for (const ObjectSurface& s : disc.objects())
+        if (s.alive)
+            for (const Vec3& p : s.worldPositions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+
+    // A batch fill of every beam, then the default camera's view filled to about a sample per
+    // pixel (the paper's interactive mode: the view's beams, persisted for the next visit).
+    std::filesystem::remove(file);
+    const Camera* defaultCamera = session->scene().findCamera("default");
+    const Camera camera = defaultCamera ? *defaultCamera : Camera{};
+    const CameraRays rays(camera, o.width, o.height);
+    std::vector<BeamRequest> view;
+    {
+        HoloFile holo(file, {layoutSection(lo, hi)});
+        HoloServer server(holo, &shader);
+        const FillStats fill = server.fill(server.batchRequests(1e6), o.samples, 0);
+        c.fillPerSecond = fill.samples / fill.seconds;
+        view = viewRequests(holo.sections(), rays, o.width / 4, o.height / 4, 16.0);
+        server.fill(view, std::int64_t(o.width) * o.height, 0);
+    }
+    std::vector<DecodedSample> decoded;
+    // From disk: the file's pages dropped, a new file and server; opening (the directory) and
+    // reading the view's beams timed apart.
+    dropFromPageCache(file);
+    {
+        auto start = Clock::now();
+        HoloFile holo = HoloFile::openReadOnly(file);
+        c.openMs = 1e3 * secondsSince(start);
+        HoloServer server(holo, nullptr);
+        start = Clock::now();
+        c.viewSamples = readView(server, holo.sections(), view, decoded);
+        c.diskPerSecond = c.viewSamples / secondsSince(start);
+        // From memory: the same beams again, now in the server's cache.
+        const auto again = Clock::now();
+        const int repeats = 5;
+        for (int k = 0; k < repeats; ++k) readView(server, holo.sections(), view, decoded);
+        c.memoryPerSecond = repeats * double(c.viewSamples) / secondsSince(again);
+        const HoloFileInfo info = holo.info();
+        c.beams = info.beams;
+        c.samples = info.samples;
+        c.bytes = info.bytes;
+    }
+    c.viewBeams = std::int64_t(view.size());
+    // The baseline: shading that many samples of the view's rays.
+    {
+        const std::int64_t n = std::min<std::int64_t>(c.viewSamples, 200000);
+        const auto start = Clock::now();
+        for (std::int64_t i = 0; i < n; ++i) {
+            ShadeRequest r;
+            r.pixel = glm::dvec2((i % o.width) + 0.5, ((i / o.width) % o.height) + 0.5);
+            r.origin = rays.origin();
+            r.direction = rays.rayDirection(r.pixel.x, r.pixel.y);
+            r.frame = std::uint64_t(i);
+            (void)shader.shade(r);
+        }
+        c.shadePerSecond = n / secondsSince(start);
+    }
+    return c;
+}
+
+}  // namespace
+
+int runHolodeckBench(const HolodeckBenchOptions& o) {
+    nlohmann::json out = nlohmann::json::array();
+    std::printf("%-12s %8s %10s %7s %11s %8s %10s %8s %11s %13s %11s %9s\n", "scene", "beams",
+                "samples", "B/smp", "fill smp/s", "v.beams", "v.samples", "open ms", "disk smp/s",
+                "memory smp/s", "shade smp/s", "mem/shade");
+    for (const std::string& name : o.cases) {
+        const std::string file =
+            (std::filesystem::temp_directory_path() /
+             ("penumbra-bench-" + name + "-" + std::to_string(::getpid()) + ".hdk"))
+                .string();
+        const HolodeckCase c = runCase(o, name, file);
+        std::filesystem::remove(file);
+        const double bytesPerSample = c.samples > 0 ? double(c.bytes) / c.samples : 0;
+        std::printf(
+            "%-12s %8lld %10lld %7.2f %11.0f %8lld %10lld %8.1f %11.0f %13.0f %11.0f %9.1f\n",
+            c.name.c_str(), (long long)c.beams, (long long)c.samples, bytesPerSample,
+            c.fillPerSecond, (long long)c.viewBeams, (long long)c.viewSamples, c.openMs,
+            c.diskPerSecond, c.memoryPerSecond, c.shadePerSecond,
+            c.memoryPerSecond / c.shadePerSecond);
+        std::fflush(stdout);
+        out.push_back({{"scene", c.name},
+                       {"beams", c.beams},
+                       {"samples", c.samples},
+                       {"bytes", c.bytes},
+                       {"bytes_per_sample", bytesPerSample},
+                       {"fill_samples_per_second", c.fillPerSecond},
+                       {"view_beams", c.viewBeams},
+                       {"view_samples", c.viewSamples},
+                       {"open_ms", c.openMs},
+                       {"disk_samples_per_second", c.diskPerSecond},
+                       {"memory_samples_per_second", c.memoryPerSecond},
+                       {"shade_samples_per_second", c.shadePerSecond}});
+    }
+    std::printf("paper (Ward & Simmons 1999, OEP office): 41,000 samples/s from file per view\n");
+    if (!o.jsonOut.empty()) writeFileAtomically(o.jsonOut, out.dump(2) + "\n");
+    return 0;
+}
+
+}  // namespace penumbra
