@@ -13,6 +13,7 @@
 #include "core/timing.h"
 #include "render/camera_rays.h"
 #include "render/point_shader.h"
+#include "solver/ray_tracer.h"
 
 namespace penumbra {
 
@@ -238,6 +239,67 @@ FillStats HoloServer::fill(const std::vector<BeamRequest>& requests, std::int64_
     flush();
     stats.seconds = secondsSince(start);
     return stats;
+}
+
+Invalidation HoloServer::invalidate(const RayTracer& tracer,
+                                    const std::vector<std::uint8_t>& elementChanged) {
+    // Every beam holding samples: on file, and in memory only.
+    std::vector<std::pair<int, std::int64_t>> beams = mFile.storedBeams();
+    for (const auto& [key, c] : mCache)
+        if (!c.samples.empty() && mFile.sampleCount(key.section, key.beam) == 0)
+            beams.emplace_back(key.section, key.beam);
+    Invalidation result;
+    // In chunks, so that the samples of a chunk's beams are held at once, not the whole file.
+    constexpr std::size_t kChunk = 512;
+    std::vector<std::vector<HoloSample>> samples;
+    std::vector<std::vector<HoloSample>> kept;
+    for (std::size_t first = 0; first < beams.size(); first += kChunk) {
+        const std::size_t n = std::min(kChunk, beams.size() - first);
+        samples.assign(n, {});
+        kept.assign(n, {});
+        for (std::size_t k = 0; k < n; ++k)
+            samples[k] = beam(beams[first + k].first, beams[first + k].second);
+        tbb::parallel_for(std::size_t(0), n, [&](std::size_t k) {
+            const auto [section, b] = beams[first + k];
+            const HoloSection& s = mFile.sections()[section];
+            const DistanceCode& code = mCodes[section];
+            for (const HoloSample& sample : samples[k]) {
+                const DecodedSample d = decodeSample(sample, s, b, code);
+                const RayTracer::FirstHit hit = tracer.firstHit(d.entry, d.direction);
+                const bool storedMiss = sample.distance == 0xffff;
+                bool same = (hit.element < 0) == storedMiss;
+                if (same && !storedMiss) {
+                    // The stored distance is the hit's to within its code's step.
+                    const double stored = code.decode(sample.distance);
+                    const double tolerance =
+                        std::max(s.diagonal() / 4096, stored / 4096) * 1.01 + 1e-6 * stored;
+                    same = std::abs(double(hit.t) - stored) <= tolerance &&
+                           std::size_t(hit.element) < elementChanged.size() &&
+                           !elementChanged[std::size_t(hit.element)];
+                }
+                if (same) kept[k].push_back(sample);
+            }
+        });
+        for (std::size_t k = 0; k < n; ++k) {
+            const std::int64_t dropped = std::int64_t(samples[k].size() - kept[k].size());
+            result.kept += std::int64_t(kept[k].size());
+            if (dropped == 0) continue;
+            result.samples += dropped;
+            ++result.beams;
+            // Replaced in memory and on file.
+            const Key key{beams[first + k].first, beams[first + k].second};
+            auto it = mCache.find(key);
+            if (it != mCache.end()) {
+                mCachedBytes -= it->second.samples.size() * sizeof(HoloSample);
+                mLru.erase(it->second.lru);
+                mCache.erase(it);
+            }
+            mFile.writeBeam(key.section, key.beam, kept[k]);
+            mWritten = true;
+        }
+    }
+    flush();
+    return result;
 }
 
 }  // namespace penumbra

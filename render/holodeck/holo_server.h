@@ -6,7 +6,7 @@
 // Batch mode desires samples in proportion to each beam's volume; a display asks for the beams
 // of its view. Without a shader the server only reads (the paper's display-only mode).
 //
-// Index: HoloServerOptions · BeamRequest · viewRequests · HoloServer
+// Index: HoloServerOptions · BeamRequest · viewRequests · Invalidation · HoloServer
 
 #include <cstdint>
 #include <functional>
@@ -20,6 +20,7 @@ namespace penumbra {
 
 class CameraRays;
 class PointShader;
+class RayTracer;
 
 struct HoloServerOptions {
     std::size_t cacheBytes = std::size_t(64)
@@ -44,6 +45,13 @@ std::vector<BeamRequest> viewRequests(const std::vector<HoloSection>& sections,
                                       const CameraRays& camera, int raysX, int raysY,
                                       double samplesPerRay, std::uint64_t seed = 1);
 
+/// What an edit took from the holodeck.
+struct Invalidation {
+    std::int64_t beams = 0;    ///< beams that lost samples
+    std::int64_t samples = 0;  ///< samples dropped
+    std::int64_t kept = 0;     ///< samples checked and kept
+};
+
 /// What a fill did.
 struct FillStats {
     std::int64_t samples = 0;  ///< new samples
@@ -59,6 +67,15 @@ public:
     ~HoloServer();
     HoloServer(const HoloServer&) = delete;
     HoloServer& operator=(const HoloServer&) = delete;
+
+    /// Forgets exactly what an edit changed: every stored sample's ray is traced again in the
+    /// scene as it is now (`tracer`, after the edit); a sample goes when its ray now ends at
+    /// another distance (geometry moved into or out of it, or its surface moved) or on an
+    /// element whose lighting changed beyond the caller's threshold (`elementChanged`, indexed
+    /// by the tracer's elements; elements past its end count as changed). Everything else is
+    /// kept. Rays on oneTBB's threads, beam by beam; changed beams are written at once.
+    Invalidation invalidate(const RayTracer& tracer,
+                            const std::vector<std::uint8_t>& elementChanged);
 
     /// A beam's samples, loaded from the file when not in memory (it becomes the most recently
     /// used). The reference is valid until the next call that loads or adds samples.
