@@ -91,22 +91,9 @@ void add(DisplayStageTimes& sum, const DisplayStageTimes& t, double w) {
 // ---------------------------------------------------------------------------------------------
 // One case
 
-CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
-                   nlohmann::json& json) {
-    const CaseSpec spec = caseSpec(name);
-    CaseResult res;
-    res.name = name;
-    const std::string path = options.sceneDir + "/" + name + ".json";
-
-    // Scene, solution, display.
-    auto start = Clock::now();
-    auto session = EditSession::open(path, interactiveSolverOptions());
-    std::fprintf(stderr, "bench display: %s: opened in %.0f ms\n", name.c_str(), msSince(start));
-    start = Clock::now();
-    session->converge(spec.converge, spec.maxShots);
-    res.solveMs = msSince(start);
-    for (const ObjectSurface& o : session->discretization().objects())
-        if (o.alive) res.triangles += o.mesh.n_faces();
+/// The display's options as the bench's flags set them (the display's defaults where a flag
+/// is unset).
+InteractiveDisplayOptions displayOptionsFor(const DisplayBenchOptions& options) {
     InteractiveDisplayOptions displayOptions;
     displayOptions.width = options.width;
     displayOptions.height = options.height;
@@ -118,27 +105,44 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
     if (options.maxPenumbraPixels >= 0)
         displayOptions.maxPenumbraPixels = options.maxPenumbraPixels;
     if (options.cacheCapacity > 0) displayOptions.cacheCapacityPerPixel = options.cacheCapacity;
-    start = Clock::now();
-    InteractiveDisplay display(session->discretization(), session->tracer(),
-                               interactiveSolverOptions(), displayOptions);
-    display.updateSolution(session->solver());
-    res.setupMs = msSince(start);
-    std::fprintf(stderr, "bench display: %s: solved in %.0f ms, display built in %.0f ms\n",
-                 name.c_str(), res.solveMs, res.setupMs);
+    return displayOptions;
+}
 
-    const Camera camera = *session->scene().findCamera("default");
+/// One frame's stage times and counts, as the JSON report lists them per frame.
+nlohmann::json frameJson(const DisplayFrameStats& f) {
+    return {{"total_ms", f.times.totalMs},
+            {"reconstruct_ms", f.times.reconstructMs()},
+            {"find_edges_ms", f.times.findEdgesMs},
+            {"silhouette_ms", f.times.silhouetteMs},
+            {"shadow_ms", f.times.shadowMs},
+            {"project_ms", f.times.projectMs},
+            {"rasterize_ms", f.times.rasterizeMs},
+            {"points_ms", f.times.pointsMs},
+            {"reachability_ms", f.times.reachabilityMs},
+            {"interpolate_ms", f.times.interpolateMs},
+            {"anti_alias_ms", f.times.antiAliasMs},
+            {"complex_filter_ms", f.times.complexFilterMs},
+            {"smooth_ms", f.times.smoothMs},
+            {"request_ms", f.times.requestMs},
+            {"shade_ms", f.times.shadeMs},
+            {"new_sample_fraction", f.newSampleFraction},
+            {"silhouette_edges", f.silhouetteEdges},
+            {"sharp_edges", f.sharpEdges},
+            {"shadow_edges", f.shadowEdges},
+            {"screen_edges", f.screenEdges},
+            {"complex_pixels", f.complexPixels}};
+}
+
+/// Warms the display up at `camera`, then renders options.frames frames along an orbit from it
+/// (options.sampleFraction new samples each): means over frames 1..F−1 and the edge counts go
+/// into `res`, each frame's figures into the returned array, the last frame's camera into
+/// `last`.
+nlohmann::json runOrbitFrames(InteractiveDisplay& display, const Camera& camera,
+                              const DisplayBenchOptions& options, CaseResult& res, Camera& last) {
     const int W = options.width, H = options.height;
-
-    // Baseline: shade every pixel once (the paper's "Full RT", same shader, same cores).
-    start = Clock::now();
-    (void)display.renderReference(CameraRays(camera, W, H), 1);
-    res.fullRtMs = msSince(start);
-
-    // Frames along an orbit, 2% (options.sampleFraction) new samples each.
     display.warmUp(CameraRays(camera, W, H), options.warmup);
     nlohmann::json frames = nlohmann::json::array();
     int counted = 0;
-    Camera last = camera;
     for (int k = 0; k < options.frames; ++k) {
         last = orbitCamera(camera, options.degPerFrame * k);
         display.renderFrame(CameraRays(last, W, H), true);
@@ -152,27 +156,7 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
         }
         res.silhouetteEdges = f.silhouetteEdges + f.sharpEdges;
         res.shadowEdges = f.shadowEdges;
-        frames.push_back({{"total_ms", f.times.totalMs},
-                          {"reconstruct_ms", f.times.reconstructMs()},
-                          {"find_edges_ms", f.times.findEdgesMs},
-                          {"silhouette_ms", f.times.silhouetteMs},
-                          {"shadow_ms", f.times.shadowMs},
-                          {"project_ms", f.times.projectMs},
-                          {"rasterize_ms", f.times.rasterizeMs},
-                          {"points_ms", f.times.pointsMs},
-                          {"reachability_ms", f.times.reachabilityMs},
-                          {"interpolate_ms", f.times.interpolateMs},
-                          {"anti_alias_ms", f.times.antiAliasMs},
-                          {"complex_filter_ms", f.times.complexFilterMs},
-                          {"smooth_ms", f.times.smoothMs},
-                          {"request_ms", f.times.requestMs},
-                          {"shade_ms", f.times.shadeMs},
-                          {"new_sample_fraction", f.newSampleFraction},
-                          {"silhouette_edges", f.silhouetteEdges},
-                          {"sharp_edges", f.sharpEdges},
-                          {"shadow_edges", f.shadowEdges},
-                          {"screen_edges", f.screenEdges},
-                          {"complex_pixels", f.complexPixels}});
+        frames.push_back(frameJson(f));
     }
     if (counted > 0) {
         DisplayStageTimes scaled;
@@ -182,9 +166,14 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
         res.complexFraction /= counted;
     }
     res.silhouetteMs = res.mean.silhouetteMs;
+    return frames;
+}
 
-    // Error against the reference at the last camera: epi and cache on the same EPI.
-    const CameraRays lastRays(last, W, H);
+/// Error against the references at `lastRays`: epi and cache reconstructed from the same last
+/// EPI, against the plain reference and the converged one (and the converged reference's own
+/// noise with --reference-check); the first case writes the images when plotting.
+void measureImageErrors(InteractiveDisplay& display, const DisplayBenchOptions& options,
+                        const std::string& name, const CameraRays& lastRays, CaseResult& res) {
     const Image plainReference = display.renderReference(lastRays, options.referenceSamples);
     const Image epi = display.reconstructLast(true);
     const Image cache = display.reconstructLast(false);
@@ -200,7 +189,7 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
         display.renderFrame(lastRays, true);
         display.setMaxPenumbraPixels(maxPenumbraPixels);
     }
-    start = Clock::now();
+    const auto start = Clock::now();
     const Image reference = options.skipConvergedReference
                                 ? plainReference
                                 : display.renderConvergedReference(lastRays);
@@ -225,47 +214,53 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
         writePng(reference, options.plotDir + "/display-reference.png");
         writePng(edgeImage, options.plotDir + "/display-edges.png");
     }
+}
 
-    // Move an object there and back, kMoves times: shadow edges of the stale light–blocker
-    // pairs are recomputed after each move. One figure moves with what else the machine
-    // runs, so the median is reported, with the first and the slowest.
-    if (!spec.moved.empty() && session->objectVersion(spec.moved) >= 0) {
-        std::vector<double> times;
-        for (int k = 0; k < kMoves; ++k) {
-            EditCommand move;
-            move.op = MoveCommand{spec.moved, k % 2 == 0 ? spec.by : -spec.by};
-            display.apply(session->apply(move));
-            display.renderFrame(lastRays, true);
-            times.push_back(display.lastShadowUpdateMs());
-        }
-        res.shadowUpdateFirstMs = times.front();
-        res.shadowUpdateMaxMs = *std::max_element(times.begin(), times.end());
-        std::sort(times.begin(), times.end());
-        res.shadowUpdateMs = times[times.size() / 2];
+/// Moves spec.moved by spec.by there and back, kMoves times, rendering at `lastRays` after
+/// each: shadow edges of the stale light–blocker pairs are recomputed after each move. One
+/// figure moves with what else the machine runs, so the median goes into `res`, with the
+/// first and the slowest.
+void measureShadowUpdates(EditSession& session, InteractiveDisplay& display, const CaseSpec& spec,
+                          const CameraRays& lastRays, CaseResult& res) {
+    std::vector<double> times;
+    for (int k = 0; k < kMoves; ++k) {
+        EditCommand move;
+        move.op = MoveCommand{spec.moved, k % 2 == 0 ? spec.by : -spec.by};
+        display.apply(session.apply(move));
+        display.renderFrame(lastRays, true);
+        times.push_back(display.lastShadowUpdateMs());
     }
+    res.shadowUpdateFirstMs = times.front();
+    res.shadowUpdateMaxMs = *std::max_element(times.begin(), times.end());
+    std::sort(times.begin(), times.end());
+    res.shadowUpdateMs = times[times.size() / 2];
+}
 
-    // Steady state: the orbit goes on until the cache holds its capacity (the counted
-    // frames run while it fills from the warm-up, reprojecting fewer points), then
-    // kSteadyFrames frames are timed (after the moves above: the moved object stands
-    // displaced, which changes no stage's work measurably).
-    {
-        int k = options.frames;
-        const std::size_t capacity = display.cache().capacity();
-        while (display.cache().points().size() < capacity && res.fillFrames < kFillFrames) {
-            display.renderFrame(CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H),
-                                true);
-            ++res.fillFrames;
-        }
-        for (int f = 0; f < kSteadyFrames; ++f) {
-            display.renderFrame(CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H),
-                                true);
-            add(res.steady, display.lastFrame().times, 1.0 / kSteadyFrames);
-        }
-        res.steadyPoints = display.cache().points().size();
-        res.steadyFull = res.steadyPoints >= capacity;
+/// Steady state: the orbit goes on until the cache holds its capacity (the counted frames run
+/// while it fills from the warm-up, reprojecting fewer points), then kSteadyFrames frames are
+/// timed into `res` (after the moves: the moved object stands displaced, which changes no
+/// stage's work measurably).
+void measureSteadyState(InteractiveDisplay& display, const Camera& camera,
+                        const DisplayBenchOptions& options, CaseResult& res) {
+    const int W = options.width, H = options.height;
+    int k = options.frames;
+    const std::size_t capacity = display.cache().capacity();
+    while (display.cache().points().size() < capacity && res.fillFrames < kFillFrames) {
+        display.renderFrame(CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H), true);
+        ++res.fillFrames;
     }
+    for (int f = 0; f < kSteadyFrames; ++f) {
+        display.renderFrame(CameraRays(orbitCamera(camera, options.degPerFrame * k++), W, H), true);
+        add(res.steady, display.lastFrame().times, 1.0 / kSteadyFrames);
+    }
+    res.steadyPoints = display.cache().points().size();
+    res.steadyFull = res.steadyPoints >= capacity;
+}
 
-    json = {{"scene", name},
+/// The case's JSON report: its figures, the display options that matter, and `frames`.
+nlohmann::json caseJson(const CaseResult& res, const InteractiveDisplayOptions& displayOptions,
+                        int W, int H, nlohmann::json frames) {
+    return {{"scene", res.name},
             {"triangles", res.triangles},
             {"width", W},
             {"height", H},
@@ -306,6 +301,51 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
               {"request", res.steady.requestMs},
               {"total", res.steady.totalMs}}},
             {"frames", std::move(frames)}};
+}
+
+/// One case: open and solve the scene, build the display, then the figures in order (full
+/// render baseline, orbit frames, image errors, shadow updates after moves, steady state).
+CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
+                   nlohmann::json& json) {
+    const CaseSpec spec = caseSpec(name);
+    CaseResult res;
+    res.name = name;
+    const std::string path = options.sceneDir + "/" + name + ".json";
+
+    // Scene, solution, display.
+    auto start = Clock::now();
+    auto session = EditSession::open(path, interactiveSolverOptions());
+    std::fprintf(stderr, "bench display: %s: opened in %.0f ms\n", name.c_str(), msSince(start));
+    start = Clock::now();
+    session->converge(spec.converge, spec.maxShots);
+    res.solveMs = msSince(start);
+    for (const ObjectSurface& o : session->discretization().objects())
+        if (o.alive) res.triangles += o.mesh.n_faces();
+    const InteractiveDisplayOptions displayOptions = displayOptionsFor(options);
+    start = Clock::now();
+    InteractiveDisplay display(session->discretization(), session->tracer(),
+                               interactiveSolverOptions(), displayOptions);
+    display.updateSolution(session->solver());
+    res.setupMs = msSince(start);
+    std::fprintf(stderr, "bench display: %s: solved in %.0f ms, display built in %.0f ms\n",
+                 name.c_str(), res.solveMs, res.setupMs);
+
+    const Camera camera = *session->scene().findCamera("default");
+    const int W = options.width, H = options.height;
+
+    // Baseline: shade every pixel once (the paper's "Full RT", same shader, same cores).
+    start = Clock::now();
+    (void)display.renderReference(CameraRays(camera, W, H), 1);
+    res.fullRtMs = msSince(start);
+
+    Camera last = camera;
+    nlohmann::json frames = runOrbitFrames(display, camera, options, res, last);
+    const CameraRays lastRays(last, W, H);
+    measureImageErrors(display, options, name, lastRays, res);
+    if (!spec.moved.empty() && session->objectVersion(spec.moved) >= 0)
+        measureShadowUpdates(*session, display, spec, lastRays, res);
+    measureSteadyState(display, camera, options, res);
+    json = caseJson(res, displayOptions, W, H, std::move(frames));
     return res;
 }
 

@@ -331,114 +331,107 @@ std::array<double, 4> cameraRotation(const Vec3& forward, const Vec3& up) {
     return q;
 }
 
-/// Builds the glTF document and its binary buffer; the buffer's `uri` is left to the caller.
-/// With `scene`: its cameras become perspective camera nodes (an importer's viewpoints) and
-/// its settings go into asset.extras (a re-import discretizes as the scene did).
-nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Material>& materials,
-                         const Scene* scene, std::string& buffer) {
-    using nlohmann::json;
-    json bufferViews = json::array();
-    json accessors = json::array();
-    json meshes = json::array();
-    json nodes = json::array();
-    json sceneNodes = json::array();
-    json gltfMaterials = json::array();
-    bool emissiveStrength = false;
+/// The glTF document under construction: the arrays that index one another, the binary buffer
+/// their accessors read (owned by the caller), and the materials primitives share.
+class GltfBuilder {
+public:
+    /// `exposure` scales radiance to COLOR_0 and lamp emission (gltfExposure).
+    GltfBuilder(const std::vector<Material>& materials, double exposure, std::string& buffer)
+        : mMaterials(materials), mExposure(exposure), mBuffer(buffer) {}
 
-    // Appends one array of float VEC3 (or uint32 SCALAR indices) as a buffer view and an
-    // accessor; returns the accessor.
-    auto addView = [&](size_t offset, int target) {
-        bufferViews.push_back({{"buffer", 0},
-                               {"byteOffset", offset},
-                               {"byteLength", buffer.size() - offset},
-                               {"target", target}});
-        return bufferViews.size() - 1;
-    };
-    auto addVec3 = [&](const std::vector<Vec3>& values, bool withBounds) {
-        const size_t offset = buffer.size();
-        Vec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
-        for (const Vec3& v : values) {
-            const glm::vec3 f(v);
-            for (int c = 0; c < 3; ++c) appendLittleEndian(buffer, f[c]);
-            lo = glm::min(lo, Vec3(f));
-            hi = glm::max(hi, Vec3(f));
-        }
-        json accessor = {{"bufferView", addView(offset, kArrayBuffer)},
-                         {"componentType", kFloat},
-                         {"count", values.size()},
-                         {"type", "VEC3"}};
-        if (withBounds) {
-            accessor["min"] = {static_cast<float>(lo.x), static_cast<float>(lo.y),
-                               static_cast<float>(lo.z)};
-            accessor["max"] = {static_cast<float>(hi.x), static_cast<float>(hi.y),
-                               static_cast<float>(hi.z)};
-        }
-        accessors.push_back(accessor);
-        return accessors.size() - 1;
-    };
-    auto addIndices = [&](const std::vector<std::uint32_t>& indices) {
-        const size_t offset = buffer.size();
-        for (std::uint32_t i : indices) appendLittleEndian(buffer, i);
-        accessors.push_back({{"bufferView", addView(offset, kElementArrayBuffer)},
-                             {"componentType", kUnsignedInt},
-                             {"count", indices.size()},
-                             {"type", "SCALAR"}});
-        return accessors.size() - 1;
-    };
-    auto rgbJson = [](const Rgb& c) { return json::array({c.x, c.y, c.z}); };
-
-    const double invPi = glm::one_over_pi<double>();
-    const double exposure = gltfExposure(lit, materials);
-
-    // Surfaces that only reflect: unlit white, the displayed colour is COLOR_0. Lamps: their
-    // emission as glTF's emissive colour on the same exposure (emissiveFactor scaled to a
-    // largest channel of 1, KHR_materials_emissive_strength for the rest), over a black base.
-    std::map<std::pair<bool, std::string>, size_t> reflectorMaterial;
-    std::map<std::tuple<int, bool, std::string>, size_t> lampMaterial;
-    auto reflector = [&](bool doubleSided, const std::string& name) {
-        const auto key = std::make_pair(doubleSided, name);
-        if (auto it = reflectorMaterial.find(key); it != reflectorMaterial.end()) return it->second;
-        gltfMaterials.push_back({{"name", name.empty() ? std::string("penumbra_radiance") : name},
-                                 {"pbrMetallicRoughness",
-                                  {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
-                                   {"metallicFactor", 0.0},
-                                   {"roughnessFactor", 1.0}}},
-                                 {"doubleSided", doubleSided},
-                                 {"extensions", {{"KHR_materials_unlit", json::object()}}}});
-        return reflectorMaterial[key] = gltfMaterials.size() - 1;
-    };
-    auto lamp = [&](int material, bool doubleSided, const std::string& name) {
-        const auto key = std::make_tuple(material, doubleSided, name);
-        if (auto it = lampMaterial.find(key); it != lampMaterial.end()) return it->second;
-        const Material& m = materials[material];
-        const Rgb shown = m.emission * invPi * exposure;
-        const double strength = std::max({shown.x, shown.y, shown.z});
-        json g = {
-            {"name", name.empty() ? std::string("penumbra_lamp") : name},
-            {"pbrMetallicRoughness",
-             {{"baseColorFactor", {0.0, 0.0, 0.0, 1.0}},
-              {"metallicFactor", 0.0},
-              {"roughnessFactor", 1.0}}},
-            {"emissiveFactor", rgbJson(strength > 0 ? shown / std::max(strength, 1.0) : Rgb(0.0))},
-            {"doubleSided", doubleSided},
-            {"extras", {{"emission", rgbJson(m.emission)}}}};
-        if (strength > 1) {
-            g["extensions"] = {
-                {"KHR_materials_emissive_strength", {{"emissiveStrength", strength}}}};
-            emissiveStrength = true;
-        }
-        gltfMaterials.push_back(g);
-        return lampMaterial[key] = gltfMaterials.size() - 1;
-    };
-
-    for (const LitObject& object : lit) {
-        if (object.positions.empty()) continue;
+    /// Adds `object` as a mesh and a scene node carrying its Penumbra extras; an object with
+    /// nothing to draw adds neither.
+    void addObject(const LitObject& object) {
+        using nlohmann::json;
+        if (object.positions.empty()) return;
+        const double invPi = glm::one_over_pi<double>();
         std::vector<Vec3> radiance(object.radiosity.size()), shown(object.radiosity.size());
         for (size_t v = 0; v < radiance.size(); ++v) {
             radiance[v] = object.radiosity[v] * invPi;
-            shown[v] = glm::clamp(radiance[v] * exposure, Rgb(0.0), Rgb(1.0));
+            shown[v] = glm::clamp(radiance[v] * mExposure, Rgb(0.0), Rgb(1.0));
         }
-        // One primitive per material of the object (meshes may carry several).
+        json primitives = addPrimitives(object, shown, radiance);
+        if (primitives.empty()) return;  // nothing to draw
+        mMeshes.push_back({{"name", object.id}, {"primitives", primitives}});
+        json extras = {{"penumbra_id", object.id}};
+        if (!object.materialName.empty()) extras["material"] = object.materialName;
+        const Material& m = mMaterials[object.polygonMaterial.front()];
+        extras["reflectance"] = rgbJson(m.reflectance);
+        if (m.isEmitter()) extras["emission"] = rgbJson(m.emission);
+        if (!object.source.is_null()) extras["object"] = object.source;
+        mNodes.push_back({{"name", object.id}, {"mesh", mMeshes.size() - 1}, {"extras", extras}});
+        mSceneNodes.push_back(mNodes.size() - 1);
+    }
+
+    /// Adds the scene's cameras (none without a scene) as perspective camera nodes, an
+    /// importer's viewpoints; a camera without a direction is skipped.
+    void addCameras(const Scene* scene) {
+        for (const Camera& camera : scene ? scene->cameras : std::vector<Camera>{}) {
+            const Vec3 forward = camera.lookAt - camera.position;
+            if (!(glm::length(forward) > 0) || !(glm::length(glm::cross(forward, camera.up)) > 0))
+                continue;  // no direction: not a viewpoint
+            mGltfCameras.push_back(
+                {{"name", camera.name},
+                 {"type", "perspective"},
+                 {"perspective", {{"yfov", camera.fovDeg * M_PI / 180.0}, {"znear", 0.01}}}});
+            const std::array<double, 4> q = cameraRotation(forward, camera.up);
+            mNodes.push_back(
+                {{"name", camera.name},
+                 {"camera", mGltfCameras.size() - 1},
+                 {"translation", {camera.position.x, camera.position.y, camera.position.z}},
+                 {"rotation", {q[0], q[1], q[2], q[3]}}});
+            mSceneNodes.push_back(mNodes.size() - 1);
+        }
+    }
+
+    /// The document: asset (with the exposure, and the scene's settings when there is one),
+    /// the one scene, and each array that is not empty (glTF forbids empty ones).
+    nlohmann::json finish(const Scene* scene) const {
+        using nlohmann::json;
+        json extensionsUsed = json::array();
+        if (!mReflectorMaterial.empty()) extensionsUsed.push_back("KHR_materials_unlit");
+        if (mEmissiveStrength) extensionsUsed.push_back("KHR_materials_emissive_strength");
+        json doc = {
+            {"asset",
+             {{"version", "2.0"},
+              {"generator", "Penumbra"},
+              {"extras",
+               {{"description",
+                 "Penumbra lit scene: world space metres, one mesh per object. COLOR_0 = "
+                 "min(1, exposure x radiance): linear, display-referred (glTF viewers encode it "
+                 "as sRGB); _RADIANCE = radiance B/pi in W/m^2/sr, exact; lamps are emissive "
+                 "materials on the same exposure (emission = pi x emissive x strength / "
+                 "exposure)"},
+                {"exposure", mExposure}}}}},
+            {"scene", 0},
+            {"scenes", json::array({{{"nodes", mSceneNodes}}})},
+        };
+        if (!extensionsUsed.empty()) doc["extensionsUsed"] = extensionsUsed;
+        if (!mNodes.empty()) doc["nodes"] = mNodes;
+        if (!mMeshes.empty()) doc["meshes"] = mMeshes;
+        if (!mGltfMaterials.empty()) doc["materials"] = mGltfMaterials;
+        if (!mGltfCameras.empty()) doc["cameras"] = mGltfCameras;
+        if (scene)
+            doc["asset"]["extras"]["settings"] = {{"patch_size", scene->settings.patchSize},
+                                                  {"element_size", scene->settings.elementSize}};
+        if (!mBuffer.empty()) {
+            // glTF forbids zero-length buffers: a scene without faces has no binary data.
+            doc["buffers"] = json::array({{{"byteLength", mBuffer.size()}}});
+            doc["bufferViews"] = mBufferViews;
+            doc["accessors"] = mAccessors;
+        }
+        return doc;
+    }
+
+private:
+    /// A colour as a JSON array [r, g, b].
+    static nlohmann::json rgbJson(const Rgb& c) { return nlohmann::json::array({c.x, c.y, c.z}); }
+
+    /// One triangle primitive per material of `object` (meshes may carry several); the
+    /// vertex attributes are written once, with the first primitive that has triangles.
+    nlohmann::json addPrimitives(const LitObject& object, const std::vector<Vec3>& shown,
+                                 const std::vector<Vec3>& radiance) {
+        using nlohmann::json;
         std::map<int, std::vector<std::uint32_t>> byMaterial;
         for (size_t k = 0; k < object.polygons.size(); ++k)
             appendFanTriangles(object.polygons[k], object.positions,
@@ -455,7 +448,7 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
                 exact = addVec3(radiance, false);
                 attributes = true;
             }
-            const bool emitter = materials[material].isEmitter();
+            const bool emitter = mMaterials[material].isEmitter();
             primitives.push_back(
                 {{"attributes",
                   {{"POSITION", position},
@@ -467,67 +460,126 @@ nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Ma
                                       : reflector(object.twoSided, object.materialName)},
                  {"mode", 4}});
         }
-        if (primitives.empty()) continue;  // nothing to draw
-        meshes.push_back({{"name", object.id}, {"primitives", primitives}});
-        json extras = {{"penumbra_id", object.id}};
-        if (!object.materialName.empty()) extras["material"] = object.materialName;
-        const Material& m = materials[object.polygonMaterial.front()];
-        extras["reflectance"] = rgbJson(m.reflectance);
-        if (m.isEmitter()) extras["emission"] = rgbJson(m.emission);
-        if (!object.source.is_null()) extras["object"] = object.source;
-        nodes.push_back({{"name", object.id}, {"mesh", meshes.size() - 1}, {"extras", extras}});
-        sceneNodes.push_back(nodes.size() - 1);
+        return primitives;
     }
 
-    json gltfCameras = json::array();
-    for (const Camera& camera : scene ? scene->cameras : std::vector<Camera>{}) {
-        const Vec3 forward = camera.lookAt - camera.position;
-        if (!(glm::length(forward) > 0) || !(glm::length(glm::cross(forward, camera.up)) > 0))
-            continue;  // no direction: not a viewpoint
-        gltfCameras.push_back(
-            {{"name", camera.name},
-             {"type", "perspective"},
-             {"perspective", {{"yfov", camera.fovDeg * M_PI / 180.0}, {"znear", 0.01}}}});
-        const std::array<double, 4> q = cameraRotation(forward, camera.up);
-        nodes.push_back({{"name", camera.name},
-                         {"camera", gltfCameras.size() - 1},
-                         {"translation", {camera.position.x, camera.position.y, camera.position.z}},
-                         {"rotation", {q[0], q[1], q[2], q[3]}}});
-        sceneNodes.push_back(nodes.size() - 1);
+    /// Appends a buffer view over the buffer's bytes from `offset` to its end; returns it.
+    size_t addView(size_t offset, int target) {
+        mBufferViews.push_back({{"buffer", 0},
+                                {"byteOffset", offset},
+                                {"byteLength", mBuffer.size() - offset},
+                                {"target", target}});
+        return mBufferViews.size() - 1;
     }
 
-    json extensionsUsed = json::array();
-    if (!reflectorMaterial.empty()) extensionsUsed.push_back("KHR_materials_unlit");
-    if (emissiveStrength) extensionsUsed.push_back("KHR_materials_emissive_strength");
-    json doc = {
-        {"asset",
-         {{"version", "2.0"},
-          {"generator", "Penumbra"},
-          {"extras",
-           {{"description",
-             "Penumbra lit scene: world space metres, one mesh per object. COLOR_0 = "
-             "min(1, exposure x radiance): linear, display-referred (glTF viewers encode it as "
-             "sRGB); _RADIANCE = radiance B/pi in W/m^2/sr, exact; lamps are emissive materials "
-             "on the same exposure (emission = pi x emissive x strength / exposure)"},
-            {"exposure", exposure}}}}},
-        {"scene", 0},
-        {"scenes", json::array({{{"nodes", sceneNodes}}})},
-    };
-    if (!extensionsUsed.empty()) doc["extensionsUsed"] = extensionsUsed;
-    if (!nodes.empty()) doc["nodes"] = nodes;
-    if (!meshes.empty()) doc["meshes"] = meshes;
-    if (!gltfMaterials.empty()) doc["materials"] = gltfMaterials;
-    if (!gltfCameras.empty()) doc["cameras"] = gltfCameras;
-    if (scene)
-        doc["asset"]["extras"]["settings"] = {{"patch_size", scene->settings.patchSize},
-                                              {"element_size", scene->settings.elementSize}};
-    if (!buffer.empty()) {
-        // glTF forbids zero-length buffers: a scene without faces has no binary data.
-        doc["buffers"] = json::array({{{"byteLength", buffer.size()}}});
-        doc["bufferViews"] = bufferViews;
-        doc["accessors"] = accessors;
+    /// Appends `values` as float VEC3 (with min and max when `withBounds`, as POSITION needs)
+    /// in a buffer view and an accessor; returns the accessor.
+    size_t addVec3(const std::vector<Vec3>& values, bool withBounds) {
+        const size_t offset = mBuffer.size();
+        Vec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+        for (const Vec3& v : values) {
+            const glm::vec3 f(v);
+            for (int c = 0; c < 3; ++c) appendLittleEndian(mBuffer, f[c]);
+            lo = glm::min(lo, Vec3(f));
+            hi = glm::max(hi, Vec3(f));
+        }
+        nlohmann::json accessor = {{"bufferView", addView(offset, kArrayBuffer)},
+                                   {"componentType", kFloat},
+                                   {"count", values.size()},
+                                   {"type", "VEC3"}};
+        if (withBounds) {
+            accessor["min"] = {static_cast<float>(lo.x), static_cast<float>(lo.y),
+                               static_cast<float>(lo.z)};
+            accessor["max"] = {static_cast<float>(hi.x), static_cast<float>(hi.y),
+                               static_cast<float>(hi.z)};
+        }
+        mAccessors.push_back(accessor);
+        return mAccessors.size() - 1;
     }
-    return doc;
+
+    /// Appends uint32 SCALAR triangle indices in a buffer view and an accessor; returns the
+    /// accessor.
+    size_t addIndices(const std::vector<std::uint32_t>& indices) {
+        const size_t offset = mBuffer.size();
+        for (std::uint32_t i : indices) appendLittleEndian(mBuffer, i);
+        mAccessors.push_back({{"bufferView", addView(offset, kElementArrayBuffer)},
+                              {"componentType", kUnsignedInt},
+                              {"count", indices.size()},
+                              {"type", "SCALAR"}});
+        return mAccessors.size() - 1;
+    }
+
+    /// The material of surfaces that only reflect, made on first use: unlit white, the
+    /// displayed colour is COLOR_0.
+    size_t reflector(bool doubleSided, const std::string& name) {
+        using nlohmann::json;
+        const auto key = std::make_pair(doubleSided, name);
+        if (auto it = mReflectorMaterial.find(key); it != mReflectorMaterial.end())
+            return it->second;
+        mGltfMaterials.push_back({{"name", name.empty() ? std::string("penumbra_radiance") : name},
+                                  {"pbrMetallicRoughness",
+                                   {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}},
+                                    {"metallicFactor", 0.0},
+                                    {"roughnessFactor", 1.0}}},
+                                  {"doubleSided", doubleSided},
+                                  {"extensions", {{"KHR_materials_unlit", json::object()}}}});
+        return mReflectorMaterial[key] = mGltfMaterials.size() - 1;
+    }
+
+    /// The material of a lamp, made on first use: its emission as glTF's emissive colour on
+    /// the same exposure (emissiveFactor scaled to a largest channel of 1,
+    /// KHR_materials_emissive_strength for the rest), over a black base.
+    size_t lamp(int material, bool doubleSided, const std::string& name) {
+        using nlohmann::json;
+        const auto key = std::make_tuple(material, doubleSided, name);
+        if (auto it = mLampMaterial.find(key); it != mLampMaterial.end()) return it->second;
+        const double invPi = glm::one_over_pi<double>();
+        const Material& m = mMaterials[material];
+        const Rgb shown = m.emission * invPi * mExposure;
+        const double strength = std::max({shown.x, shown.y, shown.z});
+        json g = {
+            {"name", name.empty() ? std::string("penumbra_lamp") : name},
+            {"pbrMetallicRoughness",
+             {{"baseColorFactor", {0.0, 0.0, 0.0, 1.0}},
+              {"metallicFactor", 0.0},
+              {"roughnessFactor", 1.0}}},
+            {"emissiveFactor", rgbJson(strength > 0 ? shown / std::max(strength, 1.0) : Rgb(0.0))},
+            {"doubleSided", doubleSided},
+            {"extras", {{"emission", rgbJson(m.emission)}}}};
+        if (strength > 1) {
+            g["extensions"] = {
+                {"KHR_materials_emissive_strength", {{"emissiveStrength", strength}}}};
+            mEmissiveStrength = true;
+        }
+        mGltfMaterials.push_back(g);
+        return mLampMaterial[key] = mGltfMaterials.size() - 1;
+    }
+
+    const std::vector<Material>& mMaterials;
+    double mExposure;
+    std::string& mBuffer;
+    nlohmann::json mBufferViews = nlohmann::json::array();
+    nlohmann::json mAccessors = nlohmann::json::array();
+    nlohmann::json mMeshes = nlohmann::json::array();
+    nlohmann::json mNodes = nlohmann::json::array();
+    nlohmann::json mSceneNodes = nlohmann::json::array();
+    nlohmann::json mGltfMaterials = nlohmann::json::array();
+    nlohmann::json mGltfCameras = nlohmann::json::array();
+    bool mEmissiveStrength = false;  ///< some lamp needs KHR_materials_emissive_strength
+    /// Materials made so far, by what distinguishes them: index into mGltfMaterials.
+    std::map<std::pair<bool, std::string>, size_t> mReflectorMaterial;
+    std::map<std::tuple<int, bool, std::string>, size_t> mLampMaterial;
+};
+
+/// Builds the glTF document and its binary buffer; the buffer's `uri` is left to the caller.
+/// With `scene`: its cameras become perspective camera nodes (an importer's viewpoints) and
+/// its settings go into asset.extras (a re-import discretizes as the scene did).
+nlohmann::json buildGltf(const std::vector<LitObject>& lit, const std::vector<Material>& materials,
+                         const Scene* scene, std::string& buffer) {
+    GltfBuilder builder(materials, gltfExposure(lit, materials), buffer);
+    for (const LitObject& object : lit) builder.addObject(object);
+    builder.addCameras(scene);
+    return builder.finish(scene);
 }
 
 std::string encodeGltf(const std::vector<LitObject>& lit, const std::vector<Material>& materials,

@@ -647,12 +647,58 @@ private:
     size_t mPos = 0;
 };
 
-PolygonSoup readPly(const std::string& path) {
-    const std::string bytes = readFileBytes(path);
-
-    // Header: lines up to end_header.
+/// A PLY header: its elements in file order, the body's encoding, and where the body starts.
+struct PlyHeader {
     std::vector<PlyElement> elements;
     PlyBody::Encoding encoding = PlyBody::Encoding::Ascii;
+    size_t bodyStart = 0;  ///< byte after the end_header line (may be past the file's end)
+};
+
+/// The encoding named on a PLY format line ("format ENCODING 1.0"), the header's line 2.
+PlyBody::Encoding parsePlyFormat(const std::vector<std::string_view>& tokens,
+                                 const std::string& path, const std::string& where) {
+    auto fail = [&](const std::string& problem) { throw InputError(path, where, problem); };
+    PlyBody::Encoding encoding = PlyBody::Encoding::Ascii;
+    if (tokens.size() != 3 || tokens[0] != "format" || tokens[2] != "1.0") {
+        fail("expected 'format ascii|binary_little_endian|binary_big_endian 1.0'");
+    }
+    if (tokens[1] == "ascii")
+        encoding = PlyBody::Encoding::Ascii;
+    else if (tokens[1] == "binary_little_endian")
+        encoding = PlyBody::Encoding::LittleEndian;
+    else if (tokens[1] == "binary_big_endian")
+        encoding = PlyBody::Encoding::BigEndian;
+    else
+        fail("unknown PLY format '" + std::string(tokens[1]) + "'");
+    return encoding;
+}
+
+/// A property line: "property TYPE NAME" or "property list TYPE TYPE NAME".
+PlyProperty parsePlyProperty(const std::vector<std::string_view>& tokens, const std::string& path,
+                             const std::string& where) {
+    PlyProperty property;
+    bool ok = false;
+    if (tokens.size() == 5 && tokens[1] == "list") {
+        property.isList = true;
+        ok = parsePlyType(tokens[2], property.countType) &&
+             parsePlyType(tokens[3], property.valueType);
+        property.name = std::string(tokens[4]);
+    } else if (tokens.size() == 3) {
+        ok = parsePlyType(tokens[1], property.valueType);
+        property.name = std::string(tokens[2]);
+    }
+    if (!ok) {
+        throw InputError(path, where,
+                         "expected 'property TYPE NAME' or 'property list TYPE TYPE NAME'");
+    }
+    return property;
+}
+
+/// Reads the header's lines up to end_header: "ply", the format line, then elements with
+/// their properties (comments and obj_info skipped); any other line is an error.
+PlyHeader readPlyHeader(const std::string& path, const std::string& bytes) {
+    PlyHeader header;
+    std::vector<PlyElement>& elements = header.elements;
     size_t pos = 0;
     size_t lineNumber = 0;
     bool ended = false;
@@ -672,17 +718,7 @@ PolygonSoup readPly(const std::string& path) {
             continue;
         }
         if (lineNumber == 2) {
-            if (tokens.size() != 3 || tokens[0] != "format" || tokens[2] != "1.0") {
-                fail("expected 'format ascii|binary_little_endian|binary_big_endian 1.0'");
-            }
-            if (tokens[1] == "ascii")
-                encoding = PlyBody::Encoding::Ascii;
-            else if (tokens[1] == "binary_little_endian")
-                encoding = PlyBody::Encoding::LittleEndian;
-            else if (tokens[1] == "binary_big_endian")
-                encoding = PlyBody::Encoding::BigEndian;
-            else
-                fail("unknown PLY format '" + std::string(tokens[1]) + "'");
+            header.encoding = parsePlyFormat(tokens, path, where);
             continue;
         }
         if (tokens.empty() || tokens[0] == "comment" || tokens[0] == "obj_info") continue;
@@ -697,83 +733,87 @@ PolygonSoup readPly(const std::string& path) {
             elements.push_back(std::move(element));
         } else if (tokens[0] == "property") {
             if (elements.empty()) fail("property before any element");
-            PlyProperty property;
-            bool ok = false;
-            if (tokens.size() == 5 && tokens[1] == "list") {
-                property.isList = true;
-                ok = parsePlyType(tokens[2], property.countType) &&
-                     parsePlyType(tokens[3], property.valueType);
-                property.name = std::string(tokens[4]);
-            } else if (tokens.size() == 3) {
-                ok = parsePlyType(tokens[1], property.valueType);
-                property.name = std::string(tokens[2]);
-            }
-            if (!ok) fail("expected 'property TYPE NAME' or 'property list TYPE TYPE NAME'");
-            elements.back().properties.push_back(std::move(property));
+            elements.back().properties.push_back(parsePlyProperty(tokens, path, where));
         } else {
             fail("unknown header line '" + std::string(tokens[0]) + "'");
         }
     }
+    header.bodyStart = pos;
+    return header;
+}
 
-    // Body: vertex x, y, z and face vertex_indices; other elements and properties skipped.
-    PlyBody body(path, std::string_view(bytes).substr(std::min(pos, bytes.size())), encoding);
-    PolygonSoup soup;
-    std::vector<int> face;
-    for (const PlyElement& element : elements) {
-        if (element.properties.empty()) continue;  // occupies no bytes
-        const bool isVertex = element.name == "vertex";
-        const bool isFace = element.name == "face";
-        int axisOf[3] = {-1, -1, -1};
-        int indicesProperty = -1;
+/// Reads every instance of `element` from `body`: a vertex element's x, y, z become positions,
+/// a face element's vertex_indices list becomes a face; other properties are read and dropped.
+/// `face` is scratch space.
+void readPlyElement(const std::string& path, const PlyElement& element, PlyBody& body,
+                    PolygonSoup& soup, std::vector<int>& face) {
+    const bool isVertex = element.name == "vertex";
+    const bool isFace = element.name == "face";
+    int axisOf[3] = {-1, -1, -1};
+    int indicesProperty = -1;
+    for (size_t p = 0; p < element.properties.size(); ++p) {
+        const PlyProperty& property = element.properties[p];
+        for (int axis = 0; axis < 3; ++axis) {
+            if (isVertex && !property.isList && property.name == std::string(1, 'x' + axis)) {
+                axisOf[axis] = static_cast<int>(p);
+            }
+        }
+        if (isFace && property.isList &&
+            (property.name == "vertex_indices" || property.name == "vertex_index")) {
+            indicesProperty = static_cast<int>(p);
+        }
+    }
+    if (isVertex && (axisOf[0] < 0 || axisOf[1] < 0 || axisOf[2] < 0)) {
+        throw InputError(path, "", "vertex element lacks an x, y or z property");
+    }
+    if (isFace && indicesProperty < 0) {
+        throw InputError(path, "", "face element lacks a vertex_indices list");
+    }
+    for (uint64_t i = 0; i < element.count; ++i) {
+        const std::string what = element.name + " " + std::to_string(i);
+        Vec3 position(0.0);
+        face.clear();
         for (size_t p = 0; p < element.properties.size(); ++p) {
             const PlyProperty& property = element.properties[p];
-            for (int axis = 0; axis < 3; ++axis) {
-                if (isVertex && !property.isList && property.name == std::string(1, 'x' + axis)) {
-                    axisOf[axis] = static_cast<int>(p);
+            if (!property.isList) {
+                const double value = body.read(property.valueType, what);
+                for (int axis = 0; axis < 3; ++axis) {
+                    if (axisOf[axis] == static_cast<int>(p)) position[axis] = value;
                 }
+                continue;
             }
-            if (isFace && property.isList &&
-                (property.name == "vertex_indices" || property.name == "vertex_index")) {
-                indicesProperty = static_cast<int>(p);
+            const double length = body.read(property.countType, what);
+            if (!(length >= 0.0 && length <= static_cast<double>(body.remaining())) ||
+                length != std::floor(length)) {
+                throw InputError(path, what, "invalid list length");
+            }
+            for (size_t k = 0; k < static_cast<size_t>(length); ++k) {
+                const double value = body.read(property.valueType, what);
+                if (static_cast<int>(p) != indicesProperty) continue;
+                if (!(value >= 0.0 && value <= std::numeric_limits<int>::max()) ||
+                    value != std::floor(value)) {
+                    throw InputError(path, what, "invalid vertex index " + formatNumber(value));
+                }
+                face.push_back(static_cast<int>(value));
             }
         }
-        if (isVertex && (axisOf[0] < 0 || axisOf[1] < 0 || axisOf[2] < 0)) {
-            throw InputError(path, "", "vertex element lacks an x, y or z property");
-        }
-        if (isFace && indicesProperty < 0) {
-            throw InputError(path, "", "face element lacks a vertex_indices list");
-        }
-        for (uint64_t i = 0; i < element.count; ++i) {
-            const std::string what = element.name + " " + std::to_string(i);
-            Vec3 position(0.0);
-            face.clear();
-            for (size_t p = 0; p < element.properties.size(); ++p) {
-                const PlyProperty& property = element.properties[p];
-                if (!property.isList) {
-                    const double value = body.read(property.valueType, what);
-                    for (int axis = 0; axis < 3; ++axis) {
-                        if (axisOf[axis] == static_cast<int>(p)) position[axis] = value;
-                    }
-                    continue;
-                }
-                const double length = body.read(property.countType, what);
-                if (!(length >= 0.0 && length <= static_cast<double>(body.remaining())) ||
-                    length != std::floor(length)) {
-                    throw InputError(path, what, "invalid list length");
-                }
-                for (size_t k = 0; k < static_cast<size_t>(length); ++k) {
-                    const double value = body.read(property.valueType, what);
-                    if (static_cast<int>(p) != indicesProperty) continue;
-                    if (!(value >= 0.0 && value <= std::numeric_limits<int>::max()) ||
-                        value != std::floor(value)) {
-                        throw InputError(path, what, "invalid vertex index " + formatNumber(value));
-                    }
-                    face.push_back(static_cast<int>(value));
-                }
-            }
-            if (isVertex) soup.positions.push_back(position);
-            if (isFace) soup.addFace(face.data(), face.size(), -1);
-        }
+        if (isVertex) soup.positions.push_back(position);
+        if (isFace) soup.addFace(face.data(), face.size(), -1);
+    }
+}
+
+PolygonSoup readPly(const std::string& path) {
+    const std::string bytes = readFileBytes(path);
+    const PlyHeader header = readPlyHeader(path, bytes);
+
+    // Body: vertex x, y, z and face vertex_indices; other elements and properties skipped.
+    PlyBody body(path, std::string_view(bytes).substr(std::min(header.bodyStart, bytes.size())),
+                 header.encoding);
+    PolygonSoup soup;
+    std::vector<int> face;
+    for (const PlyElement& element : header.elements) {
+        if (element.properties.empty()) continue;  // occupies no bytes
+        readPlyElement(path, element, body, soup, face);
     }
     return soup;
 }
@@ -1071,12 +1111,11 @@ MeshFilePart buildPart(PolygonSoup& soup, std::size_t fileMaterials, const std::
     return part;
 }
 
-MeshFileScene readGltfScene(const std::string& path, bool binary) {
-    const tinygltf::Model model = loadGltfModel(path, binary, true);
-    MeshFileScene scene;
-    scene.assetExtras = model.asset.extras_json_string;
-    // Extensions: required ones the reader cannot honour make the geometry wrong.
-    // (KHR_materials_unlit: a shading-model hint the radiosity solution replaces.)
+/// Refuses a file that requires an extension the reader cannot honour (the geometry would be
+/// wrong) and lists in `scene.ignored` what it reads past: other used extensions, skins,
+/// animations. (KHR_materials_unlit: a shading-model hint the radiosity solution replaces.)
+void checkGltfExtensions(const tinygltf::Model& model, const std::string& path,
+                         MeshFileScene& scene) {
     const std::vector<std::string> known = {
         "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_unlit"};
     for (const std::string& e : model.extensionsRequired)
@@ -1087,51 +1126,132 @@ MeshFileScene readGltfScene(const std::string& path, bool binary) {
             scene.ignored.push_back("extension " + e);
     if (!model.skins.empty()) scene.ignored.push_back("skins (the bind pose is used)");
     if (!model.animations.empty()) scene.ignored.push_back("animations");
+}
 
-    for (const tinygltf::Material& source : model.materials) {
-        MeshFileMaterial material;
-        material.name = source.name;
-        const std::vector<double>& base = source.pbrMetallicRoughness.baseColorFactor;
-        if (base.size() >= 3) material.baseColor = Rgb(base[0], base[1], base[2]);
-        material.textured = source.pbrMetallicRoughness.baseColorTexture.index >= 0;
-        // The texture's mean (its texels are sRGB-encoded) scales the factor.
-        const int texture = source.pbrMetallicRoughness.baseColorTexture.index;
-        if (material.textured && static_cast<size_t>(texture) < model.textures.size()) {
-            const int imageIndex = model.textures[texture].source;
-            if (imageIndex >= 0 && static_cast<size_t>(imageIndex) < model.images.size()) {
-                const tinygltf::Image& image = model.images[imageIndex];
-                const std::size_t texels = static_cast<std::size_t>(std::max(image.width, 0)) *
-                                           static_cast<std::size_t>(std::max(image.height, 0));
-                const int channels = image.component;
-                if (texels > 0 && image.bits == 8 && channels >= 3 &&
-                    image.image.size() >= texels * static_cast<std::size_t>(channels)) {
-                    Rgb sum(0.0);
-                    for (std::size_t t = 0; t < texels; ++t)
-                        for (int c = 0; c < 3; ++c) {
-                            const double v = image.image[t * channels + c] / 255.0;
-                            sum[c] += srgbDecode(v);
-                        }
-                    material.baseColor *= sum / static_cast<double>(texels);
-                    material.textured = false;  // read
-                }
+/// A glTF material as the importer sees it: base colour (scaled by its texture's mean when the
+/// texture's image is decoded, 8-bit RGB or RGBA), emission with its strength, sidedness.
+MeshFileMaterial importGltfMaterial(const tinygltf::Model& model,
+                                    const tinygltf::Material& source) {
+    MeshFileMaterial material;
+    material.name = source.name;
+    const std::vector<double>& base = source.pbrMetallicRoughness.baseColorFactor;
+    if (base.size() >= 3) material.baseColor = Rgb(base[0], base[1], base[2]);
+    material.textured = source.pbrMetallicRoughness.baseColorTexture.index >= 0;
+    // The texture's mean (its texels are sRGB-encoded) scales the factor.
+    const int texture = source.pbrMetallicRoughness.baseColorTexture.index;
+    if (material.textured && static_cast<size_t>(texture) < model.textures.size()) {
+        const int imageIndex = model.textures[texture].source;
+        if (imageIndex >= 0 && static_cast<size_t>(imageIndex) < model.images.size()) {
+            const tinygltf::Image& image = model.images[imageIndex];
+            const std::size_t texels = static_cast<std::size_t>(std::max(image.width, 0)) *
+                                       static_cast<std::size_t>(std::max(image.height, 0));
+            const int channels = image.component;
+            if (texels > 0 && image.bits == 8 && channels >= 3 &&
+                image.image.size() >= texels * static_cast<std::size_t>(channels)) {
+                Rgb sum(0.0);
+                for (std::size_t t = 0; t < texels; ++t)
+                    for (int c = 0; c < 3; ++c) {
+                        const double v = image.image[t * channels + c] / 255.0;
+                        sum[c] += srgbDecode(v);
+                    }
+                material.baseColor *= sum / static_cast<double>(texels);
+                material.textured = false;  // read
             }
         }
-        material.doubleSided = source.doubleSided;
-        double strength = 1.0;
-        const auto extension = source.extensions.find("KHR_materials_emissive_strength");
-        if (extension != source.extensions.end() && extension->second.Has("emissiveStrength") &&
-            extension->second.Get("emissiveStrength").IsNumber())
-            strength = extension->second.Get("emissiveStrength").GetNumberAsDouble();
-        if (source.emissiveFactor.size() >= 3)
-            material.emissive =
-                Rgb(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]) *
-                strength;
-        material.extras = source.extras_json_string;
-        scene.materials.push_back(material);
     }
+    material.doubleSided = source.doubleSided;
+    double strength = 1.0;
+    const auto extension = source.extensions.find("KHR_materials_emissive_strength");
+    if (extension != source.extensions.end() && extension->second.Has("emissiveStrength") &&
+        extension->second.Get("emissiveStrength").IsNumber())
+        strength = extension->second.Get("emissiveStrength").GetNumberAsDouble();
+    if (source.emissiveFactor.size() >= 3)
+        material.emissive =
+            Rgb(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]) *
+            strength;
+    material.extras = source.extras_json_string;
+    return material;
+}
+
+/// Adds the mesh of node `index` (if it has one with faces) as a part in world space;
+/// `morphs` is set when a primitive has morph targets (only the base shape is read).
+void importNodeMesh(const tinygltf::Model& model, int index, const Mat4& worldFromNode,
+                    const std::string& path, std::size_t fileMaterials, MeshFileScene& scene,
+                    bool& morphs) {
+    const tinygltf::Node& node = model.nodes[index];
+    const std::string where = path + " (node " + std::to_string(index) + ")";
+    if (node.mesh >= 0) {
+        if (static_cast<size_t>(node.mesh) >= model.meshes.size())
+            throw InputError(path, "", "mesh " + std::to_string(node.mesh) + " does not exist");
+        const tinygltf::Mesh& mesh = model.meshes[node.mesh];
+        PolygonSoup soup;
+        for (const tinygltf::Primitive& primitive : mesh.primitives) {
+            morphs = morphs || !primitive.targets.empty();
+            appendPrimitive(model, primitive, worldFromNode, path, soup);
+        }
+        if (soup.faceCount() > 0) {
+            MeshFilePart part = buildPart(soup, fileMaterials, where);
+            part.name = !node.name.empty() ? node.name : mesh.name;
+            part.extras = node.extras_json_string;
+            scene.parts.push_back(std::move(part));
+        }
+    }
+}
+
+/// Adds the node's camera, if it has a valid one, placed by the node (a glTF camera looks
+/// along its −Z with +Y up).
+void importNodeCamera(const tinygltf::Model& model, const tinygltf::Node& node,
+                      const Mat4& worldFromNode, MeshFileScene& scene) {
+    const auto at = [&](const glm::dvec4& v) { return Vec3(worldFromNode * v); };
+    if (node.camera >= 0 && static_cast<size_t>(node.camera) < model.cameras.size()) {
+        const tinygltf::Camera& source = model.cameras[node.camera];
+        MeshFileCamera camera;
+        camera.name = !source.name.empty() ? source.name : node.name;
+        camera.position = at(glm::dvec4(0, 0, 0, 1));
+        camera.forward = at(glm::dvec4(0, 0, -1, 0));
+        camera.up = at(glm::dvec4(0, 1, 0, 0));
+        camera.perspective = source.type != "orthographic";
+        if (camera.perspective && source.perspective.yfov > 0)
+            camera.yfovDeg = source.perspective.yfov * 180.0 / M_PI;
+        scene.cameras.push_back(camera);
+    }
+}
+
+/// Adds the node's KHR_lights_punctual light, if it names one, placed by the node (a glTF
+/// light shines along its −Z).
+void importNodeLight(const tinygltf::Model& model, const tinygltf::Node& node,
+                     const Mat4& worldFromNode, const std::string& path, MeshFileScene& scene) {
+    const auto at = [&](const glm::dvec4& v) { return Vec3(worldFromNode * v); };
+    const auto lightExtension = node.extensions.find("KHR_lights_punctual");
+    if (lightExtension != node.extensions.end() && lightExtension->second.Has("light") &&
+        lightExtension->second.Get("light").IsInt()) {
+        const int l = lightExtension->second.Get("light").GetNumberAsInt();
+        if (l < 0 || static_cast<size_t>(l) >= model.lights.size())
+            throw InputError(path, "", "light " + std::to_string(l) + " does not exist");
+        const tinygltf::Light& source = model.lights[l];
+        MeshFileLight light;
+        light.name = !source.name.empty() ? source.name : node.name;
+        light.type = source.type;
+        if (source.color.size() >= 3)
+            light.colour = Rgb(source.color[0], source.color[1], source.color[2]);
+        light.intensity = source.intensity;
+        light.position = at(glm::dvec4(0, 0, 0, 1));
+        light.direction = at(glm::dvec4(0, 0, -1, 0));
+        scene.lights.push_back(light);
+    }
+}
+
+MeshFileScene readGltfScene(const std::string& path, bool binary) {
+    const tinygltf::Model model = loadGltfModel(path, binary, true);
+    MeshFileScene scene;
+    scene.assetExtras = model.asset.extras_json_string;
+    checkGltfExtensions(model, path, scene);
+    for (const tinygltf::Material& source : model.materials)
+        scene.materials.push_back(importGltfMaterial(model, source));
     const std::size_t fileMaterials = scene.materials.size();
     bool morphs = false;
 
+    // Walk the node hierarchy, refusing cycles: mesh parts, cameras and lights per node.
     std::vector<bool> onPath(model.nodes.size(), false);
     std::function<void(int, const Mat4&)> visit = [&](int index, const Mat4& worldFromParent) {
         if (index < 0 || static_cast<size_t>(index) >= model.nodes.size())
@@ -1141,53 +1261,9 @@ MeshFileScene readGltfScene(const std::string& path, bool binary) {
         onPath[index] = true;
         const tinygltf::Node& node = model.nodes[index];
         const Mat4 worldFromNode = worldFromParent * localFromNode(node);
-        const std::string where = path + " (node " + std::to_string(index) + ")";
-        if (node.mesh >= 0) {
-            if (static_cast<size_t>(node.mesh) >= model.meshes.size())
-                throw InputError(path, "", "mesh " + std::to_string(node.mesh) + " does not exist");
-            const tinygltf::Mesh& mesh = model.meshes[node.mesh];
-            PolygonSoup soup;
-            for (const tinygltf::Primitive& primitive : mesh.primitives) {
-                morphs = morphs || !primitive.targets.empty();
-                appendPrimitive(model, primitive, worldFromNode, path, soup);
-            }
-            if (soup.faceCount() > 0) {
-                MeshFilePart part = buildPart(soup, fileMaterials, where);
-                part.name = !node.name.empty() ? node.name : mesh.name;
-                part.extras = node.extras_json_string;
-                scene.parts.push_back(std::move(part));
-            }
-        }
-        const auto at = [&](const glm::dvec4& v) { return Vec3(worldFromNode * v); };
-        if (node.camera >= 0 && static_cast<size_t>(node.camera) < model.cameras.size()) {
-            const tinygltf::Camera& source = model.cameras[node.camera];
-            MeshFileCamera camera;
-            camera.name = !source.name.empty() ? source.name : node.name;
-            camera.position = at(glm::dvec4(0, 0, 0, 1));
-            camera.forward = at(glm::dvec4(0, 0, -1, 0));
-            camera.up = at(glm::dvec4(0, 1, 0, 0));
-            camera.perspective = source.type != "orthographic";
-            if (camera.perspective && source.perspective.yfov > 0)
-                camera.yfovDeg = source.perspective.yfov * 180.0 / M_PI;
-            scene.cameras.push_back(camera);
-        }
-        const auto lightExtension = node.extensions.find("KHR_lights_punctual");
-        if (lightExtension != node.extensions.end() && lightExtension->second.Has("light") &&
-            lightExtension->second.Get("light").IsInt()) {
-            const int l = lightExtension->second.Get("light").GetNumberAsInt();
-            if (l < 0 || static_cast<size_t>(l) >= model.lights.size())
-                throw InputError(path, "", "light " + std::to_string(l) + " does not exist");
-            const tinygltf::Light& source = model.lights[l];
-            MeshFileLight light;
-            light.name = !source.name.empty() ? source.name : node.name;
-            light.type = source.type;
-            if (source.color.size() >= 3)
-                light.colour = Rgb(source.color[0], source.color[1], source.color[2]);
-            light.intensity = source.intensity;
-            light.position = at(glm::dvec4(0, 0, 0, 1));
-            light.direction = at(glm::dvec4(0, 0, -1, 0));
-            scene.lights.push_back(light);
-        }
+        importNodeMesh(model, index, worldFromNode, path, fileMaterials, scene, morphs);
+        importNodeCamera(model, node, worldFromNode, scene);
+        importNodeLight(model, node, worldFromNode, path, scene);
         for (int child : node.children) visit(child, worldFromNode);
         onPath[index] = false;
     };

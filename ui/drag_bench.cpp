@@ -57,6 +57,36 @@ std::string transformLine(const std::string& id, const Transform& t) {
     return formatEditCommand(EditCommand(c));
 }
 
+/// The errors of `image` over the dragged object's own pixels (where the reference's primary
+/// ray meets object `version`): solid and in the right place, or not. Sets objectError,
+/// objectPixels and objectWrong, the share of those pixels that show something else (the
+/// background through a hole, the object elsewhere): a channel off by more than a fifth of
+/// the range, far beyond what a lagging light gives.
+void compareObjectPixels(EditSession& session, const CameraRays& rays, int version,
+                         const std::vector<std::uint8_t>& referenceBytes, DragBenchImage& e) {
+    std::vector<std::uint8_t> a, b;
+    for (int y = 0; y < e.height; ++y)
+        for (int x = 0; x < e.width; ++x) {
+            const RayHit hit =
+                session.tracer().intersect(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
+            if (hit.object != version) continue;
+            const std::size_t k = 3 * (static_cast<std::size_t>(y) * e.width + x);
+            for (int c = 0; c < 3; ++c) {
+                a.push_back((*e.shown)[k + c]);
+                b.push_back(referenceBytes[k + c]);
+            }
+        }
+    e.objectError = relativeError(a, b);
+    e.objectPixels = a.size() / 3;
+    std::size_t wrong = 0;
+    for (std::size_t k = 0; k + 2 < a.size(); k += 3) {
+        int off = 0;
+        for (int c = 0; c < 3; ++c) off = std::max(off, std::abs(int(a[k + c]) - int(b[k + c])));
+        wrong += off > 51;
+    }
+    e.objectWrong = a.empty() ? -1.0 : double(wrong) / double(a.size() / 3);
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -202,6 +232,26 @@ void DragBench::workerLoop() {
 nlohmann::json DragBench::analyse() {
     drain();
     nlohmann::json out;
+    analyseImages(out);
+    analyseSettling(out);
+    out["references"] = renderReferences(chooseReferenceImages());
+    double maxDrag = -1;
+    for (const DragBenchImage& e : mImages)
+        if (!e.afterDrop) maxDrag = std::max(maxDrag, e.referenceError);
+    out["max_drag_reference_error"] = maxDrag;
+    double maxObject = -1;
+    for (const DragBenchImage& e : mImages)
+        if (!e.afterDrop) maxObject = std::max(maxObject, e.objectError);
+    out["max_drag_object_error"] = maxObject;
+    double maxWrong = -1;
+    for (const DragBenchImage& e : mImages)
+        if (!e.afterDrop) maxWrong = std::max(maxWrong, e.objectWrong);
+    out["max_drag_object_wrong_fraction"] = maxWrong;
+    out["settled_reference_error"] = mSettled.referenceError;
+    return out;
+}
+
+void DragBench::analyseImages(nlohmann::json& out) const {
     std::size_t maxUnsampled = 0, maxUnfilled = 0, reduced = 0, drag = 0;
     double maxUnsampledFraction = 0, maxUnfilledFraction = 0;
     for (const DragBenchImage& e : mImages) {
@@ -219,7 +269,9 @@ nlohmann::json DragBench::analyse() {
     out["max_unfilled_fraction"] = maxUnfilledFraction;
     out["max_unfilled_pixels"] = maxUnfilled;
     out["reduced_share"] = mImages.empty() ? 0.0 : double(reduced) / mImages.size();
+}
 
+void DragBench::analyseSettling(nlohmann::json& out) {
     // After the drop, against the settled image: when does it stay within the tolerance?
     double settleSeconds = -1, windowEnd = -1;
     if (mSettled.shown) {
@@ -248,9 +300,11 @@ nlohmann::json DragBench::analyse() {
         if (e.afterDrop)
             after.push_back({{"ms", e.seconds * 1e3}, {"settled_error", e.settledError}});
     out["after_drop"] = std::move(after);
+}
 
-    // References of a few states: spread over the drag, the first image after the drop, the
-    // one at the window's end, the settled image.
+std::vector<DragBenchImage*> DragBench::chooseReferenceImages() {
+    // A few states: spread over the drag, the first image after the drop, the one at the
+    // window's end, the settled image.
     std::vector<DragBenchImage*> chosen;
     std::vector<DragBenchImage*> dragImages, afterImages;
     for (DragBenchImage& e : mImages) (e.afterDrop ? afterImages : dragImages).push_back(&e);
@@ -267,6 +321,10 @@ nlohmann::json DragBench::analyse() {
         if (last != afterImages.front()) chosen.push_back(last);
     }
     if (mSettled.shown) chosen.push_back(&mSettled);
+    return chosen;
+}
+
+nlohmann::json DragBench::renderReferences(const std::vector<DragBenchImage*>& chosen) {
     nlohmann::json references = nlohmann::json::array();
     if (!chosen.empty() && !mOptions.scene.empty()) {
         const SolverOptions solverOptions = interactiveSolverOptions();
@@ -276,85 +334,49 @@ nlohmann::json DragBench::analyse() {
         for (DragBenchImage* e : chosen) {
             std::cerr << "penumbra-editor: --bench-drag: reference " << ++at << "/" << chosen.size()
                       << "\n";
-            TransformCommand move;
-            move.id = mOptions.object;
-            move.translate = e->transform.translate;
-            move.rotateDeg = e->transform.rotateDeg;
-            move.scale = e->transform.scale;
-            session->apply(EditCommand(move));
-            session->converge(1e-3);
-            PointShaderOptions so = displayShaderOptions();
-            so.threads = 0;
-            so.recordTriples = false;
-            PointShader shader(session->discretization(), session->tracer(), solverOptions, so);
-            shader.updateSolution(session->solver());
-            const CameraRays rays(e->camera, e->width, e->height);
-            const Image reference =
-                renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis);
-            const auto referenceBytes = displayedBytes(reference);
-            e->referenceError = relativeError(*e->shown, *referenceBytes);
-            // The dragged object's own pixels (where the reference's primary ray meets it):
-            // solid and in the right place, or not.
-            const int version = session->objectVersion(mOptions.object);
-            std::vector<std::uint8_t> a, b;
-            for (int y = 0; y < e->height; ++y)
-                for (int x = 0; x < e->width; ++x) {
-                    const RayHit hit = session->tracer().intersect(
-                        rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
-                    if (hit.object != version) continue;
-                    const std::size_t k = 3 * (static_cast<std::size_t>(y) * e->width + x);
-                    for (int c = 0; c < 3; ++c) {
-                        a.push_back((*e->shown)[k + c]);
-                        b.push_back((*referenceBytes)[k + c]);
-                    }
-                }
-            e->objectError = relativeError(a, b);
-            e->objectPixels = a.size() / 3;
-            // Pixels that show something else (the background through a hole, the object
-            // elsewhere): a channel off by more than a fifth of the range, far beyond what a
-            // lagging light gives.
-            std::size_t wrong = 0;
-            for (std::size_t k = 0; k + 2 < a.size(); k += 3) {
-                int off = 0;
-                for (int c = 0; c < 3; ++c)
-                    off = std::max(off, std::abs(int(a[k + c]) - int(b[k + c])));
-                wrong += off > 51;
-            }
-            e->objectWrong = a.empty() ? -1.0 : double(wrong) / double(a.size() / 3);
-            nlohmann::json entry = {{"phase", e == &mSettled ? "settled"
-                                              : e->afterDrop ? "after-drop"
-                                                             : "drag"},
-                                    {"ms", e == &mSettled ? -1.0 : e->seconds * 1e3},
-                                    {"error", e->referenceError},
-                                    {"object_error", e->objectError},
-                                    {"object_pixels", e->objectPixels},
-                                    {"object_wrong_fraction", e->objectWrong},
-                                    {"transform", transformJson(e->transform)}};
-            if (!mOptions.recordDir.empty()) {
-                char name[40];
-                std::snprintf(name, sizeof name, "reference-%02d.png", at);
-                writePng(reference, (std::filesystem::path(mOptions.recordDir) / name).string());
-                entry["reference"] = name;
-                entry["image"] = std::filesystem::path(e->file).filename().string();
-            }
-            references.push_back(std::move(entry));
+            references.push_back(compareWithReference(*session, solverOptions, *e, at));
         }
     }
-    out["references"] = std::move(references);
-    double maxDrag = -1;
-    for (const DragBenchImage& e : mImages)
-        if (!e.afterDrop) maxDrag = std::max(maxDrag, e.referenceError);
-    out["max_drag_reference_error"] = maxDrag;
-    double maxObject = -1;
-    for (const DragBenchImage& e : mImages)
-        if (!e.afterDrop) maxObject = std::max(maxObject, e.objectError);
-    out["max_drag_object_error"] = maxObject;
-    double maxWrong = -1;
-    for (const DragBenchImage& e : mImages)
-        if (!e.afterDrop) maxWrong = std::max(maxWrong, e.objectWrong);
-    out["max_drag_object_wrong_fraction"] = maxWrong;
-    out["settled_reference_error"] = mSettled.referenceError;
-    return out;
+    return references;
+}
+
+nlohmann::json DragBench::compareWithReference(EditSession& session,
+                                               const SolverOptions& solverOptions,
+                                               DragBenchImage& e, int at) {
+    TransformCommand move;
+    move.id = mOptions.object;
+    move.translate = e.transform.translate;
+    move.rotateDeg = e.transform.rotateDeg;
+    move.scale = e.transform.scale;
+    session.apply(EditCommand(move));
+    session.converge(1e-3);
+    PointShaderOptions so = displayShaderOptions();
+    so.threads = 0;
+    so.recordTriples = false;
+    PointShader shader(session.discretization(), session.tracer(), solverOptions, so);
+    shader.updateSolution(session.solver());
+    const CameraRays rays(e.camera, e.width, e.height);
+    const Image reference = renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis);
+    const auto referenceBytes = displayedBytes(reference);
+    e.referenceError = relativeError(*e.shown, *referenceBytes);
+    compareObjectPixels(session, rays, session.objectVersion(mOptions.object), *referenceBytes, e);
+    nlohmann::json entry = {{"phase", &e == &mSettled ? "settled"
+                                      : e.afterDrop   ? "after-drop"
+                                                      : "drag"},
+                            {"ms", &e == &mSettled ? -1.0 : e.seconds * 1e3},
+                            {"error", e.referenceError},
+                            {"object_error", e.objectError},
+                            {"object_pixels", e.objectPixels},
+                            {"object_wrong_fraction", e.objectWrong},
+                            {"transform", transformJson(e.transform)}};
+    if (!mOptions.recordDir.empty()) {
+        char name[40];
+        std::snprintf(name, sizeof name, "reference-%02d.png", at);
+        writePng(reference, (std::filesystem::path(mOptions.recordDir) / name).string());
+        entry["reference"] = name;
+        entry["image"] = std::filesystem::path(e.file).filename().string();
+    }
+    return entry;
 }
 
 }  // namespace penumbra

@@ -115,6 +115,23 @@ private:
     void drain();
     void workerLoop();
 
+    // The steps of analyse().
+    /// Image counts, the largest unsampled and unfilled shares, and the reduced share.
+    void analyseImages(nlohmann::json& out) const;
+    /// Each after-drop image's error against the settled image, and how soon after the drop
+    /// every later image stays within the tolerance.
+    void analyseSettling(nlohmann::json& out);
+    /// The images worth a reference: a few spread over the drag, the first after the drop, the
+    /// one nearest afterDropSeconds, the settled one.
+    std::vector<DragBenchImage*> chooseReferenceImages();
+    /// Renders a reference of each chosen image's state (one session solved again per state)
+    /// and fills in the images' reference errors; one JSON entry per image.
+    nlohmann::json renderReferences(const std::vector<DragBenchImage*>& chosen);
+    /// Moves the dragged object to `image`'s state in `session`, converges, renders the
+    /// reference and compares (the `at`-th reference: its file name when recording).
+    nlohmann::json compareWithReference(EditSession& session, const SolverOptions& solverOptions,
+                                        DragBenchImage& image, int at);
+
     DragBenchOptions mOptions;
     double mStart = 0, mDrop = 0;
     bool mDropped = false;
