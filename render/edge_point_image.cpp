@@ -815,7 +815,7 @@ std::array<uint8_t, 25> EdgePointImage::computeReachability(int x, int y) const 
     return reach;
 }
 
-void EdgePointImage::computeReachabilityMap() {
+void EdgePointImage::markNearEdge() {
     // Pixels whose 5×5 neighbourhood holds any edge: vertical then horizontal OR.
     forRows(mOptions.parallel, mHeight, [&](int y) {
         // (The width in a local: a byte store may alias the member, which kept this scalar.)
@@ -829,45 +829,40 @@ void EdgePointImage::computeReachabilityMap() {
             for (int x = 0; x < W; ++x) out[x] |= row[x] != kEdgeCodeEmpty;
         }
     });
-    auto nearEdge = [&](int x, int y) {
-        const uint8_t* column = &mNearEdge[paddedIndex(0, y)];
-        return (column[x - 2] | column[x - 1] | column[x] | column[x + 1] | column[x + 2]) != 0;
-    };
-    if (!mOptions.parallel) {
-        // The reference: the full 5×5 propagation for every pixel near an edge.
-        for (int y = 0; y < mHeight; ++y) {
-            for (int x = 0; x < mWidth; ++x) {
-                const size_t i = index(x, y);
-                mSecondaryReach[i] = 0;
-                if (!nearEdge(x, y)) {
-                    mReach[i] = kAllNeighbours | kAllEmptyFlag;
-                    continue;
-                }
-                const std::array<uint8_t, 25> masks = computeReachability(x, y);
-                uint32_t primary = 0;
-                for (int k = 0; k < 24; ++k) {
-                    primary |= static_cast<uint32_t>(masks[kBitCell[k]] & kReachPP) << k;
-                }
-                uint8_t secondary = 0;
-                for (int k = 0; k < 8; ++k) {
-                    secondary |=
-                        static_cast<uint8_t>(((masks[kRingCell[k]] & kReachSP) ? 1u : 0u) << k);
-                }
-                mReach[i] = primary;
-                mSecondaryReach[i] = secondary;
+}
+
+bool EdgePointImage::nearEdge(int x, int y) const {
+    const uint8_t* column = &mNearEdge[paddedIndex(0, y)];
+    return (column[x - 2] | column[x - 1] | column[x] | column[x + 1] | column[x + 2]) != 0;
+}
+
+void EdgePointImage::computeReachabilityMapSerial() {
+    // The reference: the full 5×5 propagation for every pixel near an edge.
+    for (int y = 0; y < mHeight; ++y) {
+        for (int x = 0; x < mWidth; ++x) {
+            const size_t i = index(x, y);
+            mSecondaryReach[i] = 0;
+            if (!nearEdge(x, y)) {
+                mReach[i] = kAllNeighbours | kAllEmptyFlag;
+                continue;
             }
+            const std::array<uint8_t, 25> masks = computeReachability(x, y);
+            uint32_t primary = 0;
+            for (int k = 0; k < 24; ++k) {
+                primary |= static_cast<uint32_t>(masks[kBitCell[k]] & kReachPP) << k;
+            }
+            uint8_t secondary = 0;
+            for (int k = 0; k < 8; ++k) {
+                secondary |=
+                    static_cast<uint8_t>(((masks[kRingCell[k]] & kReachSP) ? 1u : 0u) << k);
+            }
+            mReach[i] = primary;
+            mSecondaryReach[i] = secondary;
         }
-        return;
     }
-    // §5.2: "since reachability is symmetric ... reachability of pixels on prior scanlines is
-    // reused". Pass 1 propagates only to the current and the next two scanlines (the 14 cells
-    // with dy ≥ 0: monotone paths to them never leave those rows, so 22 lookups instead of
-    // 40). Pass 2 takes the 10 cells on prior scanlines from the pixels there: a ↔ d is
-    // primary-to-primary for a exactly when it is for d, and a's secondary reaches d's
-    // primary exactly when d's primary reaches a's secondary (the hop tables of opposite
-    // directions are transposes and the chaining is relational composition, so the union
-    // over monotone paths is symmetric). Equal bit for bit to the full propagation (the
-    // serial reference above; tested).
+}
+
+void EdgePointImage::propagateLowerReachability() {
     const std::array<uint8_t, 16384>& hopTable = fusedHopTable();
     forRows(true, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
@@ -940,6 +935,9 @@ void EdgePointImage::computeReachabilityMap() {
             mPartnerReach[i] = partner;
         }
     });
+}
+
+void EdgePointImage::mirrorUpperReachability() {
     forRows(true, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
@@ -972,6 +970,25 @@ void EdgePointImage::computeReachabilityMap() {
             mSecondaryReach[i] = secondary;
         }
     });
+}
+
+void EdgePointImage::computeReachabilityMap() {
+    markNearEdge();
+    if (!mOptions.parallel) {
+        computeReachabilityMapSerial();
+        return;
+    }
+    // §5.2: "since reachability is symmetric ... reachability of pixels on prior scanlines is
+    // reused". Pass 1 propagates only to the current and the next two scanlines (the 14 cells
+    // with dy ≥ 0: monotone paths to them never leave those rows, so 22 lookups instead of
+    // 40). Pass 2 takes the 10 cells on prior scanlines from the pixels there: a ↔ d is
+    // primary-to-primary for a exactly when it is for d, and a's secondary reaches d's
+    // primary exactly when d's primary reaches a's secondary (the hop tables of opposite
+    // directions are transposes and the chaining is relational composition, so the union
+    // over monotone paths is symmetric). Equal bit for bit to the full propagation (the
+    // serial reference, computeReachabilityMapSerial(); tested).
+    propagateLowerReachability();
+    mirrorUpperReachability();
 }
 
 // ---- Interpolation (§5.3) -----------------------------------------------------------------
@@ -1113,11 +1130,11 @@ void EdgePointImage::antiAlias(Image& out) const {
 
 // ---- Complex filter (§5.4) ----------------------------------------------------------------
 
-void EdgePointImage::filterComplexPixels(Image& out) {
-    const EdgeCodeTables& sub = EdgeCodeTables::subpixel();
-    const int W = mWidth;
-    const int H = mHeight;
-    // Region adjacency of subpixel types to the right (0) and below (1).
+namespace {
+
+/// §5.4 region adjacency of subpixel neighbour types, to the right (0) and below (1):
+/// [direction][type · 8 + neighbour's type].
+const std::array<std::array<uint8_t, 64>, 2>& subpixelAdjacency() {
     static const auto adjacency = [] {
         std::array<std::array<uint8_t, 64>, 2> t{};
         for (int d = 0; d < 2; ++d) {
@@ -1128,7 +1145,126 @@ void EdgePointImage::filterComplexPixels(Image& out) {
         }
         return t;
     }();
+    return adjacency;
+}
+
+/// §5.4 neighbour type of each subpixel edge code.
+const std::array<uint8_t, kEdgeCodeCount>& subpixelTypes() {
+    static const std::array<uint8_t, kEdgeCodeCount> subpixelType = [] {
+        std::array<uint8_t, kEdgeCodeCount> t{};
+        for (int code = 0; code < kEdgeCodeCount; ++code)
+            t[code] = neighbourType(static_cast<uint16_t>(code), kSubpixelPiecesPerSide);
+        return t;
+    }();
+    return subpixelType;
+}
+
+}  // namespace
+
+/// §5.4 working state of one complex pixel: the subpixel edge codes and types over the 6×6
+/// subpixels of its 3×3 pixel neighbourhood, the adjacency of their regions, the connected
+/// regions found so far, and the points of the 3×3 pixels placed in their subpixel regions
+/// (node = subpixel · 2 + region).
+struct EdgePointImage::ComplexNeighbourhood {
+    std::array<uint16_t, 36> codes;
+    std::array<uint8_t, 36> types;
+    /// edges[dir][ra][rb] has bit a set when region ra of subpixel a meets region rb of its
+    /// neighbour to the right (dir 0, a + 1) or below (dir 1, a + 6).
+    uint64_t edges[2][2][2] = {};
+    std::array<int8_t, 72> label;
+    std::array<std::array<uint64_t, 2>, 8> component;
+    int labels = 0;
+    struct SubSample {
+        int node, u, v;
+        glm::vec3 colour;
+    };
+    std::array<SubSample, 9> samples;
+    int sampleCount = 0;
+
+    /// The region adjacency `edges` from the subpixel types, and no component labelled yet.
+    void connectRegions() {
+        // Branch-free: adjacency bit 2·ra + rb selects edges[dir][ra][rb].
+        const std::array<std::array<uint8_t, 64>, 2>& adjacency = subpixelAdjacency();
+        auto addEdges = [this](int dir, unsigned m, int a) {
+            const uint64_t bit = uint64_t(1) << a;
+            edges[dir][0][0] |= bit & (uint64_t(0) - (m & 1u));
+            edges[dir][0][1] |= bit & (uint64_t(0) - ((m >> 1) & 1u));
+            edges[dir][1][0] |= bit & (uint64_t(0) - ((m >> 2) & 1u));
+            edges[dir][1][1] |= bit & (uint64_t(0) - ((m >> 3) & 1u));
+        };
+        for (int v = 0; v < 6; ++v) {
+            for (int u = 0; u < 6; ++u) {
+                const int a = v * 6 + u;
+                if (u + 1 < 6) addEdges(0, adjacency[0][types[a] * 8 + types[a + 1]], a);
+                if (v + 1 < 6) addEdges(1, adjacency[1][types[a] * 8 + types[a + 6]], a);
+            }
+        }
+        label.fill(-1);
+    }
+
+    /// The label of the connected region holding `node`, flood-filled bit-parallel on first
+    /// demand (only the labels' equality matters).
+    int find(int node) {
+        if (label[node] >= 0) return label[node];
+        uint64_t c[2] = {0, 0};
+        c[node & 1] = uint64_t(1) << (node >> 1);
+        for (;;) {
+            const uint64_t c0 = c[0], c1 = c[1];
+            for (int ra = 0; ra < 2; ++ra) {
+                for (int rb = 0; rb < 2; ++rb) {
+                    c[rb] |= (c[ra] & edges[0][ra][rb]) << 1;
+                    c[ra] |= (c[rb] >> 1) & edges[0][ra][rb];
+                    c[rb] |= (c[ra] & edges[1][ra][rb]) << 6;
+                    c[ra] |= (c[rb] >> 6) & edges[1][ra][rb];
+                }
+            }
+            if (c[0] == c0 && c[1] == c1) break;
+        }
+        const int8_t id = static_cast<int8_t>(labels++);
+        component[id] = {c[0], c[1]};
+        for (int r = 0; r < 2; ++r)
+            for (uint64_t m = c[r]; m; m &= m - 1) label[std::countr_zero(m) * 2 + r] = id;
+        return id;
+    }
+
+    /// The pixel's value: each region of its own 4 subpixels coloured from the samples it
+    /// reaches, area-weighted; complex or unreached regions keep the estimate.
+    glm::vec3 colourOwnRegions(const EdgeCodeTables& sub, const glm::vec3& estimate) {
+        glm::vec3 total(0.0f);
+        for (int v = 2; v < 4; ++v) {
+            for (int u = 2; u < 4; ++u) {
+                const int s = v * 6 + u;
+                const uint8_t type = types[s];
+                if (type == kNeighbourTypeComplex) {
+                    total += 0.25f * estimate;
+                    continue;
+                }
+                const int regions = type == kNeighbourTypeEmpty ? 1 : 2;
+                for (int r = 0; r < regions; ++r) {
+                    const float area0 = sub.region0Area[codes[s]];
+                    const float area = regions == 1 ? 1.0f : (r == 0 ? area0 : 1.0f - area0);
+                    const std::array<uint64_t, 2>& reached = component[find(s * 2 + r)];
+                    glm::vec3 sum(0.0f);
+                    float weight = 0.0f;
+                    for (int k = 0; k < sampleCount; ++k) {
+                        const int node = samples[k].node;
+                        if (!((reached[node & 1] >> (node >> 1)) & 1)) continue;
+                        const float w = filterWeight(samples[k].u - u, samples[k].v - v);
+                        sum += w * samples[k].colour;
+                        weight += w;
+                    }
+                    total += 0.25f * area * (weight > 0.0f ? sum / weight : estimate);
+                }
+            }
+        }
+        return total;
+    }
+};
+
+std::vector<size_t> EdgePointImage::listComplexPixels() {
     // The complex pixels in pixel order, rows in parallel at offsets from the per-row counts.
+    const int W = mWidth;
+    const int H = mHeight;
     std::vector<int>& complexPixels = mComplexPixels;
     std::vector<size_t> rowStart(static_cast<size_t>(H) + 1, 0);
     for (int y = 0; y < H; ++y) rowStart[y + 1] = rowStart[y] + mRowCounts[y][2];
@@ -1140,28 +1276,37 @@ void EdgePointImage::filterComplexPixels(Image& out) {
             if (mEdgeCode[index(x, y)] == kEdgeCodeComplex)
                 complexPixels[k++] = static_cast<int>(index(x, y));
     });
-    // EpiOptions::denseComplexLimit: complex pixels in dense clusters keep their estimate now
-    // and leave the list; the others are marked in mFiltered (complex pixels only) so that
-    // subpixel codes are computed around them alone. (Within a dense cluster the subpixel
-    // regions reach few usable samples, those in complex subpixels being skipped, and came
-    // out noisier than the estimate, the render cache's reconstruction: §7.5.)
-    const bool dense = mOptions.denseComplexLimit > 0;
-    if (dense) {
-        mFiltered.assign(static_cast<size_t>(W) * H, 0);
-        forRows(mOptions.parallel, H, [&](int y) {
-            for (size_t k = rowStart[y]; k < rowStart[y + 1]; ++k) {
-                const int pixel = complexPixels[k];
-                if (mDense[pixel]) {
-                    out.at(pixel % W, y) = Rgb(mPrimary[pixel]);
-                } else {
-                    mFiltered[pixel] = 1;
-                }
+    return rowStart;
+}
+
+void EdgePointImage::keepDenseComplexEstimates(const std::vector<size_t>& rowStart, Image& out) {
+    // Complex pixels in dense clusters keep their estimate now and leave the list; the others
+    // are marked in mFiltered (complex pixels only) so that subpixel codes are computed around
+    // them alone. (Within a dense cluster the subpixel regions reach few usable samples, those
+    // in complex subpixels being skipped, and came out noisier than the estimate, the render
+    // cache's reconstruction: §7.5.)
+    const int W = mWidth;
+    const int H = mHeight;
+    std::vector<int>& complexPixels = mComplexPixels;
+    mFiltered.assign(static_cast<size_t>(W) * H, 0);
+    forRows(mOptions.parallel, H, [&](int y) {
+        for (size_t k = rowStart[y]; k < rowStart[y + 1]; ++k) {
+            const int pixel = complexPixels[k];
+            if (mDense[pixel]) {
+                out.at(pixel % W, y) = Rgb(mPrimary[pixel]);
+            } else {
+                mFiltered[pixel] = 1;
             }
-        });
-        complexPixels.erase(std::remove_if(complexPixels.begin(), complexPixels.end(),
-                                           [&](int pixel) { return !mFiltered[pixel]; }),
-                            complexPixels.end());
-    }
+        }
+    });
+    complexPixels.erase(std::remove_if(complexPixels.begin(), complexPixels.end(),
+                                       [&](int pixel) { return !mFiltered[pixel]; }),
+                        complexPixels.end());
+}
+
+void EdgePointImage::computeSubpixelCodes(bool dense) {
+    const int W = mWidth;
+    const int H = mHeight;
     // 4 bits of a boundary line at twice-pixel coordinate k2 (even: pixel boundary, odd:
     // half-pixel line) over the half of pixel segment `cell` selected by `half`.
     auto horizontalBits = [&](int k2, int column, int half) -> unsigned {
@@ -1175,12 +1320,7 @@ void EdgePointImage::filterComplexPixels(Image& out) {
         return (m >> (4 * half)) & 15u;
     };
 
-    static const std::array<uint8_t, kEdgeCodeCount> subpixelType = [] {
-        std::array<uint8_t, kEdgeCodeCount> t{};
-        for (int code = 0; code < kEdgeCodeCount; ++code)
-            t[code] = neighbourType(static_cast<uint16_t>(code), kSubpixelPiecesPerSide);
-        return t;
-    }();
+    const std::array<uint8_t, kEdgeCodeCount>& subpixelType = subpixelTypes();
     // Subpixel edge codes of every pixel in some complex pixel's 3×3 neighbourhood, once
     // (complex pixels cluster along dense edges, so neighbourhoods overlap): subpixel
     // (sx, sy) of pixel (px, py) lies between lines 2·px + sx, 2·px + sx + 1 (x) and
@@ -1221,185 +1361,131 @@ void EdgePointImage::filterComplexPixels(Image& out) {
             }
         }
     });
+}
 
-    auto filterPixel = [&](int pixel) {
-        if (mOptions.complexFilterShortcut) {
-            // No sample in the 3×3 neighbourhood: every region below keeps the estimate; the
-            // same sums in the same order as the general loop at the end.
-            const int cx = pixel % W, cy = pixel / W;
-            bool anySample = false;
-            for (int py = std::max(0, cy - 1); py <= std::min(H - 1, cy + 1); ++py)
-                for (int px = std::max(0, cx - 1); px <= std::min(W - 1, cx + 1); ++px)
-                    anySample |= mSamplePos[index(px, py)] != 0xFF;
-            if (!anySample) {
-                const glm::vec3 estimate = mPrimary[pixel];
-                glm::vec3 total(0.0f);
-                for (int s = 0; s < 4; ++s) {
-                    const uint8_t type = mSubType[4 * static_cast<size_t>(pixel) + s];
-                    if (type == kNeighbourTypeComplex) {
-                        total += 0.25f * estimate;
-                        continue;
-                    }
-                    const int regions = type == kNeighbourTypeEmpty ? 1 : 2;
-                    const float area0 =
-                        sub.region0Area[mSubCode[4 * static_cast<size_t>(pixel) + s]];
-                    for (int r = 0; r < regions; ++r) {
-                        const float area = regions == 1 ? 1.0f : (r == 0 ? area0 : 1.0f - area0);
-                        total += 0.25f * area * estimate;
-                    }
-                }
-                out.at(cx, cy) = Rgb(total);
-                return;
-            }
+bool EdgePointImage::filterSampleFreeComplexPixel(int pixel, Image& out) const {
+    // No sample in the 3×3 neighbourhood: every region keeps the estimate; the same sums in
+    // the same order as the general filter's (ComplexNeighbourhood::colourOwnRegions).
+    const EdgeCodeTables& sub = EdgeCodeTables::subpixel();
+    const int W = mWidth;
+    const int H = mHeight;
+    const int cx = pixel % W, cy = pixel / W;
+    bool anySample = false;
+    for (int py = std::max(0, cy - 1); py <= std::min(H - 1, cy + 1); ++py)
+        for (int px = std::max(0, cx - 1); px <= std::min(W - 1, cx + 1); ++px)
+            anySample |= mSamplePos[index(px, py)] != 0xFF;
+    if (anySample) return false;
+    const glm::vec3 estimate = mPrimary[pixel];
+    glm::vec3 total(0.0f);
+    for (int s = 0; s < 4; ++s) {
+        const uint8_t type = mSubType[4 * static_cast<size_t>(pixel) + s];
+        if (type == kNeighbourTypeComplex) {
+            total += 0.25f * estimate;
+            continue;
         }
-        const int x = pixel % W;
-        const int y = pixel / W;
-        const glm::vec3 estimate = mPrimary[pixel];
-        // All 4 own subpixels complex (common inside dense geometry): the pixel keeps its
-        // estimate, summed as the general loop at the end sums it.
-        const uint8_t* own = &mSubType[4 * static_cast<size_t>(pixel)];
-        if (own[0] == kNeighbourTypeComplex && own[1] == kNeighbourTypeComplex &&
-            own[2] == kNeighbourTypeComplex && own[3] == kNeighbourTypeComplex) {
-            glm::vec3 total(0.0f);
-            for (int s = 0; s < 4; ++s) total += 0.25f * estimate;
-            out.at(x, y) = Rgb(total);
-            return;
+        const int regions = type == kNeighbourTypeEmpty ? 1 : 2;
+        const float area0 = sub.region0Area[mSubCode[4 * static_cast<size_t>(pixel) + s]];
+        for (int r = 0; r < regions; ++r) {
+            const float area = regions == 1 ? 1.0f : (r == 0 ? area0 : 1.0f - area0);
+            total += 0.25f * area * estimate;
         }
-        // Subpixel edge codes over the 6×6 subpixels of the 3×3 pixel neighbourhood.
-        std::array<uint16_t, 36> codes;
-        std::array<uint8_t, 36> types;
-        for (int v = 0; v < 6; ++v) {
-            for (int u = 0; u < 6; ++u) {
-                const int px = x - 1 + u / 2;
-                const int py = y - 1 + v / 2;
-                uint16_t code = kEdgeCodeComplex;
-                uint8_t type = kNeighbourTypeComplex;
-                if (px >= 0 && py >= 0 && px < W && py < H) {
-                    const size_t s = 4 * index(px, py) + 2 * (v & 1) + (u & 1);
-                    code = mSubCode[s];
-                    type = mSubType[s];
-                }
-                codes[v * 6 + u] = code;
-                types[v * 6 + u] = type;
+    }
+    out.at(cx, cy) = Rgb(total);
+    return true;
+}
+
+void EdgePointImage::gatherSubpixelCodes(int x, int y, ComplexNeighbourhood& nb) const {
+    // Subpixel edge codes over the 6×6 subpixels of the 3×3 pixel neighbourhood (outside the
+    // image: complex).
+    const int W = mWidth;
+    const int H = mHeight;
+    for (int v = 0; v < 6; ++v) {
+        for (int u = 0; u < 6; ++u) {
+            const int px = x - 1 + u / 2;
+            const int py = y - 1 + v / 2;
+            uint16_t code = kEdgeCodeComplex;
+            uint8_t type = kNeighbourTypeComplex;
+            if (px >= 0 && py >= 0 && px < W && py < H) {
+                const size_t s = 4 * index(px, py) + 2 * (v & 1) + (u & 1);
+                code = mSubCode[s];
+                type = mSubType[s];
             }
+            nb.codes[v * 6 + u] = code;
+            nb.types[v * 6 + u] = type;
         }
-        // Connected subpixel regions (node = subpixel · 2 + region) by bit-parallel flood
-        // fill: edges[dir][ra][rb] has bit a set when region ra of subpixel a meets region rb
-        // of its neighbour to the right (dir 0, a + 1) or below (dir 1, a + 6). Components are
-        // labelled on demand; only the labels' equality matters below.
-        // Branch-free: adjacency bit 2·ra + rb selects edges[dir][ra][rb].
-        uint64_t edges[2][2][2] = {};
-        auto addEdges = [&edges](int dir, unsigned m, int a) {
-            const uint64_t bit = uint64_t(1) << a;
-            edges[dir][0][0] |= bit & (uint64_t(0) - (m & 1u));
-            edges[dir][0][1] |= bit & (uint64_t(0) - ((m >> 1) & 1u));
-            edges[dir][1][0] |= bit & (uint64_t(0) - ((m >> 2) & 1u));
-            edges[dir][1][1] |= bit & (uint64_t(0) - ((m >> 3) & 1u));
-        };
-        for (int v = 0; v < 6; ++v) {
-            for (int u = 0; u < 6; ++u) {
-                const int a = v * 6 + u;
-                if (u + 1 < 6) addEdges(0, adjacency[0][types[a] * 8 + types[a + 1]], a);
-                if (v + 1 < 6) addEdges(1, adjacency[1][types[a] * 8 + types[a + 6]], a);
+    }
+}
+
+void EdgePointImage::gatherSubpixelSamples(int x, int y, ComplexNeighbourhood& nb) const {
+    // Samples of the 3×3 pixels placed in their subpixel regions (node = subpixel · 2 +
+    // region); those in complex subpixels or on an ambiguous side are skipped.
+    const EdgeCodeTables& sub = EdgeCodeTables::subpixel();
+    const int W = mWidth;
+    const int H = mHeight;
+    for (int py = y - 1; py <= y + 1; ++py) {
+        for (int px = x - 1; px <= x + 1; ++px) {
+            if (px < 0 || py < 0 || px >= W || py >= H) continue;
+            const uint8_t pos = mSamplePos[index(px, py)];
+            if (pos == 0xFF) continue;
+            const int sx = pos & 3;
+            const int sy = pos >> 2;
+            const int u = 2 * (px - x + 1) + sx / 2;
+            const int v = 2 * (py - y + 1) + sy / 2;
+            const uint8_t type = nb.types[v * 6 + u];
+            if (type == kNeighbourTypeComplex) continue;
+            int region = 0;
+            if (type != kNeighbourTypeEmpty) {
+                const SampleSide side = sub.side(nb.codes[v * 6 + u], (sx & 1) + 2 * (sy & 1));
+                if (side == SampleSide::Ambiguous) continue;
+                region = side == SampleSide::Region1 ? 1 : 0;
             }
+            nb.samples[nb.sampleCount++] = {(v * 6 + u) * 2 + region, u, v,
+                                            mSampleColour[index(px, py)]};
         }
-        // Only the components of the pixel's own 4 subpixels' regions are needed: they are
-        // flood-filled (at most 8, usually 2–4), and a sample counts for a region when its node
-        // lies in the region's component.
-        std::array<int8_t, 72> label;
-        label.fill(-1);
-        std::array<std::array<uint64_t, 2>, 8> component;
-        int labels = 0;
-        auto find = [&](int node) -> int {
-            if (label[node] >= 0) return label[node];
-            uint64_t c[2] = {0, 0};
-            c[node & 1] = uint64_t(1) << (node >> 1);
-            for (;;) {
-                const uint64_t c0 = c[0], c1 = c[1];
-                for (int ra = 0; ra < 2; ++ra) {
-                    for (int rb = 0; rb < 2; ++rb) {
-                        c[rb] |= (c[ra] & edges[0][ra][rb]) << 1;
-                        c[ra] |= (c[rb] >> 1) & edges[0][ra][rb];
-                        c[rb] |= (c[ra] & edges[1][ra][rb]) << 6;
-                        c[ra] |= (c[rb] >> 6) & edges[1][ra][rb];
-                    }
-                }
-                if (c[0] == c0 && c[1] == c1) break;
-            }
-            const int8_t id = static_cast<int8_t>(labels++);
-            component[id] = {c[0], c[1]};
-            for (int r = 0; r < 2; ++r)
-                for (uint64_t m = c[r]; m; m &= m - 1) label[std::countr_zero(m) * 2 + r] = id;
-            return id;
-        };
-        // Samples of the 3×3 pixels placed in their subpixel regions (node = subpixel · 2 +
-        // region).
-        struct SubSample {
-            int node, u, v;
-            glm::vec3 colour;
-        };
-        std::array<SubSample, 9> samples;
-        int sampleCount = 0;
-        for (int py = y - 1; py <= y + 1; ++py) {
-            for (int px = x - 1; px <= x + 1; ++px) {
-                if (px < 0 || py < 0 || px >= W || py >= H) continue;
-                const uint8_t pos = mSamplePos[index(px, py)];
-                if (pos == 0xFF) continue;
-                const int sx = pos & 3;
-                const int sy = pos >> 2;
-                const int u = 2 * (px - x + 1) + sx / 2;
-                const int v = 2 * (py - y + 1) + sy / 2;
-                const uint8_t type = types[v * 6 + u];
-                if (type == kNeighbourTypeComplex) continue;
-                int region = 0;
-                if (type != kNeighbourTypeEmpty) {
-                    const SampleSide side = sub.side(codes[v * 6 + u], (sx & 1) + 2 * (sy & 1));
-                    if (side == SampleSide::Ambiguous) continue;
-                    region = side == SampleSide::Region1 ? 1 : 0;
-                }
-                samples[sampleCount++] = {(v * 6 + u) * 2 + region, u, v,
-                                          mSampleColour[index(px, py)]};
-            }
-        }
-        // Colour each region of the pixel's 4 subpixels from the samples it reaches;
-        // complex or unreached regions keep the estimate.
+    }
+}
+
+void EdgePointImage::filterComplexPixel(int pixel, Image& out) const {
+    if (mOptions.complexFilterShortcut && filterSampleFreeComplexPixel(pixel, out)) return;
+    const int x = pixel % mWidth;
+    const int y = pixel / mWidth;
+    const glm::vec3 estimate = mPrimary[pixel];
+    // All 4 own subpixels complex (common inside dense geometry): the pixel keeps its
+    // estimate, summed as colourOwnRegions sums it.
+    const uint8_t* own = &mSubType[4 * static_cast<size_t>(pixel)];
+    if (own[0] == kNeighbourTypeComplex && own[1] == kNeighbourTypeComplex &&
+        own[2] == kNeighbourTypeComplex && own[3] == kNeighbourTypeComplex) {
         glm::vec3 total(0.0f);
-        for (int v = 2; v < 4; ++v) {
-            for (int u = 2; u < 4; ++u) {
-                const int s = v * 6 + u;
-                const uint8_t type = types[s];
-                if (type == kNeighbourTypeComplex) {
-                    total += 0.25f * estimate;
-                    continue;
-                }
-                const int regions = type == kNeighbourTypeEmpty ? 1 : 2;
-                for (int r = 0; r < regions; ++r) {
-                    const float area0 = sub.region0Area[codes[s]];
-                    const float area = regions == 1 ? 1.0f : (r == 0 ? area0 : 1.0f - area0);
-                    const std::array<uint64_t, 2>& reached = component[find(s * 2 + r)];
-                    glm::vec3 sum(0.0f);
-                    float weight = 0.0f;
-                    for (int k = 0; k < sampleCount; ++k) {
-                        const int node = samples[k].node;
-                        if (!((reached[node & 1] >> (node >> 1)) & 1)) continue;
-                        const float w = filterWeight(samples[k].u - u, samples[k].v - v);
-                        sum += w * samples[k].colour;
-                        weight += w;
-                    }
-                    total += 0.25f * area * (weight > 0.0f ? sum / weight : estimate);
-                }
-            }
-        }
+        for (int s = 0; s < 4; ++s) total += 0.25f * estimate;
         out.at(x, y) = Rgb(total);
-    };
+        return;
+    }
+    // Connected subpixel regions by bit-parallel flood fill. Only the components of the
+    // pixel's own 4 subpixels' regions are needed: they are flood-filled on demand (at most
+    // 8, usually 2–4), and a sample counts for a region when its node lies in the region's
+    // component.
+    ComplexNeighbourhood nb;
+    gatherSubpixelCodes(x, y, nb);
+    nb.connectRegions();
+    gatherSubpixelSamples(x, y, nb);
+    out.at(x, y) = Rgb(nb.colourOwnRegions(EdgeCodeTables::subpixel(), estimate));
+}
+
+void EdgePointImage::filterComplexPixels(Image& out) {
+    const std::vector<size_t> rowStart = listComplexPixels();
+    // EpiOptions::denseComplexLimit: complex pixels in dense clusters keep their estimate.
+    const bool dense = mOptions.denseComplexLimit > 0;
+    if (dense) keepDenseComplexEstimates(rowStart, out);
+    computeSubpixelCodes(dense);
+    const std::vector<int>& complexPixels = mComplexPixels;
     if (!mOptions.parallel) {
-        for (int pixel : complexPixels) filterPixel(pixel);
+        for (int pixel : complexPixels) filterComplexPixel(pixel, out);
         return;
     }
     tbb::parallel_for(tbb::blocked_range<size_t>(0, complexPixels.size(), 16),
                       [&](const tbb::blocked_range<size_t>& range) {
                           for (size_t n = range.begin(); n < range.end(); ++n)
-                              filterPixel(complexPixels[n]);
+                              filterComplexPixel(complexPixels[n], out);
                       });
 }
 
@@ -1525,14 +1611,15 @@ void EdgePointImage::markHoles(bool useEdges) {
 
 // ---- Edge-free smoothing ------------------------------------------------------------------
 
-void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
-    // Empty pixels at most this far (Chebyshev) from a simple or complex pixel are filtered
-    // by reachability, the others by boxes.
-    constexpr int kRingDistance = 2;
-    const int R = std::clamp(mOptions.smoothRadius, 1, 100);
-    // Distances are capped where they stop mattering: past the largest box, and past the
-    // pixels the reachability pass takes (so that R = 1 still leaves d ≥ 3 to the boxes).
-    const int cap = std::max(R, kRingDistance) + 1;
+namespace {
+
+/// Edge-free smoothing: empty pixels at most this far (Chebyshev) from a simple or complex
+/// pixel are filtered by reachability, the others by boxes.
+constexpr int kRingDistance = 2;
+
+}  // namespace
+
+void EdgePointImage::computeEdgeDistance(int cap) {
     const size_t n = static_cast<size_t>(mWidth) * mHeight;
     // Chebyshev distance to the nearest simple or complex pixel, capped at R + 1: along each
     // row first (two sweeps), then the minimum over the rows within the cap of
@@ -1569,7 +1656,9 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             }
         }
     });
+}
 
+void EdgePointImage::buildSummedAreaTable() {
     // Summed-area table of (colour, 1) over the points, in double (float sums of 262k terms
     // lose the colour's low bits): S(x, y) = Σ over x' < x, y' < y. Rows in parallel, then
     // columns in parallel blocks.
@@ -1594,29 +1683,30 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             for (int x = x0; x < x1; ++x) row[x] += above[x];
         }
     });
+}
 
-    const bool dense = mOptions.denseRadius > 0 && mOptions.denseComplexLimit > 0;
-    auto boxSum = [&](int x, int y, int r) {
-        const int xa = std::max(0, x - r), xb = std::min(mWidth, x + r + 1);
-        const int ya = std::max(0, y - r), yb = std::min(mHeight, y + r + 1);
-        return mSummedArea[static_cast<size_t>(yb) * sw + xb] -
-               mSummedArea[static_cast<size_t>(yb) * sw + xa] -
-               mSummedArea[static_cast<size_t>(ya) * sw + xb] +
-               mSummedArea[static_cast<size_t>(ya) * sw + xa];
-    };
-    // EpiOptions::denseRadius: a dense pixel takes the mean of every point in its box,
-    // whatever its class, when the box holds two or more (false: it keeps what it has).
-    auto writeDenseMean = [&](int x, int y) {
-        const glm::dvec4 sum = boxSum(x, y, mOptions.denseRadius);
-        if (!(sum.w >= 1.5)) return false;
-        out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
-        mHole[index(x, y)] = 1;  // written: not a hole (markHoles)
-        return true;
-    };
+glm::dvec4 EdgePointImage::boxSum(int x, int y, int r) const {
+    const int sw = mWidth + 1;
+    const int xa = std::max(0, x - r), xb = std::min(mWidth, x + r + 1);
+    const int ya = std::max(0, y - r), yb = std::min(mHeight, y + r + 1);
+    return mSummedArea[static_cast<size_t>(yb) * sw + xb] -
+           mSummedArea[static_cast<size_t>(yb) * sw + xa] -
+           mSummedArea[static_cast<size_t>(ya) * sw + xb] +
+           mSummedArea[static_cast<size_t>(ya) * sw + xa];
+}
 
+bool EdgePointImage::writeDenseMean(Image& out, int x, int y) {
+    const glm::dvec4 sum = boxSum(x, y, mOptions.denseRadius);
+    if (!(sum.w >= 1.5)) return false;
+    out.at(x, y) = Rgb(glm::dvec3(sum) / sum.w);
+    mHole[index(x, y)] = 1;  // written: not a hole (markHoles)
+    return true;
+}
+
+void EdgePointImage::smoothBoxes(Image& out, int R) {
     // Each empty pixel whose nearest edge pixel is d > kRingDistance away takes the box
     // average of radius min(d − 1, R) (a box no edge crosses), when the box holds at least two
-    // points; nearer ones are filtered below.
+    // points; nearer ones are filtered by smoothNearEdges().
     forRows(mOptions.parallel, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const int d = mEdgeDistance[index(x, y)];
@@ -1628,7 +1718,9 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             }
         }
     });
+}
 
+void EdgePointImage::smoothNearEdges(Image& out, bool dense) {
     // Empty pixels next to an edge pixel (d = 1: any box would cross it) and at d = 2 (a box
     // of radius 1, a handful of points): the filter of §5.3 applied once more, to the primary
     // colours of the pixel and of its reachable 5×5 neighbours, each already a filtered
@@ -1650,7 +1742,7 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             const size_t i = index(x, y);
             const int d = mEdgeDistance[i];
             if (d < 1 || d > kRingDistance) continue;
-            if (dense && mDense[i] && writeDenseMean(x, y)) continue;
+            if (dense && mDense[i] && writeDenseMean(out, x, y)) continue;
             glm::vec3 sum = mWeight[i] > 0.0f ? mPrimary[i] : glm::vec3(0.0f);
             float total = mWeight[i] > 0.0f ? 1.0f : 0.0f;
             const bool inner = innerRow && x >= 2 && x + 2 < mWidth;
@@ -1671,13 +1763,27 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
             }
         }
     });
+}
 
+void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
+    const int R = std::clamp(mOptions.smoothRadius, 1, 100);
+    // Distances are capped where they stop mattering: past the largest box, and past the
+    // pixels the reachability pass takes (so that R = 1 still leaves d ≥ 3 to the boxes).
+    const int cap = std::max(R, kRingDistance) + 1;
+    computeEdgeDistance(cap);
+    buildSummedAreaTable();
+    // EpiOptions::denseRadius: a dense pixel takes the mean of every point in its box,
+    // whatever its class, when the box holds two or more (writeDenseMean; else it keeps what
+    // it has).
+    const bool dense = mOptions.denseRadius > 0 && mOptions.denseComplexLimit > 0;
+    smoothBoxes(out, R);
+    smoothNearEdges(out, dense);
     // Dense regions' simple and complex pixels (d = 0; the ring pass wrote the empty ones).
     if (dense) {
         forRows(mOptions.parallel, mHeight, [&](int y) {
             for (int x = 0; x < mWidth; ++x) {
                 const size_t i = index(x, y);
-                if (mDense[i] && mEdgeDistance[i] == 0) writeDenseMean(x, y);
+                if (mDense[i] && mEdgeDistance[i] == 0) writeDenseMean(out, x, y);
             }
         });
     }

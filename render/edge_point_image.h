@@ -260,17 +260,78 @@ private:
     /// (horizontal lines k/2 for k in [2·rowLo, kLineHi]); counts culled intersections.
     void rasterizeEdge(const ScreenEdge& e, int rowLo, int rowHi, int kLineHi, size_t& culled);
     void classifyPixels();
+    /// §5.2 reachability of every pixel (mReach, mSecondaryReach): the serial reference or
+    /// the parallel two passes that reuse prior scanlines' masks.
     void computeReachabilityMap();
+    /// mNearEdge: per padded pixel, whether its column of 5 rows (y − 2 .. y + 2) holds an
+    /// edge pixel, so that nearEdge() reads 5 bytes instead of the 5×5 codes.
+    void markNearEdge();
+    /// Whether the 5×5 neighbourhood of (x, y) holds any simple or complex pixel (after
+    /// markNearEdge()); pixels far from every edge reach their whole neighbourhood.
+    bool nearEdge(int x, int y) const;
+    /// computeReachabilityMap()'s serial reference: computeReachability() for every pixel
+    /// near an edge.
+    void computeReachabilityMapSerial();
+    /// Parallel pass 1: the propagation to the cells with dy ≥ 0 (mReachLower), the secondary
+    /// ring's lower bits and, for the row below, mPartnerReach.
+    void propagateLowerReachability();
+    /// Parallel pass 2: mReach and mSecondaryReach from pass 1's masks, the cells on prior
+    /// scanlines mirrored from the pixels there.
+    void mirrorUpperReachability();
     void interpolatePlain();
     void interpolatePrimary(Image& out);
     /// EpiOptions::smoothRadius: replaces the interpolation of empty pixels far from every
     /// edge by a wide average of the points.
     void smoothEdgeFreeRegions(Image& out);
+    /// Smoothing: mEdgeDistance, each pixel's Chebyshev distance to the nearest simple or
+    /// complex pixel, capped at `cap`.
+    void computeEdgeDistance(int cap);
+    /// Smoothing: mSummedArea, the summed-area table of (colour, 1) over the points (from
+    /// mPaddedAll), for boxSum().
+    void buildSummedAreaTable();
+    /// Smoothing: the sum of (colour, 1) over the points of the (2r+1)² box around (x, y),
+    /// clipped to the image (after buildSummedAreaTable()).
+    glm::dvec4 boxSum(int x, int y, int r) const;
+    /// EpiOptions::denseRadius: (x, y) takes the mean of the points in its box when it holds
+    /// two or more (and is then no hole); false leaves the pixel as it is.
+    bool writeDenseMean(Image& out, int x, int y);
+    /// Smoothing: empty pixels farther than the ring from every edge pixel take the mean of
+    /// the largest box around them that no edge crosses, radius at most R.
+    void smoothBoxes(Image& out, int R);
+    /// Smoothing: empty pixels in the ring near an edge pixel take §5.3's filter once more
+    /// over reachable primary colours (dense ones, with `dense`, their box mean instead).
+    void smoothNearEdges(Image& out, bool dense);
     /// holes() from the filter weights (and the smoothing's writes, already in mHole).
     void markHoles(bool useEdges);
     void antiAlias(Image& out) const;
     void markDenseComplex();
+    /// §5.4 subpixel filter of the complex pixels (mComplexPixels), rows and pixels on
+    /// oneTBB.
     void filterComplexPixels(Image& out);
+    /// §5.4: mComplexPixels, the complex pixels' indices in pixel order; returns each row's
+    /// first position in it (height + 1 entries).
+    std::vector<size_t> listComplexPixels();
+    /// EpiOptions::denseComplexLimit: complex pixels in dense clusters (mDense) keep their
+    /// estimate in `out` and leave mComplexPixels; mFiltered marks those that remain.
+    void keepDenseComplexEstimates(const std::vector<size_t>& rowStart, Image& out);
+    /// §5.4: mSubCode and mSubType, the 4 subpixel edge codes and types of every pixel in
+    /// the 3×3 neighbourhood of a complex pixel to filter (with `dense`, those in mFiltered).
+    void computeSubpixelCodes(bool dense);
+    /// §5.4 for one complex pixel (a pixel index): its 4 subpixels' regions coloured from the
+    /// samples of the 3×3 neighbourhood that reach them, written to `out`.
+    void filterComplexPixel(int pixel, Image& out) const;
+    /// EpiOptions::complexFilterShortcut: when no point lies in the pixel's 3×3 neighbourhood,
+    /// writes its regions' sums of the estimate, as the general filter would, and returns
+    /// true; false (nothing written) otherwise.
+    bool filterSampleFreeComplexPixel(int pixel, Image& out) const;
+    /// One complex pixel's subpixel neighbourhood, codes, regions and samples (defined in
+    /// the .cpp).
+    struct ComplexNeighbourhood;
+    /// The subpixel codes and types of the 6×6 subpixels around pixel (x, y) into `nb`.
+    void gatherSubpixelCodes(int x, int y, ComplexNeighbourhood& nb) const;
+    /// The points of the 3×3 pixels around (x, y), placed in their subpixel regions of `nb`
+    /// (after gatherSubpixelCodes()).
+    void gatherSubpixelSamples(int x, int y, ComplexNeighbourhood& nb) const;
     size_t paddedIndex(int x, int y) const {
         return static_cast<size_t>(y + 2) * (mWidth + 4) + (x + 2);
     }

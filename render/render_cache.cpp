@@ -1,7 +1,6 @@
 // Index: construction · insertion and replacement · reprojection and depth culling (Walter et
 //        al. 1999) · priority image and sample requests · plain interpolation · invalidation
 //        · toString
-#include "core/random.h"
 #include "render/render_cache.h"
 
 #include <tbb/blocked_range.h>
@@ -16,6 +15,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/random.h"
 #include "solver/form_factor.h"
 
 namespace penumbra {
@@ -24,6 +24,14 @@ namespace {
 
 /// Of two near-equal depths (within this fraction) the younger point wins the pixel.
 constexpr double kSameSurface = 0.01;
+
+/// reprojectParallel(): points per chunk of the projection pass, whose band counts give each
+/// chunk's slots in the bands' lists.
+constexpr std::size_t kProjectChunk = 8192;
+
+/// reprojectParallel(): the z-buffer depth of a pixel without a point (for the culling:
+/// never nearer, and not counted).
+constexpr double kNoDepth = std::numeric_limits<double>::infinity();
 
 /// The frame's random draws, counter-based: draw i is hashPair(seed, i), so any stretch of
 /// the sequence can be drawn where it is used (requestSamplesParallel() starts each tile at
@@ -68,8 +76,8 @@ std::vector<int> RenderCache::evictionSlots(std::size_t count) const {
     // The `count` smallest keys (visible in the last frame, birth frame, index): every hidden
     // point when there are not enough of them, then the oldest of one class, ties in index
     // order. Not a sort (nth_element over the cache's index order reads both arrays at
-    // random, a cost that grows with the cache), but a radix select: one parallel pass counts ages per
-    // chunk of points and class, which gives the threshold age and each chunk's share of the
+    // random, a cost that grows with the cache), but a radix select: one parallel pass counts ages
+    // per chunk of points and class, which gives the threshold age and each chunk's share of the
     // slots, and a second parallel pass writes them. Which class a point is in follows no
     // pattern, so both passes decide by selects. Only when more than the needed points of the
     // class are older than the histogram reaches (long sessions) does a serial refinement
@@ -361,13 +369,21 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
     mLuminance.resize(pixels);
     mLuminanceHi.resize(pixels);
     mRowCount.resize(static_cast<std::size_t>(mHeight) + 1);
-
-    // One pass over the points' compact arrays (position, birth frame): project, remember the
-    // age; and the band of rows each point falls in, counted per fixed chunk of points.
     std::fill(mVisible.begin(), mVisible.end(), 0);
     const int bands = std::min(mHeight, 8);
-    constexpr std::size_t kChunk = 8192;
-    const std::size_t chunks = (n + kChunk - 1) / kChunk;
+    const std::size_t chunks = (n + kProjectChunk - 1) / kProjectChunk;
+    projectPoints(camera, bands, chunks);
+    sortPointsByBand(bands, chunks);
+    zBufferBands(bands);
+    cullOccludedPoints();
+    writeVisiblePixels(camera, epi);
+    computePriority();
+}
+
+void RenderCache::projectPoints(const CameraRays& camera, int bands, std::size_t chunks) {
+    // One pass over the points' compact arrays (position, birth frame): project, remember the
+    // age; and the band of rows each point falls in, counted per fixed chunk of points.
+    const std::size_t n = mPoints.size();
     mProjBand.resize(n);
     mChunkBandCount.assign(chunks * static_cast<std::size_t>(bands), 0);
     // Band b holds rows [⌊H·b/B⌋, ⌊H·(b+1)/B⌋), looked up per row rather than found by a
@@ -379,8 +395,8 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
             mRowBand[y] = static_cast<std::uint8_t>(b);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
         std::uint32_t* count = &mChunkBandCount[c * static_cast<std::size_t>(bands)];
-        const std::size_t end = std::min(n, (c + 1) * kChunk);
-        for (std::size_t i = c * kChunk; i != end; ++i) {
+        const std::size_t end = std::min(n, (c + 1) * kProjectChunk);
+        for (std::size_t i = c * kProjectChunk; i != end; ++i) {
             const Vec3& position = mPosition[i];
             ProjectedPoint& proj = mProj[i];
             proj.age = pointAge(i);
@@ -397,6 +413,10 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
             ++count[b];
         }
     });
+}
+
+void RenderCache::sortPointsByBand(int bands, std::size_t chunks) {
+    const std::size_t n = mPoints.size();
     // Each band's points in index order (chunk offsets from the counts, then a scatter), so
     // a band reads only its own points: scanning every point per band cost a mispredicted
     // branch per point and band.
@@ -417,25 +437,25 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
     mBandPoints.resize(mBandStart[bands]);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
         std::uint32_t* slot = &mChunkBandCount[c * static_cast<std::size_t>(bands)];
-        const std::size_t end = std::min(n, (c + 1) * kChunk);
-        for (std::size_t i = c * kChunk; i != end; ++i)
+        const std::size_t end = std::min(n, (c + 1) * kProjectChunk);
+        for (std::size_t i = c * kProjectChunk; i != end; ++i)
             if (mProjBand[i] != 0xFF) {
                 const ProjectedPoint& proj = mProj[i];
                 mBandPoints[slot[mProjBand[i]]++] = {proj.depth, proj.pixel, proj.age,
                                                      static_cast<int>(i)};
             }
     });
+}
 
+void RenderCache::zBufferBands(int bands) {
     // Z-buffer per band of rows: each band takes its points in index order, as the serial
-    // loop does, so ties resolve identically. Pixels without a point keep depth +inf (for the
-    // culling below: never nearer, and not counted).
-    constexpr double kNone = std::numeric_limits<double>::infinity();
+    // loop does, so ties resolve identically. Pixels without a point keep depth kNoDepth.
     tbb::parallel_for(0, bands, [&](int band) {
         const int lo = static_cast<int>(static_cast<long long>(mHeight) * band / bands) * mWidth;
         const int hi =
             static_cast<int>(static_cast<long long>(mHeight) * (band + 1) / bands) * mWidth;
         std::fill(mPixelPoint.begin() + lo, mPixelPoint.begin() + hi, -1);
-        std::fill(mPixelDepth.begin() + lo, mPixelDepth.begin() + hi, kNone);
+        std::fill(mPixelDepth.begin() + lo, mPixelDepth.begin() + hi, kNoDepth);
         for (std::uint32_t j = mBandStart[band]; j != mBandStart[band + 1]; ++j) {
             const BandEntry& e = mBandPoints[j];
             const int k = e.pixel;
@@ -452,7 +472,10 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
             mPixelAge[k] = e.age;
         }
     });
+}
 
+void RenderCache::cullOccludedPoints() {
+    const std::size_t pixels = static_cast<std::size_t>(mWidth) * mHeight;
     // Depth culling as in reprojectSerial(), on pixel-indexed depths, branch-free for inner
     // pixels of the usual 3×3: reads the z-buffer, writes the survivors to mFiltered (then
     // swapped in) and counts them per row.
@@ -502,10 +525,10 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
             for (int x = 1; x + 1 < W; ++x) {
                 const double self = mid[x];
                 const double neighbours =
-                    (up[x - 1] != kNone ? 1.0 : 0.0) + (up[x] != kNone ? 1.0 : 0.0) +
-                    (up[x + 1] != kNone ? 1.0 : 0.0) + (mid[x - 1] != kNone ? 1.0 : 0.0) +
-                    (mid[x + 1] != kNone ? 1.0 : 0.0) + (down[x - 1] != kNone ? 1.0 : 0.0) +
-                    (down[x] != kNone ? 1.0 : 0.0) + (down[x + 1] != kNone ? 1.0 : 0.0);
+                    (up[x - 1] != kNoDepth ? 1.0 : 0.0) + (up[x] != kNoDepth ? 1.0 : 0.0) +
+                    (up[x + 1] != kNoDepth ? 1.0 : 0.0) + (mid[x - 1] != kNoDepth ? 1.0 : 0.0) +
+                    (mid[x + 1] != kNoDepth ? 1.0 : 0.0) + (down[x - 1] != kNoDepth ? 1.0 : 0.0) +
+                    (down[x] != kNoDepth ? 1.0 : 0.0) + (down[x + 1] != kNoDepth ? 1.0 : 0.0);
                 const double nearer = (up[x - 1] * margin < self ? 1.0 : 0.0) +
                                       (up[x] * margin < self ? 1.0 : 0.0) +
                                       (up[x + 1] * margin < self ? 1.0 : 0.0) +
@@ -532,7 +555,9 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
         mRowCount[y + 1] = survivors;
     });
     mPixelPoint.swap(mFiltered);
+}
 
+void RenderCache::writeVisiblePixels(const CameraRays& camera, const EpiPointArrays* epi) {
     // Visible points in pixel order: offsets from the per-row counts, then rows in parallel.
     mRowCount[0] = 0;
     for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] += mRowCount[y];
@@ -580,7 +605,6 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
             mLuminanceHi[k] = l;
         }
     });
-    computePriority();
 }
 
 void RenderCache::buildScreenPoints() const {
@@ -711,9 +735,8 @@ std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, 
             return std::array<std::size_t, 2>{a[0] + b[0], a[1] + b[1]};
         });
     const std::size_t count[3] = {0, changed[0], changed[1]};
-    budget += static_cast<int>(
-        std::min<std::size_t>(static_cast<std::size_t>(std::max(changedBudget, 0)),
-                              count[1] + count[2]));
+    budget += static_cast<int>(std::min<std::size_t>(
+        static_cast<std::size_t>(std::max(changedBudget, 0)), count[1] + count[2]));
     // Per pass, the pixels it draws among (tier ≥ the pass's), less those already requested.
     const std::size_t among[3] = {pixels, count[1] + count[2], count[2]};
     std::vector<ShadeRequest> out;

@@ -218,6 +218,24 @@ private:
     /// per band of rows, culling on pixel-indexed depths, output rows in parallel: into the
     /// screen point list, or with `epi` into its arrays (the list left pending).
     void reprojectParallel(const CameraRays& camera, const EpiPointArrays* epi);
+    /// reprojectParallel()'s projection pass over `chunks` chunks of points: mProj (depth,
+    /// pixel, age), each point's band of rows (mProjBand, 0xFF off screen or hidden) and the
+    /// points per chunk and band (mChunkBandCount).
+    void projectPoints(const CameraRays& camera, int bands, std::size_t chunks);
+    /// reprojectParallel(): the on-screen points of each band in index order (mBandPoints
+    /// from mBandStart[band]), chunk offsets from the counts, then a scatter.
+    void sortPointsByBand(int bands, std::size_t chunks);
+    /// reprojectParallel(): the z-buffer (mPixelPoint, mPixelDepth, mPixelAge), bands of rows
+    /// in parallel, each taking its points in index order as reprojectSerial() does.
+    void zBufferBands(int bands);
+    /// reprojectParallel(): depth culling of the z-buffer's points as reprojectSerial()'s,
+    /// rows in parallel; leaves the survivors in mPixelPoint and their count per row in
+    /// mRowCount[y + 1].
+    void cullOccludedPoints();
+    /// reprojectParallel(): the visible pixels' output, rows in parallel from mRowCount's
+    /// offsets: the screen point list, or with `epi` its arrays (the list left pending), and
+    /// the luminance the priority reads.
+    void writeVisiblePixels(const CameraRays& camera, const EpiPointArrays* epi);
     /// The priority image from the visible pixels' luminance (mLuminance, mLuminanceHi) and
     /// ages (mPixelAge), which both reprojections fill.
     void computePriority();
