@@ -58,6 +58,9 @@ WorldEdge meshWorldEdge(const Mat4& worldFromObject, const EdgeMesh& mesh, int i
 /// face tolerance, so a box rejected here holds no face that would cross.
 constexpr double kTouchEps = 1e-12;
 
+/// clipEvent's rule: no edge where the nearest surface has s <= kHideS.
+constexpr double kHideS = 1 + 1e-7;
+
 }  // namespace
 
 const char* edgeKindName(EdgeKind kind) {
@@ -299,6 +302,58 @@ struct EdgeFinder::Counters {
         selfReused{0};
 };
 
+/// computeEvent's working space, kept per thread across events (tens of thousands per update):
+/// allocations were a tenth of the update.
+struct EdgeFinder::EventScratch {
+    /// A receiver near the event with the range of s over its bounds there.
+    struct Candidate {
+        double sMin, sMax;
+        int receiver;
+    };
+    std::vector<NearReceiver> kept;  ///< the event's near receivers that did not change
+    std::vector<Candidate> order;    ///< receivers still to intersect, in the order to do so
+    EventCoverage coverage;
+    std::vector<EventEdge> found;
+    std::vector<ReceiverCrossings> crossings;  ///< pool of receivers' crossings
+};
+
+/// One event's receivers being intersected: those with crossings are the first `used` of the
+/// scratch pool (their vectors' allocations kept across events); `queries` and `nodes` count
+/// the work until it is added to the Counters.
+struct EdgeFinder::EventQuery {
+    const std::vector<Object>& objects;
+    const ShadowEvent& ev;  ///< world space
+    EventScratch& scratch;
+    std::size_t used = 0;
+    long long queries = 0, nodes = 0;
+
+    /// The next slot of the pool, emptied, for receiver r.
+    ReceiverCrossings& slot(int r) {
+        std::vector<ReceiverCrossings>& pool = scratch.crossings;
+        if (used == pool.size()) pool.emplace_back();
+        ReceiverCrossings& rc = pool[used];
+        rc.receiver = r;
+        rc.worldFromObject = &objects[r].worldFromObject;
+        rc.crossings.clear();
+        return rc;
+    }
+    /// The surfaces found so far hide the event at every u: it casts nothing.
+    bool hidden() const { return scratch.coverage.threshold() <= kHideS; }
+    /// Intersects receiver r where sLo <= s < sHi, its pieces added to the coverage, which
+    /// cuts the traversal short.
+    void intersect(int r, double sLo, double sHi) {
+        const Object& rec = objects[r];
+        ReceiverCrossings& rc = slot(r);
+        bool cull = rec.tree->mesh().closed() && !rec.twoSided;
+        rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, &nodes, sLo,
+                                sHi, &scratch.coverage);
+        ++queries;
+        if (rec.twoSided)
+            for (auto& c : rc.crossings) c.front = true;
+        if (!rc.crossings.empty()) ++used;
+    }
+};
+
 void EdgeFinder::computeEvents(int lightIndex, int blockerIndex, Pair& pair) const {
     const LightEntry& light = mLights[lightIndex];
     const Object& blocker = mObjects[blockerIndex];
@@ -391,45 +446,60 @@ void EdgeFinder::BoxTree::query(const Box3& box, std::vector<int>& out) const {
 
 void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int e,
                               Counters& counters) const {
-    const LightEntry& light = mLights[lightIndex];
     const ShadowEvent& ev = pair.events[e];
-    const EventFrame& frame = pair.frames[e];
     std::vector<NearReceiver>& near = pair.near[e];
-    std::vector<WorldEdge>& edges = pair.eventEdges[e];
     // Receivers unchanged since the last computation meet the event as then: keep those
     // entries (`near` is in object order).
     const unsigned computedAt = pair.computedAt[e];
     pair.computedAt[e] = mGeneration;
     const bool reuse = computedAt > 0 && !mOptions.exhaustiveShadows;
     auto changed = [&](int r) { return mChangedAt[r] > computedAt; };
-    // Working space kept per thread across events (tens of thousands per update): allocations
-    // were a tenth of the update.
-    struct Candidate {
-        double sMin, sMax;
-        int receiver;
-    };
-    struct Scratch {
-        std::vector<NearReceiver> kept;
-        std::vector<Candidate> order;
-        EventCoverage coverage;
-        std::vector<EventEdge> found;
-        std::vector<ReceiverCrossings> crossings;
-    };
-    static thread_local Scratch scratch;
+    static thread_local EventScratch scratch;
     std::vector<NearReceiver>& kept = scratch.kept;
     kept.clear();
     if (reuse)
         for (const NearReceiver& nr : near)
             if (!changed(nr.receiver)) kept.push_back(nr);
     near.clear();
-    edges.clear();
+    pair.eventEdges[e].clear();
     pair.decided[e] = HUGE_VAL;
-    if (!frame.valid || pair.boxes[e].empty()) return;
-    // clipEvent's rule: no edge where the nearest surface has s <= kHideS.
-    constexpr double kHideS = 1 + 1e-7;
-    // Receivers whose bounds meet the event's region, with the range of s there; without one
-    // beyond the blocker the event casts nothing (§6.5).
-    std::vector<Candidate>& order = scratch.order;
+    if (!pair.frames[e].valid || pair.boxes[e].empty()) return;
+    if (!gatherNearReceivers(lightIndex, pair, e, reuse, computedAt, scratch)) return;
+    counters.intersected.fetch_add(1, std::memory_order_relaxed);
+
+    EventQuery q{mObjects, ev, scratch};
+    scratch.coverage.reset(kHideS);
+    if (mOptions.exhaustiveShadows) intersectEveryNear(q);
+    if (intersectBlockerFirst(blockerIndex, pair, e, q, counters)) {
+        // Hidden whatever else moves: no receiver can make this event stale.
+        pair.decided[e] = -HUGE_VAL;
+        counters.hidden.fetch_add(1, std::memory_order_relaxed);
+        counters.queries.fetch_add(q.queries, std::memory_order_relaxed);
+        counters.nodes.fetch_add(q.nodes, std::memory_order_relaxed);
+        return;
+    }
+    intersectNearestFirst(blockerIndex, q);
+    counters.queries.fetch_add(q.queries, std::memory_order_relaxed);
+    counters.nodes.fetch_add(q.nodes, std::memory_order_relaxed);
+    // Surfaces wholly beyond the threshold cannot change what this event casts (§6.5 moving
+    // objects: only receivers in front of it make it stale).
+    if (!mOptions.exhaustiveShadows) pair.decided[e] = scratch.coverage.threshold();
+    if (q.hidden()) {
+        counters.hidden.fetch_add(1, std::memory_order_relaxed);
+        return;
+    }
+    appendShadowEdges(lightIndex, blockerIndex, pair.frames[e], q, pair.eventEdges[e]);
+}
+
+bool EdgeFinder::gatherNearReceivers(int lightIndex, Pair& pair, int e, bool reuse,
+                                     unsigned computedAt, EventScratch& scratch) const {
+    const LightEntry& light = mLights[lightIndex];
+    const ShadowEvent& ev = pair.events[e];
+    const EventFrame& frame = pair.frames[e];
+    std::vector<NearReceiver>& near = pair.near[e];
+    const std::vector<NearReceiver>& kept = scratch.kept;
+    auto changed = [&](int r) { return mChangedAt[r] > computedAt; };
+    std::vector<EventScratch::Candidate>& order = scratch.order;
     order.clear();
     bool live = false;
     const int n = static_cast<int>(mObjects.size());
@@ -447,7 +517,7 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         const Object& rec = mObjects[r];
         if (!rec.alive || r == light.light.object) continue;
         if (!pair.boxes[e].overlaps(rec.worldBounds)) continue;
-        Candidate c{0, 0, r};
+        EventScratch::Candidate c{0, 0, r};
         if (mOptions.exhaustiveShadows) {
             // Reference: the plain box–event test (EventFrame::touches), no s ranges.
             double eps = kTouchEps * glm::length(rec.worldBounds.hi - rec.worldBounds.lo);
@@ -460,100 +530,82 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         order.push_back(c);
         live = live || c.sMax > kHideS;
     }
-    if (!live) return;
-    counters.intersected.fetch_add(1, std::memory_order_relaxed);
+    return live;
+}
 
-    // Receivers with crossings: the first `used` of the pool (their vectors' allocations
-    // kept across events).
-    std::vector<ReceiverCrossings>& pool = scratch.crossings;
-    std::size_t used = 0;
-    auto slot = [&](int r) -> ReceiverCrossings& {
-        if (used == pool.size()) pool.emplace_back();
-        ReceiverCrossings& rc = pool[used];
-        rc.receiver = r;
-        rc.worldFromObject = &mObjects[r].worldFromObject;
-        rc.crossings.clear();
-        return rc;
-    };
-    EventCoverage& coverage = scratch.coverage;
-    coverage.reset(kHideS);
-    long long queries = 0, nodes = 0;
-    auto query = [&](int r, double sLo, double sHi) {
-        const Object& rec = mObjects[r];
-        ReceiverCrossings& rc = slot(r);
+void EdgeFinder::intersectEveryNear(EventQuery& q) const {
+    std::vector<EventScratch::Candidate>& order = q.scratch.order;
+    for (const EventScratch::Candidate& c : order) {
+        const Object& rec = mObjects[c.receiver];
+        ReceiverCrossings& rc = q.slot(c.receiver);
         bool cull = rec.tree->mesh().closed() && !rec.twoSided;
-        rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, &nodes, sLo,
-                                sHi, &coverage);
-        ++queries;
+        rec.receiver->intersect(q.ev.mapped(rec.objectFromWorld), cull, rc.crossings, &q.nodes);
+        ++q.queries;
         if (rec.twoSided)
-            for (auto& c : rc.crossings) c.front = true;
-        if (!rc.crossings.empty()) ++used;
-    };
-    if (mOptions.exhaustiveShadows) {
-        for (const Candidate& c : order) {
-            const Object& rec = mObjects[c.receiver];
-            ReceiverCrossings& rc = slot(c.receiver);
-            bool cull = rec.tree->mesh().closed() && !rec.twoSided;
-            rec.receiver->intersect(ev.mapped(rec.objectFromWorld), cull, rc.crossings, &nodes);
-            ++queries;
-            if (rec.twoSided)
-                for (auto& cr : rc.crossings) cr.front = true;
-            if (!rc.crossings.empty()) ++used;
-        }
-        order.clear();
+            for (auto& cr : rc.crossings) cr.front = true;
+        if (!rc.crossings.empty()) ++q.used;
     }
-    auto hidden = [&]() { return coverage.threshold() <= kHideS; };
-    // The blocker first, alone (self-shadowing): between light and blocker (s < 1) its surface
-    // hides the event at every u, or its crossings are kept whole. Either stays true until the
-    // light or the blocker moves, so other receivers' changes reuse it.
-    auto self = std::find_if(order.begin(), order.end(),
-                             [&](const Candidate& c) { return c.receiver == blockerIndex; });
-    if (self != order.end()) {
-        const Object& rec = mObjects[blockerIndex];
-        char& state = pair.selfState[e];
-        std::vector<ReceiverTree::Crossing>& own = pair.selfCrossings[e];
-        if (state == 0) {
-            own.clear();
-            EventCoverage alone;
-            alone.hideS = kHideS;
-            const ShadowEvent local = ev.mapped(rec.objectFromWorld);
-            const bool cull = rec.tree->mesh().closed() && !rec.twoSided;
-            if (self->sMin < 1) {
-                rec.receiver->intersect(local, cull, own, &nodes, -HUGE_VAL, 1.0, &alone);
-                ++queries;
-            }
-            if (alone.threshold() <= kHideS) {
-                state = 1;
-                own.clear();
-                counters.selfHidden.fetch_add(1, std::memory_order_relaxed);
-            } else {
-                if (self->sMax >= 1) {
-                    rec.receiver->intersect(local, cull, own, &nodes, 1.0, HUGE_VAL, &alone);
-                    ++queries;
-                }
-                if (rec.twoSided)
-                    for (auto& c : own) c.front = true;
-                state = 2;
-            }
-            own.shrink_to_fit();
-        } else {
-            counters.selfReused.fetch_add(1, std::memory_order_relaxed);
-        }
-        if (state == 1) {
-            // Hidden whatever else moves: no receiver can make this event stale.
-            pair.decided[e] = -HUGE_VAL;
-            counters.hidden.fetch_add(1, std::memory_order_relaxed);
-            counters.queries.fetch_add(queries, std::memory_order_relaxed);
-            counters.nodes.fetch_add(nodes, std::memory_order_relaxed);
-            return;
-        }
-        for (const auto& c : own) coverage.add(c.u0, c.u1, std::max(c.g[0][2], c.g[1][2]));
-        if (!own.empty()) {
-            slot(blockerIndex).crossings.assign(own.begin(), own.end());
-            ++used;
-        }
-        order.erase(self);
+    order.clear();
+}
+
+bool EdgeFinder::intersectBlockerFirst(int blockerIndex, Pair& pair, int e, EventQuery& q,
+                                       Counters& counters) const {
+    std::vector<EventScratch::Candidate>& order = q.scratch.order;
+    auto self = std::find_if(order.begin(), order.end(), [&](const EventScratch::Candidate& c) {
+        return c.receiver == blockerIndex;
+    });
+    if (self == order.end()) return false;
+    char& state = pair.selfState[e];
+    std::vector<ReceiverTree::Crossing>& own = pair.selfCrossings[e];
+    if (state == 0)
+        state = computeSelfCrossings(blockerIndex, self->sMin, self->sMax, own, q, counters);
+    else
+        counters.selfReused.fetch_add(1, std::memory_order_relaxed);
+    if (state == 1) return true;
+    for (const auto& c : own) q.scratch.coverage.add(c.u0, c.u1, std::max(c.g[0][2], c.g[1][2]));
+    if (!own.empty()) {
+        q.slot(blockerIndex).crossings.assign(own.begin(), own.end());
+        ++q.used;
     }
+    order.erase(self);
+    return false;
+}
+
+char EdgeFinder::computeSelfCrossings(int blockerIndex, double sMin, double sMax,
+                                      std::vector<ReceiverTree::Crossing>& own, EventQuery& q,
+                                      Counters& counters) const {
+    const Object& rec = mObjects[blockerIndex];
+    char state;
+    own.clear();
+    EventCoverage alone;
+    alone.hideS = kHideS;
+    const ShadowEvent local = q.ev.mapped(rec.objectFromWorld);
+    const bool cull = rec.tree->mesh().closed() && !rec.twoSided;
+    if (sMin < 1) {
+        rec.receiver->intersect(local, cull, own, &q.nodes, -HUGE_VAL, 1.0, &alone);
+        ++q.queries;
+    }
+    if (alone.threshold() <= kHideS) {
+        state = 1;
+        own.clear();
+        counters.selfHidden.fetch_add(1, std::memory_order_relaxed);
+    } else {
+        if (sMax >= 1) {
+            rec.receiver->intersect(local, cull, own, &q.nodes, 1.0, HUGE_VAL, &alone);
+            ++q.queries;
+        }
+        if (rec.twoSided)
+            for (auto& c : own) c.front = true;
+        state = 2;
+    }
+    own.shrink_to_fit();
+    return state;
+}
+
+void EdgeFinder::intersectNearestFirst(int blockerIndex, EventQuery& q) const {
+    using Candidate = EventScratch::Candidate;
+    std::vector<Candidate>& order = q.scratch.order;
+    const EventCoverage& coverage = q.scratch.coverage;
     // Between light and blocker (s < 1), the other receivers nearest first: surfaces there
     // hide the event (§6.5 clipping); covered at every u, it casts nothing, whatever lies
     // beyond.
@@ -562,9 +614,9 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         return ab != bb ? ab : a.sMin < b.sMin;
     });
     for (const Candidate& c : order) {
-        if (hidden()) break;
+        if (q.hidden()) break;
         if (c.sMin >= 1 || c.sMin > coverage.threshold() + 1e-12) continue;
-        query(c.receiver, -HUGE_VAL, 1.0);
+        q.intersect(c.receiver, -HUGE_VAL, 1.0);
     }
     // Beyond the blocker, front to back: a receiver whose nearest point lies behind surfaces
     // already found at every u cannot show.
@@ -572,22 +624,18 @@ void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int 
         return std::max(a.sMin, 1.0) < std::max(b.sMin, 1.0);
     });
     for (const Candidate& c : order) {
-        if (hidden() || std::max(c.sMin, 1.0) > coverage.threshold() + 1e-12) break;
+        if (q.hidden() || std::max(c.sMin, 1.0) > coverage.threshold() + 1e-12) break;
         if (c.sMax < 1) continue;
-        query(c.receiver, 1.0, HUGE_VAL);
+        q.intersect(c.receiver, 1.0, HUGE_VAL);
     }
-    counters.queries.fetch_add(queries, std::memory_order_relaxed);
-    counters.nodes.fetch_add(nodes, std::memory_order_relaxed);
-    // Surfaces wholly beyond the threshold cannot change what this event casts (§6.5 moving
-    // objects: only receivers in front of it make it stale).
-    if (!mOptions.exhaustiveShadows) pair.decided[e] = coverage.threshold();
-    if (hidden()) {
-        counters.hidden.fetch_add(1, std::memory_order_relaxed);
-        return;
-    }
-    std::vector<EventEdge>& found = scratch.found;
+}
+
+void EdgeFinder::appendShadowEdges(int lightIndex, int blockerIndex, const EventFrame& frame,
+                                   EventQuery& q, std::vector<WorldEdge>& edges) const {
+    const ShadowEvent& ev = q.ev;
+    std::vector<EventEdge>& found = q.scratch.found;
     found.clear();
-    clipEvent(std::span<const ReceiverCrossings>(pool.data(), used), found);
+    clipEvent(std::span<const ReceiverCrossings>(q.scratch.crossings.data(), q.used), found);
     const double extent = ev.kind == ShadowKind::Hard
                               ? 0.0
                               : lightExtentAcross(mLights[lightIndex].light.polygon, frame.normal);
@@ -675,11 +723,38 @@ std::vector<WorldEdge> EdgeFinder::findShadowEdges() {
     return out;
 }
 
+/// One (light, blocker) pair with work to do in findShadowEdges().
+struct EdgeFinder::PairJob {
+    int light, blocker;
+    Pair* pair;
+    bool events;             ///< rebuild the events (then every event is recomputed)
+    std::vector<int> dirty;  ///< otherwise: the events to recompute
+};
+
 void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
-    const int n = static_cast<int>(mObjects.size());
     ++mGeneration;
-    mChangedAt.resize(n, 0);
-    // Objects changed since the last call: their old and new bounds (§6.5 moving objects).
+    mChangedAt.resize(mObjects.size(), 0);
+    const std::vector<Change> changes = collectChanges();
+    const bool sceneGrew = growSceneBox();
+    std::vector<PairJob> jobs, scans;
+    planPairJobs(sceneGrew || !changes.empty(), jobs, scans);
+    // Valid pairs: which of their events the changes make stale (in parallel).
+    tbb::parallel_for(std::size_t(0), scans.size(), [&](std::size_t i) {
+        PairJob& job = scans[i];
+        if (sceneGrew) computeEventBoxes(*job.pair);
+        findDirtyEvents(job.light, job.blocker, *job.pair, changes, job.dirty);
+    });
+    for (PairJob& job : scans)
+        if (!job.dirty.empty()) jobs.push_back(std::move(job));
+    Counters counters;
+    recomputePairJobs(jobs, counters);
+    addJobStats(jobs, counters);
+    rememberObjects();
+    gatherShadowEdges(out);
+}
+
+std::vector<EdgeFinder::Change> EdgeFinder::collectChanges() {
+    const int n = static_cast<int>(mObjects.size());
     std::vector<Change> changes;
     for (int o = 0; o < n; ++o) {
         const Object& obj = mObjects[o];
@@ -691,7 +766,10 @@ void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
         changes.push_back(c);
         mChangedAt[o] = mGeneration;
     }
-    // Event regions are clipped to a box around the scene; when it grows, re-clip them.
+    return changes;
+}
+
+bool EdgeFinder::growSceneBox() {
     Box3 scene;
     for (const Object& obj : mObjects) scene.extend(obj.worldBounds);
     for (const LightEntry& l : mLights)
@@ -703,14 +781,12 @@ void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
         mSceneBox.lo -= pad;
         mSceneBox.hi += pad;
     }
+    return sceneGrew;
+}
 
-    struct Job {
-        int light, blocker;
-        Pair* pair;
-        bool events;             ///< rebuild the events (then every event is recomputed)
-        std::vector<int> dirty;  ///< otherwise: the events to recompute
-    };
-    std::vector<Job> jobs, scans;
+void EdgeFinder::planPairJobs(bool rescan, std::vector<PairJob>& jobs,
+                              std::vector<PairJob>& scans) {
+    const int n = static_cast<int>(mObjects.size());
     for (int l = 0; l < static_cast<int>(mLights.size()); ++l) {
         const LightEntry& light = mLights[l];
         for (int b = 0; b < n; ++b) {
@@ -726,39 +802,37 @@ void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
                 jobs.push_back({l, b, &pair, true, {}});
                 continue;
             }
-            if (sceneGrew || !changes.empty()) scans.push_back({l, b, &pair, false, {}});
+            if (rescan) scans.push_back({l, b, &pair, false, {}});
         }
     }
-    // Valid pairs: which of their events the changes make stale (in parallel).
-    tbb::parallel_for(std::size_t(0), scans.size(), [&](std::size_t i) {
-        Job& job = scans[i];
-        if (sceneGrew) computeEventBoxes(*job.pair);
-        findDirtyEvents(job.light, job.blocker, *job.pair, changes, job.dirty);
-    });
-    for (Job& job : scans)
-        if (!job.dirty.empty()) jobs.push_back(std::move(job));
+}
+
+void EdgeFinder::recomputePairJobs(std::vector<PairJob>& jobs, Counters& counters) const {
     // Rebuild events of stale pairs, then recompute every dirty event, all in parallel.
     tbb::parallel_for(std::size_t(0), jobs.size(), [&](std::size_t i) {
-        Job& job = jobs[i];
+        PairJob& job = jobs[i];
         if (!job.events) return;
         computeEvents(job.light, job.blocker, *job.pair);
         job.dirty.resize(job.pair->events.size());
         for (int e = 0; e < static_cast<int>(job.dirty.size()); ++e) job.dirty[e] = e;
         job.pair->valid = true;
     });
-    std::vector<std::pair<const Job*, int>> tasks;
-    for (const Job& job : jobs)
+    std::vector<std::pair<const PairJob*, int>> tasks;
+    for (const PairJob& job : jobs)
         for (int e : job.dirty) tasks.push_back({&job, e});
-    Counters counters;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tasks.size(), 16),
                       [&](const tbb::blocked_range<std::size_t>& range) {
                           for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                              const Job& job = *tasks[i].first;
+                              const PairJob& job = *tasks[i].first;
                               computeEvent(job.light, job.blocker, *job.pair, tasks[i].second,
                                            counters);
                           }
                       });
-    for (const Job& job : jobs) {
+}
+
+void EdgeFinder::addJobStats(const std::vector<PairJob>& jobs, const Counters& counters) {
+    const int n = static_cast<int>(mObjects.size());
+    for (const PairJob& job : jobs) {
         mStats.eventRecomputations += job.events;
         ++mStats.pairRecomputations;
         if (job.events) mStats.eventsFound += static_cast<long long>(job.pair->events.size());
@@ -773,8 +847,10 @@ void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
     mStats.receiverNodes += counters.nodes.load();
     mStats.eventsSelfHidden += counters.selfHidden.load();
     mStats.selfReused += counters.selfReused.load();
+}
 
-    // Remember what the objects were like for the next call.
+void EdgeFinder::rememberObjects() {
+    const int n = static_cast<int>(mObjects.size());
     mSeenVersion.resize(n);
     mSeenAlive.resize(n);
     mSeenBounds.resize(n);
@@ -783,6 +859,9 @@ void EdgeFinder::findShadowEdges(std::vector<WorldEdge>& out) {
         mSeenAlive[o] = mObjects[o].alive;
         mSeenBounds[o] = mObjects[o].worldBounds;
     }
+}
+
+void EdgeFinder::gatherShadowEdges(std::vector<WorldEdge>& out) const {
     // Every pair's edges in map order, each event's in order: the lists' offsets, then the
     // copies in parallel.
     std::vector<const std::vector<WorldEdge>*> lists;

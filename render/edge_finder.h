@@ -220,6 +220,36 @@ private:
     /// Recomputes event `e` of the pair: its near receivers and the edges it casts. The near
     /// receivers of objects unchanged since the event was last computed are taken from then.
     void computeEvent(int light, int blocker, Pair& pair, int e, Counters& counters) const;
+    struct EventScratch;
+    struct EventQuery;
+    /// computeEvent's first step: lists in pair.near[e] and scratch.order the receivers whose
+    /// bounds meet event e's region, with the range of s there (those unchanged since
+    /// `computedAt` taken from scratch.kept when `reuse`). Returns whether one reaches beyond
+    /// the blocker: without one the event casts nothing (§6.5).
+    bool gatherNearReceivers(int light, Pair& pair, int e, bool reuse, unsigned computedAt,
+                             EventScratch& scratch) const;
+    /// Reference mode: intersects every near receiver whole, in object order, and empties the
+    /// order (no front-to-back early outs).
+    void intersectEveryNear(EventQuery& q) const;
+    /// The blocker first, alone (self-shadowing): between light and blocker (s < 1) its surface
+    /// hides the event at every u, or its crossings are kept whole with the pair. Either stays
+    /// true until the light or the blocker moves, so other receivers' changes reuse it. Adds
+    /// the crossings to the coverage and takes the blocker out of the order; returns whether
+    /// the blocker alone hides the event.
+    bool intersectBlockerFirst(int blocker, Pair& pair, int e, EventQuery& q,
+                               Counters& counters) const;
+    /// The blocker's crossings with the event as seen alone into `own`: its selfState, 1 when
+    /// its surface between light and blocker hides the event (`own` empty), else 2.
+    char computeSelfCrossings(int blocker, double sMin, double sMax,
+                              std::vector<ReceiverTree::Crossing>& own, EventQuery& q,
+                              Counters& counters) const;
+    /// The other receivers, nearest first: between light and blocker, then beyond it, each
+    /// skipped once the surfaces found hide it at every u.
+    void intersectNearestFirst(int blocker, EventQuery& q) const;
+    /// Clips the event along its crossings (§6.5) and appends the shadow edges it casts, with
+    /// their penumbra widths.
+    void appendShadowEdges(int light, int blocker, const EventFrame& frame, EventQuery& q,
+                           std::vector<WorldEdge>& edges) const;
     /// An object changed since the last findShadowEdges(): its old and new bounds (empty
     /// when not alive then / now).
     struct Change {
@@ -231,6 +261,26 @@ private:
     /// meets now.
     void findDirtyEvents(int light, int blocker, const Pair& pair,
                          const std::vector<Change>& changes, std::vector<int>& dirty) const;
+    /// Objects changed since the last findShadowEdges(): their old and new bounds (§6.5
+    /// moving objects); marks them changed in this call (mChangedAt).
+    std::vector<Change> collectChanges();
+    /// Grows mSceneBox, padded, to hold every object and light; returns whether it grew (event
+    /// regions are clipped to it, so they must be clipped again).
+    bool growSceneBox();
+    struct PairJob;
+    /// Drops the pairs of dead lights or blockers and lists the others' work: pairs whose light
+    /// or blocker changed in `jobs` (events rebuilt), the valid rest in `scans` when `rescan`
+    /// (their events checked against the changes).
+    void planPairJobs(bool rescan, std::vector<PairJob>& jobs, std::vector<PairJob>& scans);
+    /// Rebuilds the events of stale pairs, then recomputes every dirty event, in parallel.
+    void recomputePairJobs(std::vector<PairJob>& jobs, Counters& counters) const;
+    /// Adds the jobs' work and the counters to mStats.
+    void addJobStats(const std::vector<PairJob>& jobs, const Counters& counters);
+    /// Remembers every object's version, alive flag and bounds for the next call.
+    void rememberObjects();
+    /// Every pair's edges into `out`, in map order and each event's in order, copied in
+    /// parallel.
+    void gatherShadowEdges(std::vector<WorldEdge>& out) const;
 
     Options mOptions;
     std::vector<Object> mObjects;

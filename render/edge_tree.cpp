@@ -57,14 +57,13 @@ struct CellKeyHash {
     }
 };
 
-}  // namespace
-
-EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces,
-                   double sharpCutoffDeg, bool weld) {
+/// Per input vertex, the input vertex it is welded to: itself unless `weld` and an earlier
+/// vertex lies within 1e-9 of the bounding-box diagonal (hash grid, cells of the tolerance,
+/// 27-cell search).
+std::vector<int> weldVertices(const std::vector<Vec3>& positions, bool weld) {
     Box3 inputBounds;
     for (const Vec3& p : positions) inputBounds.extend(p);
 
-    // Weld coincident vertices (hash grid, cells of the tolerance, 27-cell search).
     std::vector<int> welded(positions.size());
     for (std::size_t i = 0; i < positions.size(); ++i) welded[i] = static_cast<int>(i);
     if (weld && !inputBounds.empty()) {
@@ -93,9 +92,42 @@ EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::ve
                 grid.emplace(k, static_cast<int>(i));
         }
     }
+    return welded;
+}
 
-    // OpenMesh connectivity. Vertices are added on first use.
+/// FNV-1a over positions, face starts, face vertices and the cutoff: equal meshes hash
+/// equal, so they share one tree.
+std::uint64_t hashContent(const std::vector<Vec3>& positions, const std::vector<int>& faceStart,
+                          const std::vector<int>& faceVertices, double sharpCutoffDeg) {
+    std::uint64_t h = 1469598103934665603ull;
+    for (const Vec3& p : positions)
+        h = hashMix(hashMix(hashMix(h, bitsOf(p.x)), bitsOf(p.y)), bitsOf(p.z));
+    for (int v : faceStart) h = hashMix(h, static_cast<std::uint64_t>(v));
+    for (int v : faceVertices) h = hashMix(h, static_cast<std::uint64_t>(v));
+    h = hashMix(h, bitsOf(sharpCutoffDeg));
+    return h;
+}
+
+}  // namespace
+
+EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces,
+                   double sharpCutoffDeg, bool weld) {
+    const std::vector<int> welded = weldVertices(positions, weld);
     ElementMesh om;
+    const std::vector<int> faceSource = linkFaces(positions, faces, welded, om);
+    copyFacesAndPlanes(om, faceSource);
+    double cosCutoff = std::cos(sharpCutoffDeg * M_PI / 180.0);
+    collectEdges(om, cosCutoff);
+    mergeNonManifoldSeams(cosCutoff);
+    mSealed = computeSealed();
+    collectOneRings(om);
+    mHash = hashContent(mPositions, mFaceStart, mFaceVertices, sharpCutoffDeg);
+}
+
+std::vector<int> EdgeMesh::linkFaces(const std::vector<Vec3>& positions,
+                                     const std::vector<std::vector<int>>& faces,
+                                     const std::vector<int>& welded, ElementMesh& om) {
+    // Vertices are added on first use.
     std::vector<int> vertexOf(positions.size(), -1);
     auto handleOf = [&](int input) {
         int w = welded[input];
@@ -128,8 +160,10 @@ EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::ve
         }
         faceSource.push_back(static_cast<int>(f));
     }
+    return faceSource;
+}
 
-    // Positions, faces and planes (Newell normals).
+void EdgeMesh::copyFacesAndPlanes(const ElementMesh& om, const std::vector<int>& faceSource) {
     mPositions.resize(om.n_vertices());
     for (auto vh : om.vertices()) {
         const auto& p = om.point(vh);
@@ -157,9 +191,9 @@ EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::ve
         plane.n = len > 0 ? n / len : Vec3(0, 1, 0);
         plane.d = glm::dot(plane.n, c / double(count));
     }
+}
 
-    // Edges with their two faces; sharp edges (§6.2) and boundary edges.
-    double cosCutoff = std::cos(sharpCutoffDeg * M_PI / 180.0);
+void EdgeMesh::collectEdges(const ElementMesh& om, double cosCutoff) {
     mEdges.reserve(om.n_edges());
     for (auto eh : om.edges()) {
         auto h0 = om.halfedge_handle(eh, 0), h1 = om.halfedge_handle(eh, 1);
@@ -180,105 +214,85 @@ EdgeMesh::EdgeMesh(const std::vector<Vec3>& positions, const std::vector<std::ve
         if (e.sharp) mSharpEdges.push_back(id);
         mEdges.push_back(e);
     }
+}
 
-    // Faces OpenMesh could not link (non-manifold vertices) kept their own vertex copies, so
-    // their edges came out as boundary edges although a face lies across them. Pair such an
-    // edge with the one boundary edge running the other way between the same input vertices:
-    // one interior edge with both faces (real silhouettes, a real dihedral angle, a closed mesh
-    // when nothing else is open).
-    {
-        std::unordered_map<std::uint64_t, std::vector<int>> open;
-        auto key = [&](int a, int b) {
-            return (static_cast<std::uint64_t>(mSourceVertex[a]) << 32) |
-                   static_cast<std::uint32_t>(mSourceVertex[b]);
-        };
-        for (int id : mBoundaryEdges) open[key(mEdges[id].v0, mEdges[id].v1)].push_back(id);
-        std::vector<char> removed(mEdges.size(), 0);
-        bool merged = false;
-        for (int id : mBoundaryEdges) {
-            if (removed[id] || mEdges[id].f1 >= 0) continue;
-            const MeshEdge& e = mEdges[id];
-            auto same = open.find(key(e.v0, e.v1));
-            auto back = open.find(key(e.v1, e.v0));
-            if (back == open.end() || back->second.size() != 1 || same->second.size() != 1)
-                continue;
-            int other = back->second[0];
-            if (other == id || removed[other] || mEdges[other].f0 == e.f0) continue;
-            mEdges[id].f1 = mEdges[other].f0;
-            mEdges[id].sharp =
-                glm::dot(mFacePlanes[e.f0].n, mFacePlanes[mEdges[id].f1].n) < cosCutoff;
-            removed[other] = 1;
-            merged = true;
-        }
-        if (merged) {
-            std::vector<MeshEdge> kept;
-            mSharpEdges.clear();
-            mBoundaryEdges.clear();
-            for (std::size_t i = 0; i < mEdges.size(); ++i) {
-                if (removed[i]) continue;
-                int id = static_cast<int>(kept.size());
-                if (mEdges[i].f1 < 0) mBoundaryEdges.push_back(id);
-                if (mEdges[i].sharp) mSharpEdges.push_back(id);
-                kept.push_back(mEdges[i]);
-            }
-            mEdges.swap(kept);
-        }
+void EdgeMesh::mergeNonManifoldSeams(double cosCutoff) {
+    std::unordered_map<std::uint64_t, std::vector<int>> open;
+    auto key = [&](int a, int b) {
+        return (static_cast<std::uint64_t>(mSourceVertex[a]) << 32) |
+               static_cast<std::uint32_t>(mSourceVertex[b]);
+    };
+    for (int id : mBoundaryEdges) open[key(mEdges[id].v0, mEdges[id].v1)].push_back(id);
+    std::vector<char> removed(mEdges.size(), 0);
+    bool merged = false;
+    for (int id : mBoundaryEdges) {
+        if (removed[id] || mEdges[id].f1 >= 0) continue;
+        const MeshEdge& e = mEdges[id];
+        auto same = open.find(key(e.v0, e.v1));
+        auto back = open.find(key(e.v1, e.v0));
+        if (back == open.end() || back->second.size() != 1 || same->second.size() != 1) continue;
+        int other = back->second[0];
+        if (other == id || removed[other] || mEdges[other].f0 == e.f0) continue;
+        mEdges[id].f1 = mEdges[other].f0;
+        mEdges[id].sharp = glm::dot(mFacePlanes[e.f0].n, mFacePlanes[mEdges[id].f1].n) < cosCutoff;
+        removed[other] = 1;
+        merged = true;
     }
-
-    // Sealed: every boundary edge is covered by boundary edges running the other way along
-    // it (cracks of T-junctions where the Discretization split large triangles), so the
-    // surface still bounds a solid. Brute force over boundary edges, done once per mesh.
-    mSealed = mBoundaryEdges.empty();
-    if (!mSealed && mBoundaryEdges.size() <= 4000) {
-        double tol = 1e-9 * glm::length(mBounds.hi - mBounds.lo);
-        std::vector<std::pair<double, double>> cover;
-        mSealed = true;
-        for (int id : mBoundaryEdges) {
-            const Vec3& c = mPositions[mEdges[id].v0];
-            const Vec3& d = mPositions[mEdges[id].v1];
-            Vec3 dir = d - c;
-            double len2 = glm::dot(dir, dir);
-            if (!(len2 > 0)) continue;
-            cover.clear();
-            for (int other : mBoundaryEdges) {
-                const Vec3& a = mPositions[mEdges[other].v0];
-                const Vec3& b = mPositions[mEdges[other].v1];
-                double ta = glm::dot(a - c, dir) / len2, tb = glm::dot(b - c, dir) / len2;
-                if (!(tb < ta)) continue;  // must run the other way
-                if (glm::length(a - (c + ta * dir)) > tol || glm::length(b - (c + tb * dir)) > tol)
-                    continue;  // not on the line
-                cover.push_back({tb, ta});
-            }
-            std::sort(cover.begin(), cover.end());
-            double reach = 0;
-            double step = tol / std::sqrt(len2);
-            for (const auto& [lo, hi] : cover) {
-                if (lo > reach + step) break;
-                reach = std::max(reach, hi);
-            }
-            if (reach < 1 - step) {
-                mSealed = false;
-                break;
-            }
+    if (merged) {
+        std::vector<MeshEdge> kept;
+        mSharpEdges.clear();
+        mBoundaryEdges.clear();
+        for (std::size_t i = 0; i < mEdges.size(); ++i) {
+            if (removed[i]) continue;
+            int id = static_cast<int>(kept.size());
+            if (mEdges[i].f1 < 0) mBoundaryEdges.push_back(id);
+            if (mEdges[i].sharp) mSharpEdges.push_back(id);
+            kept.push_back(mEdges[i]);
         }
+        mEdges.swap(kept);
     }
+}
 
-    // Vertex one-rings.
+bool EdgeMesh::computeSealed() const {
+    if (mBoundaryEdges.empty()) return true;
+    if (mBoundaryEdges.size() > 4000) return false;
+    double tol = 1e-9 * glm::length(mBounds.hi - mBounds.lo);
+    std::vector<std::pair<double, double>> cover;
+    for (int id : mBoundaryEdges) {
+        const Vec3& c = mPositions[mEdges[id].v0];
+        const Vec3& d = mPositions[mEdges[id].v1];
+        Vec3 dir = d - c;
+        double len2 = glm::dot(dir, dir);
+        if (!(len2 > 0)) continue;
+        cover.clear();
+        for (int other : mBoundaryEdges) {
+            const Vec3& a = mPositions[mEdges[other].v0];
+            const Vec3& b = mPositions[mEdges[other].v1];
+            double ta = glm::dot(a - c, dir) / len2, tb = glm::dot(b - c, dir) / len2;
+            if (!(tb < ta)) continue;  // must run the other way
+            if (glm::length(a - (c + ta * dir)) > tol || glm::length(b - (c + tb * dir)) > tol)
+                continue;  // not on the line
+            cover.push_back({tb, ta});
+        }
+        std::sort(cover.begin(), cover.end());
+        double reach = 0;
+        double step = tol / std::sqrt(len2);
+        for (const auto& [lo, hi] : cover) {
+            if (lo > reach + step) break;
+            reach = std::max(reach, hi);
+        }
+        if (reach < 1 - step) return false;
+    }
+    return true;
+}
+
+void EdgeMesh::collectOneRings(const ElementMesh& om) {
     mNeighbourStart.reserve(om.n_vertices() + 1);
     mNeighbourStart.push_back(0);
     for (auto vh : om.vertices()) {
         for (auto w : om.vv_range(vh)) mNeighbours.push_back(w.idx());
         mNeighbourStart.push_back(static_cast<int>(mNeighbours.size()));
     }
-
-    // Content hash.
-    std::uint64_t h = 1469598103934665603ull;
-    for (const Vec3& p : mPositions)
-        h = hashMix(hashMix(hashMix(h, bitsOf(p.x)), bitsOf(p.y)), bitsOf(p.z));
-    for (int v : mFaceStart) h = hashMix(h, static_cast<std::uint64_t>(v));
-    for (int v : mFaceVertices) h = hashMix(h, static_cast<std::uint64_t>(v));
-    h = hashMix(h, bitsOf(sharpCutoffDeg));
-    mHash = h;
 }
 
 EdgeMesh EdgeMesh::fromTriMesh(const TriMesh& mesh, double sharpCutoffDeg) {
@@ -364,6 +378,45 @@ EdgeTree::EdgeTree(std::shared_ptr<const EdgeMesh> mesh, int leafSize)
 }
 
 void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) {
+    const auto& items = mItems;
+    computeNodeBounds(slot, order, begin, end);
+    int count = end - begin;
+    if (count <= mLeafSize) {
+        appendRecords(order, begin, end);
+        mNodes[slot].stored = count;
+        mNodes[slot].end = static_cast<int>(mRecords.size());
+        return;
+    }
+    // Edges whose normals span more than half the node's normal range stay here (§6.4,
+    // non-smooth surfaces).
+    const Node& bounds = mNodes[slot];
+    double nodeSpan = (bounds.nHi[0] - bounds.nLo[0]) + (bounds.nHi[1] - bounds.nLo[1]) +
+                      (bounds.nHi[2] - bounds.nLo[2]);
+    int mid =
+        static_cast<int>(std::partition(order.begin() + begin, order.begin() + end,
+                                        [&](int id) { return items[id].span() > 0.5 * nodeSpan; }) -
+                         order.begin());
+    int stored = mid - begin;
+    if (end - mid <= mLeafSize) {
+        appendRecords(order, begin, end);
+        mNodes[slot].stored = count;
+        mNodes[slot].end = static_cast<int>(mRecords.size());
+        return;
+    }
+    appendRecords(order, begin, mid);
+    mNodes[slot].stored = stored;
+
+    int half = splitAtBestAxis(order, mid, end);
+    int child = static_cast<int>(mNodes.size());
+    mNodes.push_back({});
+    mNodes.push_back({});
+    mNodes[slot].child = child;
+    buildNode(child, order, mid, half);
+    buildNode(child + 1, order, half, end);
+    mNodes[slot].end = static_cast<int>(mRecords.size());
+}
+
+void EdgeTree::computeNodeBounds(int slot, const std::vector<int>& order, int begin, int end) {
     const EdgeMesh& m = *mMesh;
     const auto& items = mItems;
     // Bounds: normal interval vector, position box, plane-offset interval.
@@ -390,69 +443,36 @@ void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) 
             dHi = std::max(dHi, d);
         }
     }
-    {
-        Node& node = mNodes[slot];
-        for (int k = 0; k < 3; ++k) {
-            node.nLo[k] = nLo[k];
-            node.nHi[k] = nHi[k];
-            node.c[k] = c[k];
-        }
-        node.dLo = dLo;
-        node.dHi = dHi;
-        node.begin = static_cast<int>(mRecords.size());
+    Node& node = mNodes[slot];
+    for (int k = 0; k < 3; ++k) {
+        node.nLo[k] = nLo[k];
+        node.nHi[k] = nHi[k];
+        node.c[k] = c[k];
     }
-    auto emit = [&](int from, int to) {
-        for (int i = from; i < to; ++i) {
-            const MeshEdge& e = m.edges()[order[i]];
-            const FacePlane& p0 = m.facePlanes()[e.f0];
-            const FacePlane& p1 = m.facePlanes()[e.f1];
-            mRecords.push_back(
-                {{p0.n.x, p0.n.y, p0.n.z}, p0.d, {p1.n.x, p1.n.y, p1.n.z}, p1.d, order[i]});
-        }
-    };
-    int count = end - begin;
-    if (count <= mLeafSize) {
-        emit(begin, end);
-        mNodes[slot].stored = count;
-        mNodes[slot].end = static_cast<int>(mRecords.size());
-        return;
-    }
-    // Edges whose normals span more than half the node's normal range stay here (§6.4,
-    // non-smooth surfaces).
-    double nodeSpan = (nHi[0] - nLo[0]) + (nHi[1] - nLo[1]) + (nHi[2] - nLo[2]);
-    int mid =
-        static_cast<int>(std::partition(order.begin() + begin, order.begin() + end,
-                                        [&](int id) { return items[id].span() > 0.5 * nodeSpan; }) -
-                         order.begin());
-    int stored = mid - begin;
-    if (end - mid <= mLeafSize) {
-        emit(begin, end);
-        mNodes[slot].stored = count;
-        mNodes[slot].end = static_cast<int>(mRecords.size());
-        return;
-    }
-    emit(begin, mid);
-    mNodes[slot].stored = stored;
+    node.dLo = dLo;
+    node.dHi = dHi;
+    node.begin = static_cast<int>(mRecords.size());
+}
 
-    // Split the rest at the median of the axis whose children bound eq. 1 most tightly: a
-    // node's interval [N]·(e − c) − [d] is about (normal extent)·|e − c| + 2·(position extent)
-    // wide, so a child costs its normal extent times the root's size (a typical eye distance)
-    // plus twice its position extent. Candidates: the three normal axes (§6.4) and the longest
-    // axis of the edge midpoints (position matters when many separate parts share normals).
+void EdgeTree::appendRecords(const std::vector<int>& order, int from, int to) {
+    const EdgeMesh& m = *mMesh;
+    for (int i = from; i < to; ++i) {
+        const MeshEdge& e = m.edges()[order[i]];
+        const FacePlane& p0 = m.facePlanes()[e.f0];
+        const FacePlane& p1 = m.facePlanes()[e.f1];
+        mRecords.push_back(
+            {{p0.n.x, p0.n.y, p0.n.z}, p0.d, {p1.n.x, p1.n.y, p1.n.z}, p1.d, order[i]});
+    }
+}
+
+int EdgeTree::splitAtBestAxis(std::vector<int>& order, int mid, int end) const {
+    const auto& items = mItems;
+    // Split at the median of the axis whose children bound eq. 1 most tightly: a node's
+    // interval [N]·(e − c) − [d] is about (normal extent)·|e − c| + 2·(position extent) wide,
+    // so a child costs its normal extent times the root's size (a typical eye distance) plus
+    // twice its position extent. Candidates: the three normal axes (§6.4) and the longest axis
+    // of the edge midpoints (position matters when many separate parts share normals).
     int half = mid + (end - mid) / 2;
-    auto sizeOf = [&](int from, int to) {
-        double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-        Box3 box;
-        for (int i = from; i < to; ++i) {
-            for (int k = 0; k < 3; ++k) {
-                lo[k] = std::min(lo[k], items[order[i]].lo[k]);
-                hi[k] = std::max(hi[k], items[order[i]].hi[k]);
-            }
-            box.extend(items[order[i]].mid);
-        }
-        double normalSpan = (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]);
-        return normalSpan * mRootSize + glm::length(box.hi - box.lo);
-    };
     Box3 mids;
     for (int i = mid; i < end; ++i) mids.extend(items[order[i]].mid);
     Vec3 ext = mids.hi - mids.lo;
@@ -471,21 +491,29 @@ void EdgeTree::buildNode(int slot, std::vector<int>& order, int begin, int end) 
     double bestCost = 1e300;
     for (int axis = 0; axis < 4; ++axis) {
         partitionOn(axis);
-        double cost = sizeOf(mid, half) + sizeOf(half, end);
+        double cost = splitCost(order, mid, half) + splitCost(order, half, end);
         if (cost < bestCost) {
             bestCost = cost;
             bestAxis = axis;
         }
     }
     if (bestAxis != 3) partitionOn(bestAxis);
+    return half;
+}
 
-    int child = static_cast<int>(mNodes.size());
-    mNodes.push_back({});
-    mNodes.push_back({});
-    mNodes[slot].child = child;
-    buildNode(child, order, mid, half);
-    buildNode(child + 1, order, half, end);
-    mNodes[slot].end = static_cast<int>(mRecords.size());
+double EdgeTree::splitCost(const std::vector<int>& order, int from, int to) const {
+    const auto& items = mItems;
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    Box3 box;
+    for (int i = from; i < to; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], items[order[i]].lo[k]);
+            hi[k] = std::max(hi[k], items[order[i]].hi[k]);
+        }
+        box.extend(items[order[i]].mid);
+    }
+    double normalSpan = (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]);
+    return normalSpan * mRootSize + glm::length(box.hi - box.lo);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -120,6 +120,30 @@ public:
     std::string toString() const;
 
 private:
+    /// Adds the faces to `om` over the welded vertices (each vertex on first use, its input
+    /// index appended to mSourceVertex); a face OpenMesh cannot link (non-manifold there) gets
+    /// its own copies of its vertices. Returns the input index of each face added.
+    std::vector<int> linkFaces(const std::vector<Vec3>& positions,
+                               const std::vector<std::vector<int>>& faces,
+                               const std::vector<int>& welded, ElementMesh& om);
+    /// Positions, bounds, face vertex lists and face planes (Newell normals) from `om`.
+    void copyFacesAndPlanes(const ElementMesh& om, const std::vector<int>& faceSource);
+    /// Edges with their two faces from `om`; sharp edges (§6.2, normals further apart than
+    /// `cosCutoff`) and boundary edges.
+    void collectEdges(const ElementMesh& om, double cosCutoff);
+    /// Faces OpenMesh could not link (non-manifold vertices) kept their own vertex copies, so
+    /// their edges came out as boundary edges although a face lies across them. Pairs such an
+    /// edge with the one boundary edge running the other way between the same input vertices:
+    /// one interior edge with both faces (real silhouettes, a real dihedral angle, a closed
+    /// mesh when nothing else is open).
+    void mergeNonManifoldSeams(double cosCutoff);
+    /// sealed(): every boundary edge is covered by boundary edges running the other way along
+    /// it (cracks of T-junctions where the Discretization split large triangles). Brute force
+    /// over boundary edges, done once per mesh.
+    bool computeSealed() const;
+    /// Vertex one-rings from `om`.
+    void collectOneRings(const ElementMesh& om);
+
     std::vector<Vec3> mPositions;
     std::vector<int> mSourceVertex;
     std::vector<int> mFaceStart, mFaceVertices, mSourceFace;
@@ -201,7 +225,20 @@ private:
         double span() const { return (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]); }
         double centre(int k) const { return lo[k] + hi[k]; }
     };
+    /// Builds node `slot` over the edges order[begin, end): its bounds, the edges it stores,
+    /// and its children (recursively) over the rest.
     void buildNode(int slot, std::vector<int>& order, int begin, int end);
+    /// Node `slot`'s bounds over order[begin, end): the normal interval vector, the centre of
+    /// the edges' position box, and the plane-offset interval about that centre; its first
+    /// record is the next one appended.
+    void computeNodeBounds(int slot, const std::vector<int>& order, int begin, int end);
+    /// Appends the records (both face planes) of the edges order[from, to).
+    void appendRecords(const std::vector<int>& order, int from, int to);
+    /// Splits order[mid, end) at its median on the axis whose halves bound eq. 1 most tightly,
+    /// leaving it partitioned there; returns the median index.
+    int splitAtBestAxis(std::vector<int>& order, int mid, int end) const;
+    /// A split half's cost: its normal extent × the root's size plus its midpoints' extent.
+    double splitCost(const std::vector<int>& order, int from, int to) const;
     /// Eq. 1 over the tree: the record indices of the interior silhouette edges in
     /// records[0, returned count) (`records` only grows; entries past the count are scratch).
     std::size_t silhouetteRecords(const Vec3& eye, std::vector<int>& records,

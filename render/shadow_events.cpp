@@ -83,89 +83,91 @@ bool isConcaveEdge(const EdgeMesh& mesh, int edge) {
     return best > 1e-2 * len && glm::dot(p0.n, mesh.facePlanes()[e.f1].n) > -0.5;
 }
 
-void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
-                      const Mat4& objectFromWorld, const Light& light,
-                      std::vector<ShadowEvent>& out, EdgeTreeStats* stats, bool cullHidden) {
+namespace {
+
+/// Point light at `light` (object space): the events are the silhouettes seen from the light
+/// (§6.4), all Hard VE events.
+void findPointLightEvents(const EdgeTree& blocker, const Mat4& worldFromObject, const Vec3& light,
+                          std::vector<ShadowEvent>& out, EdgeTreeStats* stats, bool cullHidden) {
     const EdgeMesh& mesh = blocker.mesh();
-    cullHidden = cullHidden && mesh.sealed();
     const auto& P = mesh.positions();
-    std::vector<Vec3> L;
-    for (const Vec3& p : light.polygon) L.push_back(apply(objectFromWorld, p));
-    if (L.empty()) return;
     std::vector<int> edges;
-
-    if (L.size() == 1) {
-        // Point light: shadow events are the silhouettes seen from the light (§6.4).
-        blocker.findSilhouettes(L[0], edges, stats);
-        for (int id : edges) {
-            if (cullHidden && isConcaveEdge(mesh, id)) continue;
-            const MeshEdge& e = mesh.edges()[id];
-            ShadowEvent ev;
-            ev.p0 = ev.p1 = L[0];
-            ev.q0 = P[e.v0];
-            ev.q1 = P[e.v1];
-            ev.lightFeature = 0;
-            ev.blockerFeature = id;
-            out.push_back(ev.mapped(worldFromObject));
-        }
-        return;
-    }
-
-    // Area light (appendix A). Candidates: edges that are silhouettes from some light point.
-    blocker.findSilhouetteCandidates(L, edges, stats);
-    const int n = static_cast<int>(L.size());
-    double lightSize = 0, meshSize = glm::length(mesh.bounds().hi - mesh.bounds().lo);
-    for (int i = 0; i < n; ++i) lightSize = std::max(lightSize, glm::length(L[i] - L[0]));
-    const double rel = 1e-9;
-    std::vector<int> vertices;
+    blocker.findSilhouettes(light, edges, stats);
     for (int id : edges) {
-        const MeshEdge& e = mesh.edges()[id];
-        const Vec3 &a = P[e.v0], &b = P[e.v1];
-        vertices.push_back(e.v0);
-        vertices.push_back(e.v1);
         if (cullHidden && isConcaveEdge(mesh, id)) continue;
-        // VE events: light vertex v, blocker edge e.
-        for (int i = 0; i < n; ++i) {
-            if (!mesh.isSilhouette(id, L[i])) continue;  // eq. 1 from v
-            Vec3 N = glm::cross(a - L[i], b - L[i]);
-            double len = glm::length(N);
-            if (!(len > 0)) continue;
-            double epsL = rel * len * (lightSize + meshSize);
-            // Tangent to the light at v: its neighbours on one side.
-            int sp = signOf(glm::dot(N, L[(i + n - 1) % n] - L[i]), epsL);
-            int sn = signOf(glm::dot(N, L[(i + 1) % n] - L[i]), epsL);
-            if (sp * sn < 0) continue;
-            int lightSide = sp != 0 ? sp : sn;
-            for (int k = 0; k < n && lightSide == 0; ++k)
-                lightSide = signOf(glm::dot(N, L[k] - L[i]), epsL);
-            if (lightSide == 0) continue;
-            // Blocker side: the adjacent faces' farthest vertices (both on one side at a
-            // silhouette).
-            double best = 0;
-            for (int f : {e.f0, e.f1}) {
-                if (f < 0) continue;
-                for (int j = mesh.faceStart()[f]; j < mesh.faceStart()[f + 1]; ++j) {
-                    double d = glm::dot(N, P[mesh.faceVertices()[j]] - L[i]);
-                    if (std::abs(d) > std::abs(best)) best = d;
-                }
-            }
-            int blockerSide = signOf(best, epsL);
-            if (blockerSide == 0) continue;
-            ShadowEvent ev;
-            ev.p0 = ev.p1 = L[i];
-            ev.q0 = a;
-            ev.q1 = b;
-            ev.kind = lightSide == blockerSide ? ShadowKind::Umbra : ShadowKind::Penumbra;
-            ev.vertexEdge = true;
-            ev.lightFeature = i;
-            ev.blockerFeature = id;
-            out.push_back(ev.mapped(worldFromObject));
-        }
+        const MeshEdge& e = mesh.edges()[id];
+        ShadowEvent ev;
+        ev.p0 = ev.p1 = light;
+        ev.q0 = P[e.v0];
+        ev.q1 = P[e.v1];
+        ev.lightFeature = 0;
+        ev.blockerFeature = id;
+        out.push_back(ev.mapped(worldFromObject));
     }
-    // EV events: light edge (L[j], L[j+1]) and a blocker vertex w where the plane supports the
-    // blocker (every one-ring neighbour on one side).
-    std::sort(vertices.begin(), vertices.end());
-    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+}
+
+/// Relative tolerance of the area-light side tests, scaled by |N| and the light's and the
+/// mesh's sizes.
+constexpr double kSideRel = 1e-9;
+
+/// VE events of blocker edge `id` and the vertices of the area light L (object space): the
+/// edge a silhouette from light vertex v (eq. 1) with both light neighbours of v on one side
+/// of plane(v, e).
+void appendVertexEdgeEvents(const EdgeMesh& mesh, int id, const std::vector<Vec3>& L,
+                            double lightSize, double meshSize, const Mat4& worldFromObject,
+                            std::vector<ShadowEvent>& out) {
+    const auto& P = mesh.positions();
+    const int n = static_cast<int>(L.size());
+    const double rel = kSideRel;
+    const MeshEdge& e = mesh.edges()[id];
+    const Vec3 &a = P[e.v0], &b = P[e.v1];
+    for (int i = 0; i < n; ++i) {
+        if (!mesh.isSilhouette(id, L[i])) continue;  // eq. 1 from v
+        Vec3 N = glm::cross(a - L[i], b - L[i]);
+        double len = glm::length(N);
+        if (!(len > 0)) continue;
+        double epsL = rel * len * (lightSize + meshSize);
+        // Tangent to the light at v: its neighbours on one side.
+        int sp = signOf(glm::dot(N, L[(i + n - 1) % n] - L[i]), epsL);
+        int sn = signOf(glm::dot(N, L[(i + 1) % n] - L[i]), epsL);
+        if (sp * sn < 0) continue;
+        int lightSide = sp != 0 ? sp : sn;
+        for (int k = 0; k < n && lightSide == 0; ++k)
+            lightSide = signOf(glm::dot(N, L[k] - L[i]), epsL);
+        if (lightSide == 0) continue;
+        // Blocker side: the adjacent faces' farthest vertices (both on one side at a
+        // silhouette).
+        double best = 0;
+        for (int f : {e.f0, e.f1}) {
+            if (f < 0) continue;
+            for (int j = mesh.faceStart()[f]; j < mesh.faceStart()[f + 1]; ++j) {
+                double d = glm::dot(N, P[mesh.faceVertices()[j]] - L[i]);
+                if (std::abs(d) > std::abs(best)) best = d;
+            }
+        }
+        int blockerSide = signOf(best, epsL);
+        if (blockerSide == 0) continue;
+        ShadowEvent ev;
+        ev.p0 = ev.p1 = L[i];
+        ev.q0 = a;
+        ev.q1 = b;
+        ev.kind = lightSide == blockerSide ? ShadowKind::Umbra : ShadowKind::Penumbra;
+        ev.vertexEdge = true;
+        ev.lightFeature = i;
+        ev.blockerFeature = id;
+        out.push_back(ev.mapped(worldFromObject));
+    }
+}
+
+/// EV events of the area light L's edges (L[j], L[j+1]) and the blocker vertices `vertices`
+/// (sorted, distinct; object space) where the plane supports the blocker (every one-ring
+/// neighbour on one side).
+void appendEdgeVertexEvents(const EdgeMesh& mesh, const std::vector<int>& vertices,
+                            const std::vector<Vec3>& L, double lightSize, double meshSize,
+                            const Mat4& worldFromObject, std::vector<ShadowEvent>& out) {
+    const auto& P = mesh.positions();
+    const int n = static_cast<int>(L.size());
+    const double rel = kSideRel;
     for (int w : vertices) {
         for (int j = 0; j < n; ++j) {
             const Vec3 &l0 = L[j], &l1 = L[(j + 1) % n];
@@ -200,6 +202,40 @@ void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
             out.push_back(ev.mapped(worldFromObject));
         }
     }
+}
+
+}  // namespace
+
+void findShadowEvents(const EdgeTree& blocker, const Mat4& worldFromObject,
+                      const Mat4& objectFromWorld, const Light& light,
+                      std::vector<ShadowEvent>& out, EdgeTreeStats* stats, bool cullHidden) {
+    const EdgeMesh& mesh = blocker.mesh();
+    cullHidden = cullHidden && mesh.sealed();
+    std::vector<Vec3> L;
+    for (const Vec3& p : light.polygon) L.push_back(apply(objectFromWorld, p));
+    if (L.empty()) return;
+    if (L.size() == 1) {
+        findPointLightEvents(blocker, worldFromObject, L[0], out, stats, cullHidden);
+        return;
+    }
+
+    // Area light (appendix A). Candidates: edges that are silhouettes from some light point.
+    std::vector<int> edges;
+    blocker.findSilhouetteCandidates(L, edges, stats);
+    const int n = static_cast<int>(L.size());
+    double lightSize = 0, meshSize = glm::length(mesh.bounds().hi - mesh.bounds().lo);
+    for (int i = 0; i < n; ++i) lightSize = std::max(lightSize, glm::length(L[i] - L[0]));
+    std::vector<int> vertices;
+    for (int id : edges) {
+        const MeshEdge& e = mesh.edges()[id];
+        vertices.push_back(e.v0);
+        vertices.push_back(e.v1);
+        if (cullHidden && isConcaveEdge(mesh, id)) continue;
+        appendVertexEdgeEvents(mesh, id, L, lightSize, meshSize, worldFromObject, out);
+    }
+    std::sort(vertices.begin(), vertices.end());
+    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+    appendEdgeVertexEvents(mesh, vertices, L, lightSize, meshSize, worldFromObject, out);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -487,6 +523,188 @@ void ReceiverTree::build(int slot, int begin, int end) {
     build(child + 1, mid, end);
 }
 
+namespace {
+
+/// An event's linear functions bounded over a box given by its centre and half extent: the
+/// value at the centre ± the projected half extent (the same bounds as EventFrame::touches,
+/// on a receiver node's precomputed centre and extent).
+struct FrameBoxBounds {
+    FrameBoxBounds(const EventFrame& f, double tolerance)
+        : frame(f),
+          eps(tolerance),
+          absN(glm::abs(f.normal)),
+          abs0(glm::abs(f.k[0])),
+          abs1(glm::abs(f.k[1])),
+          abs2(glm::abs(f.k[2])),
+          tol0(tolerance * f.kLength[0]),
+          tol1(tolerance * f.kLength[1]),
+          tol2(tolerance * f.kLength[2]) {}
+    /// The box straddles the plane and meets the event's region (EventFrame::touches); sMax
+    /// is the largest s over the box.
+    bool meetsRegion(const Vec3& c, const Vec3& h, double sMax) const {
+        double pm = glm::dot(frame.normal, c) - frame.offset, pr = glm::dot(absN, h);
+        if (!(pm + pr > eps) || !(pm - pr < -eps)) return false;
+        double m0 = glm::dot(frame.k[0], c) + frame.c[0], r0 = glm::dot(abs0, h);
+        double m1 = glm::dot(frame.k[1], c) + frame.c[1], r1 = glm::dot(abs1, h);
+        bool neg0 = m0 + r0 < -tol0, neg1 = m1 + r1 < -tol1;
+        if (frame.vertexEdge) {
+            if (neg0 || neg1) return false;
+        } else {
+            bool nearOut = neg0 || neg1 || sMax < -tol2;
+            bool farOut = m0 - r0 > tol0 || m1 - r1 > tol1 || sMax < 1 - tol2;
+            if (nearOut && farOut) return false;
+        }
+        return true;
+    }
+    const EventFrame& frame;
+    const double eps;
+    const Vec3 absN, abs0, abs1, abs2;
+    const double tol0, tol1, tol2;
+};
+
+/// One ReceiverTree::intersect() call as its faces see it: the event (object space), its
+/// frame, the face tolerance, and the s window [sLo, sHi) pieces must lie in when `windowed`.
+struct FaceQuery {
+    const ShadowEvent& event;
+    const EventFrame& frame;
+    double eps;
+    bool cullBackFaces;
+    bool windowed;
+    double sLo, sHi;
+};
+
+/// Where face f crosses the event's plane: the two crossing points farthest apart, x0 and x1.
+/// False when the face only touches the plane, has more than 64 vertices, or crosses it in a
+/// segment no longer than eps.
+bool crossPlane(const EdgeMesh& m, int f, const EventFrame& frame, double eps, Vec3& x0, Vec3& x1) {
+    int fb = m.faceStart()[f], fe = m.faceStart()[f + 1], cnt = fe - fb;
+    // Signed distances to the event plane; faces that only touch it are skipped.
+    double dist[64];
+    int sgn[64];
+    if (cnt > 64) return false;
+    bool pos = false, neg = false;
+    for (int j = 0; j < cnt; ++j) {
+        dist[j] = glm::dot(frame.normal, m.positions()[m.faceVertices()[fb + j]]) - frame.offset;
+        sgn[j] = signOf(dist[j], eps);
+        pos = pos || sgn[j] > 0;
+        neg = neg || sgn[j] < 0;
+    }
+    if (!pos || !neg) return false;
+    // The face's crossing points with the plane: at most one per vertex.
+    Vec3 pts[64];
+    int npts = 0;
+    for (int j = 0; j < cnt; ++j) {
+        int j2 = (j + 1) % cnt;
+        const Vec3& a = m.positions()[m.faceVertices()[fb + j]];
+        const Vec3& b = m.positions()[m.faceVertices()[fb + j2]];
+        // A vertex on the plane, or a sign change after it: never both, so at most
+        // one point per vertex.
+        if (sgn[j] == 0) pts[npts++] = a;
+        if (sgn[j] * sgn[j2] < 0) {
+            double t = dist[j] / (dist[j] - dist[j2]);
+            pts[npts++] = a + t * (b - a);
+        }
+    }
+    if (npts < 2) return false;
+    // The two crossing points farthest apart.
+    x0 = pts[0];
+    x1 = pts[1];
+    double best = glm::length(x1 - x0);
+    for (int p = 0; p < npts; ++p)
+        for (int q = p + 1; q < npts; ++q) {
+            double d = glm::length(pts[q] - pts[p]);
+            if (d > best) {
+                best = d;
+                x0 = pts[p];
+                x1 = pts[q];
+            }
+        }
+    return best > eps;
+}
+
+/// Splits face f's crossing segment x0–x1 where G0, G1, s or s − 1 change sign and appends
+/// the pieces in the event's region (and window) to `out`, and to `coverage` when given.
+void appendCrossingPieces(const FaceQuery& q, const Vec3& x0, const Vec3& x1, int f, bool front,
+                          std::vector<ReceiverTree::Crossing>& out, EventCoverage* coverage) {
+    const EventFrame& frame = q.frame;
+    double f0[3], f1[3];
+    for (int j = 0; j < 3; ++j) {
+        f0[j] = frame.eval(j, x0);
+        f1[j] = frame.eval(j, x1);
+    }
+    double cuts[6];
+    int nc = 0;
+    cuts[nc++] = 0;
+    cuts[nc++] = 1;
+    for (int j = 0; j < 4; ++j) {
+        double a = j < 3 ? f0[j] : f0[2] - 1, b = j < 3 ? f1[j] : f1[2] - 1;
+        if ((a < 0) != (b < 0) && a != b) {
+            double t = a / (a - b);
+            if (t > 0 && t < 1) cuts[nc++] = t;
+        }
+    }
+    for (int a = 1; a < nc; ++a)  // insertion sort of at most 6 values
+        for (int b = a; b > 0 && cuts[b - 1] > cuts[b]; --b) std::swap(cuts[b - 1], cuts[b]);
+    for (int j = 0; j + 1 < nc; ++j) {
+        double ta = cuts[j], tb = cuts[j + 1];
+        if (tb - ta < 1e-12) continue;
+        double tm = 0.5 * (ta + tb), fm[3];
+        for (int k = 0; k < 3; ++k) fm[k] = f0[k] + tm * (f1[k] - f0[k]);
+        if (!frame.inRegion(fm)) continue;
+        if (q.windowed && (fm[2] < q.sLo || fm[2] >= q.sHi)) continue;
+        ReceiverTree::Crossing cr;
+        cr.x0 = x0 + ta * (x1 - x0);
+        cr.x1 = x0 + tb * (x1 - x0);
+        for (int k = 0; k < 3; ++k) {
+            cr.g[0][k] = f0[k] + ta * (f1[k] - f0[k]);
+            cr.g[1][k] = f0[k] + tb * (f1[k] - f0[k]);
+        }
+        double da = cr.g[0][0] + cr.g[0][1], db = cr.g[1][0] + cr.g[1][1];
+        if (da == 0 || db == 0) continue;
+        cr.u0 = cr.g[0][0] / da;
+        cr.u1 = cr.g[1][0] / db;
+        if (cr.u0 > cr.u1) {
+            std::swap(cr.u0, cr.u1);
+            std::swap(cr.x0, cr.x1);
+            for (int k = 0; k < 3; ++k) std::swap(cr.g[0][k], cr.g[1][k]);
+        }
+        cr.u0 = std::clamp(cr.u0, 0.0, 1.0);
+        cr.u1 = std::clamp(cr.u1, 0.0, 1.0);
+        if (cr.u1 - cr.u0 < 1e-12) continue;
+        cr.face = f;
+        cr.front = front;
+        out.push_back(cr);
+        if (coverage) coverage->add(cr.u0, cr.u1, std::max(cr.g[0][2], cr.g[1][2]));
+    }
+}
+
+/// A leaf's faces faces[begin, end): the crossing pieces of each with the event.
+void intersectFaces(const FaceQuery& q, const EdgeMesh& m, const std::vector<int>& faces, int begin,
+                    int end, std::vector<ReceiverTree::Crossing>& out, EventCoverage* coverage) {
+    for (int i = begin; i < end; ++i) {
+        int f = faces[i];
+        const FacePlane& plane = m.facePlanes()[f];
+        bool front = plane.eval(q.event.p0) > 0 || plane.eval(q.event.p1) > 0;
+        if (q.cullBackFaces && !front) continue;
+        Vec3 x0, x1;
+        if (!crossPlane(m, f, q.frame, q.eps, x0, x1)) continue;
+        appendCrossingPieces(q, x0, x1, f, front, out, coverage);
+    }
+}
+
+}  // namespace
+
+bool ReceiverTree::facesAwayFromLight(const Node& node, const Box3& lightBox) {
+    double hi = 0, mag = 0;
+    for (int k = 0; k < 3; ++k) {
+        double w0 = lightBox.lo[k] - node.c[k], w1 = lightBox.hi[k] - node.c[k];
+        hi += std::max(std::max(node.nLo[k] * w0, node.nLo[k] * w1),
+                       std::max(node.nHi[k] * w0, node.nHi[k] * w1));
+        mag += std::max(std::abs(w0), std::abs(w1)) + std::abs(node.c[k]);
+    }
+    return hi - node.dLo < -1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi));
+}
+
 void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
                              std::vector<Crossing>& out, long long* nodesVisited, double sLo,
                              double sHi, EventCoverage* coverage) const {
@@ -498,27 +716,21 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
     lightBox.extend(event.p0);
     lightBox.extend(event.p1);
     const bool windowed = sLo > -HUGE_VAL || sHi < HUGE_VAL;
-    // Linear functions over a node's box: value at the centre ± the projected half extent
-    // (the same bounds as EventFrame::touches, inlined on the precomputed centre and extent).
-    const Vec3 absN = glm::abs(frame.normal), abs0 = glm::abs(frame.k[0]),
-               abs1 = glm::abs(frame.k[1]), abs2 = glm::abs(frame.k[2]);
-    const double tol0 = eps * frame.kLength[0], tol1 = eps * frame.kLength[1],
-                 tol2 = eps * frame.kLength[2];
+    const FaceQuery query{event, frame, eps, cullBackFaces, windowed, sLo, sHi};
+    const FrameBoxBounds bounds(frame, eps);
     struct Entry {
         int node;
         double sMin, sMax;  ///< s over the node's box
     };
     auto entryOf = [&](int index) {
         const Node& n = mNodes[index];
-        double mid = glm::dot(frame.k[2], n.c) + frame.c[2], r = glm::dot(abs2, n.h);
+        double mid = glm::dot(frame.k[2], n.c) + frame.c[2], r = glm::dot(bounds.abs2, n.h);
         return Entry{index, mid - r, mid + r};
     };
     long long visited = 0;
     Entry stack[128];
     int top = 0;
     stack[top++] = entryOf(0);
-    // A face's crossing points with the plane: at most one per vertex (faces have at most 64).
-    Vec3 pts[64];
     while (top > 0) {
         const Entry entry = stack[--top];
         const Node& node = mNodes[entry.node];
@@ -529,32 +741,9 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
             if (entry.sMin > t + 1e-12) continue;  // behind what is found
         }
         if (windowed && (entry.sMax < sLo - 1e-9 || entry.sMin >= sHi + 1e-9)) continue;
-        {
-            // The box must straddle the plane and meet the event's region (EventFrame::touches).
-            double pm = glm::dot(frame.normal, node.c) - frame.offset, pr = glm::dot(absN, node.h);
-            if (!(pm + pr > eps) || !(pm - pr < -eps)) continue;
-            double m0 = glm::dot(frame.k[0], node.c) + frame.c[0], r0 = glm::dot(abs0, node.h);
-            double m1 = glm::dot(frame.k[1], node.c) + frame.c[1], r1 = glm::dot(abs1, node.h);
-            bool neg0 = m0 + r0 < -tol0, neg1 = m1 + r1 < -tol1;
-            if (frame.vertexEdge) {
-                if (neg0 || neg1) continue;
-            } else {
-                bool nearOut = neg0 || neg1 || entry.sMax < -tol2;
-                bool farOut = m0 - r0 > tol0 || m1 - r1 > tol1 || entry.sMax < 1 - tol2;
-                if (nearOut && farOut) continue;
-            }
-        }
-        if (cullBackFaces) {
-            // Every face below faces away from the whole light feature: skip (§6.4).
-            double hi = 0, mag = 0;
-            for (int k = 0; k < 3; ++k) {
-                double w0 = lightBox.lo[k] - node.c[k], w1 = lightBox.hi[k] - node.c[k];
-                hi += std::max(std::max(node.nLo[k] * w0, node.nLo[k] * w1),
-                               std::max(node.nHi[k] * w0, node.nHi[k] * w1));
-                mag += std::max(std::abs(w0), std::abs(w1)) + std::abs(node.c[k]);
-            }
-            if (hi - node.dLo < -1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi))) continue;
-        }
+        if (!bounds.meetsRegion(node.c, node.h, entry.sMax)) continue;
+        // Every face below faces away from the whole light feature: skip (§6.4).
+        if (cullBackFaces && facesAwayFromLight(node, lightBox)) continue;
         if (node.child >= 0) {
             Entry a = entryOf(node.child), b = entryOf(node.child + 1);
             // Nearest first when something may cut the traversal short.
@@ -563,104 +752,7 @@ void ReceiverTree::intersect(const ShadowEvent& event, bool cullBackFaces,
             stack[top++] = a;
             continue;
         }
-        for (int i = node.begin; i < node.end; ++i) {
-            int f = mFaces[i];
-            const FacePlane& plane = m.facePlanes()[f];
-            bool front = plane.eval(event.p0) > 0 || plane.eval(event.p1) > 0;
-            if (cullBackFaces && !front) continue;
-            int fb = m.faceStart()[f], fe = m.faceStart()[f + 1], cnt = fe - fb;
-            // Signed distances to the event plane; faces that only touch it are skipped.
-            double dist[64];
-            int sgn[64];
-            if (cnt > 64) continue;
-            bool pos = false, neg = false;
-            for (int j = 0; j < cnt; ++j) {
-                dist[j] =
-                    glm::dot(frame.normal, m.positions()[m.faceVertices()[fb + j]]) - frame.offset;
-                sgn[j] = signOf(dist[j], eps);
-                pos = pos || sgn[j] > 0;
-                neg = neg || sgn[j] < 0;
-            }
-            if (!pos || !neg) continue;
-            int npts = 0;
-            for (int j = 0; j < cnt; ++j) {
-                int j2 = (j + 1) % cnt;
-                const Vec3& a = m.positions()[m.faceVertices()[fb + j]];
-                const Vec3& b = m.positions()[m.faceVertices()[fb + j2]];
-                // A vertex on the plane, or a sign change after it: never both, so at most
-                // one point per vertex.
-                if (sgn[j] == 0) pts[npts++] = a;
-                if (sgn[j] * sgn[j2] < 0) {
-                    double t = dist[j] / (dist[j] - dist[j2]);
-                    pts[npts++] = a + t * (b - a);
-                }
-            }
-            if (npts < 2) continue;
-            // The two crossing points farthest apart.
-            Vec3 x0 = pts[0], x1 = pts[1];
-            double best = glm::length(x1 - x0);
-            for (int p = 0; p < npts; ++p)
-                for (int q = p + 1; q < npts; ++q) {
-                    double d = glm::length(pts[q] - pts[p]);
-                    if (d > best) {
-                        best = d;
-                        x0 = pts[p];
-                        x1 = pts[q];
-                    }
-                }
-            if (!(best > eps)) continue;
-            // Split the segment where G0, G1, s or s − 1 change sign; keep pieces in the region.
-            double f0[3], f1[3];
-            for (int j = 0; j < 3; ++j) {
-                f0[j] = frame.eval(j, x0);
-                f1[j] = frame.eval(j, x1);
-            }
-            double cuts[6];
-            int nc = 0;
-            cuts[nc++] = 0;
-            cuts[nc++] = 1;
-            for (int j = 0; j < 4; ++j) {
-                double a = j < 3 ? f0[j] : f0[2] - 1, b = j < 3 ? f1[j] : f1[2] - 1;
-                if ((a < 0) != (b < 0) && a != b) {
-                    double t = a / (a - b);
-                    if (t > 0 && t < 1) cuts[nc++] = t;
-                }
-            }
-            for (int a = 1; a < nc; ++a)  // insertion sort of at most 6 values
-                for (int b = a; b > 0 && cuts[b - 1] > cuts[b]; --b)
-                    std::swap(cuts[b - 1], cuts[b]);
-            for (int j = 0; j + 1 < nc; ++j) {
-                double ta = cuts[j], tb = cuts[j + 1];
-                if (tb - ta < 1e-12) continue;
-                double tm = 0.5 * (ta + tb), fm[3];
-                for (int q = 0; q < 3; ++q) fm[q] = f0[q] + tm * (f1[q] - f0[q]);
-                if (!frame.inRegion(fm)) continue;
-                if (windowed && (fm[2] < sLo || fm[2] >= sHi)) continue;
-                Crossing cr;
-                cr.x0 = x0 + ta * (x1 - x0);
-                cr.x1 = x0 + tb * (x1 - x0);
-                for (int q = 0; q < 3; ++q) {
-                    cr.g[0][q] = f0[q] + ta * (f1[q] - f0[q]);
-                    cr.g[1][q] = f0[q] + tb * (f1[q] - f0[q]);
-                }
-                double da = cr.g[0][0] + cr.g[0][1], db = cr.g[1][0] + cr.g[1][1];
-                if (da == 0 || db == 0) continue;
-                cr.u0 = cr.g[0][0] / da;
-                cr.u1 = cr.g[1][0] / db;
-                if (cr.u0 > cr.u1) {
-                    std::swap(cr.u0, cr.u1);
-                    std::swap(cr.x0, cr.x1);
-                    for (int q = 0; q < 3; ++q) std::swap(cr.g[0][q], cr.g[1][q]);
-                }
-                cr.u0 = std::clamp(cr.u0, 0.0, 1.0);
-                cr.u1 = std::clamp(cr.u1, 0.0, 1.0);
-                if (cr.u1 - cr.u0 < 1e-12) continue;
-                cr.face = f;
-                cr.front = front;
-                out.push_back(cr);
-                if (coverage) coverage->add(cr.u0, cr.u1, std::max(cr.g[0][2], cr.g[1][2]));
-            }
-        }
+        intersectFaces(query, m, mFaces, node.begin, node.end, out, coverage);
     }
     if (nodesVisited) *nodesVisited += visited;
 }

@@ -153,6 +153,9 @@ private:
         int child = -1;
     };
     void build(int slot, int begin, int end);
+    /// Every face below `node` faces away from every point of `lightBox` (the light feature's
+    /// box), by the node's normal and plane-offset intervals (§6.4).
+    static bool facesAwayFromLight(const Node& node, const Box3& lightBox);
     std::shared_ptr<const EdgeMesh> mMesh;
     int mLeafSize;
     std::vector<Node> mNodes;
