@@ -401,6 +401,292 @@ struct SampleKeyHash {
 
 using SampleCache = tbb::concurrent_hash_map<SampleKey, ExactIrradiance::Parts, SampleKeyHash>;
 
+/// What every element's meshing shares in one HifiMesh::build: the scene's shadow events and
+/// contacts, the exact samples taken so far, each element's triangles, and the counters the
+/// build's stats report.
+struct HifiBuild {
+    HifiBuild(const Discretization& d, const ExactIrradiance& x, const HifiOptions& o)
+        : disc(d),
+          exact(x),
+          options(o),
+          wedges(allWedges(d)),
+          contacts(d),
+          perElement(d.elements().size()),
+          tracer(x.tracer()) {}
+    const Discretization& disc;
+    const ExactIrradiance& exact;
+    const HifiOptions& options;
+    const std::vector<Wedge> wedges;
+    const ContactIndex contacts;
+    std::vector<std::vector<HifiTriangle>> perElement;
+    const RayTracer* tracer;       ///< finds covered triangles (null: none is dropped)
+    double absoluteTolerance = 0;  ///< refinementFloor
+    double grid = 0;               ///< sampleGrid
+    SampleCache cache;
+    std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
+        centreSamples{0};
+    std::atomic<bool> cancelled{false};
+    std::atomic<int> covered{0};
+};
+
+/// The refinement test's absolute tolerance: differences below this fraction of the
+/// brightest emitter's luminance are ignored (dark corners need no subdivision).
+double refinementFloor(const Discretization& disc) {
+    double brightest = 0;
+    for (const Material& m : disc.materials())
+        brightest = std::max(brightest, luminance(m.emission));
+    return 1e-4 * brightest;
+}
+
+/// The grid sample positions are shared on (metres): far finer than any element.
+double sampleGrid(const Discretization& disc) {
+    Vec3 sceneLo(1e300), sceneHi(-1e300);
+    for (const Element& el : disc.elements()) {
+        sceneLo = glm::min(sceneLo, el.centroid);
+        sceneHi = glm::max(sceneHi, el.centroid);
+    }
+    return 1e-9 * std::max(1.0, glm::length(sceneHi - sceneLo));
+}
+
+/// An element's discontinuities in its plane's frame, those on its boundary dropped.
+struct ElementSegments {
+    std::vector<std::pair<glm::dvec2, glm::dvec2>> shadow;   ///< the k strongest above w_min
+    std::vector<std::pair<glm::dvec2, glm::dvec2>> contact;  ///< every contact line, clipped
+    /// Every contact line before clipping: points on them sample their own side.
+    std::vector<std::pair<glm::dvec2, glm::dvec2>> allContacts;
+};
+
+/// Discontinuities on element e: the k strongest shadow events above w_min, every contact
+/// line; counted in the build's stats.
+ElementSegments discontinuitiesOn(HifiBuild& b, int e, const ElementGeometry& g, double size) {
+    ElementSegments s;
+    int kept = 0;
+    for (const Discontinuity& d : rankWedges(b.disc, e, g, b.wedges)) {
+        if (kept >= b.options.maxDiscontinuities || d.weight < b.options.minWeight) break;
+        s.shadow.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
+        ++kept;
+    }
+    for (const Discontinuity& d :
+         contactsOn(b.disc, e, g, b.contacts, b.options.contactFraction, &s.allContacts))
+        s.contact.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
+    // Points on a contact line (unclipped: those on the boundary included) sample their side.
+    dropBoundarySegments(g.poly2, s.shadow, 1e-6 * size);
+    dropBoundarySegments(g.poly2, s.contact, 1e-6 * size);
+    b.shadowSegs.fetch_add(static_cast<int>(s.shadow.size()), std::memory_order_relaxed);
+    b.contactSegs.fetch_add(static_cast<int>(s.contact.size()), std::memory_order_relaxed);
+    return s;
+}
+
+/// The element's triangles in its plane's frame: the element as it is (a fan) when nothing
+/// crosses it, else the constrained Delaunay triangulation of its outline with the shadow
+/// segments and then the contact lines (appended to `s.shadow`).
+Triangulation2 triangulateElement(HifiBuild& b, const ElementGeometry& g, ElementSegments& s) {
+    Triangulation2 tri;
+    if (s.shadow.empty() && s.contact.empty()) {
+        tri.points = g.poly2;
+        for (std::size_t k = 1; k + 1 < g.poly2.size(); ++k)
+            tri.triangles.push_back({0, static_cast<int>(k), static_cast<int>(k + 1)});
+    } else {
+        s.shadow.insert(s.shadow.end(), s.contact.begin(), s.contact.end());
+        tri = triangulateConstrained(g.poly2, s.shadow);
+        b.meshed.fetch_add(1, std::memory_order_relaxed);
+    }
+    return tri;
+}
+
+/// Six exact samples per triangle of one element (§2.2), each triangle refined where its
+/// interpolant misses the exact part at its centre (§7.2); the results go to the element's
+/// list in the build. On a contact line irradiance jumps: there each sample is moved a hair
+/// towards its triangle's centre, so each side takes its own limit. Elsewhere the field is
+/// continuous and a sample is shared through the build's cache.
+class ElementSampler {
+public:
+    ElementSampler(HifiBuild& b, int e, const ElementGeometry& g, double size,
+                   const std::vector<std::pair<glm::dvec2, glm::dvec2>>& allContacts)
+        : mB(b),
+          mE(e),
+          mEl(b.disc.elements()[e]),
+          mG(g),
+          mSize(size),
+          mAllContacts(allContacts),
+          mOut(b.perElement[e]),
+          mSheet(b.disc.objects()[mEl.object].isBackFace(mEl.face) ? 1 : 0) {}
+
+    /// Samples (and refines) every non-degenerate triangle of `tri` that is not covered.
+    void sampleTriangles(const Triangulation2& tri) {
+        for (const auto& t : tri.triangles) {
+            glm::dvec2 p[3] = {tri.points[t[0]], tri.points[t[1]], tri.points[t[2]]};
+            const double cross =
+                (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
+            if (std::abs(cross) <= 1e-14 * mSize * mSize) continue;  // degenerate
+            if (cross < 0) std::swap(p[1], p[2]);
+            const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
+            if (coveredBySolid(centre)) {
+                mB.covered.fetch_add(1, std::memory_order_relaxed);
+                continue;
+            }
+            const std::array<ExactIrradiance::Parts, 6> r = {
+                sampleAt(p[0], centre), sampleAt(0.5 * (p[0] + p[1]), centre),
+                sampleAt(p[1], centre), sampleAt(0.5 * (p[1] + p[2]), centre),
+                sampleAt(p[2], centre), sampleAt(0.5 * (p[0] + p[2]), centre)};
+            emit(p, r, 0);
+        }
+    }
+
+private:
+    /// Whether the triangle with this centre lies inside another object that bounds a solid
+    /// (the floor under a box resting on it: the first surface above it is the box, seen
+    /// from behind). Such a triangle is never visible; dropped, it cannot win a depth tie
+    /// along the contact line either. Behind an open surface (a one-sided panel hung under a
+    /// ceiling) it may be seen from the side, and stays.
+    bool coveredBySolid(const glm::dvec2& centre) const {
+        const RayTracer* tracer = mB.tracer;
+        if (!tracer) return false;
+        const RayTracer::FirstHit above =
+            tracer->firstHit(mG.frame.to3(centre) + tracer->epsilon() * mEl.normal, mEl.normal);
+        const int blocker = above.element >= 0 ? mB.disc.elements()[above.element].object : -1;
+        return above.backFace && blocker >= 0 && blocker != mEl.object &&
+               mB.contacts.objects[blocker].sealed;
+    }
+
+    /// The exact irradiance at q (2D), from the cache when another triangle took it; q moves
+    /// towards `centre` when it lies on a contact line.
+    ExactIrradiance::Parts sampleAt(const glm::dvec2& q, const glm::dvec2& centre) {
+        bool onContact = false;
+        for (const auto& [a, b] : mAllContacts)
+            if (distanceToSegment(q, a, b) <= 1e-6 * mSize) {
+                onContact = true;
+                break;
+            }
+        const Vec3 x = mG.frame.to3(onContact ? q + 1e-4 * (centre - q) : q);
+        SampleKey key;
+        key.object = mEl.object;
+        key.sheet = mSheet;
+        key.element = onContact ? mE : -1;
+        for (int k = 0; k < 3; ++k) {
+            key.position[k] = std::llround(x[k] / mB.grid);
+            key.normal[k] = std::llround(mEl.normal[k] * 1e6);
+        }
+        {
+            SampleCache::const_accessor found;
+            if (mB.cache.find(found, key)) return found->second;
+        }
+        // Evaluated outside any lock; a point two threads reach at once is evaluated
+        // twice to the same value.
+        mB.samples.fetch_add(1, std::memory_order_relaxed);
+        const ExactIrradiance::Parts value = mB.exact.irradianceParts(x, mEl.normal);
+        // The first value stored wins, so every triangle sharing the point sees one.
+        SampleCache::accessor stored;
+        if (mB.cache.insert(stored, key)) stored->second = value;
+        return stored->second;
+    }
+
+    /// The refinement test's centre sample: it lies inside one triangle (never shared) and
+    /// needs only the exact part.
+    Rgb centreSample(const glm::dvec2& q) {
+        mB.centreSamples.fetch_add(1, std::memory_order_relaxed);
+        return mB.exact.irradianceParts(mG.frame.to3(q), mEl.normal, false).gathered;
+    }
+
+    /// The triangle p with samples r (A, AB, B, BC, C, CA) at refinement depth `depth`. A
+    /// triangle whose interpolant misses an exact sample at its centre by more than the
+    /// tolerance is split into four at its edge midpoints, whose samples it already has.
+    void emit(const glm::dvec2* p, const std::array<ExactIrradiance::Parts, 6>& r, int depth) {
+        const HifiOptions& options = mB.options;
+        std::array<Rgb, 6> total, exactPart;
+        for (int k = 0; k < 6; ++k) {
+            total[k] = r[k].total();
+            exactPart[k] = r[k].gathered;
+        }
+        const QuadraticInterpolant q = QuadraticInterpolant::fromSamples(total);
+        const glm::dvec2 mid[3] = {0.5 * (p[0] + p[1]), 0.5 * (p[1] + p[2]), 0.5 * (p[2] + p[0])};
+        if (depth < options.maxRefineDepth && options.refineTolerance > 0) {
+            const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
+            const double truth = luminance(centreSample(centre));
+            // The fit of the exact part: the far field's ray noise would split
+            // triangles for nothing, and the far field is smooth.
+            const double fitted =
+                luminance(QuadraticInterpolant::fromSamples(exactPart)(1.0 / 3.0, 1.0 / 3.0));
+            // Relative to the whole irradiance there (what the pixel shows).
+            const double seen = luminance(q(1.0 / 3.0, 1.0 / 3.0));
+            if (std::abs(fitted - truth) >
+                options.refineTolerance * std::abs(seen) + mB.absoluteTolerance) {
+                // Children: corner triangles and the middle one, counter-clockwise.
+                const glm::dvec2 corners[4][3] = {{p[0], mid[0], mid[2]},
+                                                  {mid[0], p[1], mid[1]},
+                                                  {mid[2], mid[1], p[2]},
+                                                  {mid[0], mid[1], mid[2]}};
+                // Their vertex samples in the parent's order (A, AB, B, BC, C, CA).
+                const ExactIrradiance::Parts vertex[4][3] = {
+                    {r[0], r[1], r[5]}, {r[1], r[2], r[3]}, {r[5], r[3], r[4]}, {r[1], r[3], r[5]}};
+                for (int c = 0; c < 4; ++c) {
+                    const glm::dvec2* cp = corners[c];
+                    const glm::dvec2 cc = (cp[0] + cp[1] + cp[2]) / 3.0;
+                    const std::array<ExactIrradiance::Parts, 6> cr = {
+                        vertex[c][0], sampleAt(0.5 * (cp[0] + cp[1]), cc),
+                        vertex[c][1], sampleAt(0.5 * (cp[1] + cp[2]), cc),
+                        vertex[c][2], sampleAt(0.5 * (cp[2] + cp[0]), cc)};
+                    emit(cp, cr, depth + 1);
+                }
+                return;
+            }
+        }
+        HifiTriangle ht;
+        ht.element = mE;
+        for (int k = 0; k < 3; ++k) ht.p[k] = mG.frame.to3(p[k]);
+        ht.irradiance = q;
+        mOut.push_back(ht);
+    }
+
+    HifiBuild& mB;
+    const int mE;
+    const Element& mEl;
+    const ElementGeometry& mG;
+    const double mSize;  ///< √area: the element's scale for tolerances
+    const std::vector<std::pair<glm::dvec2, glm::dvec2>>& mAllContacts;
+    std::vector<HifiTriangle>& mOut;
+    const int mSheet;  ///< 1 on a back face's element, else 0 (part of the sample key)
+};
+
+/// Meshes and samples element e into the build's list for it; nothing once the build is
+/// cancelled (HifiOptions::cancelled, polled here) or for a dead element.
+void meshElement(HifiBuild& b, int e) {
+    b.done.fetch_add(1, std::memory_order_relaxed);
+    if (b.cancelled.load(std::memory_order_relaxed)) return;
+    if (b.options.cancelled && b.options.cancelled()) {
+        b.cancelled.store(true, std::memory_order_relaxed);
+        return;
+    }
+    if (!b.disc.elementAlive(e)) return;
+    const Element& el = b.disc.elements()[e];
+    const ElementGeometry g = geometryOf(b.disc, e);
+    const double size = std::sqrt(el.area);
+    // Discontinuities: the k strongest shadow events above w_min, every contact line.
+    ElementSegments segs = discontinuitiesOn(b, e, g, size);
+    // Triangulate (the element as it is when nothing crosses it).
+    const Triangulation2 tri = triangulateElement(b, g, segs);
+    // Six exact samples per triangle, refined where the interpolant misses.
+    ElementSampler(b, e, g, size, segs.allContacts).sampleTriangles(tri);
+}
+
+/// Runs `work`; with `progress`, on a thread of its own while this one reports done / count
+/// to it every 200 ms (and 1 at the end).
+template <class Work>
+void runReportingProgress(Work&& work, const std::atomic<int>& done, int count,
+                          const std::function<void(double)>& progress) {
+    if (progress) {
+        std::thread worker(work);
+        while (done.load() < count) {
+            progress(double(done.load()) / std::max(1, count));
+            std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        }
+        worker.join();
+        progress(1.0);
+    } else {
+        work();
+    }
+}
+
 }  // namespace
 
 std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element) {
@@ -417,224 +703,29 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                      const HifiOptions& options, const std::function<void(double)>& progress) {
     const auto start = std::chrono::steady_clock::now();
     const int elementCount = static_cast<int>(disc.elements().size());
-    const std::vector<Wedge> wedges = allWedges(disc);
-    const ContactIndex contacts(disc);
-    std::vector<std::vector<HifiTriangle>> perElement(elementCount);
-    // Refinement ignores differences below this fraction of the brightest emitter's
-    // luminance (dark corners need no subdivision).
-    double brightest = 0;
-    for (const Material& m : disc.materials())
-        brightest = std::max(brightest, luminance(m.emission));
-    const double absoluteTolerance = 1e-4 * brightest;
-    std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
-        centreSamples{0};
-    // Sample positions are shared on a grid far finer than any element.
-    Vec3 sceneLo(1e300), sceneHi(-1e300);
-    for (const Element& el : disc.elements()) {
-        sceneLo = glm::min(sceneLo, el.centroid);
-        sceneHi = glm::max(sceneHi, el.centroid);
-    }
-    const double grid = 1e-9 * std::max(1.0, glm::length(sceneHi - sceneLo));
-    SampleCache cache;
-    std::atomic<bool> cancelled{false};
-    std::atomic<int> covered{0};
-    const RayTracer* tracer = exact.tracer();
-
-    auto work = [&] {
-        tbb::parallel_for(0, elementCount, [&](int e) {
-            done.fetch_add(1, std::memory_order_relaxed);
-            if (cancelled.load(std::memory_order_relaxed)) return;
-            if (options.cancelled && options.cancelled()) {
-                cancelled.store(true, std::memory_order_relaxed);
-                return;
-            }
-            if (!disc.elementAlive(e)) return;
-            const Element& el = disc.elements()[e];
-            const ElementGeometry g = geometryOf(disc, e);
-            const double size = std::sqrt(el.area);
-            // Discontinuities: the k strongest shadow events above w_min, every contact line.
-            std::vector<std::pair<glm::dvec2, glm::dvec2>> segs;
-            std::vector<std::pair<glm::dvec2, glm::dvec2>> contactSegsHere;
-            int kept = 0;
-            for (const Discontinuity& d : rankWedges(disc, e, g, wedges)) {
-                if (kept >= options.maxDiscontinuities || d.weight < options.minWeight) break;
-                segs.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
-                ++kept;
-            }
-            std::vector<std::pair<glm::dvec2, glm::dvec2>> allContacts;
-            for (const Discontinuity& d :
-                 contactsOn(disc, e, g, contacts, options.contactFraction, &allContacts))
-                contactSegsHere.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
-            // Points on a contact line (unclipped: those on the boundary included) sample their
-            // side.
-            dropBoundarySegments(g.poly2, segs, 1e-6 * size);
-            dropBoundarySegments(g.poly2, contactSegsHere, 1e-6 * size);
-            shadowSegs.fetch_add(static_cast<int>(segs.size()), std::memory_order_relaxed);
-            contactSegs.fetch_add(static_cast<int>(contactSegsHere.size()),
-                                  std::memory_order_relaxed);
-            // Triangulate (the element as it is when nothing crosses it).
-            Triangulation2 tri;
-            if (segs.empty() && contactSegsHere.empty()) {
-                tri.points = g.poly2;
-                for (std::size_t k = 1; k + 1 < g.poly2.size(); ++k)
-                    tri.triangles.push_back({0, static_cast<int>(k), static_cast<int>(k + 1)});
-            } else {
-                segs.insert(segs.end(), contactSegsHere.begin(), contactSegsHere.end());
-                tri = triangulateConstrained(g.poly2, segs);
-                meshed.fetch_add(1, std::memory_order_relaxed);
-            }
-            // Six exact samples per triangle. On a contact line irradiance jumps: there each is
-            // moved a hair towards its triangle's centre, so each side takes its own limit.
-            // Elsewhere the field is continuous and a sample is shared through the cache.
-            auto& out = perElement[e];
-            const int sheet = disc.objects()[el.object].isBackFace(el.face) ? 1 : 0;
-            auto sampleAt = [&](const glm::dvec2& q, const glm::dvec2& centre) {
-                bool onContact = false;
-                for (const auto& [a, b] : allContacts)
-                    if (distanceToSegment(q, a, b) <= 1e-6 * size) {
-                        onContact = true;
-                        break;
-                    }
-                const Vec3 x = g.frame.to3(onContact ? q + 1e-4 * (centre - q) : q);
-                SampleKey key;
-                key.object = el.object;
-                key.sheet = sheet;
-                key.element = onContact ? e : -1;
-                for (int k = 0; k < 3; ++k) {
-                    key.position[k] = std::llround(x[k] / grid);
-                    key.normal[k] = std::llround(el.normal[k] * 1e6);
-                }
-                {
-                    SampleCache::const_accessor found;
-                    if (cache.find(found, key)) return found->second;
-                }
-                // Evaluated outside any lock; a point two threads reach at once is evaluated
-                // twice to the same value.
-                samples.fetch_add(1, std::memory_order_relaxed);
-                const ExactIrradiance::Parts value = exact.irradianceParts(x, el.normal);
-                // The first value stored wins, so every triangle sharing the point sees one.
-                SampleCache::accessor stored;
-                if (cache.insert(stored, key)) stored->second = value;
-                return stored->second;
-            };
-            // The refinement test's centre sample lies inside one triangle (never shared) and
-            // needs only the exact part.
-            auto centreSample = [&](const glm::dvec2& q) {
-                centreSamples.fetch_add(1, std::memory_order_relaxed);
-                return exact.irradianceParts(g.frame.to3(q), el.normal, false).gathered;
-            };
-            // A triangle whose interpolant misses an exact sample at its centre by more than the
-            // tolerance is split into four at its edge midpoints, whose samples it already has.
-            std::function<void(const glm::dvec2*, const std::array<ExactIrradiance::Parts, 6>&,
-                               int)>
-                emit = [&](const glm::dvec2* p, const std::array<ExactIrradiance::Parts, 6>& r,
-                           int depth) {
-                    std::array<Rgb, 6> total, exactPart;
-                    for (int k = 0; k < 6; ++k) {
-                        total[k] = r[k].total();
-                        exactPart[k] = r[k].gathered;
-                    }
-                    const QuadraticInterpolant q = QuadraticInterpolant::fromSamples(total);
-                    const glm::dvec2 mid[3] = {0.5 * (p[0] + p[1]), 0.5 * (p[1] + p[2]),
-                                               0.5 * (p[2] + p[0])};
-                    if (depth < options.maxRefineDepth && options.refineTolerance > 0) {
-                        const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
-                        const double truth = luminance(centreSample(centre));
-                        // The fit of the exact part: the far field's ray noise would split
-                        // triangles for nothing, and the far field is smooth.
-                        const double fitted = luminance(
-                            QuadraticInterpolant::fromSamples(exactPart)(1.0 / 3.0, 1.0 / 3.0));
-                        // Relative to the whole irradiance there (what the pixel shows).
-                        const double seen = luminance(q(1.0 / 3.0, 1.0 / 3.0));
-                        if (std::abs(fitted - truth) >
-                            options.refineTolerance * std::abs(seen) + absoluteTolerance) {
-                            // Children: corner triangles and the middle one, counter-clockwise.
-                            const glm::dvec2 corners[4][3] = {{p[0], mid[0], mid[2]},
-                                                              {mid[0], p[1], mid[1]},
-                                                              {mid[2], mid[1], p[2]},
-                                                              {mid[0], mid[1], mid[2]}};
-                            // Their vertex samples in the parent's order (A, AB, B, BC, C, CA).
-                            const ExactIrradiance::Parts vertex[4][3] = {{r[0], r[1], r[5]},
-                                                                         {r[1], r[2], r[3]},
-                                                                         {r[5], r[3], r[4]},
-                                                                         {r[1], r[3], r[5]}};
-                            for (int c = 0; c < 4; ++c) {
-                                const glm::dvec2* cp = corners[c];
-                                const glm::dvec2 cc = (cp[0] + cp[1] + cp[2]) / 3.0;
-                                const std::array<ExactIrradiance::Parts, 6> cr = {
-                                    vertex[c][0], sampleAt(0.5 * (cp[0] + cp[1]), cc),
-                                    vertex[c][1], sampleAt(0.5 * (cp[1] + cp[2]), cc),
-                                    vertex[c][2], sampleAt(0.5 * (cp[2] + cp[0]), cc)};
-                                emit(cp, cr, depth + 1);
-                            }
-                            return;
-                        }
-                    }
-                    HifiTriangle ht;
-                    ht.element = e;
-                    for (int k = 0; k < 3; ++k) ht.p[k] = g.frame.to3(p[k]);
-                    ht.irradiance = q;
-                    out.push_back(ht);
-                };
-            for (const auto& t : tri.triangles) {
-                glm::dvec2 p[3] = {tri.points[t[0]], tri.points[t[1]], tri.points[t[2]]};
-                const double cross =
-                    (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
-                if (std::abs(cross) <= 1e-14 * size * size) continue;  // degenerate
-                if (cross < 0) std::swap(p[1], p[2]);
-                const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
-                // A triangle inside another object that bounds a solid (the floor under a box
-                // resting on it: the first surface above it is the box, seen from behind) is
-                // never visible; dropped, it cannot win a depth tie along the contact line
-                // either. Behind an open surface (a one-sided panel hung under a ceiling) it
-                // may be seen from the side, and stays.
-                if (tracer) {
-                    const RayTracer::FirstHit above = tracer->firstHit(
-                        g.frame.to3(centre) + tracer->epsilon() * el.normal, el.normal);
-                    const int blocker =
-                        above.element >= 0 ? disc.elements()[above.element].object : -1;
-                    if (above.backFace && blocker >= 0 && blocker != el.object &&
-                        contacts.objects[blocker].sealed) {
-                        covered.fetch_add(1, std::memory_order_relaxed);
-                        continue;
-                    }
-                }
-                const std::array<ExactIrradiance::Parts, 6> r = {
-                    sampleAt(p[0], centre), sampleAt(0.5 * (p[0] + p[1]), centre),
-                    sampleAt(p[1], centre), sampleAt(0.5 * (p[1] + p[2]), centre),
-                    sampleAt(p[2], centre), sampleAt(0.5 * (p[0] + p[2]), centre)};
-                emit(p, r, 0);
-            }
-        });
-    };
-    if (progress) {
-        std::thread worker(work);
-        while (done.load() < elementCount) {
-            progress(double(done.load()) / std::max(1, elementCount));
-            std::this_thread::sleep_for(std::chrono::milliseconds(200));
-        }
-        worker.join();
-        progress(1.0);
-    } else {
-        work();
-    }
+    HifiBuild b(disc, exact, options);
+    b.absoluteTolerance = refinementFloor(disc);
+    b.grid = sampleGrid(disc);
+    auto work = [&] { tbb::parallel_for(0, elementCount, [&](int e) { meshElement(b, e); }); };
+    runReportingProgress(work, b.done, elementCount, progress);
+    // The elements' triangles in element order.
     mTriangles.clear();
     mFirst.assign(elementCount + 1, 0);
     for (int e = 0; e < elementCount; ++e) {
         mFirst[e] = static_cast<int>(mTriangles.size());
-        mTriangles.insert(mTriangles.end(), perElement[e].begin(), perElement[e].end());
+        mTriangles.insert(mTriangles.end(), b.perElement[e].begin(), b.perElement[e].end());
     }
     mFirst[elementCount] = static_cast<int>(mTriangles.size());
     mStats = {};
     mStats.elements = elementCount;
-    mStats.meshedElements = meshed.load();
+    mStats.meshedElements = b.meshed.load();
     mStats.triangles = static_cast<int>(mTriangles.size());
-    mStats.shadowSegments = shadowSegs.load();
-    mStats.contactSegments = contactSegs.load();
-    mStats.cancelled = cancelled.load();
-    mStats.coveredTriangles = covered.load();
-    mStats.samples = samples.load();
-    mStats.centreSamples = centreSamples.load();
+    mStats.shadowSegments = b.shadowSegs.load();
+    mStats.contactSegments = b.contactSegs.load();
+    mStats.cancelled = b.cancelled.load();
+    mStats.coveredTriangles = b.covered.load();
+    mStats.samples = b.samples.load();
+    mStats.centreSamples = b.centreSamples.load();
     mStats.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }

@@ -920,11 +920,7 @@ void PointShader::rememberDropped() {
     }
 }
 
-void PointShader::rebuildIndirect() {
-    const std::vector<Rgb>& H = mElementH;
-    const std::size_t n = std::min({H.size(), mElementHEmission.size(), mDisc.elements().size()});
-    // Every element's direct light, also of versions newer than the solution (a preview, an
-    // object just added): the fallback shows them lit by it.
+void PointShader::computeMissingElementDirect() {
     if (mElementDirect.size() < mDisc.elements().size()) {
         const std::size_t old = mElementDirect.size();
         const std::size_t n = mDisc.elements().size();
@@ -935,39 +931,29 @@ void PointShader::rebuildIndirect() {
                 mElementDirect[e] = computeElementDirect(static_cast<int>(e), emitters);
         });
     }
-    auto next = std::make_shared<State>();
-    {
-        const auto st = state();
-        next->lights = st->lights;
-        next->previewObject = st->previewObject;
-        next->previewOnly = st->previewOnly;
-        next->previewWorld = st->previewWorld;
-    }
-    const int preview = next->previewObject;
-    next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
-    for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementHEmission[e];
-    // An object just dropped after a drag: until the solver's redistribution reaches its
-    // elements, the indirect part of its last preview buffer's irradiance stands in (the
-    // larger of the two), so it does not show lit by its direct light alone; forgotten once
-    // the solution's indirect light has caught up (nine tenths of the estimate's) or the
-    // object is gone.
+}
+
+void PointShader::holdDroppedEstimate(std::vector<Rgb>& indirect, std::size_t n) {
     if (mDroppedObject >= 0) {
         const auto [first, count] = mDisc.elementRange(mDroppedObject);
         double solved = 0, estimated = 0;
         for (int k = 0; k < count && k < static_cast<int>(mDroppedIndirect.size()); ++k) {
             const std::size_t e = static_cast<std::size_t>(first + k);
-            if (e >= next->elementIndirect.size()) break;
-            const Rgb h = e < n ? next->elementIndirect[e] : Rgb(0.0);
+            if (e >= indirect.size()) break;
+            const Rgb h = e < n ? indirect[e] : Rgb(0.0);
             const Rgb& estimate = mDroppedIndirect[k];
             solved += luminance(h);
             estimated += luminance(estimate);
-            next->elementIndirect[e] = glm::max(glm::max(h, estimate), Rgb(0.0));
+            indirect[e] = glm::max(glm::max(h, estimate), Rgb(0.0));
         }
         if (!mDisc.objects()[mDroppedObject].alive || solved >= 0.9 * estimated) {
             mDroppedObject = -1;
             mDroppedIndirect.clear();
         }
     }
+}
+
+void PointShader::addPreviewBuffer(std::vector<Rgb>& indirect, int preview) const {
     // While a drag moves on faster than the solver's buffer follows, the buffer is for where
     // the object was a moment ago (an earlier version of the same mesh): its elements' values
     // move with it, so the object keeps its light instead of going black until the solver
@@ -991,40 +977,39 @@ void PointShader::rebuildIndirect() {
         // The reflected part of George et al.'s temporary buffer (the preview object's whole
         // indirect irradiance, the change elsewhere) adds to the solution's.
         const std::vector<Rgb>& T = lagging ? moved : mLastPreviewIndirect;
-        for (std::size_t e = 0; e < next->elementIndirect.size() && e < T.size(); ++e)
-            next->elementIndirect[e] += T[e];
+        for (std::size_t e = 0; e < indirect.size() && e < T.size(); ++e) indirect[e] += T[e];
     }
-    // The moving object no darker than the drag's estimate while its buffer fills.
+}
+
+void PointShader::applyDragEstimate(std::vector<Rgb>& indirect, int preview) const {
     if (preview >= 0 && !mDragEstimate.empty() &&
         mDisc.sameElements(mDragEstimateObject, preview)) {
         const auto [first, count] = mDisc.elementRange(preview);
         for (int k = 0; k < count && k < static_cast<int>(mDragEstimate.size()); ++k) {
             const auto e = static_cast<std::size_t>(first + k);
-            if (e < next->elementIndirect.size())
-                next->elementIndirect[e] = glm::max(next->elementIndirect[e], mDragEstimate[k]);
+            if (e < indirect.size()) indirect[e] = glm::max(indirect[e], mDragEstimate[k]);
         }
     }
-    // The dragged object, and versions newer than the solution: their indirect light comes
-    // from an estimate (the buffer, a lagging buffer moved with the object) or not at all
-    // yet, and may be below 0 where the estimate's negative shots ran ahead of its positive
-    // ones: no indirect light there instead. Elsewhere the difference stays as it is,
-    // negative or not (the solution's negative energy in a new shadow).
+}
+
+void PointShader::clampEstimatedIndirect(std::vector<Rgb>& indirect, int preview,
+                                         std::size_t n) const {
     auto clampRange = [&](int first, int count) {
-        for (int e = std::max(first, 0);
-             e < first + count && e < static_cast<int>(next->elementIndirect.size()); ++e)
-            next->elementIndirect[e] = glm::max(next->elementIndirect[e], Rgb(0.0));
+        for (int e = std::max(first, 0); e < first + count && e < static_cast<int>(indirect.size());
+             ++e)
+            indirect[e] = glm::max(indirect[e], Rgb(0.0));
     };
     if (mOptions.clampIndirect) {
-        clampRange(0, static_cast<int>(next->elementIndirect.size()));
+        clampRange(0, static_cast<int>(indirect.size()));
     } else if (preview >= 0) {
         const auto [first, count] = mDisc.elementRange(preview);
         clampRange(first, count);
     }
-    clampRange(static_cast<int>(n),
-               static_cast<int>(next->elementIndirect.size()) - static_cast<int>(n));
-    // The fallback's direct part: H_direct in the displayed world, blended per vertex again
-    // only for the objects whose elements' values changed since the last snapshot (the
-    // solution changes far more often than the direct light).
+    clampRange(static_cast<int>(n), static_cast<int>(indirect.size()) - static_cast<int>(n));
+}
+
+void PointShader::blendVertexLight(State& next) {
+    const int preview = next.previewObject;
     std::vector<Rgb> direct(mElementDirect);
     direct.resize(mDisc.elements().size(), Rgb(0.0));
     if (preview >= 0)
@@ -1038,17 +1023,48 @@ void PointShader::rebuildIndirect() {
         if (e >= mVertexDirectOf.size() || direct[e] != mVertexDirectOf[e])
             directChanged[mDisc.elements()[e].object] = 1;
     const auto previous = state();
-    next->vertexIndirect.resize(objects);
-    next->vertexDirect.resize(objects);
+    next.vertexIndirect.resize(objects);
+    next.vertexDirect.resize(objects);
     tbb::parallel_for(std::size_t(0), objects, [&](std::size_t o) {
         if (!mDisc.objects()[o].alive && static_cast<int>(o) != preview) return;
-        next->vertexIndirect[o] = mDisc.vertexValues(static_cast<int>(o), next->elementIndirect);
+        next.vertexIndirect[o] = mDisc.vertexValues(static_cast<int>(o), next.elementIndirect);
         const bool known = o < previous->vertexDirect.size() && !previous->vertexDirect[o].empty();
-        next->vertexDirect[o] = known && !directChanged[o]
-                                    ? previous->vertexDirect[o]
-                                    : mDisc.vertexValues(static_cast<int>(o), direct);
+        next.vertexDirect[o] = known && !directChanged[o]
+                                   ? previous->vertexDirect[o]
+                                   : mDisc.vertexValues(static_cast<int>(o), direct);
     });
     mVertexDirectOf = std::move(direct);
+}
+
+void PointShader::rebuildIndirect() {
+    const std::vector<Rgb>& H = mElementH;
+    const std::size_t n = std::min({H.size(), mElementHEmission.size(), mDisc.elements().size()});
+    // Every element's direct light, also of versions newer than the solution (a preview, an
+    // object just added): the fallback shows them lit by it.
+    computeMissingElementDirect();
+    auto next = std::make_shared<State>();
+    {
+        const auto st = state();
+        next->lights = st->lights;
+        next->previewObject = st->previewObject;
+        next->previewOnly = st->previewOnly;
+        next->previewWorld = st->previewWorld;
+    }
+    const int preview = next->previewObject;
+    next->elementIndirect.assign(mDisc.elements().size(), Rgb(0.0));
+    for (std::size_t e = 0; e < n; ++e) next->elementIndirect[e] = H[e] - mElementHEmission[e];
+    // An object just dropped after a drag: its last preview's estimate until the solution
+    // catches up.
+    holdDroppedEstimate(next->elementIndirect, n);
+    // The drag preview's buffer, moved with the object when it lags behind the drag.
+    addPreviewBuffer(next->elementIndirect, preview);
+    // The moving object no darker than the drag's estimate while its buffer fills.
+    applyDragEstimate(next->elementIndirect, preview);
+    // No indirect light below 0 where it comes from an estimate (or everywhere, with
+    // clampIndirect).
+    clampEstimatedIndirect(next->elementIndirect, preview, n);
+    // The fallback's direct part, and both parts blended per vertex.
+    blendVertexLight(*next);
     publish(std::move(next));
 }
 

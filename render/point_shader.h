@@ -355,6 +355,33 @@ private:
     void dropDirectJob();
     /// The indirect snapshot from mElementH and the stored preview buffer.
     void rebuildIndirect();
+    // rebuildIndirect's steps, in its order: `indirect` is the new state's elementIndirect,
+    // `n` the number of elements the solution covers (H_e and H_e,emission both known).
+    /// H_direct(e) of the elements past the end of mElementDirect (newer than it).
+    void computeMissingElementDirect();
+    /// An object just dropped after a drag: until the solver's redistribution reaches its
+    /// elements, the indirect part of its last preview buffer's irradiance stands in (the
+    /// larger of the two), so it does not show lit by its direct light alone; forgotten once
+    /// the solution's indirect light has caught up (nine tenths of the estimate's) or the
+    /// object is gone.
+    void holdDroppedEstimate(std::vector<Rgb>& indirect, std::size_t n);
+    /// Adds the preview buffer's indirect irradiance (mLastPreviewIndirect) for preview
+    /// version `preview`, moved with the object when the buffer is for an earlier version.
+    void addPreviewBuffer(std::vector<Rgb>& indirect, int preview) const;
+    /// Raises the preview object's elements to the drag's estimate (mDragEstimate).
+    void applyDragEstimate(std::vector<Rgb>& indirect, int preview) const;
+    /// The dragged object, and versions newer than the solution: their indirect light comes
+    /// from an estimate (the buffer, a lagging buffer moved with the object) or not at all
+    /// yet, and may be below 0 where the estimate's negative shots ran ahead of its positive
+    /// ones: no indirect light there instead. Elsewhere the difference stays as it is,
+    /// negative or not (the solution's negative energy in a new shadow), unless
+    /// PointShaderOptions::clampIndirect.
+    void clampEstimatedIndirect(std::vector<Rgb>& indirect, int preview, std::size_t n) const;
+    /// The fallback's direct part: H_direct in the displayed world, blended per vertex again
+    /// only for the objects whose elements' values changed since the last snapshot (the
+    /// solution changes far more often than the direct light); and next.elementIndirect
+    /// blended per vertex. Remembers the direct light blended in mVertexDirectOf.
+    void blendVertexLight(State& next);
     /// Gives object version `to` the vertex light of version `from` in `st` when both have the
     /// same mesh and `to` has none yet.
     void carryVertexLight(State& st, int from, int to) const;
@@ -374,9 +401,9 @@ private:
 
     mutable std::mutex mStateMutex;
     std::shared_ptr<const State> mState;
-    std::vector<Rgb> mElementDirect;         ///< H_direct(e); written only while paused/idle
-    std::vector<Rgb> mElementH;              ///< the last solver snapshot's H_e
-    std::vector<Rgb> mElementHEmission;      ///< and its H_e,emission
+    std::vector<Rgb> mElementDirect;     ///< H_direct(e); written only while paused/idle
+    std::vector<Rgb> mElementH;          ///< the last solver snapshot's H_e
+    std::vector<Rgb> mElementHEmission;  ///< and its H_e,emission
     /// Its preview buffer's indirect irradiance (T − T_emission)/ρ per element (empty: none).
     std::vector<Rgb> mLastPreviewIndirect;
     /// The per-element direct light the published vertexDirect blends (rebuildIndirect).

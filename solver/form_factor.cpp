@@ -110,15 +110,6 @@ int visibilityRayCount(double fUnoccluded, int maxRays) {
 
 namespace {
 
-/// The pair-seeded sampling shared by every point-to-patch estimate: exact unoccluded form
-/// factors of the patch's polygons clipped to the receiver's hemisphere, then `rays` samples
-/// stratified over them by form factor, each weighted by the point-to-point kernel relative
-/// to its sampling density. `visit(origin, targets, count, visible, rays)` writes each sample's
-/// visibility term (1 visible, 0 blocked; a difference of two such terms for
-/// formFactorChange) and counts the rays it traced; the result
-/// is unoccluded × Σ w·visit / Σ w (a ratio estimator, exact when nothing blocks and when
-/// everything does). The weights are computed only when the samples' terms differ: when
-/// every term is the same v, the estimate is unoccluded × v whatever the weights.
 /// Per-thread scratch of estimatePointToPatch: one thread-local lookup per pair.
 struct PairScratch {
     std::vector<std::vector<Vec3>> polys;  ///< per polygon: its part above the horizon
@@ -141,19 +132,15 @@ PairScratch& pairScratch() {
     return scratch;
 }
 
-template <class Visit>
-PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& tracer,
-                                  const Vec3& x, const Vec3& n, int patch,
-                                  std::uint64_t receiverKey, std::uint64_t seed, int maxRays,
-                                  const double* wholeOutline, Visit&& visit) {
-    PointToPatch out;
-    const Patch& P = disc.patches()[patch];
-    PairScratch& sc = pairScratch();
-
-    // Exact unoccluded form factor of each element polygon of the patch (or of its outline
-    // when planar), keeping the part above the receiver's horizon for sampling: the polygon
-    // itself when the horizon does not cut it (with the patch's own fan areas for an
-    // outline), else its clipped part (fans computed when first sampled).
+/// Exact unoccluded form factor of each of the `count` polygons of patch P seen from (x, n):
+/// its element polygons, or its outline when planar (`wholeOutline`, when given, is the whole
+/// outline's form factor, known to be in front of x and above its horizon:
+/// formFactorsToPatch). Keeps the part above the receiver's horizon for sampling in `sc`: the
+/// polygon itself when the horizon does not cut it (with the patch's own fan areas for an
+/// outline), else its clipped part (fans computed when first sampled). Returns their sum.
+double unoccludedFormFactors(const Discretization& disc, const Patch& P, const Vec3& x,
+                             const Vec3& n, std::size_t count, const double* wholeOutline,
+                             PairScratch& sc) {
     auto& polys = sc.polys;
     auto& f = sc.f;
     auto& normals = sc.normals;
@@ -161,7 +148,6 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     auto& fans = sc.fans;
     auto& fanOf = sc.fanOf;
     double total = 0;
-    const std::size_t count = P.outline.empty() ? P.elements.size() : 1;
     // The scratch only grows: a pair sizes nothing and initializes nothing it does not use.
     if (f.size() < count) {
         polys.resize(count);
@@ -186,8 +172,6 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
             fanOf[k] = nullptr;
         } else {
             normals[k] = P.normal;
-            // wholeOutline: the form factor of the whole outline, known to be in front of x
-            // and above its horizon (formFactorsToPatch).
             total += f[k] =
                 wholeOutline ? *wholeOutline
                              : clippedFormFactor(x, n, P.outline, P.normal, polys[k], usesClipped);
@@ -195,15 +179,21 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
             fanOf[k] = usesClipped || P.outlineFans.empty() ? nullptr : &P.outlineFans;
         }
     }
-    out.unoccluded = total;
-    if (!(total > 0)) return out;
+    return total;
+}
 
-    const int rays = visibilityRayCount(total, maxRays);
-    const double eps = tracer.epsilon();
-    const Vec3 origin = x + n * eps;
-    // The pair's samples first (targets and weights), then their visibility in one call.
-    // Per sampled polygon, once: the weight factor A_k / F_k relative to the sampling density
-    // (∝ F_k / A_k).
+/// The pair's `rays` samples over the polygons unoccludedFormFactors left in `sc` (their sum
+/// `total`), stratified by form factor: each one's point, polygon and ray target (off the
+/// surface) in `sc`, and per sampled polygon the weight factor A_k / F_k relative to the
+/// sampling density (∝ F_k / A_k). `pairHash` seeds the sample numbers. Returns how many were
+/// taken (a sample at the receiver's own point is not).
+int placeSamples(const Patch& P, std::size_t count, int rays, double total, std::uint64_t pairHash,
+                 const Vec3& origin, double eps, PairScratch& sc) {
+    const auto& f = sc.f;
+    const auto& normals = sc.normals;
+    const auto& source = sc.source;
+    auto& fans = sc.fans;
+    auto& fanOf = sc.fanOf;
     auto& areaOverF = sc.areaOverF;
     std::fill_n(areaOverF.begin(), count, -1.0);
     const std::size_t most = static_cast<std::size_t>(rays);
@@ -217,8 +207,6 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     Vec3* const points = sc.points.data();
     int* const polygonOf = sc.polygonOf.data();
     Vec3* const targets = sc.targets.data();
-    double* const weights = sc.weights.data();
-    int* const visible = sc.visible.data();
     int taken = 0;
     const double stratum = total / rays;
     // A sample's numbers follow Kronecker sequences q_s = (q_0 + s·α) mod 1, each started at a
@@ -230,13 +218,11 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     // bands along that coordinate, worse than random numbers for an edge across it.)
     constexpr double kGolden = 0.61803398874989485, kR2x = 0.75487766624669276,
                      kR2y = 0.56984029099805327;
-    const std::uint64_t h =
-        hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch));
     constexpr double kUnit = 0x1.0p-21;
     constexpr std::uint64_t kMask = (1u << 21) - 1;
-    double q0 = static_cast<double>(h >> 43) * kUnit;
-    double q1 = static_cast<double>((h >> 22) & kMask) * kUnit;
-    double q2 = static_cast<double>((h >> 1) & kMask) * kUnit;
+    double q0 = static_cast<double>(pairHash >> 43) * kUnit;
+    double q1 = static_cast<double>((pairHash >> 22) & kMask) * kUnit;
+    double q2 = static_cast<double>((pairHash >> 1) & kMask) * kUnit;
     auto advance = [](double& q, double step) {
         q += step;
         q -= q >= 1 ? 1.0 : 0.0;
@@ -284,8 +270,18 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
             addSample(samplePolygon(*source[k], *fanOf[k], std::min(u / f[k], 1.0), q1, q2), k);
         }
     }
-    std::fill_n(visible, taken, 0);
-    visit(origin, targets, taken, visible, out.rays);
+    return taken;
+}
+
+/// The ratio estimate unoccluded × Σ w·visible / Σ w over the `taken` samples in `sc`, whose
+/// visibility terms are set, seen from `origin` with unit normal n.
+double ratioEstimate(PairScratch& sc, int taken, const Vec3& origin, const Vec3& n, double total) {
+    const Vec3* const points = sc.points.data();
+    const int* const polygonOf = sc.polygonOf.data();
+    double* const weights = sc.weights.data();
+    const int* const visible = sc.visible.data();
+    const auto& normals = sc.normals;
+    const auto& areaOverF = sc.areaOverF;
     // Each sample's weight is the point-to-point kernel cos·cos/r² over the sampling density
     // (A_k / F_k of its polygon): d is unnormalized, so the cosines carry a factor r² more.
     auto weightOf = [&](int i) {
@@ -302,18 +298,50 @@ PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& t
     for (int i = 1; i < taken; ++i) same = same && visible[i] == visible[0];
     if (same) {
         for (int i = 0; i < taken; ++i)
-            if (weightOf(i) > 0) {
-                out.visible = total * visible[0];
-                return out;
-            }
-        return out;
+            if (weightOf(i) > 0) return total * visible[0];
+        return 0;
     }
     for (int i = 0; i < taken; ++i) weights[i] = weightOf(i);
     double wAll = 0;
     for (int i = 0; i < taken; ++i) wAll += weights[i];
     double wVisible = 0;
     for (int i = 0; i < taken; ++i) wVisible += weights[i] * visible[i];
-    out.visible = wAll > 0 ? total * (wVisible / wAll) : 0;
+    return wAll > 0 ? total * (wVisible / wAll) : 0;
+}
+
+/// The pair-seeded sampling shared by every point-to-patch estimate: exact unoccluded form
+/// factors of the patch's polygons clipped to the receiver's hemisphere, then `rays` samples
+/// stratified over them by form factor, each weighted by the point-to-point kernel relative
+/// to its sampling density. `visit(origin, targets, count, visible, rays)` writes each sample's
+/// visibility term (1 visible, 0 blocked; a difference of two such terms for
+/// formFactorChange) and counts the rays it traced; the result
+/// is unoccluded × Σ w·visit / Σ w (a ratio estimator, exact when nothing blocks and when
+/// everything does). The weights are computed only when the samples' terms differ: when
+/// every term is the same v, the estimate is unoccluded × v whatever the weights.
+template <class Visit>
+PointToPatch estimatePointToPatch(const Discretization& disc, const RayTracer& tracer,
+                                  const Vec3& x, const Vec3& n, int patch,
+                                  std::uint64_t receiverKey, std::uint64_t seed, int maxRays,
+                                  const double* wholeOutline, Visit&& visit) {
+    PointToPatch out;
+    const Patch& P = disc.patches()[patch];
+    PairScratch& sc = pairScratch();
+    const std::size_t count = P.outline.empty() ? P.elements.size() : 1;
+    const double total = unoccludedFormFactors(disc, P, x, n, count, wholeOutline, sc);
+    out.unoccluded = total;
+    if (!(total > 0)) return out;
+
+    const int rays = visibilityRayCount(total, maxRays);
+    const double eps = tracer.epsilon();
+    const Vec3 origin = x + n * eps;
+    // The pair's samples first (targets and weights), then their visibility in one call.
+    const std::uint64_t h =
+        hashPair(hashPair(seed, receiverKey), static_cast<std::uint64_t>(patch));
+    const int taken = placeSamples(P, count, rays, total, h, origin, eps, sc);
+    int* const visible = sc.visible.data();
+    std::fill_n(visible, taken, 0);
+    visit(origin, sc.targets.data(), taken, visible, out.rays);
+    out.visible = ratioEstimate(sc, taken, origin, n, total);
     return out;
 }
 

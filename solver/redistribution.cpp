@@ -442,6 +442,110 @@ bool ProgressiveSolver::shootRedistribution() {
     return true;
 }
 
+namespace {
+
+/// Takes entry c's most important pending shooters off its heap, as many as fit in one batch
+/// of `maxBatchRays` rays at `raysPerWatt` (at least one); the rest stay pending for the next
+/// batch, so the first corrections arrive quickly. Appends them and their cumulative power to
+/// `shooters` and `cdf`; returns their total power (W).
+double takeBatchShooters(ChangeEntry& c, double raysPerWatt, double maxBatchRays,
+                         std::vector<int>& shooters, std::vector<double>& cdf) {
+    double total = 0;
+    while (c.pending.top() >= 0 && c.pending.key(c.pending.top()) > 0) {
+        int j = c.pending.top();
+        if (!shooters.empty() && (total + c.pending.key(j)) * raysPerWatt > maxBatchRays) break;
+        shooters.push_back(j);
+        cdf.push_back(total += c.pending.key(j));
+        c.totalPending -= c.pending.key(j);
+        c.pending.update(j, 0.0);
+    }
+    return total;
+}
+
+/// A redistribution ray's direction from `origin` on a shooter with frame (nz, tx, ty): into
+/// the cones that the changed objects' bounding `spheres` subtend (one picked by solid angle;
+/// the density counts every cone holding the direction), or the hemisphere when the point is
+/// inside a sphere, there are more than eight, or the shooter was `removed`. `weight` is cos/π
+/// over the sampling density (∫ cos/π dω per unit area). False for a direction below the
+/// shooter's horizon: the ray carries nothing.
+bool sampleRedistributionDirection(const std::vector<std::pair<Vec3, double>>& spheres,
+                                   bool removed, const Vec3& origin, const Vec3& nz, const Vec3& tx,
+                                   const Vec3& ty, RayRandom& rng, Vec3& dir, double& weight) {
+    struct Cone {
+        Vec3 axis;
+        double cosMax, solidAngle;
+    };
+    Cone cones[8];
+    std::size_t nCones = 0;
+    bool inside = removed || spheres.size() > 8;
+    double totalSolidAngle = 0;
+    for (std::size_t k = 0; !inside && k < spheres.size(); ++k) {
+        Vec3 axis = spheres[k].first - origin;
+        const double dist = glm::length(axis), r = spheres[k].second;
+        if (dist <= r) {
+            inside = true;
+            break;
+        }
+        const double cosMax = std::sqrt(std::max(0.0, 1 - (r / dist) * (r / dist)));
+        cones[nCones++] = {axis / dist, cosMax, 2 * M_PI * (1 - cosMax)};
+        totalSolidAngle += 2 * M_PI * (1 - cosMax);
+    }
+    if (inside || nCones == 0) {
+        dir = cosineDirection(nz, tx, ty, rng);
+        weight = 1.0;  // cosine sampling of the whole hemisphere
+        return true;
+    }
+    double pickCone = rng.next() * totalSolidAngle;
+    std::size_t k = 0;
+    while (k + 1 < nCones && pickCone > cones[k].solidAngle) pickCone -= cones[k++].solidAngle;
+    const Cone& cone = cones[k];
+    double cosT = 1 - rng.next() * (1 - cone.cosMax);
+    double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+    double phi = 2 * M_PI * rng.next();
+    Vec3 coneX, coneY;
+    frameAround(cone.axis, coneX, coneY);
+    dir = sinT * std::cos(phi) * coneX + sinT * std::sin(phi) * coneY + cosT * cone.axis;
+    double cosSrc = glm::dot(dir, nz);
+    if (cosSrc <= 0) return false;
+    int holding = 0;
+    for (std::size_t m = 0; m < nCones; ++m)
+        if (m == k || glm::dot(dir, cones[m].axis) >= cones[m].cosMax) ++holding;
+    weight = totalSolidAngle / holding * cosSrc / M_PI;
+    return true;
+}
+
+/// The worlds a redistribution batch traces its rays in.
+struct BatchWorlds {
+    Visibility before, after;
+    Visibility changed;      ///< the changed objects alone
+    bool onlyAdded = false;  ///< nothing removed: after = before ∪ added
+};
+
+/// The front-face elements a ray from `origin` reaches first before the edit (`eb`) and after
+/// it (`ea`), -1 for none. False when the ray misses every changed object: it hits the same
+/// element in both worlds, and only the changed objects are traced.
+bool hitsBeforeAndAfter(const RayTracer& tracer, const BatchWorlds& worlds, bool removed,
+                        const Vec3& origin, const Vec3& dir, int& eb, int& ea) {
+    RayTracer::FirstHit hc;
+    if (!removed && (hc = tracer.firstHit(origin, dir, worlds.changed)).element < 0) return false;
+    RayTracer::FirstHit hb = tracer.firstHit(origin, dir, worlds.before);
+    RayTracer::FirstHit ha;
+    if (removed) {
+        // The shooter is gone: nothing reaches anything after the edit.
+    } else if (worlds.onlyAdded) {
+        // After = before ∪ added: the nearer of the two first hits (the same
+        // instances and transforms give the same t as tracing the union).
+        ha = hb.element < 0 || hc.t < hb.t ? hc : hb;
+    } else {
+        ha = tracer.firstHit(origin, dir, worlds.after);
+    }
+    eb = hb.element >= 0 && !hb.backFace ? hb.element : -1;
+    ea = ha.element >= 0 && !ha.backFace ? ha.element : -1;
+    return true;
+}
+
+}  // namespace
+
 void ProgressiveSolver::shootRedistributionBatch(int k) {
     // The weak tail of an edit's redistribution, stochastically (as the propagation tail):
     // rays leave the pending shooters in proportion to their importance, aimed into the cone
@@ -455,32 +559,20 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     const unsigned long long raysBefore = mTracer.rayCount();
     std::vector<int> shooters;
     std::vector<double> cdf;
-    double total = 0;
-    // The most important shooters first, as many as fit in one batch of rays; the rest stay
-    // pending for the next batch, so the first corrections arrive quickly.
+    // The most important shooters first, as many as fit in one batch of rays.
     const double raysPerEmitted = mOptions.redistributionRaysPerEmittedPower > 0
                                       ? mOptions.redistributionRaysPerEmittedPower
                                       : mOptions.raysPerEmittedPower;
     const double raysPerWatt = raysPerEmitted / std::max(mEmittedEnergy, 1e-300);
-    while (c.pending.top() >= 0 && c.pending.key(c.pending.top()) > 0) {
-        int j = c.pending.top();
-        if (!shooters.empty() && (total + c.pending.key(j)) * raysPerWatt > mOptions.maxBatchRays)
-            break;
-        shooters.push_back(j);
-        cdf.push_back(total += c.pending.key(j));
-        c.totalPending -= c.pending.key(j);
-        c.pending.update(j, 0.0);
-    }
+    const double total = takeBatchShooters(c, raysPerWatt, mOptions.maxBatchRays, shooters, cdf);
     if (shooters.empty()) return;
     const double share = mEmittedEnergy > 0 ? total / mEmittedEnergy : 1.0;
     const std::size_t rays = static_cast<std::size_t>(std::clamp(
         std::ceil(share * raysPerEmitted), static_cast<double>(mOptions.minStochasticRays), 6.4e7));
     const std::uint64_t batchSeed =
         hashPair(hashPair(mOptions.seed, 0x7ed157ull), mStats.redistributionShots);
-    Visibility before = c.beforeWorld(), after = c.afterWorld();
-    if (afterIsCurrentScene(c, false)) after = Visibility{};
-    const Visibility changed = c.changed.visibility();
-    const bool onlyAdded = c.removed.empty();
+    BatchWorlds worlds{c.beforeWorld(), c.afterWorld(), c.changed.visibility(), c.removed.empty()};
+    if (afterIsCurrentScene(c, false)) worlds.after = Visibility{};
     // Per ray: what leaves the element it reached before the edit (2r) and what reaches the
     // element it reaches after (2r + 1).
     auto& out = mImpl->rayHits;
@@ -502,69 +594,16 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
             Vec3 origin, nz, tx, ty;
             points.sample(rng, origin, nz, tx, ty);
             origin += nz * eps;
-            // Direction: into the cones the changed objects' bounding spheres subtend (one
-            // picked by solid angle; the density counts every cone holding the direction), or
-            // the hemisphere when the point is inside a sphere or the shooter was removed.
+            // Direction: into the changed objects' cones, or the hemisphere.
             double weight;  // cos/π over the sampling density: ∫ cos/π dω per unit area
             Vec3 dir;
-            struct Cone {
-                Vec3 axis;
-                double cosMax, solidAngle;
-            };
-            Cone cones[8];
-            std::size_t nCones = 0;
-            bool inside = removed || c.spheres.size() > 8;
-            double totalSolidAngle = 0;
-            for (std::size_t k = 0; !inside && k < c.spheres.size(); ++k) {
-                Vec3 axis = c.spheres[k].first - origin;
-                const double dist = glm::length(axis), r = c.spheres[k].second;
-                if (dist <= r) {
-                    inside = true;
-                    break;
-                }
-                const double cosMax = std::sqrt(std::max(0.0, 1 - (r / dist) * (r / dist)));
-                cones[nCones++] = {axis / dist, cosMax, 2 * M_PI * (1 - cosMax)};
-                totalSolidAngle += 2 * M_PI * (1 - cosMax);
-            }
-            if (inside || nCones == 0) {
-                dir = cosineDirection(nz, tx, ty, rng);
-                weight = 1.0;  // cosine sampling of the whole hemisphere
-            } else {
-                double pickCone = rng.next() * totalSolidAngle;
-                std::size_t k = 0;
-                while (k + 1 < nCones && pickCone > cones[k].solidAngle)
-                    pickCone -= cones[k++].solidAngle;
-                const Cone& cone = cones[k];
-                double cosT = 1 - rng.next() * (1 - cone.cosMax);
-                double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
-                double phi = 2 * M_PI * rng.next();
-                Vec3 tx, ty;
-                frameAround(cone.axis, tx, ty);
-                dir = sinT * std::cos(phi) * tx + sinT * std::sin(phi) * ty + cosT * cone.axis;
-                double cosSrc = glm::dot(dir, nz);
-                if (cosSrc <= 0) continue;
-                int holding = 0;
-                for (std::size_t m = 0; m < nCones; ++m)
-                    if (m == k || glm::dot(dir, cones[m].axis) >= cones[m].cosMax) ++holding;
-                weight = totalSolidAngle / holding * cosSrc / M_PI;
-            }
+            if (!sampleRedistributionDirection(c.spheres, removed, origin, nz, tx, ty, rng, dir,
+                                               weight))
+                continue;
             const Rgb carried = c.shot[j] * (P.area * weight / (static_cast<double>(rays) * pj));
-            // A ray that misses every changed object hits the same element in both worlds.
-            RayTracer::FirstHit hc;
-            if (!removed && (hc = mTracer.firstHit(origin, dir, changed)).element < 0) continue;
-            RayTracer::FirstHit hb = mTracer.firstHit(origin, dir, before);
-            RayTracer::FirstHit ha;
-            if (removed) {
-                // The shooter is gone: nothing reaches anything after the edit.
-            } else if (onlyAdded) {
-                // After = before ∪ added: the nearer of the two first hits (the same
-                // instances and transforms give the same t as tracing the union).
-                ha = hb.element < 0 || hc.t < hb.t ? hc : hb;
-            } else {
-                ha = mTracer.firstHit(origin, dir, after);
-            }
-            int eb = hb.element >= 0 && !hb.backFace ? hb.element : -1;
-            int ea = ha.element >= 0 && !ha.backFace ? ha.element : -1;
+            // The elements it reaches before and after the edit.
+            int eb = -1, ea = -1;
+            if (!hitsBeforeAndAfter(mTracer, worlds, removed, origin, dir, eb, ea)) continue;
             if (eb == ea) continue;
             auto receives = [&](int e) {
                 int o = mDisc.elements()[e].object;
