@@ -302,8 +302,8 @@ struct EdgeFinder::Counters {
         selfReused{0};
 };
 
-/// computeEvent's working space, kept per thread across events (tens of thousands per update):
-/// allocations were a tenth of the update.
+/// computeEvent's working space, kept per thread across events (tens of thousands per update) so
+/// that an event allocates nothing.
 struct EdgeFinder::EventScratch {
     /// A receiver near the event with the range of s over its bounds there.
     struct Candidate {

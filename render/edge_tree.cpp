@@ -470,8 +470,9 @@ int EdgeTree::splitAtBestAxis(std::vector<int>& order, int mid, int end) const {
     // Split at the median of the axis whose children bound eq. 1 most tightly: a node's
     // interval [N]·(e − c) − [d] is about (normal extent)·|e − c| + 2·(position extent) wide,
     // so a child costs its normal extent times the root's size (a typical eye distance) plus
-    // twice its position extent. Candidates: the three normal axes (§6.4) and the longest axis
-    // of the edge midpoints (position matters when many separate parts share normals).
+    // its position extent (the diagonal of its edge midpoints). Candidates: the
+    // three normal axes (§6.4) and the longest axis of the edge midpoints (position matters when
+    // many separate parts share normals).
     int half = mid + (end - mid) / 2;
     Box3 mids;
     for (int i = mid; i < end; ++i) mids.extend(items[order[i]].mid);

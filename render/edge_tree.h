@@ -165,7 +165,7 @@ struct EdgeTreeStats {
 /// Bala et al. §6.4: a tree over an EdgeMesh's interior edges whose nodes bound the normals of
 /// all faces adjacent to their edges by an interval vector. Built top-down, splitting each
 /// node on the normal axis (or the longest axis of edge positions) that minimises the children's
-/// combined extent (normal extent × mesh size + 2 × position extent); an edge
+/// combined extent (normal extent × mesh size + position extent); an edge
 /// whose normals span more than half the node's normal range is stored at the node ("sharp
 /// edges higher in the tree"). Boundary edges are kept aside and always reported.
 ///
