@@ -119,7 +119,6 @@ inline Quad loadQuad(const glm::vec4& v) { return _mm_loadu_ps(&v.x); }
 inline void storeQuad(glm::vec4& v, Quad q) { _mm_storeu_ps(&v.x, q); }
 inline Quad addQuad(Quad a, Quad b) { return _mm_add_ps(a, b); }
 inline Quad scaleQuad(Quad a, float w) { return _mm_mul_ps(a, _mm_set1_ps(w)); }
-inline Quad zeroQuad() { return _mm_setzero_ps(); }
 inline glm::vec4 toVec4(Quad q) {
     glm::vec4 v;
     _mm_storeu_ps(&v.x, q);
@@ -131,7 +130,6 @@ inline Quad loadQuad(const glm::vec4& v) { return v; }
 inline void storeQuad(glm::vec4& v, Quad q) { v = q; }
 inline Quad addQuad(Quad a, Quad b) { return a + b; }
 inline Quad scaleQuad(Quad a, float w) { return a * w; }
-inline Quad zeroQuad() { return Quad(0.0f); }
 inline glm::vec4 toVec4(Quad q) { return q; }
 #endif
 

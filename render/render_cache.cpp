@@ -843,7 +843,7 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
                 for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
                     const std::size_t k = static_cast<std::size_t>(y) * mWidth + x;
                     // (A select: the held pixels are scattered.)
-                    const bool out = held(k) | (pixelTier(k) < tier);
+                    const bool out = held(k) || pixelTier(k) < tier;
                     const double p = out ? 0.0 : mPriority[k];
                     mEffective[k] = p;
                     sum += p;

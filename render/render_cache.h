@@ -252,7 +252,7 @@ private:
                                                      int tier);
     /// Pixel k was requested within the last holdFrames frames: it waits.
     bool held(std::size_t k) const {
-        return (mRequested[k] > 0) & (mFrame + 1 < mRequested[k] + mOptions.holdFrames);
+        return mRequested[k] > 0 && mFrame + 1 < mRequested[k] + mOptions.holdFrames;
     }
     /// Which pass of requestSamples pixel k belongs to: 2 a carried point, 1 a stale one,
     /// 0 any other (empty pixels included).
