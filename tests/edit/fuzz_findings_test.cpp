@@ -69,9 +69,10 @@ std::size_t lightElements(const Scene& scene) {
 TEST(FuzzFindings, APointLightBesideMeshesFarSmallerThanItStaysASphereOfFewElements) {
     // Three findings, one cause: meshes whose total area is tiny (a GLB whose misaligned buffer
     // view gives its triangle an area near 1e-40 m², which overflowed the cell count; a glTF
-    // and a GLB whose corrupted buffers shrank their triangles, which took 22–24 s) set an element
-    // size that split the point light's sphere into millions of elements. The light's sphere now
-    // counts in the area the element size is chosen from, so it stays a few thousand.
+    // and a GLB whose corrupted buffers shrank their triangles, which ran past the fuzzer's
+    // timeout) set an element size that split the point light's sphere into millions of
+    // elements. The light's sphere now counts in the area the element size is chosen from, so
+    // it stays a few thousand.
     for (const char* name :
          {"import_glb-tiny-area-light.glb", "import_gltf-mesh-smaller-than-light.gltf",
           "import_glb-mesh-smaller-than-light.glb"}) {
