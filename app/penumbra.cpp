@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <limits>
@@ -15,11 +16,13 @@
 #include <memory>
 #include <optional>
 #include <sstream>
+#include <unordered_set>
 
 #include "app/import_flags.h"
 #include "bench/bench.h"
 #include "core/input_error.h"
 #include "core/log.h"
+#include "core/random.h"
 #include "edit/edit_log.h"
 #include "edit/edit_session.h"
 #include "edit/export.h"
@@ -34,6 +37,7 @@
 #include "render/hifi_mesh.h"
 #include "render/holodeck/holo_file.h"
 #include "render/holodeck/holo_server.h"
+#include "render/holodeck/holo_view.h"
 #include "render/image.h"
 #include "render/interactive_display.h"
 #include "render/path_tracer.h"
@@ -221,6 +225,7 @@ struct RenderArgs {
     // Interactive display modes (epi, cache, reference).
     std::string log, overlay, rmseFrames = "last";
     std::string compare;   ///< EXR reference: the report adds relative_rmse
+    std::string holodeck;  ///< epi, cache: the first frame starts from this holodeck's samples
     int gatherRays = 256;  ///< interpolant: ExactIrradianceOptions::farRays
     int frames = 0;        ///< 0: 1, or one per log line plus the first
     double sampleFraction = 0.02;
@@ -241,6 +246,21 @@ Camera pickCamera(const Scene& scene, const std::string& scenePath, const std::s
     if (const Camera* c = scene.findCamera("default")) return *c;
     if (!scene.cameras.empty()) return scene.cameras.front();
     return Camera{};
+}
+
+/// The holodeck beside a scene: its path with the extension .hdk.
+std::string defaultHolodeckPath(const std::string& scene) {
+    return std::filesystem::path(scene).replace_extension(".hdk").string();
+}
+
+/// The bounds of the scene's surfaces (alive objects' vertices).
+std::pair<Vec3, Vec3> sceneBounds(const Discretization& disc) {
+    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+    for (const ObjectSurface& o : disc.objects()) {
+        if (!o.alive) continue;
+        for (const Vec3& p : o.worldPositions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    }
+    return {lo, hi};
 }
 
 /// `path` with "-SUFFIX" before its extension: out.png, "0003" -> out-0003.png.
@@ -328,6 +348,23 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
 
     const bool reference = r.mode == "reference";
     const bool useEdges = r.mode == "epi";
+    // The holodeck (Ward & Simmons): the first frame takes its samples of the view, and the
+    // points the display shades go into it at the end. A new file gets one section.
+    std::optional<HoloFile> holo;
+    std::unique_ptr<HoloServer> holoServer;
+    if (!r.holodeck.empty() && !reference) {
+        const auto [lo, hi] = sceneBounds(session->discretization());
+        holo.emplace(r.holodeck, std::vector<HoloSection>{layoutSection(lo, hi)});
+        holoServer = std::make_unique<HoloServer>(*holo, nullptr);
+    }
+    std::int64_t holodeckSamples = 0;
+    // The points the holodeck brought (their positions' bits): not stored again.
+    std::unordered_set<std::uint64_t> fromHolodeck;
+    auto positionKey = [](const Vec3& p) {
+        std::uint64_t bits[3];
+        std::memcpy(bits, &p.x, sizeof bits);
+        return hashPair(hashPair(bits[0], bits[1]), bits[2]);
+    };
     nlohmann::json frameReports = nlohmann::json::array();
     Image image;
     std::optional<CameraRays> rays;
@@ -356,9 +393,30 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
                           {"reconstruct_ms", 0.0},
                           {"new_sample_fraction", double(r.samples) * r.samples}});
         } else {
-            if (k == 0 && r.warmup > 0) display.warmUp(*rays, r.warmup);
+            double holodeckMs = 0;
+            if (k == 0 && holoServer) {
+                const auto start = Clock::now();
+                const auto view = viewRequests(holo->sections(), *rays, std::max(1, r.width / 4),
+                                               std::max(1, r.height / 4), 1.0);
+                const std::vector<ShadedPoint> points = holodeckViewPoints(
+                    *holoServer, view, session->discretization(), session->tracer(), *rays,
+                    display.cache().frame(), display.shadingSerial());
+                display.insertShaded(points);
+                for (const ShadedPoint& p : points) fromHolodeck.insert(positionKey(p.position));
+                holodeckSamples = std::int64_t(points.size());
+                holodeckMs =
+                    std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+            }
+            // The warm-up shades what the holodeck did not bring.
+            const double warmPoints = r.warmup * r.width * r.height;
+            if (k == 0 && r.warmup > 0 && double(holodeckSamples) < warmPoints)
+                display.warmUp(*rays, r.warmup);
             image = display.renderFrame(*rays, useEdges);
             entry.update(frameJson(display.lastFrame()));
+            if (k == 0 && holoServer) {
+                entry["holodeck_ms"] = holodeckMs;
+                entry["total_ms"] = entry["total_ms"].get<double>() + holodeckMs;
+            }
             if (r.rmseFrames == "all" || (r.rmseFrames == "last" && k == frames - 1)) {
                 const Image ref = display.renderReference(*rays, r.samples);
                 entry["rmse"] = displayRmse(image, ref);
@@ -373,6 +431,13 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
         frameReports.push_back(std::move(entry));
     }
     writeImage(image, r.out);
+    std::int64_t holodeckStored = 0;
+    if (holoServer) {
+        std::vector<CachePoint> shaded;
+        for (const CachePoint& p : display.cache().points())
+            if (!fromHolodeck.count(positionKey(p.position))) shaded.push_back(p);
+        holodeckStored = storeViewPoints(*holoServer, shaded, session->tracer(), rays->origin());
+    }
     if (r.overlay == "edges") {
         // The reference shades no EPI: run one display frame from the final camera for it.
         if (reference) {
@@ -391,6 +456,11 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     report["smooth_radius"] = r.smooth;
     report["max_penumbra_pixels"] = r.maxPenumbraPixels;
     report["frames"] = std::move(frameReports);
+    if (holoServer) {
+        report["holodeck"] = holo->path();
+        report["holodeck_samples"] = holodeckSamples;
+        report["holodeck_stored"] = holodeckStored;
+    }
     if (!r.compare.empty())
         report["relative_rmse"] =
             compareWith(image, r.compare, session->discretization(), session->tracer(), *rays);
@@ -490,6 +560,8 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
     if (r.rmseFrames != "last" && r.rmseFrames != "all" && r.rmseFrames != "none")
         throw InputError("--rmse", "",
                          "unknown value '" + r.rmseFrames + "' (available: last, all, none)");
+    if (!r.holodeck.empty() && r.mode != "epi" && r.mode != "cache")
+        throw InputError("--holodeck", "", "needs --mode epi or cache (the display's modes)");
     if (r.mode == "pathtrace") return runPathTraceRender(a, r);
     if (r.mode == "interpolant") return runInterpolantRender(a, r);
     if (r.mode != "gouraud") return runDisplayRender(a, r);
@@ -583,21 +655,6 @@ struct HolodeckArgs {
     std::int64_t samples = 0;
     int width = 512, height = 512;  ///< --camera: the view whose beams are filled
 };
-
-/// The holodeck beside a scene: its path with the extension .hdk.
-std::string defaultHolodeckPath(const std::string& scene) {
-    return std::filesystem::path(scene).replace_extension(".hdk").string();
-}
-
-/// The bounds of the scene's surfaces (alive objects' vertices).
-std::pair<Vec3, Vec3> sceneBounds(const Discretization& disc) {
-    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-    for (const ObjectSurface& o : disc.objects()) {
-        if (!o.alive) continue;
-        for (const Vec3& p : o.worldPositions) lo = glm::min(lo, p), hi = glm::max(hi, p);
-    }
-    return {lo, hi};
-}
 
 nlohmann::json holodeckJson(const HoloFile& file) {
     const HoloFileInfo info = file.info();
@@ -734,6 +791,9 @@ void addRenderCommand(CLI::App& app, Commands& c) {
         ->check(CLI::Range(0, 1 << 20));
     renderCmd->add_option("--compare", render.compare,
                           "report the relative RMSE against this EXR (lamps left out)");
+    renderCmd->add_option("--holodeck", render.holodeck,
+                          "epi, cache: start the first frame from this holodeck's samples of the "
+                          "view and store the shaded points in it (created when missing)");
     renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();
     renderCmd->add_option("--report", solve.report, "write a JSON report");
     renderCmd

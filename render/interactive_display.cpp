@@ -405,6 +405,13 @@ std::size_t InteractiveDisplay::warmUp(const CameraRays& camera, double density)
     return done.size();
 }
 
+void InteractiveDisplay::insertShaded(const std::vector<ShadedPoint>& points) {
+    mCache.insert(points);
+    mInsertedSinceFrame += points.size();
+}
+
+std::uint64_t InteractiveDisplay::shadingSerial() const { return mShader->stateSerial(); }
+
 // ---------------------------------------------------------------------------------------------
 // Edits and solution updates
 

@@ -264,6 +264,11 @@ public:
     /// 0.25: every other pixel in x and y), jittered inside its pixel, deterministic. Always
     /// synchronous (shades on the calling thread with oneTBB). Returns the points shaded.
     std::size_t warmUp(const CameraRays& camera, double density = 0.25);
+    /// Puts points shaded elsewhere (a holodeck's samples of this view) into the cache, as
+    /// warmUp puts its own.
+    void insertShaded(const std::vector<ShadedPoint>& points);
+    /// The shader's state serial (PointShader::stateSerial): what points shaded now carry.
+    std::uint64_t shadingSerial() const;
 
     // -- Edits and solution updates ------------------------------------------------------------
 

@@ -62,6 +62,36 @@ TEST_F(HolodeckCli, FillAddsTheSamplesAskedForAndInfoReportsThem) {
     EXPECT_EQ(info["bytes"].get<std::int64_t>(), std::int64_t(fs::file_size(file)));
 }
 
+TEST_F(HolodeckCli, RenderStoresItsPointsAndTheNextRenderStartsFromThem) {
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cube-room.json";
+    const std::string file = (mDir / "view.hdk").string();
+    const std::string render = "render '" + scene +
+                               "' --mode epi --width 160 --height 120 --holodeck '" + file +
+                               "' --out '" + (mDir / "view.png").string() + "' --report '" +
+                               (mDir / "report.json").string() + "'";
+    auto report = [&] { return nlohmann::json::parse(test::readFile(mDir / "report.json")); };
+    // First visit: nothing to read; the shaded points go into a new holodeck.
+    ASSERT_EQ(run(render), 0) << err();
+    const nlohmann::json first = report();
+    EXPECT_EQ(first["holodeck_samples"].get<std::int64_t>(), 0);
+    const std::int64_t stored = first["holodeck_stored"].get<std::int64_t>();
+    EXPECT_GT(stored, 160 * 120 / 5);
+    const double firstError = first["frames"][0]["rmse"].get<double>();
+    // Second visit: the first frame starts from them (most of them: a point is taken when the
+    // eye sees it), and its error is as small as the first visit's.
+    ASSERT_EQ(run(render), 0) << err();
+    const nlohmann::json second = report();
+    EXPECT_GT(second["holodeck_samples"].get<std::int64_t>(), stored * 9 / 10);
+    EXPECT_GT(second["frames"][0]["holodeck_ms"].get<double>(), 0);
+    EXPECT_LE(second["frames"][0]["rmse"].get<double>(), firstError * 1.1)
+        << "first visit " << firstError;
+    // A mode without the display has no use for a holodeck: one error line, exit 2.
+    EXPECT_EQ(run("render '" + scene + "' --mode gouraud --holodeck '" + file + "' --out '" +
+                  (mDir / "g.png").string() + "'"),
+              2);
+    EXPECT_NE(err().find("--holodeck"), std::string::npos) << err();
+}
+
 TEST_F(HolodeckCli, ANonHolodeckFileIsOneErrorLineAndExitTwo) {
     const fs::path bad = mDir / "notes.hdk";
     test::writeFile(bad, "these are notes, not samples\n");

@@ -1,0 +1,122 @@
+#include "render/holodeck/holo_view.h"
+
+#include <tbb/parallel_for.h>
+
+#include <map>
+
+#include "render/camera_rays.h"
+#include "solver/discretization.h"
+#include "solver/ray_tracer.h"
+
+namespace penumbra {
+
+namespace {
+
+/// Whether `eye` sees `point` (nothing in between, the last millimetre aside).
+bool seen(const RayTracer& tracer, const Vec3& eye, const Vec3& point) {
+    const Vec3 d = point - eye;
+    const double length = glm::length(d);
+    if (!(length > 1e-6)) return false;
+    return !tracer.occluded(eye, point - d * std::min(1e-3 / length, 1e-3));
+}
+
+}  // namespace
+
+std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
+                                            const std::vector<BeamRequest>& view,
+                                            const Discretization& disc, const RayTracer& tracer,
+                                            const CameraRays& camera, std::uint64_t frame,
+                                            std::uint64_t shading) {
+    const std::vector<HoloSection>& sections = server.file().sections();
+    std::vector<DistanceCode> codes;
+    for (const HoloSection& s : sections) codes.emplace_back(s.diagonal());
+    // The beams' samples (read on this thread: the server is not thread-safe), then the rays.
+    std::vector<DecodedSample> samples;
+    std::vector<double> stored;
+    for (const BeamRequest& r : view)
+        for (const HoloSample& sample : server.beam(r.section, r.beam)) {
+            if (sample.distance == 0xffff) continue;  // a miss: nothing to show
+            samples.push_back(decodeSample(sample, sections[r.section], r.beam, codes[r.section]));
+            const double d = codes[r.section].decode(sample.distance);
+            stored.push_back(std::max(sections[r.section].diagonal() / 4096, d / 4096) * 1.01 +
+                             1e-6 * d);
+        }
+    std::vector<ShadedPoint> points(samples.size());
+    std::vector<std::uint8_t> keep(samples.size(), 0);
+    tbb::parallel_for(std::size_t(0), samples.size(), [&](std::size_t i) {
+        const DecodedSample& s = samples[i];
+        const RayTracer::FirstHit hit = tracer.firstHit(s.entry, s.direction);
+        if (hit.element < 0) return;
+        const Vec3 position = s.entry + double(hit.t) * s.direction;
+        // Stale: the ray ends elsewhere than when it was shaded.
+        if (glm::length(position - s.hit) > stored[i]) return;
+        if (!seen(tracer, camera.origin(), position)) return;
+        const auto pixel = camera.projectToPixel(position);
+        if (!pixel || pixel->x < 0 || pixel->y < 0 || pixel->x >= camera.width() ||
+            pixel->y >= camera.height())
+            return;
+        const Element& e = disc.elements()[std::size_t(hit.element)];
+        ShadedPoint& p = points[i];
+        p.pixel = *pixel;
+        p.position = position;
+        p.normal = hit.backFace ? -e.normal : e.normal;
+        p.radiance = s.radiance;
+        p.object = e.object;
+        p.element = hit.element;
+        p.frame = frame;
+        p.shading = shading;
+        keep[i] = 1;
+    });
+    std::vector<ShadedPoint> out;
+    out.reserve(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+        if (keep[i]) out.push_back(points[i]);
+    return out;
+}
+
+std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& points,
+                             const RayTracer& tracer, const Vec3& eye) {
+    const std::vector<HoloSection>& sections = server.file().sections();
+    std::vector<DistanceCode> codes;
+    for (const HoloSection& s : sections) codes.emplace_back(s.diagonal());
+    // Each point's sample in the first section its ray from the eye crosses. The stored ray
+    // runs between the byte positions of its cells, a few millimetres from the eye's ray: its
+    // distance is where that ray meets the surface, and the point is kept when that is within
+    // a centimetre of the point shaded.
+    struct Stored {
+        int section = -1;
+        std::int64_t beam = 0;
+        HoloSample sample;
+    };
+    std::vector<Stored> stored(points.size());
+    tbb::parallel_for(std::size_t(0), points.size(), [&](std::size_t i) {
+        const CachePoint& point = points[i];
+        if (point.object < 0 || !seen(tracer, eye, point.position)) return;
+        const Vec3 d = glm::normalize(point.position - eye);
+        for (int s = 0; s < int(sections.size()); ++s) {
+            const auto ray = sections[s].locate(eye, d);
+            if (!ray) continue;
+            HoloSample sample = encodeSample(point.colour, ray->entry, ray->exit, 0, codes[s]);
+            const DecodedSample q = decodeSample(sample, sections[s], ray->beam, codes[s]);
+            const RayTracer::FirstHit hit = tracer.firstHit(q.entry, q.direction);
+            if (hit.element < 0) return;
+            const Vec3 at = q.entry + double(hit.t) * q.direction;
+            if (glm::length(at - point.position) > 0.01) return;
+            sample.distance = codes[s].encode(double(hit.t));
+            stored[i] = {s, ray->beam, sample};
+            return;
+        }
+    });
+    std::map<std::pair<int, std::int64_t>, std::vector<HoloSample>> beams;
+    for (const Stored& s : stored)
+        if (s.section >= 0) beams[{s.section, s.beam}].push_back(s.sample);
+    std::int64_t added = 0;
+    for (const auto& [key, samples] : beams) {
+        server.addSamples(key.first, key.second, samples);
+        added += std::int64_t(samples.size());
+    }
+    server.flush();
+    return added;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,36 @@
+#pragma once
+// The holodeck and the display (Ward & Simmons 1999, §2.4.2): a view's beams read back as the
+// render cache's shaded points, and the points the display shaded written into the holodeck.
+// Penumbra's surfaces are diffuse, so a sample's radiance holds wherever its hit point is seen
+// from: a stored sample becomes a point of the view when the eye sees its hit point, whichever
+// eye the sample was shaded for.
+
+#include <cstdint>
+#include <vector>
+
+#include "render/holodeck/holo_server.h"
+#include "render/point_shader.h"
+#include "render/render_cache.h"
+
+namespace penumbra {
+
+class Discretization;
+class RayTracer;
+
+/// The samples of `view`'s beams (viewRequests) as shaded points of `camera`: each sample's ray
+/// is traced again in the scene as it is (a sample whose ray now ends elsewhere is stale and
+/// left out), its hit must be seen from the eye (one occlusion ray) and inside the raster.
+/// Points carry `frame` and `shading` (PointShader::stateSerial) like points shaded now.
+std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
+                                            const std::vector<BeamRequest>& view,
+                                            const Discretization& disc, const RayTracer& tracer,
+                                            const CameraRays& camera, std::uint64_t frame,
+                                            std::uint64_t shading);
+
+/// Writes the display's shaded points into the holodeck as samples of the rays from `eye`
+/// through them, for the points the eye sees (a point shaded from another eye and hidden from
+/// this one is left out) and whose ray crosses a section. Returns the samples added.
+std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& points,
+                             const RayTracer& tracer, const Vec3& eye);
+
+}  // namespace penumbra
