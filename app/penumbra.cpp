@@ -597,6 +597,47 @@ struct ReplayArgs {
     int threads = 0;
     double stochasticBelow = interactiveSolverOptions().stochasticBelow;
     std::uint64_t seed = 1;
+    std::string holodeck;             ///< --holodeck: forget what each edit changed
+    double holodeckThreshold = 0.01;  ///< relative change of an element's light that counts
+};
+
+/// replay --holodeck: after every line, the holodeck forgets the samples the edit changed
+/// (HoloServer::invalidate), with the elements whose radiosity luminance changed by more than
+/// `threshold` of what it was (new elements count as changed); adds "beams_invalidated" and
+/// "samples_invalidated" to the line's entry.
+struct ReplayHolodeck {
+    std::string path;
+    double threshold = 0.01;
+    std::optional<HoloFile> file;
+    std::unique_ptr<HoloServer> server;
+    std::vector<double> previous;  ///< element luminance after the previous line
+
+    void open(EditSession& session) {
+        const auto [lo, hi] = sceneBounds(session.discretization());
+        file.emplace(path, std::vector<HoloSection>{layoutSection(lo, hi)});
+        server = std::make_unique<HoloServer>(*file, nullptr);
+        previous = elementLuminance(session);
+    }
+    void afterEdit(EditSession& session, nlohmann::json& entry) {
+        const std::vector<double> now = elementLuminance(session);
+        double mean = 0;
+        for (double y : now) mean += y;
+        mean = now.empty() ? 0 : mean / double(now.size());
+        std::vector<std::uint8_t> changed(now.size(), 1);
+        for (std::size_t e = 0; e < std::min(now.size(), previous.size()); ++e)
+            changed[e] =
+                std::abs(now[e] - previous[e]) > threshold * std::max(previous[e], 1e-3 * mean);
+        const Invalidation result = server->invalidate(session.tracer(), changed);
+        entry["beams_invalidated"] = result.beams;
+        entry["samples_invalidated"] = result.samples;
+        previous = now;
+    }
+    static std::vector<double> elementLuminance(EditSession& session) {
+        const std::vector<Rgb>& b = session.solver().radiosity();
+        std::vector<double> y(b.size());
+        for (std::size_t e = 0; e < b.size(); ++e) y[e] = luminance(b[e]);
+        return y;
+    }
 };
 
 /// `replay`: exit 0, 1 on a --check mismatch (one line naming the edit), 2 on bad input.
@@ -604,6 +645,15 @@ int runReplayCommand(ReplayArgs& a) {
     a.options.solver = interactiveSolverOptions();
     a.options.solver.seed = a.seed;
     a.options.solver.stochasticBelow = a.stochasticBelow;
+    ReplayHolodeck holodeck;
+    holodeck.path = a.holodeck;
+    holodeck.threshold = a.holodeckThreshold;
+    if (!a.holodeck.empty()) {
+        a.options.afterConverge = [&](EditSession& session) { holodeck.open(session); };
+        a.options.afterEdit = [&](EditSession& session, const EditEvent&, nlohmann::json& entry) {
+            holodeck.afterEdit(session, entry);
+        };
+    }
     // Read the golden report first: a missing golden is bad input, not a mismatch.
     nlohmann::json golden;
     if (!a.check.empty()) golden = readReplayReport(a.check);
@@ -850,6 +900,14 @@ void addReplayCommand(CLI::App& app, Commands& c) {
     replayCmd->add_option("--export", replay.options.exportPath,
                           "export the lit scene after the last line (.ply .gltf .glb .obj)");
     replayCmd->add_option("--report", replay.report, "write a JSON report");
+    replayCmd->add_option("--holodeck", replay.holodeck,
+                          "after every line the holodeck forgets what the edit changed; the "
+                          "report adds beams_invalidated and samples_invalidated per line");
+    replayCmd
+        ->add_option("--holodeck-threshold", replay.holodeckThreshold,
+                     "--holodeck: the relative change of an element's light that invalidates "
+                     "samples on it (default 0.01)")
+        ->check(CLI::Range(0.0, 1e6));
     replayCmd->add_option("--check", replay.check,
                           "compare with a golden report; exit 1 naming the first differing edit");
     replayCmd

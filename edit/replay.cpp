@@ -161,6 +161,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
     std::vector<Rgb> reference, topSetReference;
     std::vector<int> topSet;
     if (options.reference) reference = solveReference(*session, options);
+    if (options.afterConverge) options.afterConverge(*session);
 
     nlohmann::json editReports = nlohmann::json::array();
     for (const LoggedEdit& logged : edits) {
@@ -198,6 +199,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
             entry["error_rms"] = relativeLuminanceError(disc, reference, b, alive);
             entry["error_top1"] = relativeLuminanceError(disc, reference, b, topSet);
         }
+        if (options.afterEdit) options.afterEdit(*session, result, entry);
         editReports.push_back(std::move(entry));
     }
 

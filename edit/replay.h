@@ -4,14 +4,18 @@
 // references, and comparison with a golden report.
 
 #include <cstdint>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
 #include "edit/scene_import.h"
+#include "solver/edit_event.h"
 #include "solver/progressive_solver.h"
 
 namespace penumbra {
+
+class EditSession;
 
 struct ReplayOptions {
     std::string scenePath;
@@ -38,6 +42,11 @@ struct ReplayOptions {
     ImportOptions import;
     /// Cap on shots of any one convergence.
     std::uint64_t maxShots = 100000000;
+    /// Called once the scene is converged, before the first line, and after every line (its
+    /// shots spent) with that line's report entry, to which it may add: the command line's
+    /// holodeck forgets what each edit changed there. Either may be empty.
+    std::function<void(EditSession&)> afterConverge;
+    std::function<void(EditSession&, const EditEvent&, nlohmann::json& entry)> afterEdit;
 };
 
 /// Replays the log (see ReplayOptions) and returns the report: shots, rays, seconds (solver

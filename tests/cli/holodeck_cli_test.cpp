@@ -92,6 +92,33 @@ TEST_F(HolodeckCli, RenderStoresItsPointsAndTheNextRenderStartsFromThem) {
     EXPECT_NE(err().find("--holodeck"), std::string::npos) << err();
 }
 
+TEST_F(HolodeckCli, ReplayForgetsWhatEachEditChangedAndKeepsTheRest) {
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cube-room.json";
+    const std::string log =
+        std::string(PENUMBRA_SOURCE_DIR) + "/scenes/logs/cube-room-add-cube.jsonl";
+    const std::string file = (mDir / "replay.hdk").string();
+    ASSERT_EQ(run("holodeck fill '" + scene + "' --holodeck '" + file + "' --samples 50000"), 0)
+        << err();
+    ASSERT_EQ(run("replay '" + scene + "' '" + log + "' --holodeck '" + file + "' --report '" +
+                  (mDir / "replay.json").string() + "'"),
+              0)
+        << err();
+    const nlohmann::json report = nlohmann::json::parse(test::readFile(mDir / "replay.json"));
+    std::int64_t dropped = 0;
+    for (const auto& edit : report["edits"]) {
+        ASSERT_TRUE(edit.contains("beams_invalidated")) << edit.dump();
+        EXPECT_LE(edit["beams_invalidated"].get<std::int64_t>(),
+                  edit["samples_invalidated"].get<std::int64_t>());
+        dropped += edit["samples_invalidated"].get<std::int64_t>();
+    }
+    // Adding a cube shadows part of the room and hides what is behind it: some samples go,
+    // most of the room keeps its light and its samples.
+    EXPECT_GT(dropped, 0);
+    EXPECT_LT(dropped, 50000 / 2);
+    ASSERT_EQ(run("holodeck info '" + file + "'"), 0) << err();
+    EXPECT_EQ(out()["samples"].get<std::int64_t>(), 50000 - dropped);
+}
+
 TEST_F(HolodeckCli, ANonHolodeckFileIsOneErrorLineAndExitTwo) {
     const fs::path bad = mDir / "notes.hdk";
     test::writeFile(bad, "these are notes, not samples\n");
