@@ -54,11 +54,10 @@ void dropFromPageCache(const std::string& path) {
 std::int64_t readView(HoloServer& server, const std::vector<HoloSection>& sections,
                       const std::vector<BeamRequest>& view, std::vector<DecodedSample>& out) {
     out.clear();
-    std::vector<DistanceCode> codes;
-    for (const HoloSection& s : sections) codes.emplace_back(s.diagonal());
     for (const BeamRequest& r : view)
         for (const HoloSample& sample : server.beam(r.section, r.beam))
-            out.push_back(decodeSample(sample, sections[r.section], r.beam, codes[r.section]));
+            out.push_back(
+                decodeSample(sample, sections[r.section], r.beam, server.distanceCode(r.section)));
     return std::int64_t(out.size());
 }
 

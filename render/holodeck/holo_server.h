@@ -108,6 +108,8 @@ public:
     std::size_t cachedBytes() const { return mCachedBytes; }
     std::size_t cachedBeams() const { return mCache.size(); }
     HoloFile& file() { return mFile; }
+    /// The distance code of a section (its diagonal's), shared by everything that decodes it.
+    const DistanceCode& distanceCode(int section) const { return mCodes[std::size_t(section)]; }
 
 private:
     struct Key {

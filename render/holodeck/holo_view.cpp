@@ -28,16 +28,15 @@ std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
                                             const CameraRays& camera, std::uint64_t frame,
                                             std::uint64_t shading) {
     const std::vector<HoloSection>& sections = server.file().sections();
-    std::vector<DistanceCode> codes;
-    for (const HoloSection& s : sections) codes.emplace_back(s.diagonal());
     // The beams' samples (read on this thread: the server is not thread-safe), then the rays.
     std::vector<DecodedSample> samples;
     std::vector<double> stored;
     for (const BeamRequest& r : view)
         for (const HoloSample& sample : server.beam(r.section, r.beam)) {
             if (sample.distance == 0xffff) continue;  // a miss: nothing to show
-            samples.push_back(decodeSample(sample, sections[r.section], r.beam, codes[r.section]));
-            const double d = codes[r.section].decode(sample.distance);
+            samples.push_back(
+                decodeSample(sample, sections[r.section], r.beam, server.distanceCode(r.section)));
+            const double d = server.distanceCode(r.section).decode(sample.distance);
             stored.push_back(std::max(sections[r.section].diagonal() / 4096, d / 4096) * 1.01 +
                              1e-6 * d);
         }
@@ -77,8 +76,6 @@ std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
 std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& points,
                              const RayTracer& tracer, const Vec3& eye) {
     const std::vector<HoloSection>& sections = server.file().sections();
-    std::vector<DistanceCode> codes;
-    for (const HoloSection& s : sections) codes.emplace_back(s.diagonal());
     // Each point's sample in the first section its ray from the eye crosses. The stored ray
     // runs between the byte positions of its cells, a few millimetres from the eye's ray: its
     // distance is where that ray meets the surface, and the point is kept when that is within
@@ -96,13 +93,15 @@ std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& 
         for (int s = 0; s < int(sections.size()); ++s) {
             const auto ray = sections[s].locate(eye, d);
             if (!ray) continue;
-            HoloSample sample = encodeSample(point.colour, ray->entry, ray->exit, 0, codes[s]);
-            const DecodedSample q = decodeSample(sample, sections[s], ray->beam, codes[s]);
+            HoloSample sample =
+                encodeSample(point.colour, ray->entry, ray->exit, 0, server.distanceCode(s));
+            const DecodedSample q =
+                decodeSample(sample, sections[s], ray->beam, server.distanceCode(s));
             const RayTracer::FirstHit hit = tracer.firstHit(q.entry, q.direction);
             if (hit.element < 0) return;
             const Vec3 at = q.entry + double(hit.t) * q.direction;
             if (glm::length(at - point.position) > 0.01) return;
-            sample.distance = codes[s].encode(double(hit.t));
+            sample.distance = server.distanceCode(s).encode(double(hit.t));
             stored[i] = {s, ray->beam, sample};
             return;
         }
