@@ -253,16 +253,6 @@ std::string defaultHolodeckPath(const std::string& scene) {
     return std::filesystem::path(scene).replace_extension(".hdk").string();
 }
 
-/// The bounds of the scene's surfaces (alive objects' vertices).
-std::pair<Vec3, Vec3> sceneBounds(const Discretization& disc) {
-    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-    for (const ObjectSurface& o : disc.objects()) {
-        if (!o.alive) continue;
-        for (const Vec3& p : o.worldPositions) lo = glm::min(lo, p), hi = glm::max(hi, p);
-    }
-    return {lo, hi};
-}
-
 /// `path` with "-SUFFIX" before its extension: out.png, "0003" -> out-0003.png.
 std::string siblingPath(const std::string& path, const std::string& suffix) {
     std::filesystem::path p(path);
@@ -349,12 +339,12 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     const bool reference = r.mode == "reference";
     const bool useEdges = r.mode == "epi";
     // The holodeck (Ward & Simmons): the first frame takes its samples of the view, and the
-    // points the display shades go into it at the end. A new file gets one section.
+    // points the display shades go into it at the end. A new file gets the scene's sections.
     std::optional<HoloFile> holo;
     std::unique_ptr<HoloServer> holoServer;
     if (!r.holodeck.empty() && !reference) {
-        const auto [lo, hi] = sceneBounds(session->discretization());
-        holo.emplace(r.holodeck, std::vector<HoloSection>{layoutSection(lo, hi)});
+        holo.emplace(r.holodeck,
+                     holodeckSections(session->scene().settings, session->discretization()));
         holoServer = std::make_unique<HoloServer>(*holo, nullptr);
     }
     std::int64_t holodeckSamples = 0;
@@ -613,8 +603,7 @@ struct ReplayHolodeck {
     std::vector<double> previous;  ///< element luminance after the previous line
 
     void open(EditSession& session) {
-        const auto [lo, hi] = sceneBounds(session.discretization());
-        file.emplace(path, std::vector<HoloSection>{layoutSection(lo, hi)});
+        file.emplace(path, holodeckSections(session.scene().settings, session.discretization()));
         server = std::make_unique<HoloServer>(*file, nullptr);
         previous = elementLuminance(session);
     }
@@ -744,9 +733,8 @@ int runHolodeckFill(const SolveArgs& a, const HolodeckArgs& h) {
     shading.threads = 0;
     PointShader shader(lit->discretization(), lit->tracer(), solverOptionsOf(a), shading);
     shader.updateSolution(lit->solver());
-    // A new holodeck gets one interior section over the scene; an existing one keeps its own.
-    const auto [lo, hi] = sceneBounds(lit->discretization());
-    HoloFile file(path, {layoutSection(lo, hi)});
+    // A new holodeck gets the scene's sections; an existing one keeps its own.
+    HoloFile file(path, holodeckSections(lit->scene().settings, lit->discretization()));
     HoloServer server(file, &shader);
     const std::vector<BeamRequest> requests =
         view ? viewRequests(file.sections(), *view, std::max(1, h.width / 4),

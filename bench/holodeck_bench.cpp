@@ -109,10 +109,6 @@ HolodeckCase runCase(const HolodeckBenchOptions& o, const std::string& name,
     shading.threads = 0;
     PointShader shader(disc, session->tracer(), options, shading);
     shader.updateSolution(session->solver());
-    Vec3 lo(1e300), hi(-1e300);
-    for (const ObjectSurface& s : disc.objects())
-        if (s.alive)
-            for (const Vec3& p : s.worldPositions) lo = glm::min(lo, p), hi = glm::max(hi, p);
 
     // A batch fill of every beam, then the default camera's view filled to about a sample per
     // pixel (the paper's interactive mode: the view's beams, persisted for the next visit).
@@ -122,7 +118,7 @@ HolodeckCase runCase(const HolodeckBenchOptions& o, const std::string& name,
     const CameraRays rays(camera, o.width, o.height);
     std::vector<BeamRequest> view;
     {
-        HoloFile holo(file, {layoutSection(lo, hi)});
+        HoloFile holo(file, holodeckSections(session->scene().settings, disc));
         HoloServer server(holo, &shader);
         const FillStats fill = server.fill(server.batchRequests(1e6), o.samples, 0);
         c.fillPerSecond = fill.samples / fill.seconds;

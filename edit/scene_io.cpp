@@ -354,9 +354,42 @@ SceneObject readObject(const JsonReader& in, const Json& json, const Scene& scen
 // ---------------------------------------------------------------------------------------------
 // Settings, cameras, scene.
 
+HolodeckSectionSetting readHolodeckSection(const JsonReader& in, const Json& json,
+                                           const std::string& where) {
+    in.expectObject(json, where);
+    in.checkKeys(json, where, {"kind", "min", "max", "grid"});
+    HolodeckSectionSetting section;
+    if (const Json* value = JsonReader::find(json, "kind")) {
+        const std::string at = joinKey(where, "kind");
+        const std::string kind = in.readString(*value, at);
+        if (kind != "interior" && kind != "exterior")
+            in.fail(at, "kind must be \"interior\" or \"exterior\", got \"" + kind + "\"");
+        section.exterior = kind == "exterior";
+    }
+    section.min = in.readVec3(in.require(json, "min", where), joinKey(where, "min"));
+    section.max = in.readVec3(in.require(json, "max", where), joinKey(where, "max"));
+    for (int a = 0; a < 3; ++a)
+        if (!(section.max[a] > section.min[a]))
+            in.fail(joinKey(where, "max"), "max " + formatVec3(section.max) +
+                                               " must exceed min " + formatVec3(section.min) +
+                                               " along every axis");
+    if (const Json* value = JsonReader::find(json, "grid")) {
+        const std::string at = joinKey(where, "grid");
+        if (!value->is_array() || value->size() != 3)
+            in.fail(at, "expected an array of 3 integers, got " + describeType(*value));
+        for (int a = 0; a < 3; ++a) {
+            const int cells = in.readInteger((*value)[a], joinIndex(at, a));
+            if (cells < 1 || cells > 1024)
+                in.fail(joinIndex(at, a), "cells must be in [1, 1024], got " + std::to_string(cells));
+            section.grid[a] = cells;
+        }
+    }
+    return section;
+}
+
 Settings readSettings(const JsonReader& in, const Json& json, const std::string& where) {
     in.expectObject(json, where);
-    in.checkKeys(json, where, {"patch_size", "element_size"});
+    in.checkKeys(json, where, {"patch_size", "element_size", "holodeck"});
     Settings settings;
     if (const Json* value = JsonReader::find(json, "patch_size")) {
         settings.patchSize = in.readPositive(*value, joinKey(where, "patch_size"));
@@ -368,6 +401,14 @@ Settings readSettings(const JsonReader& in, const Json& json, const std::string&
         in.fail(joinKey(where, "element_size"),
                 "element_size " + formatNumber(settings.elementSize) +
                     " must not exceed patch_size " + formatNumber(settings.patchSize));
+    }
+    if (const Json* value = JsonReader::find(json, "holodeck")) {
+        const std::string at = joinKey(where, "holodeck");
+        if (!value->is_array() || value->empty())
+            in.fail(at, "expected a non-empty array of sections, got " + describeType(*value));
+        if (value->size() > 64) in.fail(at, "at most 64 sections, got " + std::to_string(value->size()));
+        for (size_t i = 0; i < value->size(); ++i)
+            settings.holodeck.push_back(readHolodeckSection(in, (*value)[i], joinIndex(at, i)));
     }
     return settings;
 }
@@ -711,6 +752,13 @@ Json sceneToJson(const Scene& scene) {
     json["format"] = kSceneFormat;
     json["settings"] = {{"patch_size", scene.settings.patchSize},
                         {"element_size", scene.settings.elementSize}};
+    for (const HolodeckSectionSetting& section : scene.settings.holodeck) {
+        Json entry = {{"kind", section.exterior ? "exterior" : "interior"},
+                      {"min", vec3ToJson(section.min)},
+                      {"max", vec3ToJson(section.max)}};
+        if (section.grid[0] > 0) entry["grid"] = section.grid;
+        json["settings"]["holodeck"].push_back(std::move(entry));
+    }
     Json materials = Json::object();
     for (const NamedMaterial& entry : scene.materials) {
         materials[entry.name] = materialToJson(entry.material);

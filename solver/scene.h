@@ -74,9 +74,20 @@ struct Camera {
     double fovDeg = 40.0;  ///< vertical field of view
 };
 
+/// A holodeck section a scene asks for (settings.holodeck; docs/holodeck.md): a box, looked
+/// out of (interior) or into (exterior), and its cells along x, y and z (0: the count that
+/// brings the section's beams nearest the paper's target).
+struct HolodeckSectionSetting {
+    bool exterior = false;
+    Vec3 min{0.0}, max{0.0};
+    std::array<int, 3> grid{0, 0, 0};
+};
+
 struct Settings {
     double patchSize = 0.5;    ///< metres, target edge length of a shooter
     double elementSize = 0.1;  ///< metres, target edge length of a receiver
+    /// The holodeck's sections; empty: one interior section over the scene's bounds.
+    std::vector<HolodeckSectionSetting> holodeck;
 };
 
 struct NamedMaterial {

@@ -141,6 +141,24 @@ std::int64_t paperBeamCount(std::int64_t w, std::int64_t d, std::int64_t h) {
            8 * w * d * d * h + 8 * w * d * h * h;
 }
 
+std::array<int, 3> nearCubicGrid(const Vec3& size, std::int64_t targetBeams) {
+    const double diagonal = glm::length(size);
+    // The cell edge whose grid (4–24 a side) gives the beam count nearest the target on a
+    // logarithmic scale.
+    std::array<int, 3> best{4, 4, 4};
+    double bestMiss = std::numeric_limits<double>::infinity();
+    for (int i = 0; i <= 400; ++i) {
+        const double edge = diagonal * std::pow(10.0, -3.0 + 3.0 * i / 400.0);
+        std::array<int, 3> grid;
+        for (int a = 0; a < 3; ++a)
+            grid[a] = std::clamp(static_cast<int>(std::lround(size[a] / edge)), 4, 24);
+        const double beams = double(paperBeamCount(grid[0], grid[1], grid[2]));
+        const double miss = std::abs(std::log(beams / double(targetBeams)));
+        if (miss < bestMiss) bestMiss = miss, best = grid;
+    }
+    return best;
+}
+
 HoloSection layoutSection(const Vec3& lo, const Vec3& hi, double margin, std::int64_t targetBeams) {
     const Vec3 extent = hi - lo;
     const double diagonal = glm::length(extent);
@@ -153,20 +171,7 @@ HoloSection layoutSection(const Vec3& lo, const Vec3& hi, double margin, std::in
         size[a] = std::max(extent[a] - 2 * m, 1e-3 * diagonal);
         origin[a] = lo[a] + 0.5 * (extent[a] - size[a]);
     }
-    // Near-cubic cells: the cell edge whose grid (4–24 a side) gives the beam count nearest the
-    // target on a logarithmic scale.
-    std::array<int, 3> best{4, 4, 4};
-    double bestMiss = std::numeric_limits<double>::infinity();
-    for (int i = 0; i <= 400; ++i) {
-        const double edge = diagonal * std::pow(10.0, -3.0 + 3.0 * i / 400.0);
-        std::array<int, 3> grid;
-        for (int a = 0; a < 3; ++a)
-            grid[a] = std::clamp(static_cast<int>(std::lround(size[a] / edge)), 4, 24);
-        const double beams = double(paperBeamCount(grid[0], grid[1], grid[2]));
-        const double miss = std::abs(std::log(beams / double(targetBeams)));
-        if (miss < bestMiss) bestMiss = miss, best = grid;
-    }
-    return HoloSection(origin, size, best, SectionKind::Interior);
+    return HoloSection(origin, size, nearCubicGrid(size, targetBeams), SectionKind::Interior);
 }
 
 }  // namespace penumbra

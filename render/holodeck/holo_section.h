@@ -10,7 +10,7 @@
 // enumerates ordered pairs of cells on different walls, entry cell major, so the beam count
 // is the paper's N = 2W²D² + 2W²H² + 2D²H² + 8W²DH + 8WD²H + 8WDH².
 //
-// Index: HoloSection · layoutSection
+// Index: HoloSection · nearCubicGrid · layoutSection
 
 #include <array>
 #include <cstdint>
@@ -99,6 +99,10 @@ private:
 
 /// The paper's beam count for a W × D × H grid (§2.1), for checking a layout.
 std::int64_t paperBeamCount(std::int64_t w, std::int64_t d, std::int64_t h);
+
+/// Near-cubic cells for a box of `size`: the grid, 4 to 24 cells a side (§2.1: grids of 4–24 a
+/// side and 50,000–500,000 beams work best), whose beam count comes nearest `targetBeams`.
+std::array<int, 3> nearCubicGrid(const Vec3& size, std::int64_t targetBeams = 200000);
 
 /// An interior section over `lo`–`hi` (a scene's bounds, shrunk by `margin` of its diagonal so
 /// that entry points do not lie on the scene's walls), gridded with near-cubic cells so that its

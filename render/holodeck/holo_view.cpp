@@ -2,11 +2,13 @@
 
 #include <tbb/parallel_for.h>
 
+#include <limits>
 #include <map>
 
 #include "render/camera_rays.h"
 #include "solver/discretization.h"
 #include "solver/ray_tracer.h"
+#include "solver/scene.h"
 
 namespace penumbra {
 
@@ -21,6 +23,30 @@ bool seen(const RayTracer& tracer, const Vec3& eye, const Vec3& point) {
 }
 
 }  // namespace
+
+std::pair<Vec3, Vec3> surfaceBounds(const Discretization& disc) {
+    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+    for (const ObjectSurface& o : disc.objects()) {
+        if (!o.alive) continue;
+        for (const Vec3& p : o.worldPositions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    }
+    return {lo, hi};
+}
+
+std::vector<HoloSection> holodeckSections(const Settings& settings, const Discretization& disc) {
+    if (settings.holodeck.empty()) {
+        const auto [lo, hi] = surfaceBounds(disc);
+        return {layoutSection(lo, hi)};
+    }
+    std::vector<HoloSection> sections;
+    for (const HolodeckSectionSetting& s : settings.holodeck) {
+        const Vec3 size = s.max - s.min;
+        const std::array<int, 3> grid = s.grid[0] > 0 ? s.grid : nearCubicGrid(size);
+        sections.emplace_back(s.min, size, grid,
+                              s.exterior ? SectionKind::Exterior : SectionKind::Interior);
+    }
+    return sections;
+}
 
 std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
                                             const std::vector<BeamRequest>& view,

@@ -6,6 +6,7 @@
 // eye the sample was shaded for.
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "render/holodeck/holo_server.h"
@@ -16,6 +17,15 @@ namespace penumbra {
 
 class Discretization;
 class RayTracer;
+struct Settings;
+
+/// The bounds of the scene's surfaces (its alive objects' vertices).
+std::pair<Vec3, Vec3> surfaceBounds(const Discretization& disc);
+
+/// A new holodeck's sections: the scene file's (settings.holodeck), their grids derived where
+/// not given (nearCubicGrid), or else one interior section over the scene's surfaces
+/// (layoutSection). Throws std::invalid_argument when the scene has no surfaces.
+std::vector<HoloSection> holodeckSections(const Settings& settings, const Discretization& disc);
 
 /// The samples of `view`'s beams (viewRequests) as shaded points of `camera`: each sample's ray
 /// is traced again in the scene as it is (a sample whose ray now ends elsewhere is stale and

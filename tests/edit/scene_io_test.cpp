@@ -913,6 +913,24 @@ std::vector<BadScene> badScenes() {
          sceneWith(kBox, R"("white": {"reflectance": [0.5, 0.5, 0.5]})",
                    R"(, "settings": {"patch_size": 0.1, "element_size": 0.2})"),
          "settings.element_size", "must not exceed patch_size"},
+        {"HolodeckSectionInsideOut",
+         sceneWith(kBox, R"("white": {"reflectance": [0.5, 0.5, 0.5]})",
+                   R"(, "settings": {"holodeck": [{"min": [0, 0, 0], "max": [1, -1, 1]}]})"),
+         "settings.holodeck[0].max", "must exceed min"},
+        {"HolodeckSectionUnknownKind",
+         sceneWith(
+             kBox, R"("white": {"reflectance": [0.5, 0.5, 0.5]})",
+             R"(, "settings": {"holodeck": [{"kind": "outer", "min": [0, 0, 0], "max": [1, 1, 1]}]})"),
+         "settings.holodeck[0].kind", "kind must be \"interior\" or \"exterior\""},
+        {"HolodeckGridOutOfRange",
+         sceneWith(
+             kBox, R"("white": {"reflectance": [0.5, 0.5, 0.5]})",
+             R"(, "settings": {"holodeck": [{"min": [0, 0, 0], "max": [1, 1, 1], "grid": [4, 0, 4]}]})"),
+         "settings.holodeck[0].grid[1]", "cells must be in [1, 1024]"},
+        {"HolodeckNotAnArray",
+         sceneWith(kBox, R"("white": {"reflectance": [0.5, 0.5, 0.5]})",
+                   R"(, "settings": {"holodeck": {"min": [0, 0, 0]}})"),
+         "settings.holodeck", "expected a non-empty array of sections"},
         {"BadCameraFov",
          sceneWith(
              kBox, R"("white": {"reflectance": [0.5, 0.5, 0.5]})",
@@ -959,6 +977,39 @@ TEST_P(BadSceneTest, ErrorNamesFileAndKey) {
 
 INSTANTIATE_TEST_SUITE_P(EveryClass, BadSceneTest, ::testing::ValuesIn(badScenes()),
                          [](const auto& info) { return std::string(info.param.name); });
+
+TEST(SceneIo, HolodeckSectionsRoundTrip) {
+    TempDir dir;
+    const std::string path = dir.write(
+        "holo.json",
+        sceneWith(kBox, R"("white": {"reflectance": [0.5, 0.5, 0.5]})",
+                  R"(, "settings": {"holodeck": [{"min": [-1, 0, -2], "max": [1, 3, 2]},)"
+                  R"( {"kind": "exterior", "min": [0, 0, 0], "max": [0.5, 0.5, 0.5], "grid": [6, 5, 4]}]})"));
+    const Scene scene = loadScene(path);
+    ASSERT_EQ(scene.settings.holodeck.size(), 2u);
+    const HolodeckSectionSetting& room = scene.settings.holodeck[0];
+    EXPECT_FALSE(room.exterior);
+    EXPECT_EQ(room.min, Vec3(-1, 0, -2));
+    EXPECT_EQ(room.max, Vec3(1, 3, 2));
+    EXPECT_EQ(room.grid, (std::array<int, 3>{0, 0, 0}));
+    const HolodeckSectionSetting& object = scene.settings.holodeck[1];
+    EXPECT_TRUE(object.exterior);
+    EXPECT_EQ(object.grid, (std::array<int, 3>{6, 5, 4}));
+    // Saved and read again: the same sections, and the same text.
+    const std::string saved = dir.file("saved.json");
+    saveScene(scene, saved);
+    const Scene again = loadScene(saved);
+    ASSERT_EQ(again.settings.holodeck.size(), 2u);
+    for (std::size_t i = 0; i < 2; ++i) {
+        EXPECT_EQ(again.settings.holodeck[i].exterior, scene.settings.holodeck[i].exterior);
+        EXPECT_EQ(again.settings.holodeck[i].min, scene.settings.holodeck[i].min);
+        EXPECT_EQ(again.settings.holodeck[i].max, scene.settings.holodeck[i].max);
+        EXPECT_EQ(again.settings.holodeck[i].grid, scene.settings.holodeck[i].grid);
+    }
+    EXPECT_EQ(sceneToJson(scene), sceneToJson(again));
+    // A scene without them writes none.
+    EXPECT_FALSE(sceneToJson(Scene{})["settings"].contains("holodeck"));
+}
 
 TEST(SceneIo, MissingSceneFileThrows) {
     TempDir dir;

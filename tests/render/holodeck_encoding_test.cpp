@@ -115,6 +115,19 @@ TEST(HoloSection, LayoutStaysWithinThePapersRanges) {
     }
 }
 
+TEST(HoloSection, NearCubicGridMatchesTheBoxShape) {
+    // A box twice as long as it is wide and high gets cells twice as many along its length,
+    // and a beam count at least as near the target as every exactly proportional grid.
+    const std::array<int, 3> grid = nearCubicGrid(Vec3(8, 4, 4), 200000);
+    EXPECT_NEAR(double(grid[0]) / grid[1], 2.0, 0.25);
+    EXPECT_EQ(grid[1], grid[2]);
+    double bestMiss = std::numeric_limits<double>::infinity();
+    for (int k = 4; k <= 12; ++k)
+        bestMiss = std::min(bestMiss, std::abs(std::log(paperBeamCount(2 * k, k, k) / 2e5)));
+    EXPECT_LE(std::abs(std::log(paperBeamCount(grid[0], grid[1], grid[2]) / 2e5)),
+              bestMiss + 1e-12);
+}
+
 TEST(HoloSample, RgbeRoundTripWithinHalfAMantissaStep) {
     SplitMix rng(3);
     double worst = 0;
