@@ -736,15 +736,15 @@ int runHolodeckFill(const SolveArgs& a, const HolodeckArgs& h) {
     // A new holodeck gets the scene's sections; an existing one keeps its own.
     HoloFile file(path, holodeckSections(lit->scene().settings, lit->discretization()));
     HoloServer server(file, &shader);
-    const std::vector<BeamRequest> requests =
-        view ? viewRequests(file.sections(), *view, std::max(1, h.width / 4),
-                            std::max(1, h.height / 4), 1.0)
-             : server.batchRequests(1e6);
     const bool tty = ::isatty(STDERR_FILENO);
     const std::int64_t samples = h.samples > 0 || h.seconds > 0 ? h.samples : 1000000;
-    const FillStats stats = server.fill(requests, samples, h.seconds, 5.0, [&](double f) {
+    const auto progress = [&](double f) {
         if (tty) std::fprintf(stderr, "\rholodeck: filling %3.0f%%", 100 * f);
-    });
+    };
+    // A camera: its pixel rays (fillView); none: every beam by its volume (batch mode).
+    const FillStats stats =
+        view ? fillView(server, shader, lit->tracer(), *view, samples, h.seconds, a.seed, progress)
+             : server.fill(server.batchRequests(1e6), samples, h.seconds, 5.0, progress);
     if (tty) std::fprintf(stderr, "\n");
     nlohmann::json report = holodeckJson(file);
     report["samples_added"] = stats.samples;

@@ -110,8 +110,9 @@ HolodeckCase runCase(const HolodeckBenchOptions& o, const std::string& name,
     PointShader shader(disc, session->tracer(), options, shading);
     shader.updateSolution(session->solver());
 
-    // A batch fill of every beam, then the default camera's view filled to about a sample per
-    // pixel (the paper's interactive mode: the view's beams, persisted for the next visit).
+    // A batch fill of every beam, then the default camera's view filled with a sample per
+    // pixel (the paper's interactive mode, its rays through the eye: persisted for the next
+    // visit).
     std::filesystem::remove(file);
     const Camera* defaultCamera = session->scene().findCamera("default");
     const Camera camera = defaultCamera ? *defaultCamera : Camera{};
@@ -123,7 +124,7 @@ HolodeckCase runCase(const HolodeckBenchOptions& o, const std::string& name,
         const FillStats fill = server.fill(server.batchRequests(1e6), o.samples, 0);
         c.fillPerSecond = fill.samples / fill.seconds;
         view = viewRequests(holo.sections(), rays, o.width / 4, o.height / 4, 16.0);
-        server.fill(view, std::int64_t(o.width) * o.height, 0);
+        fillView(server, shader, session->tracer(), rays, std::int64_t(o.width) * o.height, 0);
     }
     std::vector<DecodedSample> decoded;
     // From disk: the file's pages dropped, a new file and server; opening (the directory) and

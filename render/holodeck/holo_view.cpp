@@ -4,7 +4,11 @@
 
 #include <limits>
 #include <map>
+#include <set>
+#include <stdexcept>
 
+#include "core/random.h"
+#include "core/timing.h"
 #include "render/camera_rays.h"
 #include "solver/discretization.h"
 #include "solver/ray_tracer.h"
@@ -99,8 +103,13 @@ std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
     return out;
 }
 
-std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& points,
-                             const RayTracer& tracer, const Vec3& eye) {
+namespace {
+
+using BeamKey = std::pair<int, std::int64_t>;
+
+/// storeViewPoints, also collecting the beams that got samples in `touched` (may be null).
+std::int64_t storeView(HoloServer& server, const std::vector<CachePoint>& points,
+                       const RayTracer& tracer, const Vec3& eye, std::set<BeamKey>* touched) {
     const std::vector<HoloSection>& sections = server.file().sections();
     // Each point's sample in the first section its ray from the eye crosses. The stored ray
     // runs between the byte positions of its cells, a few millimetres from the eye's ray: its
@@ -132,16 +141,82 @@ std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& 
             return;
         }
     });
-    std::map<std::pair<int, std::int64_t>, std::vector<HoloSample>> beams;
+    std::map<BeamKey, std::vector<HoloSample>> beams;
     for (const Stored& s : stored)
         if (s.section >= 0) beams[{s.section, s.beam}].push_back(s.sample);
     std::int64_t added = 0;
     for (const auto& [key, samples] : beams) {
         server.addSamples(key.first, key.second, samples);
         added += std::int64_t(samples.size());
+        if (touched) touched->insert(key);
     }
     server.flush();
     return added;
+}
+
+}  // namespace
+
+std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& points,
+                             const RayTracer& tracer, const Vec3& eye) {
+    return storeView(server, points, tracer, eye, nullptr);
+}
+
+FillStats fillView(HoloServer& server, const PointShader& shader, const RayTracer& tracer,
+                   const CameraRays& camera, std::int64_t maxSamples, double seconds,
+                   std::uint64_t seed, const std::function<void(double)>& progress) {
+    if (maxSamples <= 0 && !(seconds > 0))
+        throw std::invalid_argument("holodeck: fill needs a sample count or a time limit");
+    const Clock::time_point start = Clock::now();
+    const std::int64_t pixels = std::int64_t(camera.width()) * camera.height();
+    // A random order of the pixels (Fisher–Yates), the same for every pass.
+    std::vector<std::int64_t> order(static_cast<std::size_t>(pixels));
+    for (std::int64_t i = 0; i < pixels; ++i) order[std::size_t(i)] = i;
+    SplitMix rng(hashPair(seed, 0x686f6c6f));
+    for (std::int64_t i = pixels - 1; i > 0; --i)
+        std::swap(order[std::size_t(i)],
+                  order[std::size_t(std::min<std::int64_t>(i, std::int64_t(rng.next() * (i + 1))))]);
+    constexpr std::int64_t kBatch = 32768;
+    FillStats stats;
+    std::int64_t rays = 0;
+    std::set<BeamKey> touched;
+    // Rays whose hit is not stored (misses, and the few whose stored ray ends elsewhere) are
+    // made up by further rays; a batch that stores nothing (a view of the sky) ends the fill.
+    while ((maxSamples <= 0 || stats.samples < maxSamples) &&
+           !(seconds > 0 && secondsSince(start) >= seconds)) {
+        const std::int64_t n =
+            std::min(kBatch, maxSamples > 0 ? maxSamples - stats.samples : kBatch);
+        std::vector<CachePoint> points(static_cast<std::size_t>(n));
+        tbb::parallel_for(std::int64_t(0), n, [&](std::int64_t k) {
+            const std::int64_t ray = rays + k;
+            const std::int64_t pixel = order[std::size_t(ray % pixels)];
+            // The first pass through the pixels' centres (a pixel's one sample best stands for
+            // its mean), later ones jittered by a hash of the ray's number, so passes differ.
+            const std::uint64_t h = hashPair(seed, std::uint64_t(ray));
+            const bool first = ray < pixels;
+            ShadeRequest request;
+            request.pixel =
+                glm::dvec2(double(pixel % camera.width()) + (first ? 0.5 : double(h >> 40) * 0x1p-24),
+                           double(pixel / camera.width()) +
+                               (first ? 0.5 : double((h >> 16) & 0xffffff) * 0x1p-24));
+            request.origin = camera.origin();
+            request.direction = camera.rayDirection(request.pixel.x, request.pixel.y);
+            request.frame = h;
+            const ShadedPoint p = shader.shade(request);
+            points[std::size_t(k)] = {p.position, p.radiance, p.object, p.element, 0};
+        });
+        rays += n;
+        const std::int64_t stored = storeView(server, points, tracer, camera.origin(), &touched);
+        stats.samples += stored;
+        if (progress) {
+            const double bySamples = maxSamples > 0 ? double(stats.samples) / maxSamples : 0;
+            const double byTime = seconds > 0 ? secondsSince(start) / seconds : 0;
+            progress(std::min(1.0, std::max(bySamples, byTime)));
+        }
+        if (stored == 0) break;
+    }
+    stats.beams = std::int64_t(touched.size());
+    stats.seconds = secondsSince(start);
+    return stats;
 }
 
 }  // namespace penumbra

@@ -6,6 +6,7 @@
 // eye the sample was shaded for.
 
 #include <cstdint>
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -36,6 +37,19 @@ std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
                                             const Discretization& disc, const RayTracer& tracer,
                                             const CameraRays& camera, std::uint64_t frame,
                                             std::uint64_t shading);
+
+/// The interactive fill of a view (§2.3 keeps a view's new rays near the eye; these pass
+/// through it): `camera`'s pixel rays, one per pixel in a random order of the pixels (any
+/// prefix spread over the image, no pixel twice in a pass), the first pass through the
+/// pixels' centres and later ones jittered within them, shaded by `shader` on oneTBB's threads and stored as storeViewPoints
+/// stores the display's points, until `maxSamples` samples are stored or `seconds` have
+/// passed (either may be 0: no limit; not both), or a batch of rays stores none (a view of
+/// nothing but sky). A reopened view then finds about a sample in every pixel, where the
+/// ratio-ordered fill of the view's beams (HoloServer::fill with viewRequests) scatters them.
+/// Commits after every batch; `progress` (may be empty) gets the fraction done.
+FillStats fillView(HoloServer& server, const PointShader& shader, const RayTracer& tracer,
+                   const CameraRays& camera, std::int64_t maxSamples, double seconds,
+                   std::uint64_t seed = 1, const std::function<void(double)>& progress = {});
 
 /// Writes the display's shaded points into the holodeck as samples of the rays from `eye`
 /// through them, for the points the eye sees (a point shaded from another eye and hidden from

@@ -52,6 +52,7 @@ TEST_F(HolodeckCli, FillAddsTheSamplesAskedForAndInfoReportsThem) {
                   "' --camera default --width 64 --height 48 --samples 3000"),
               0)
         << err();
+    EXPECT_EQ(out()["samples_added"].get<std::int64_t>(), 3000);
     EXPECT_EQ(out()["samples"].get<std::int64_t>(), 23000);
     EXPECT_EQ(out()["sections"][0]["beams"].get<std::int64_t>(), sectionBeams);
 
@@ -90,6 +91,29 @@ TEST_F(HolodeckCli, RenderStoresItsPointsAndTheNextRenderStartsFromThem) {
                   (mDir / "g.png").string() + "'"),
               2);
     EXPECT_NE(err().find("--holodeck"), std::string::npos) << err();
+}
+
+TEST_F(HolodeckCli, AFilledViewReopensWithAPointInNearlyEveryPixel) {
+    // A view filled with a sample per pixel (its pixel rays) gives the reopened first frame
+    // nearly every pixel at once, and a smaller error than the display's own first frame.
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cube-room.json";
+    const std::string file = (mDir / "filled.hdk").string();
+    const int w = 160, h = 120;
+    ASSERT_EQ(run("holodeck fill '" + scene + "' --holodeck '" + file + "' --camera default" +
+                  " --width 160 --height 120 --samples " + std::to_string(w * h)),
+              0)
+        << err();
+    EXPECT_EQ(out()["samples_added"].get<std::int64_t>(), w * h);
+    const std::string render = "render '" + scene + "' --mode epi --width 160 --height 120" +
+                               " --out '" + (mDir / "view.png").string() + "' --report '" +
+                               (mDir / "report.json").string() + "'";
+    ASSERT_EQ(run(render), 0) << err();
+    const nlohmann::json without = nlohmann::json::parse(test::readFile(mDir / "report.json"));
+    ASSERT_EQ(run(render + " --holodeck '" + file + "'"), 0) << err();
+    const nlohmann::json with = nlohmann::json::parse(test::readFile(mDir / "report.json"));
+    EXPECT_GT(with["holodeck_samples"].get<std::int64_t>(), w * h * 9 / 10);
+    EXPECT_GT(with["frames"][0]["visible_points"].get<std::int64_t>(), w * h * 85 / 100);
+    EXPECT_LT(with["frames"][0]["rmse"].get<double>(), without["frames"][0]["rmse"].get<double>());
 }
 
 TEST_F(HolodeckCli, ReplayForgetsWhatEachEditChangedAndKeepsTheRest) {
