@@ -130,14 +130,22 @@ std::vector<LightOutline> lightOutlines(const Discretization& disc) {
 
 /// Every VE/EV event of every light outline with every other object (blockers through their
 /// welded element meshes: silhouette edges from a light corner, vertices whose one ring a
-/// light edge's plane supports).
-std::vector<Wedge> allWedges(const Discretization& disc) {
+/// light edge's plane supports); with `blockers`, only those objects block, alive or not (the
+/// versions an edit removed cast the events that went).
+std::vector<Wedge> allWedges(const Discretization& disc,
+                             const std::vector<int>* blockers = nullptr) {
     std::vector<Wedge> wedges;
     const std::vector<LightOutline> lights = lightOutlines(disc);
     if (lights.empty()) return wedges;
-    for (std::size_t o = 0; o < disc.objects().size(); ++o) {
-        const ObjectSurface& surface = disc.objects()[o];
-        if (!surface.alive) continue;
+    std::vector<int> objects;
+    if (blockers) {
+        objects = *blockers;
+    } else {
+        for (std::size_t o = 0; o < disc.objects().size(); ++o)
+            if (disc.objects()[o].alive) objects.push_back(static_cast<int>(o));
+    }
+    for (const int o : objects) {
+        const ObjectSurface& surface = disc.objects()[std::size_t(o)];
         const int front = std::min(surface.firstBackFace, static_cast<int>(surface.mesh.n_faces()));
         const EdgeMesh mesh = EdgeMesh::fromElementMesh(surface.mesh, 85.0, front);
         const Mat4 objectFromWorld = glm::inverse(surface.worldFromObject);
@@ -145,7 +153,7 @@ std::vector<Wedge> allWedges(const Discretization& disc) {
             return Vec3(surface.worldFromObject * glm::dvec4(mesh.positions()[v], 1.0));
         };
         for (const LightOutline& L : lights) {
-            if (L.object == static_cast<int>(o)) continue;
+            if (L.object == o) continue;
             for (const Vec3& corner : L.corners) {
                 const Vec3 eye = Vec3(objectFromWorld * glm::dvec4(corner, 1.0));
                 for (std::size_t e = 0; e < mesh.edges().size(); ++e) {
@@ -161,7 +169,7 @@ std::vector<Wedge> allWedges(const Discretization& disc) {
                         continue;
                     w.brightness = L.brightness;
                     w.emitterObject = L.object;
-                    w.blockerObject = static_cast<int>(o);
+                    w.blockerObject = o;
                     wedges.push_back(w);
                 }
             }
@@ -189,7 +197,7 @@ std::vector<Wedge> allWedges(const Discretization& disc) {
                     w.b[0] = w.b[1] = wv;
                     w.brightness = L.brightness;
                     w.emitterObject = L.object;
-                    w.blockerObject = static_cast<int>(o);
+                    w.blockerObject = o;
                     wedges.push_back(w);
                 }
             }
@@ -701,23 +709,57 @@ std::vector<Discontinuity> contactLines(const Discretization& disc, int element,
 
 void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
                      const HifiOptions& options, const std::function<void(double)>& progress) {
+    std::vector<int> todo(disc.elements().size());
+    for (std::size_t e = 0; e < todo.size(); ++e) todo[e] = static_cast<int>(e);
+    mesh(disc, exact, options, progress, todo, {});
+}
+
+void HifiMesh::update(const Discretization& disc, const ExactIrradiance& exact,
+                      const std::vector<std::uint8_t>& remesh, const HifiOptions& options,
+                      const std::function<void(double)>& progress) {
+    const int built = std::max(0, static_cast<int>(mFirst.size()) - 1);
+    const int elementCount = static_cast<int>(disc.elements().size());
+    std::vector<int> todo;
+    std::vector<std::uint8_t> keep(std::size_t(elementCount), 0);
+    for (int e = 0; e < elementCount; ++e) {
+        if (!disc.elementAlive(e)) continue;
+        const bool flagged = e < static_cast<int>(remesh.size()) && remesh[std::size_t(e)];
+        if (e < built && !flagged)
+            keep[std::size_t(e)] = 1;
+        else
+            todo.push_back(e);
+    }
+    mesh(disc, exact, options, progress, todo, keep);
+}
+
+void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
+                    const HifiOptions& options, const std::function<void(double)>& progress,
+                    const std::vector<int>& todo, const std::vector<std::uint8_t>& keep) {
     const auto start = std::chrono::steady_clock::now();
     const int elementCount = static_cast<int>(disc.elements().size());
     HifiBuild b(disc, exact, options);
     b.absoluteTolerance = refinementFloor(disc);
     b.grid = sampleGrid(disc);
-    auto work = [&] { tbb::parallel_for(0, elementCount, [&](int e) { meshElement(b, e); }); };
-    runReportingProgress(work, b.done, elementCount, progress);
-    // The elements' triangles in element order.
-    mTriangles.clear();
-    mFirst.assign(elementCount + 1, 0);
+    const int count = static_cast<int>(todo.size());
+    auto work = [&] { tbb::parallel_for(0, count, [&](int k) { meshElement(b, todo[k]); }); };
+    runReportingProgress(work, b.done, count, progress);
+    // The elements' triangles in element order: kept ones from this mesh, the rest new.
+    std::vector<HifiTriangle> triangles;
+    std::vector<int> first(std::size_t(elementCount) + 1, 0);
     for (int e = 0; e < elementCount; ++e) {
-        mFirst[e] = static_cast<int>(mTriangles.size());
-        mTriangles.insert(mTriangles.end(), b.perElement[e].begin(), b.perElement[e].end());
+        first[e] = static_cast<int>(triangles.size());
+        if (e < static_cast<int>(keep.size()) && keep[std::size_t(e)])
+            triangles.insert(triangles.end(), mTriangles.begin() + mFirst[e],
+                             mTriangles.begin() + mFirst[e + 1]);
+        else
+            triangles.insert(triangles.end(), b.perElement[e].begin(), b.perElement[e].end());
     }
-    mFirst[elementCount] = static_cast<int>(mTriangles.size());
+    first[elementCount] = static_cast<int>(triangles.size());
+    mTriangles = std::move(triangles);
+    mFirst = std::move(first);
     mStats = {};
     mStats.elements = elementCount;
+    mStats.remeshed = count;
     mStats.meshedElements = b.meshed.load();
     mStats.triangles = static_cast<int>(mTriangles.size());
     mStats.shadowSegments = b.shadowSegs.load();
@@ -728,6 +770,61 @@ void HifiMesh::build(const Discretization& disc, const ExactIrradiance& exact,
     mStats.centreSamples = b.centreSamples.load();
     mStats.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::vector<std::uint8_t> hifiRemeshElements(const Discretization& disc,
+                                             const std::vector<Rgb>& before,
+                                             const std::vector<Rgb>& after,
+                                             const std::vector<int>& changedObjects,
+                                             double threshold, const HifiOptions& options) {
+    const std::size_t n = disc.elements().size();
+    std::vector<std::uint8_t> remesh(n, 1);
+    // A changed lamp moves every event it casts: everything is re-meshed.
+    for (int o : changedObjects) {
+        const auto [first, count] = disc.elementRange(o);
+        if (count > 0 && disc.elementMaterial(first).isEmitter()) return remesh;
+    }
+    double mean = 0;
+    for (std::size_t e = 0; e < std::min(n, after.size()); ++e) mean += luminance(after[e]);
+    mean = n > 0 ? mean / double(n) : 0;
+    // The events the changed objects cast before and after, and their bounds (contacts).
+    const std::vector<Wedge> wedges = allWedges(disc, &changedObjects);
+    std::vector<std::pair<Vec3, Vec3>> bounds;
+    for (int o : changedObjects) {
+        Vec3 lo(1e300), hi(-1e300);
+        for (const Vec3& p : disc.objects()[std::size_t(o)].worldPositions)
+            lo = glm::min(lo, p), hi = glm::max(hi, p);
+        bounds.emplace_back(lo, hi);
+    }
+    auto unchanged = [&](std::size_t e) {
+        const double y0 = luminance(before[e]), y1 = luminance(after[e]);
+        if (std::abs(y1 - y0) > threshold * std::max(y0, 1e-3 * mean)) return false;
+        const int ei = static_cast<int>(e);
+        const ElementGeometry g = geometryOf(disc, ei);
+        // Near a changed object: its contact lines on this element may have come or gone.
+        const double margin = options.contactFraction * std::sqrt(disc.elements()[e].area);
+        Vec3 lo(1e300), hi(-1e300);
+        for (const Vec3& p : g.poly) lo = glm::min(lo, p), hi = glm::max(hi, p);
+        for (const auto& [blo, bhi] : bounds)
+            if (glm::all(glm::lessThanEqual(lo - margin, bhi)) &&
+                glm::all(glm::lessThanEqual(blo, hi + margin)))
+                return false;
+        // Crossed by an event of a changed object strong enough to be meshed, before or after
+        // (the element's mean light may hold while a penumbra moves across it).
+        for (const Wedge& w : wedges) {
+            glm::dvec2 a, b;
+            double weight = 0;
+            if (wedgeOnElement(w, disc.elements()[e], g.frame, g.poly2, a, b, weight) &&
+                weight >= options.minWeight)
+                return false;
+        }
+        return true;
+    };
+    const std::size_t known = std::min({n, before.size(), after.size()});
+    tbb::parallel_for(std::size_t(0), known, [&](std::size_t e) {
+        if (disc.elementAlive(static_cast<int>(e)) && unchanged(e)) remesh[e] = 0;
+    });
+    return remesh;
 }
 
 int HifiMesh::locate(int element, const Vec3& x, double& s, double& t) const {

@@ -14,6 +14,7 @@
 // Index: QuadraticInterpolant · HifiOptions · HifiTriangle · HifiStats · HifiMesh
 
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -73,6 +74,7 @@ struct HifiStats {
     int triangles = 0;
     int shadowSegments = 0;   ///< kept VE/EV segments
     int contactSegments = 0;  ///< contact lines
+    int remeshed = 0;         ///< elements this build meshed (update(): the changed ones)
     int samples = 0;          ///< irradiance evaluations at triangle vertices and midpoints
     int centreSamples = 0;    ///< exact-part evaluations at centres (the refinement test)
     double seconds = 0;
@@ -90,6 +92,15 @@ public:
     void build(const Discretization& disc, const ExactIrradiance& exact,
                const HifiOptions& options = {}, const std::function<void(double)>& progress = {});
 
+    /// After an edit (§ point 6 of the incremental display): re-meshes and re-samples the
+    /// alive elements flagged in `remesh` (hifiRemeshElements) and every element new since
+    /// the last build, with `exact` holding the new solution; every other alive element keeps
+    /// its triangles, and dead ones lose theirs. The stats count this update's work; `remesh`
+    /// may be shorter than the elements (the rest count as unflagged).
+    void update(const Discretization& disc, const ExactIrradiance& exact,
+                const std::vector<std::uint8_t>& remesh, const HifiOptions& options = {},
+                const std::function<void(double)>& progress = {});
+
     const std::vector<HifiTriangle>& triangles() const { return mTriangles; }
     /// Triangles of element e: triangles()[first(e) .. first(e + 1)).
     int first(int element) const { return mFirst[element]; }
@@ -102,10 +113,33 @@ public:
     std::string toString() const;
 
 private:
+    /// Meshes the elements `todo` and assembles the triangles, keeping this mesh's own for the
+    /// alive elements `keep` flags.
+    void mesh(const Discretization& disc, const ExactIrradiance& exact, const HifiOptions& options,
+              const std::function<void(double)>& progress, const std::vector<int>& todo,
+              const std::vector<std::uint8_t>& keep);
+
     std::vector<HifiTriangle> mTriangles;
     std::vector<int> mFirst;  ///< per element, plus one past the end
     HifiStats mStats;
 };
+
+/// The elements an edit makes HifiMesh::update re-mesh, given `changedObjects` (the versions
+/// the edit added, removed or changed: EditEvent::changed()): those whose radiosity luminance
+/// moved from `before` (the solution the mesh was built with) to `after` by more than
+/// `threshold` of what it was (dark elements against a floor of 1e-3 of the mean); those
+/// crossed by a shadow event (VE/EV) a changed object casts, before or after, of at least
+/// options.minWeight (a penumbra can move across an element whose mean light holds); and
+/// those within options.contactFraction of their size of a changed object's bounds, where
+/// contact lines come and go. A changed emitter moves every event it casts: all are flagged.
+/// Elements past `before`'s end are new and flagged; dead ones are flagged (update drops
+/// them either way).
+std::vector<std::uint8_t> hifiRemeshElements(const Discretization& disc,
+                                             const std::vector<Rgb>& before,
+                                             const std::vector<Rgb>& after,
+                                             const std::vector<int>& changedObjects,
+                                             double threshold = 0.01,
+                                             const HifiOptions& options = {});
 
 /// The per-pixel pass (§2.6) with the visible triangle and its barycentrics found by one
 /// Embree ray per sample: radiance B/π, `samples`² jittered samples per pixel.

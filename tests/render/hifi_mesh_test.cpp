@@ -13,6 +13,7 @@
 #include <cmath>
 #include <random>
 
+#include "edit/edit_session.h"
 #include "render/camera_rays.h"
 #include "render/cdt.h"
 #include "render/exact_irradiance.h"
@@ -316,6 +317,85 @@ TEST(HifiMesh, ACancelledBuildStopsEarlyAndSaysSo) {
     EXPECT_TRUE(part.stats().cancelled);
     EXPECT_LT(part.stats().triangles, whole.stats().triangles / 2);
     EXPECT_LT(part.stats().samples, whole.stats().samples / 2);
+}
+
+TEST(HifiMesh, AnUpdateAfterAMoveRemeshesWhatChangedAsAFullBuildWouldAndKeepsTheRest) {
+    EditSession session(boxOnFloor(true), SolverOptions{});
+    session.converge(1e-4);
+    const Discretization& disc = session.discretization();
+    ExactIrradiance before(disc, {}, &session.tracer());
+    before.setReflected(reflectedRadiosity(disc, session.solver()));
+    HifiMesh mesh;
+    mesh.build(disc, before);
+    const HifiMesh old = mesh;
+    const std::vector<Rgb> lightBefore = session.solver().radiosity();
+
+    // The box slides 0.3 m away from the lamp: its shadow and contact lines move with it.
+    const EditEvent event = session.apply(MoveCommand{"box", Vec3(0.3, 0, 0)});
+    session.converge(1e-4);
+    ExactIrradiance after(disc, {}, &session.tracer());
+    after.setReflected(reflectedRadiosity(disc, session.solver()));
+    const std::vector<std::uint8_t> remesh =
+        hifiRemeshElements(disc, lightBefore, session.solver().radiosity(), event.changed());
+    mesh.update(disc, after, remesh);
+    HifiMesh full;
+    full.build(disc, after);
+
+    // Some floor elements are re-meshed (the old and new shadow, the contacts), not all.
+    int flaggedFloor = 0, floor = 0;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e)
+        if (disc.elementAlive(int(e)) && disc.elements()[e].object == 0)
+            ++floor, flaggedFloor += remesh[e];
+    EXPECT_GT(flaggedFloor, 0);
+    EXPECT_LT(flaggedFloor, floor);
+    EXPECT_LT(mesh.stats().remeshed, full.stats().remeshed);
+    // Elements past the old solution's are new (the box's moved version): always meshed.
+    const int built = int(lightBefore.size());
+    int newElements = 0;
+    // Each alive element: kept as it was when unflagged, as a full build makes it otherwise.
+    for (int e = 0; e < int(disc.elements().size()); ++e) {
+        if (!disc.elementAlive(e)) {
+            EXPECT_EQ(mesh.first(e), mesh.first(e + 1)) << "dead element " << e;
+            continue;
+        }
+        const bool kept = e < built && !remesh[e];
+        const HifiMesh& expected = kept ? old : full;
+        if (e >= built) {
+            ++newElements;
+            EXPECT_TRUE(remesh[e]);
+        }
+        ASSERT_EQ(mesh.first(e + 1) - mesh.first(e), expected.first(e + 1) - expected.first(e))
+            << "element " << e << (kept ? " kept" : " re-meshed");
+        for (int k = 0; k < mesh.first(e + 1) - mesh.first(e); ++k) {
+            const HifiTriangle& a = mesh.triangles()[mesh.first(e) + k];
+            const HifiTriangle& b = expected.triangles()[expected.first(e) + k];
+            for (int v = 0; v < 3; ++v) EXPECT_EQ(a.p[v], b.p[v]) << "element " << e;
+            for (int c = 0; c < 6; ++c)
+                EXPECT_NEAR(glm::length(a.irradiance.c[c] - b.irradiance.c[c]), 0.0,
+                            1e-9 * (1 + glm::length(b.irradiance.c[c])))
+                    << "element " << e;
+        }
+    }
+    EXPECT_GT(newElements, 0);  // the box's new version
+    // And the unflagged elements were near enough: the floor's radiosity from the update is
+    // within 1% (RMS, relative) of the full build's.
+    double diff = 0, norm = 0;
+    for (int i = 0; i < 40; ++i)
+        for (int k = 0; k < 40; ++k) {
+            const Vec3 x(-0.975 + 1.95 * (i + 0.5) / 40, 0, -0.975 + 1.95 * (k + 0.5) / 40);
+            const RayTracer::FirstHit hit =
+                session.tracer().firstHit(x + Vec3(0, 0.01, 0), Vec3(0, -1, 0));
+            if (hit.element < 0 || disc.elements()[hit.element].object != 0) continue;
+            double s1 = 0, t1 = 0, s2 = 0, t2 = 0;
+            const int a = mesh.locate(hit.element, x, s1, t1);
+            const int b = full.locate(hit.element, x, s2, t2);
+            if (a < 0 || b < 0) continue;
+            const double ya = luminance(mesh.radiosity(disc, a, s1, t1));
+            const double yb = luminance(full.radiosity(disc, b, s2, t2));
+            diff += (ya - yb) * (ya - yb);
+            norm += yb * yb;
+        }
+    EXPECT_LT(std::sqrt(diff / norm), 0.01);
 }
 
 TEST(HifiMesh, RendersWithoutADisplay) {
