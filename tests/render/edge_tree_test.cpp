@@ -127,6 +127,9 @@ void checkAgainstBruteForce(const std::string& file) {
     }
 }
 
+/// The one material of these scenes.
+const std::string kMaterial = "m";
+
 SceneObject primitive(ShapeType type, Vec3 size, double radius = 0.5, int segments = 24) {
     SceneObject o;
     o.id = "p";
@@ -134,7 +137,7 @@ SceneObject primitive(ShapeType type, Vec3 size, double radius = 0.5, int segmen
     o.shape.size = size;
     o.shape.radius = radius;
     o.shape.segments = segments;
-    o.material = "m";
+    o.material = kMaterial;
     return o;
 }
 
