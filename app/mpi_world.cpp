@@ -1,0 +1,63 @@
+#include "app/mpi_world.h"
+
+// The C API only: Open MPI's deprecated C++ bindings stay out.
+#define OMPI_SKIP_MPICXX 1
+#include <mpi.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <exception>
+
+namespace penumbra {
+
+bool launchedByMpirun() {
+    return std::getenv("OMPI_COMM_WORLD_SIZE") != nullptr || std::getenv("PMIX_RANK") != nullptr;
+}
+
+MpiWorld::MpiWorld() {
+    if (!launchedByMpirun()) return;
+    MPI_Init(nullptr, nullptr);
+    mActive = true;
+    MPI_Comm_rank(MPI_COMM_WORLD, &mRank);
+    MPI_Comm_size(MPI_COMM_WORLD, &mSize);
+    if (const char* local = std::getenv("OMPI_COMM_WORLD_LOCAL_SIZE"))
+        mLocalSize = std::max(1, std::atoi(local));
+    // An exception nobody catches ends the whole job rather than leaving the other ranks
+    // waiting in a collective call.
+    std::set_terminate([] {
+        MPI_Abort(MPI_COMM_WORLD, 2);
+        std::abort();
+    });
+}
+
+MpiWorld::~MpiWorld() {
+    if (mActive) MPI_Finalize();
+}
+
+int MpiWorld::lowestFailing(bool failed) const {
+    if (!mActive) return failed ? 0 : -1;
+    int mine = failed ? mRank : mSize, lowest = mSize;
+    MPI_Allreduce(&mine, &lowest, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    return lowest < mSize ? lowest : -1;
+}
+
+std::int64_t MpiWorld::sum(std::int64_t value) const {
+    if (!mActive) return value;
+    std::int64_t total = 0;
+    MPI_Allreduce(&value, &total, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+    return total;
+}
+
+double MpiWorld::max(double value) const {
+    if (!mActive) return value;
+    double most = 0;
+    MPI_Allreduce(&value, &most, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    return most;
+}
+
+void MpiWorld::abort(int code) const {
+    if (mActive) MPI_Abort(MPI_COMM_WORLD, code);
+    std::exit(code);
+}
+
+}  // namespace penumbra
