@@ -116,6 +116,11 @@ HoloMergeStats mergeHoloParts(HoloFile& target, const std::vector<std::string>& 
     stats.parts = int(parts.size());
     std::vector<Pick> picks;
     for (const auto& [key, holding] : holders) {
+        // Held by one part alone (a rank's own beam, new to the target): taken as it is.
+        if (holding.size() == 1 && target.sampleCount(key.first, key.second) == 0) {
+            picks.push_back({key.first, key.second, holding[0]});
+            continue;
+        }
         std::vector<HoloSample> longest = target.readBeam(key.first, key.second);
         const std::size_t had = longest.size();
         std::string longestName = target.path();
@@ -134,14 +139,18 @@ HoloMergeStats mergeHoloParts(HoloFile& target, const std::vector<std::string>& 
                         " (another seed, scene or solution); nothing merged");
             if (longer) longest = std::move(samples), longestName = parts[k], from = k;
         }
-        const std::int64_t added = std::int64_t(longest.size() - had);
-        if (from < files.size()) picks.push_back({key.first, key.second, from}), ++stats.beams;
-        stats.samplesAdded += added;
-        stats.samplesShared += held - added;
+        if (from < files.size()) picks.push_back({key.first, key.second, from});
+        stats.samplesShared += held - std::int64_t(longest.size() - had);
     }
     // Write the plan and commit once.
-    for (const Pick& p : picks)
-        target.writeBeam(p.section, p.beam, files[p.part].readBeam(p.section, p.beam));
+    for (const Pick& p : picks) {
+        const std::uint32_t had = target.sampleCount(p.section, p.beam);
+        const std::vector<HoloSample> samples = files[p.part].readBeam(p.section, p.beam);
+        if (samples.size() <= had) continue;  // its record failed its checksum since
+        target.writeBeam(p.section, p.beam, samples);
+        ++stats.beams;
+        stats.samplesAdded += std::int64_t(samples.size() - had);
+    }
     target.commit();
     return stats;
 }
