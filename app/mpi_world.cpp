@@ -5,10 +5,29 @@
 #include <mpi.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <exception>
+#include <thread>
 
 namespace penumbra {
+
+namespace {
+
+/// An allreduce over MPI_COMM_WORLD that waits asleep: a blocking one spins a core at full
+/// speed until the last rank arrives, and the ranks that wait (for the slowest fill, for rank
+/// 0's merge) share the machine with the ones still working.
+void allreduce(const void* in, void* out, MPI_Datatype type, MPI_Op op) {
+    MPI_Request request;
+    MPI_Iallreduce(in, out, 1, type, op, MPI_COMM_WORLD, &request);
+    for (int done = 0;;) {
+        MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+        if (done) return;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+}
+
+}  // namespace
 
 bool launchedByMpirun() {
     return std::getenv("OMPI_COMM_WORLD_SIZE") != nullptr || std::getenv("PMIX_RANK") != nullptr;
@@ -37,21 +56,21 @@ MpiWorld::~MpiWorld() {
 int MpiWorld::lowestFailing(bool failed) const {
     if (!mActive) return failed ? 0 : -1;
     int mine = failed ? mRank : mSize, lowest = mSize;
-    MPI_Allreduce(&mine, &lowest, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    allreduce(&mine, &lowest, MPI_INT, MPI_MIN);
     return lowest < mSize ? lowest : -1;
 }
 
 std::int64_t MpiWorld::sum(std::int64_t value) const {
     if (!mActive) return value;
     std::int64_t total = 0;
-    MPI_Allreduce(&value, &total, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+    allreduce(&value, &total, MPI_INT64_T, MPI_SUM);
     return total;
 }
 
 double MpiWorld::max(double value) const {
     if (!mActive) return value;
     double most = 0;
-    MPI_Allreduce(&value, &most, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    allreduce(&value, &most, MPI_DOUBLE, MPI_MAX);
     return most;
 }
 

@@ -9,6 +9,8 @@
 #include <stdexcept>
 
 #include "core/input_error.h"
+#include "core/log.h"
+#include "core/timing.h"
 
 namespace penumbra {
 
@@ -94,6 +96,7 @@ std::int64_t seedPart(HoloFile& base, HoloFile& part, const std::vector<BeamRequ
 }
 
 HoloMergeStats mergeHoloParts(HoloFile& target, const std::vector<std::string>& parts) {
+    const Clock::time_point start = Clock::now();
     // Open every part; each must be another file with the target's sections.
     std::vector<HoloFile> files;
     files.reserve(parts.size());
@@ -142,6 +145,8 @@ HoloMergeStats mergeHoloParts(HoloFile& target, const std::vector<std::string>& 
         if (from < files.size()) picks.push_back({key.first, key.second, from});
         stats.samplesShared += held - std::int64_t(longest.size() - had);
     }
+    spdlog::debug("holodeck merge: {} parts opened and {} beams planned in {:.0f} ms", parts.size(),
+                  picks.size(), msSince(start));
     // Write the plan and commit once.
     for (const Pick& p : picks) {
         const std::uint32_t had = target.sampleCount(p.section, p.beam);
@@ -151,7 +156,9 @@ HoloMergeStats mergeHoloParts(HoloFile& target, const std::vector<std::string>& 
         ++stats.beams;
         stats.samplesAdded += std::int64_t(samples.size() - had);
     }
+    spdlog::debug("holodeck merge: {} beams written at {:.0f} ms", stats.beams, msSince(start));
     target.commit();
+    spdlog::debug("holodeck merge: committed at {:.0f} ms", msSince(start));
     return stats;
 }
 
