@@ -147,14 +147,25 @@ HoloMergeStats mergeHoloParts(HoloFile& target, const std::vector<std::string>& 
     }
     spdlog::debug("holodeck merge: {} parts opened and {} beams planned in {:.0f} ms", parts.size(),
                   picks.size(), msSince(start));
-    // Write the plan and commit once.
-    for (const Pick& p : picks) {
+    // Write the plan, a few megabytes of records at a time, and commit once.
+    constexpr std::size_t kBatchSamples = std::size_t(1) << 20;
+    std::vector<HoloFile::BeamSamples> batch;
+    std::size_t batchSamples = 0;
+    for (std::size_t i = 0; i < picks.size(); ++i) {
+        const Pick& p = picks[i];
         const std::uint32_t had = target.sampleCount(p.section, p.beam);
-        const std::vector<HoloSample> samples = files[p.part].readBeam(p.section, p.beam);
-        if (samples.size() <= had) continue;  // its record failed its checksum since
-        target.writeBeam(p.section, p.beam, samples);
-        ++stats.beams;
-        stats.samplesAdded += std::int64_t(samples.size() - had);
+        std::vector<HoloSample> samples = files[p.part].readBeam(p.section, p.beam);
+        if (samples.size() > had) {  // else its record failed its checksum since
+            ++stats.beams;
+            stats.samplesAdded += std::int64_t(samples.size() - had);
+            batchSamples += samples.size();
+            batch.push_back({p.section, p.beam, std::move(samples)});
+        }
+        if (batchSamples >= kBatchSamples || i + 1 == picks.size()) {
+            target.writeBeams(batch);
+            batch.clear();
+            batchSamples = 0;
+        }
     }
     spdlog::debug("holodeck merge: {} beams written at {:.0f} ms", stats.beams, msSince(start));
     target.commit();

@@ -1,8 +1,9 @@
 // Merging holodeck parts (render/holodeck/holo_merge.h): the ranks' shares cover every request
 // once with balanced desired totals and sample counts summing to the total; a part seeded from
-// the target continues its beams; parts holding a beam as prefixes of one sequence merge into
-// the longest, with no sample twice; a part that disagrees, has other sections or is the target
-// is refused with the target's bytes untouched.
+// the target continues its beams; HoloFile::writeBeams, which the merge writes with, is
+// writeBeam for each; parts holding a beam as prefixes of one sequence merge into the longest,
+// with no sample twice; a part that disagrees, has other sections or is the target is refused
+// with the target's bytes untouched.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -105,6 +106,31 @@ TEST_F(HoloMergeTest, APartSeededFromTheTargetContinuesItsBeams) {
     EXPECT_TRUE(same(part.readBeam(0, 5), sequence(1, 5, 4)));
     EXPECT_EQ(part.sampleCount(0, 7), 0u);
     EXPECT_EQ(part.sampleCount(0, 9), 0u);
+}
+
+TEST_F(HoloMergeTest, WriteBeamsIsWriteBeamForEachInOneExtent) {
+    {
+        HoloFile file(path("w.hdk"), oneSection());
+        file.writeBeam(0, 1, sequence(1, 1, 3));
+        file.writeBeam(0, 2, sequence(1, 2, 3));
+        file.commit();
+        // Beam 1 replaced, beam 2 emptied, beam 3 written twice (the later wins), beam 4 new.
+        file.writeBeams({{0, 1, sequence(1, 1, 6)},
+                         {0, 2, {}},
+                         {0, 3, sequence(1, 3, 2)},
+                         {0, 4, sequence(1, 4, 5)},
+                         {0, 3, sequence(1, 3, 4)}});
+        EXPECT_THROW(file.writeBeams({{0, 5, sequence(1, 5, 1)}, {0, -1, sequence(1, 0, 1)}}),
+                     std::invalid_argument);
+        EXPECT_EQ(file.sampleCount(0, 5), 0u) << "a refused batch wrote a beam";
+        file.commit();
+    }
+    HoloFile file = HoloFile::openReadOnly(path("w.hdk"));
+    EXPECT_TRUE(same(file.readBeam(0, 1), sequence(1, 1, 6)));
+    EXPECT_EQ(file.sampleCount(0, 2), 0u);
+    EXPECT_TRUE(same(file.readBeam(0, 3), sequence(1, 3, 4)));
+    EXPECT_TRUE(same(file.readBeam(0, 4), sequence(1, 4, 5)));
+    EXPECT_EQ(file.info().samples, 6 + 4 + 5);
 }
 
 TEST_F(HoloMergeTest, OverlappingPartsMergeIntoTheLongestWithNoSampleTwice) {
