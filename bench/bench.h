@@ -103,10 +103,14 @@ struct HolodeckBenchOptions {
     std::int64_t samples = 2000000;  ///< the batch fill
     int width = 512;                 ///< the default camera's view, whose beams are read back
     int height = 512;
+    /// `mpirun -np K penumbra holodeck fill` of `samples` for each K (empty: none), timed as a
+    /// subprocess of this binary.
+    std::vector<int> ranks{1, 2};
     std::string jsonOut;
 };
 /// `penumbra bench holodeck`: fill rate and bytes per sample of a batch fill; a view's samples
-/// read back from disk and from memory, against shading them (Ward & Simmons 1999).
+/// read back from disk and from memory, against shading them (Ward & Simmons 1999); the batch
+/// fill's rate under mpirun with each of `ranks` processes.
 int runHolodeckBench(const HolodeckBenchOptions& options);
 
 }  // namespace penumbra

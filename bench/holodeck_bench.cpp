@@ -4,12 +4,16 @@
 // operating system's cache ("disk", after opening it) and again from the server's memory, each
 // decoded to world-space samples on one thread. The baseline, measured in the same run, is
 // shading as many of the view's rays with the display's point shader on one thread; the
-// paper's figure is 41,000 samples/s read from file per view.
+// paper's figure is 41,000 samples/s read from file per view. Last, the batch fill shared among
+// processes: `mpirun -np K` of this binary's `holodeck fill` for K = 1, 2 (docs/holodeck.md,
+// "Scale-out"), the rate 2 against 1 measured in the same run.
 
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -167,6 +171,81 @@ HolodeckCase runCase(const HolodeckBenchOptions& o, const std::string& name,
     return c;
 }
 
+/// One `mpirun -np K ... holodeck fill` of a new holodeck: its report's rates and the wall time
+/// of the whole job (MPI's start, every rank's solve, fill and merge).
+struct RanksFill {
+    int ranks = 0;
+    double samplesPerSecond = 0;  ///< the report's: fill and merge
+    double fillPerSecond = 0;     ///< the slowest rank's fill alone
+    double mergeSeconds = 0, wallSeconds = 0;
+};
+
+RanksFill runRanksFill(const HolodeckBenchOptions& o, const std::string& name, int ranks,
+                       const std::string& file) {
+    // Open MPI refuses to start as root unless told to (CI and these machines run as root).
+    if (::geteuid() == 0) {
+        ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+        ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+    }
+    const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+    const std::string command = "mpirun -q -np " + std::to_string(ranks) +
+                                " --oversubscribe --bind-to none '" + self + "' holodeck fill '" +
+                                o.sceneDir + "/" + name + ".json' --holodeck '" + file +
+                                "' --samples " + std::to_string(o.samples) + " 2>&1";
+    std::filesystem::remove(file);
+    const auto start = Clock::now();
+    FILE* pipe = ::popen(command.c_str(), "r");
+    if (!pipe) throw std::runtime_error("bench holodeck: cannot run mpirun");
+    std::string output;
+    std::array<char, 4096> buffer;
+    for (std::size_t n; (n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0;)
+        output.append(buffer.data(), n);
+    const int status = ::pclose(pipe);
+    RanksFill r;
+    r.ranks = ranks;
+    r.wallSeconds = secondsSince(start);
+    std::filesystem::remove(file);
+    if (status != 0) throw std::runtime_error("bench holodeck: " + command + ": " + output);
+    const nlohmann::json report = nlohmann::json::parse(output.substr(output.find('{')));
+    r.samplesPerSecond = report["samples_per_second"].get<double>();
+    r.fillPerSecond = report["samples_added"].get<double>() / report["fill_seconds"].get<double>();
+    r.mergeSeconds = report["merge_seconds"].get<double>();
+    return r;
+}
+
+/// The batch fill under mpirun with every rank count of `o.ranks`, scene by scene; the ratio is
+/// each count's rate against the first's.
+nlohmann::json runRanksTable(const HolodeckBenchOptions& o) {
+    nlohmann::json out = nlohmann::json::array();
+    if (o.ranks.empty()) return out;
+    std::printf("\n%-12s %6s %12s %14s %9s %9s %8s\n", "mpirun", "ranks", "samples/s", "fill smp/s",
+                "merge s", "wall s", "ratio");
+    for (const std::string& name : o.cases) {
+        const std::string file =
+            (std::filesystem::temp_directory_path() /
+             ("penumbra-bench-ranks-" + name + "-" + std::to_string(::getpid()) + ".hdk"))
+                .string();
+        double base = 0;
+        for (const int ranks : o.ranks) {
+            const RanksFill r = runRanksFill(o, name, ranks, file);
+            if (base == 0) base = r.samplesPerSecond;
+            std::printf("%-12s %6d %12.0f %14.0f %9.2f %9.2f %8.2f\n", name.c_str(), r.ranks,
+                        r.samplesPerSecond, r.fillPerSecond, r.mergeSeconds, r.wallSeconds,
+                        r.samplesPerSecond / base);
+            std::fflush(stdout);
+            out.push_back({{"scene", name},
+                           {"ranks", r.ranks},
+                           {"samples_per_second", r.samplesPerSecond},
+                           {"fill_samples_per_second", r.fillPerSecond},
+                           {"merge_seconds", r.mergeSeconds},
+                           {"wall_seconds", r.wallSeconds},
+                           {"ratio", r.samplesPerSecond / base}});
+        }
+    }
+    std::printf("samples/s: the report's (every rank's fill and the merge); wall: the whole job\n");
+    return out;
+}
+
 }  // namespace
 
 int runHolodeckBench(const HolodeckBenchOptions& o) {
@@ -217,6 +296,10 @@ int runHolodeckBench(const HolodeckBenchOptions& o) {
                     c["first_frame_ms"].get<double>(), c["first_frame_error"].get<double>(),
                     c["display_first_error"].get<double>(), c["display_30_error"].get<double>());
     std::printf("goals: first frame <= 500 ms, its error <= the display's after 30 frames\n");
+    // Each scene's entry gains its mpirun rows.
+    for (const nlohmann::json& r : runRanksTable(o))
+        for (nlohmann::json& c : out)
+            if (c["scene"] == r["scene"]) c["mpirun"].push_back(r);
     if (!o.jsonOut.empty()) writeFileAtomically(o.jsonOut, out.dump(2) + "\n");
     return 0;
 }

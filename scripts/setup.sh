@@ -11,6 +11,8 @@ PACKAGES=(
   nlohmann-json3-dev libcli11-dev libstb-dev libtinyobjloader-dev libtinygltf-dev
   libgtest-dev libbenchmark-dev libeigen3-dev libtinyexr-dev python3-glad xvfb libspdlog-dev
   zlib1g-dev
+  # Open MPI: `mpirun -np N penumbra holodeck fill` shares a batch fill among processes.
+  libopenmpi-dev openmpi-bin
   # xvfb-run needs xauth (only a Recommends of xvfb); llvmpipe comes with libgl1-mesa-dri.
   xauth libgl1-mesa-dri
 )

@@ -419,31 +419,70 @@ std::vector<HoloSample> HoloFile::readBeam(int section, std::int64_t beam) {
     return samples;
 }
 
-void HoloFile::writeBeam(int section, std::int64_t beam, const std::vector<HoloSample>& samples) {
+void HoloFile::checkWritable(int section, std::int64_t beam, std::size_t samples) const {
     if (!mWritable) throw std::logic_error("holodeck: writeBeam on a file opened read-only");
     if (section < 0 || section >= int(mSections.size()) || beam < 0 ||
         beam >= mSections[section].beamCount())
         throw std::invalid_argument("holodeck: beam " + std::to_string(beam) + " of section " +
                                     std::to_string(section) + " is out of range");
-    if (samples.size() > 0xffffffffu) throw std::invalid_argument("holodeck: beam too large");
+    if (samples > 0xffffffffu) throw std::invalid_argument("holodeck: beam too large");
+}
+
+void HoloFile::forget(int section, std::int64_t beam) {
     auto& dir = mDirectory[section];
     const auto old = dir.find(beam);
-    if (old != dir.end()) {
-        mPendingFree.emplace_back(old->second.offset, beamRecordBytes(old->second.count));
-        dir.erase(old);
-    }
-    if (samples.empty()) return;
+    if (old == dir.end()) return;
+    mPendingFree.emplace_back(old->second.offset, beamRecordBytes(old->second.count));
+    dir.erase(old);
+}
+
+void HoloFile::encodeRecord(int section, std::int64_t beam, const std::vector<HoloSample>& samples,
+                            std::uint8_t* record) {
     const auto count = static_cast<std::uint32_t>(samples.size());
-    std::vector<std::uint8_t> record(beamRecordBytes(count));
     put32(&record[0], kBeamMagic);
     put32(&record[8], static_cast<std::uint32_t>(section));
     put32(&record[12], count);
     put64(&record[16], static_cast<std::uint64_t>(beam));
     std::memcpy(&record[kRecordHeader], samples.data(), sizeof(HoloSample) * count);
-    put32(&record[4], crc(&record[8], record.size() - 8));
+    put32(&record[4], crc(&record[8], beamRecordBytes(count) - 8));
+}
+
+void HoloFile::writeBeam(int section, std::int64_t beam, const std::vector<HoloSample>& samples) {
+    checkWritable(section, beam, samples.size());
+    forget(section, beam);
+    if (samples.empty()) return;
+    const auto count = static_cast<std::uint32_t>(samples.size());
+    std::vector<std::uint8_t> record(beamRecordBytes(count));
+    encodeRecord(section, beam, samples, record.data());
     const std::uint64_t offset = allocate(record.size());
     writeAt(offset, record.data(), record.size());
-    dir[beam] = {offset, count};
+    mDirectory[section][beam] = {offset, count};
+}
+
+void HoloFile::writeBeams(const std::vector<BeamSamples>& beams) {
+    std::uint64_t bytes = 0;
+    for (const BeamSamples& b : beams) {
+        checkWritable(b.section, b.beam, b.samples.size());
+        if (!b.samples.empty()) bytes += beamRecordBytes(std::uint32_t(b.samples.size()));
+    }
+    // Every record into one buffer, written to one extent; then the directory points at them.
+    std::vector<std::uint8_t> records(bytes);
+    std::uint64_t at = 0;
+    for (const BeamSamples& b : beams) {
+        if (b.samples.empty()) continue;
+        encodeRecord(b.section, b.beam, b.samples, &records[at]);
+        at += beamRecordBytes(std::uint32_t(b.samples.size()));
+    }
+    const std::uint64_t offset = bytes > 0 ? allocate(bytes) : 0;
+    if (bytes > 0) writeAt(offset, records.data(), records.size());
+    at = 0;
+    for (const BeamSamples& b : beams) {
+        forget(b.section, b.beam);
+        if (b.samples.empty()) continue;
+        const auto count = static_cast<std::uint32_t>(b.samples.size());
+        mDirectory[b.section][b.beam] = {offset + at, count};
+        at += beamRecordBytes(count);
+    }
 }
 
 void HoloFile::commit() {

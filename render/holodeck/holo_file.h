@@ -61,6 +61,16 @@ public:
     /// Replaces a beam's samples (durable at the next commit). Throws std::invalid_argument for
     /// a section or beam out of range, InputError when the write fails.
     void writeBeam(int section, std::int64_t beam, const std::vector<HoloSample>& samples);
+    /// A beam's samples, for writeBeams.
+    struct BeamSamples {
+        int section = 0;
+        std::int64_t beam = 0;
+        std::vector<HoloSample> samples;
+    };
+    /// Replaces many beams' samples at once, as writeBeam each (a later entry for a beam wins),
+    /// with their records side by side in one extent written at once (merging many beams).
+    /// Checks every beam before writing any; throws as writeBeam.
+    void writeBeams(const std::vector<BeamSamples>& beams);
     /// Makes every write so far durable (records, directory, superblock; fsync between).
     void commit();
     /// The beams holding samples, by section, in beam order.
@@ -85,6 +95,12 @@ private:
     void rebuildFreeList();
     std::uint64_t allocate(std::uint64_t bytes);
     void release(std::uint64_t offset, std::uint64_t bytes);
+    void checkWritable(int section, std::int64_t beam, std::size_t samples) const;
+    /// Drops a beam from the directory; its record is freed at the next commit.
+    void forget(int section, std::int64_t beam);
+    /// A beam record (beamRecordBytes of the samples) at `record`.
+    static void encodeRecord(int section, std::int64_t beam, const std::vector<HoloSample>& samples,
+                             std::uint8_t* record);
     void writeAt(std::uint64_t offset, const void* data, std::size_t bytes);
     bool readAt(std::uint64_t offset, void* data, std::size_t bytes) const;
     void sync();
