@@ -1323,7 +1323,8 @@ void SessionRunner::handHolodeckPoints(const ViewRequest& view, const Light& lig
         store.points.push_back(p);
     }
     if (store.points.empty()) return;
-    spdlog::debug("holodeck: {} points handed over to be stored", store.points.size());
+    spdlog::debug("holodeck: {} points handed over to be stored ({} in it before)",
+                  store.points.size(), slot.holoPositions.size() - store.points.size());
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         mHoloStores.push_back(std::move(store));
