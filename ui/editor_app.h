@@ -67,8 +67,8 @@ struct EditorOptions {
     /// The holodeck (docs/holodeck.md) the display modes start a view from and store their
     /// converged points in: `holodeck` for the scene named in `scene` (created when missing);
     /// otherwise, for every scene opened, the scene's path with the extension .hdk when that
-    /// file exists. `noHolodeck`: none. One that cannot be opened is a warning in the status
-    /// line and on stderr, and the scene opens without it.
+    /// file exists. `noHolodeck`: none. One that cannot be opened is a warning line on stderr
+    /// ("holodeck: not used" in the status line), and the scene opens without it.
     std::string holodeck;
     bool noHolodeck = false;
 };

@@ -1120,8 +1120,8 @@ void SessionRunner::openHolodeck() {
         mHoloServer.reset();
         mHoloFile.reset();
         mHoloStatus.error = e.what();
+        // One warning line; the status line says "holodeck: not used".
         spdlog::warn("holodeck not used: {}", e.what());
-        report(std::string("holodeck not used: ") + e.what());
     }
 }
 

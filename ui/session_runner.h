@@ -201,8 +201,8 @@ struct SessionRunnerOptions {
     int backgroundNice = 5;
     /// The holodeck file (docs/holodeck.md) the display modes start their views from and store
     /// their converged points in, "" for none; created with the scene's sections when missing.
-    /// One that cannot be opened is a warning (spdlog and takeMessages) and the runner goes on
-    /// without it.
+    /// One that cannot be opened is one warning line (spdlog; SolverSnapshot::holodeck says
+    /// why) and the runner goes on without it.
     std::string holodeck;
     /// After edits, the relative change of an element's light that makes the holodeck forget
     /// the samples on it (changedElements; replay --holodeck-threshold).
