@@ -609,27 +609,15 @@ struct ReplayHolodeck {
     void open(EditSession& session) {
         file.emplace(path, holodeckSections(session.scene().settings, session.discretization()));
         server = std::make_unique<HoloServer>(*file, nullptr);
-        previous = elementLuminance(session);
+        previous = elementLuminance(session.solver().radiosity());
     }
     void afterEdit(EditSession& session, nlohmann::json& entry) {
-        const std::vector<double> now = elementLuminance(session);
-        double mean = 0;
-        for (double y : now) mean += y;
-        mean = now.empty() ? 0 : mean / double(now.size());
-        std::vector<std::uint8_t> changed(now.size(), 1);
-        for (std::size_t e = 0; e < std::min(now.size(), previous.size()); ++e)
-            changed[e] =
-                std::abs(now[e] - previous[e]) > threshold * std::max(previous[e], 1e-3 * mean);
-        const Invalidation result = server->invalidate(session.tracer(), changed);
+        std::vector<double> now = elementLuminance(session.solver().radiosity());
+        const Invalidation result =
+            server->invalidate(session.tracer(), changedElements(previous, now, threshold));
         entry["beams_invalidated"] = result.beams;
         entry["samples_invalidated"] = result.samples;
-        previous = now;
-    }
-    static std::vector<double> elementLuminance(EditSession& session) {
-        const std::vector<Rgb>& b = session.solver().radiosity();
-        std::vector<double> y(b.size());
-        for (std::size_t e = 0; e < b.size(); ++e) y[e] = luminance(b[e]);
-        return y;
+        previous = std::move(now);
     }
 };
 

@@ -1,6 +1,7 @@
 // penumbra-editor [SCENE] [--emission-scale S] [--light-size R] [--units mm|cm|m] [--log LOG]
 // [--play LOG] [--screenshot PNG --frames N] [--mode NAME] [--recover] [--no-journal]
 //                 [--display-divisor N] [--interactive-divisor N]
+//                 [--holodeck FILE | --no-holodeck]
 //                 [--bench-drag ID [--frames N] [--record DIR] [--no-references]]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
 // 2 bad input or no display, with one line on stderr.
@@ -8,11 +9,13 @@
 #include <CLI/CLI.hpp>
 #include <OpenMesh/Core/System/omstream.hh>
 #include <exception>
+#include <filesystem>
 #include <iostream>
 
 #include "app/import_flags.h"
 #include "core/input_error.h"
 #include "core/log.h"
+#include "render/holodeck/holo_file.h"
 #include "ui/editor_app.h"
 
 int main(int argc, char** argv) {
@@ -57,6 +60,11 @@ int main(int argc, char** argv) {
                    "edge-and-point modes while the view moves or an object is dragged: 1 keeps "
                    "full resolution (default), N renders 1/N, 0 picks N from the frame time")
         ->check(CLI::NonNegativeNumber);
+    auto* holodeck = app.add_option("--holodeck", options.holodeck,
+                                    "the holodeck (ray cache) views start from and store their "
+                                    "points in (created if missing; default: SCENE.hdk when it "
+                                    "exists)");
+    app.add_flag("--no-holodeck", options.noHolodeck, "use no holodeck")->excludes(holodeck);
     std::string mode = "epi";
     app.add_option("--mode", mode,
                    "viewport mode: epi (default), gouraud, cache, edges, samples, difference, "
@@ -74,6 +82,10 @@ int main(int argc, char** argv) {
     if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
     if (!options.benchDrag.empty()) options.journal = false;
     try {
+        // A holodeck named on the command line is checked like the other inputs (bad: one line,
+        // exit 2); the one found beside a scene only warns when it cannot be used.
+        if (!options.holodeck.empty() && std::filesystem::exists(options.holodeck))
+            (void)penumbra::HoloFile::openReadOnly(options.holodeck);
         penumbra::EditorApp editor(options);
         return editor.run();
     } catch (const penumbra::DisplayError& e) {

@@ -151,6 +151,14 @@ EditorApp::~EditorApp() {
 // ---------------------------------------------------------------------------------------------
 // Scene.
 
+std::string editorHolodeckPath(const EditorOptions& options, const std::string& scene) {
+    if (options.noHolodeck || scene.empty()) return "";
+    if (!options.holodeck.empty() && scene == options.scene) return options.holodeck;
+    std::string beside = std::filesystem::path(scene).replace_extension(".hdk").string();
+    std::error_code ignored;
+    return std::filesystem::is_regular_file(beside, ignored) ? beside : "";
+}
+
 void EditorApp::openScene(const std::string& path) {
     auto session = EditSession::open(path, interactiveSolverOptions(), mOptions.import);
     // An imported scene (glTF, OBJ) is saved as a Penumbra scene beside it, never over it.
@@ -183,6 +191,8 @@ void EditorApp::openScene(const std::string& path) {
     SessionRunnerOptions runnerOptions;
     runnerOptions.displayDivisor = std::max(1, mOptions.displayDivisor);
     runnerOptions.interactiveDisplayDivisor = std::max(0, mOptions.interactiveDisplayDivisor);
+    // The holodeck belongs to the scene file (saved beside it), not to an imported one.
+    runnerOptions.holodeck = editorHolodeckPath(mOptions, path);
     mRunner = std::make_unique<SessionRunner>(std::move(session), runnerOptions);
     mRunner->setConvergeEps(mConvergeEps);
     mScenePath = scenePath;
@@ -209,17 +219,20 @@ void EditorApp::saveScene(const std::string& path) {
     // it is written, the journal starts again (for `path`: Save as moves it).
     std::string journal;
     if (!mJournal.empty()) journal = recoveryJournalPath(path);
-    mRunner->post([path, old = mJournal, journal](EditSession& s) {
-        s.saveScene(path);
-        if (journal.empty()) return;
-        // What the journals held is in the file now, and so is whatever an earlier session left
-        // unsaved for `path` (the file replaces it).
-        s.closeLog();
-        std::error_code ignored;
-        for (const std::string& stale : {old, journal, journal + ".unsaved"})
-            std::filesystem::remove(stale, ignored);
-        s.openLog(journal, true);
-    });
+    // Saved over the scene file, the holodeck beside it takes new points again.
+    mRunner->postSave(
+        [path, old = mJournal, journal](EditSession& s) {
+            s.saveScene(path);
+            if (journal.empty()) return;
+            // What the journals held is in the file now, and so is whatever an earlier session
+            // left unsaved for `path` (the file replaces it).
+            s.closeLog();
+            std::error_code ignored;
+            for (const std::string& stale : {old, journal, journal + ".unsaved"})
+                std::filesystem::remove(stale, ignored);
+            s.openLog(journal, true);
+        },
+        path == mScenePath);
     if (!journal.empty()) mJournal = journal;
     mStatus = "saving " + path;
 }
@@ -1049,6 +1062,7 @@ void EditorApp::drawStatusBar() {
         const SolverSnapshot s = mRunner->solver();
         text += format("   %.0f shots/s   undo %.0f redo %.0f", s.shotsPerSecond,
                        static_cast<double>(s.undoDepth), static_cast<double>(s.redoDepth));
+        if (!s.holodeck.path.empty()) text += "   " + s.holodeck.toString();
     }
     text += "   " + mStatus;
     ImGui::TextUnformatted(text.c_str());

@@ -64,7 +64,17 @@ struct EditorOptions {
     /// Unsaved edits an earlier editor run left: replayed at once (--recover) instead of asked
     /// about. Runs that do not wait for the user (--screenshot, --play, --bench-drag) never ask.
     bool recover = false;
+    /// The holodeck (docs/holodeck.md) the display modes start a view from and store their
+    /// converged points in: `holodeck` for the scene named in `scene` (created when missing);
+    /// otherwise, for every scene opened, the scene's path with the extension .hdk when that
+    /// file exists. `noHolodeck`: none. One that cannot be opened is a warning line on stderr
+    /// ("holodeck: not used" in the status line), and the scene opens without it.
+    std::string holodeck;
+    bool noHolodeck = false;
 };
+
+/// The holodeck the editor uses for `scene` (EditorOptions::holodeck): "" for none.
+std::string editorHolodeckPath(const EditorOptions& options, const std::string& scene);
 
 /// No window could be opened (no DISPLAY, no GL 3.3 core context).
 struct DisplayError : std::runtime_error {

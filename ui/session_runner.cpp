@@ -1,5 +1,5 @@
 // Index: DocumentSummary · construction and threads · queue and requests · the solver
-//        iteration (edits, tasks, shots) · the render iteration · snapshots
+//        iteration (edits, tasks, shots) · the render iteration · the holodeck · snapshots
 
 #include "ui/session_runner.h"
 
@@ -20,6 +20,7 @@
 #include "core/log.h"
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
+#include "render/holodeck/holo_view.h"
 #include "solver/discretization.h"
 
 namespace penumbra {
@@ -47,8 +48,36 @@ void lowerThreadPriority(int nice) {
 /// While the first display is built: at most one Gouraud image of new lighting per this long.
 constexpr double kLoadingImageMs = 250;
 
+/// A new display's first frame waits at most this long for the holodeck's points of its view.
+constexpr double kHolodeckWaitMs = 500;
+
+
 bool sameCamera(const Camera& a, const Camera& b) {
     return a.position == b.position && a.lookAt == b.lookAt && a.up == b.up && a.fovDeg == b.fovDeg;
+}
+
+/// One point per pixel of a w × h raster, the nearest its centre: a holodeck filled in batch
+/// holds many samples per pixel of a view, and a display's cache keeps a few points per pixel
+/// (a larger batch evicts the warm-up's points and keeps its own last ones, not an even
+/// spread).
+std::vector<ShadedPoint> onePerPixel(const std::vector<ShadedPoint>& points, int w, int h) {
+    std::vector<int> best(static_cast<std::size_t>(w) * h, -1);
+    auto offCentre = [](const ShadedPoint& p) {
+        const double dx = p.pixel.x - std::floor(p.pixel.x) - 0.5;
+        const double dy = p.pixel.y - std::floor(p.pixel.y) - 0.5;
+        return dx * dx + dy * dy;
+    };
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const int x = static_cast<int>(points[i].pixel.x), y = static_cast<int>(points[i].pixel.y);
+        if (x < 0 || y < 0 || x >= w || y >= h) continue;
+        int& b = best[static_cast<std::size_t>(y) * w + x];
+        if (b < 0 || offCentre(points[i]) < offCentre(points[std::size_t(b)]))
+            b = static_cast<int>(i);
+    }
+    std::vector<ShadedPoint> kept;
+    for (int b : best)
+        if (b >= 0) kept.push_back(points[std::size_t(b)]);
+    return kept;
 }
 
 }  // namespace
@@ -66,7 +95,10 @@ const ObjectSummary* DocumentSummary::find(const std::string& id) const {
 // Construction and threads.
 
 SessionRunner::SessionRunner(std::unique_ptr<EditSession> session, SessionRunnerOptions options)
-    : mSession(std::move(session)), mOptions(options), mEps(options.convergeEps) {
+    : mSession(std::move(session)),
+      mOptions(options),
+      mEps(options.convergeEps),
+      mSolveEps(options.convergeEps) {
     if (!mSession) throw std::invalid_argument("SessionRunner: no session");
     mStrategy = mSession->solver().options().strategy;
     mThreshold = mSession->solver().options().redistributionThreshold;
@@ -96,6 +128,7 @@ SessionRunner::~SessionRunner() {
     if (mHifiBuild.valid()) mHifiBuild.wait();
     // The displays' shader workers may use the preview subset until they are joined.
     for (DisplaySlot& slot : mSlots) slot.display.reset();
+    closeHolodeck();
 }
 
 void SessionRunner::runSolver() {
@@ -161,6 +194,14 @@ void SessionRunner::post(std::function<void(EditSession&)> task) {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         // Tasks run in order with the edits.
         mQueue.push_back({EditCommand{}, EditSource{}, std::move(task), {}});
+    }
+    mWake.notify_all();
+}
+
+void SessionRunner::postSave(std::function<void(EditSession&)> task, bool holodeckScene) {
+    {
+        std::lock_guard<std::mutex> lock(mQueueMutex);
+        mQueue.push_back({EditCommand{}, EditSource{}, std::move(task), {}, holodeckScene});
     }
     mWake.notify_all();
 }
@@ -260,6 +301,7 @@ bool SessionRunner::solverIteration() {
         mApplying = !work.commands.empty();
         work.solve = mAutoSolve && !mPaused;
         work.eps = mEps;
+        mSolveEps = mEps;
         if (mStrategyChanged) work.strategy.emplace(mStrategy, mThreshold);
         mStrategyChanged = false;
     }
@@ -278,13 +320,14 @@ bool SessionRunner::solverIteration() {
     const std::uint64_t shots = shootForBudget(work.solve, work.eps, t0);
     const double solverMs = (nowSeconds() - t0) * 1e3;
     spdlog::debug("solver: {} edits, {} shots in {:.1f} ms", work.commands.size(), shots, solverMs);
+    const bool holodeck = holodeckIteration();
     publishSolver(solverMs);
     {
         std::lock_guard<std::mutex> lock(mQueueMutex);
         mApplying = false;
     }
     if (!work.commands.empty() || shots > 0) mRenderWake.notify_all();
-    return !work.commands.empty() || !mSolverIdle;
+    return !work.commands.empty() || !mSolverIdle || holodeck;
 }
 
 void SessionRunner::applyCommands(std::deque<Queued>& commands) {
@@ -307,6 +350,7 @@ void SessionRunner::applyCommands(std::deque<Queued>& commands) {
             if (q.task) {
                 q.task(*mSession);
                 structural = true;
+                if (q.savesHolodeckScene) holodeckSaved();
             } else if (q.make) {
                 events.push_back(mSession->apply(q.make(*mSession), q.source));
             } else {
@@ -316,6 +360,9 @@ void SessionRunner::applyCommands(std::deque<Queued>& commands) {
             report(e.what());
         }
     }
+    // The holodeck forgets what the edits changed once the solution converges again.
+    for (const EditEvent& event : events)
+        if (event.kind != EditEvent::Kind::Solved) mHoloDirty = mHoloUnsaved = true;
     // The displays see a batch of drag positions as its last one.
     coalescePreviews(events);
     for (const EditEvent& event : events) applyDisplayEvent(event);
@@ -735,6 +782,11 @@ void SessionRunner::catchUpDisplay(DisplaySlot& slot, const Light& light) {
                              light.previewFromEmission.get(), light.previewVersion,
                              light.previewComplete);
             slot.solution = light.serial;
+            // Points requested from the next frame on are shaded from this light.
+            if (light.converged) {
+                slot.convergedLight = light.serial;
+                slot.convergedFrame = d.cache().frame() + 1;
+            }
         }
     } catch (const std::exception& e) {
         report(std::string("display: ") + e.what());
@@ -791,6 +843,10 @@ bool SessionRunner::displayLanded(const ViewRequest& view) {
         const InteractiveDisplayOptions options = displayOptions(0, view);
         const Camera camera = view.camera;
         const int viewWidth = view.width, viewHeight = view.height;
+        // The holodeck's points of the view are read meanwhile (solver thread).
+        DisplaySlot& first = mSlots[0];
+        requestHolodeckPoints(first, camera, options.width, options.height);
+        mBuildHoloRead = first.holoRead;
         // Not niced: the user waits for it.
         mBuild = std::async(std::launch::async, [this, options, camera, viewWidth, viewHeight] {
             BuiltDisplay built;
@@ -832,6 +888,8 @@ bool SessionRunner::displayLanded(const ViewRequest& view) {
     slot.solution = 0;
     slot.frameMs = 0;
     slot.frames = 0;
+    requestHolodeckPoints(slot, view.camera, slot.display->width(), slot.display->height(),
+                          mBuildHoloRead);
     return true;
 }
 
@@ -870,6 +928,8 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
         mActiveSlot = want;
     }
     DisplaySlot& slot = mSlots[mActiveSlot];
+    // A new display's first frame starts from the holodeck's points of its view.
+    if (!takeHolodeckPoints(slot)) return false;
     InteractiveDisplay* display = slot.display.get();
     const int w = display->width(), h = display->height();
     const CameraRays rays(view.camera, w, h);
@@ -924,6 +984,8 @@ bool SessionRunner::renderDisplay(const ViewRequest& view, const Light& light,
                                  last->stateSerial == light.serial
                              ? last->settledFrames + 1
                              : 0;
+    img->holodeckPoints = slot.holoPoints;
+    if (mActiveSlot == 0) handHolodeckPoints(view, light, slot, img->settledFrames, rays);
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mImage = std::move(img);
     return true;
@@ -961,6 +1023,7 @@ bool SessionRunner::makeDisplay(int make, const ViewRequest& view) {
         wanted.frameMs = 0;
         wanted.frames = 0;
         wanted.display->warmUp(CameraRays(view.camera, w, h));
+        if (make == 0) requestHolodeckPoints(wanted, view.camera, w, h);
         spdlog::debug("display {}x{}: made ({}) in {:.1f} ms", w, h, copy ? "copy" : "built",
                       (nowSeconds() - t0) * 1e3);
     } catch (const std::exception& e) {
@@ -1017,6 +1080,259 @@ void SessionRunner::overlayDisplayMode(const ViewRequest& view, const Light& lig
 }
 
 // ---------------------------------------------------------------------------------------------
+// The holodeck.
+
+std::string HolodeckStatus::toString() const {
+    if (path.empty()) return "";
+    if (!open) return error.empty() ? "holodeck: opening" : "holodeck: not used";
+    auto count = [](std::int64_t n) {
+        char text[32];
+        if (n >= 10000000)
+            std::snprintf(text, sizeof text, "%.0fM", n * 1e-6);
+        else if (n >= 1000000)
+            std::snprintf(text, sizeof text, "%.1fM", n * 1e-6);
+        else if (n >= 1000)
+            std::snprintf(text, sizeof text, "%.0fk", n * 1e-3);
+        else
+            std::snprintf(text, sizeof text, "%lld", static_cast<long long>(n));
+        return std::string(text);
+    };
+    std::string text = "holodeck: " + count(samples) + " samples";
+    if (served > 0) text += ", " + count(served) + " shown";
+    if (stored > 0) text += ", " + count(stored) + " stored";
+    if (invalidated > 0) text += ", " + count(invalidated) + " forgotten";
+    return text;
+}
+
+void SessionRunner::openHolodeck() {
+    mHoloTried = true;
+    mHoloStatus.path = mOptions.holodeck;
+    try {
+        // A new file gets the scene's sections; an existing one keeps its own.
+        mHoloFile.emplace(mOptions.holodeck, holodeckSections(mSession->scene().settings,
+                                                              mSession->discretization()));
+        mHoloServer = std::make_unique<HoloServer>(*mHoloFile, nullptr);
+        mHoloStatus.open = true;
+        mHoloStatus.samples = mHoloFile->info().samples;
+        spdlog::debug("holodeck {}: {} samples", mOptions.holodeck, mHoloStatus.samples);
+    } catch (const std::exception& e) {
+        // A bad cache is no reason not to edit the scene.
+        mHoloServer.reset();
+        mHoloFile.reset();
+        mHoloStatus.error = e.what();
+        // One warning line; the status line says "holodeck: not used".
+        spdlog::warn("holodeck not used: {}", e.what());
+    }
+}
+
+bool SessionRunner::holodeckIteration() {
+    if (mOptions.holodeck.empty()) return false;
+    if (!mHoloTried) openHolodeck();
+    std::optional<HoloRead> read;
+    std::vector<HoloStore> stores;
+    {
+        std::lock_guard<std::mutex> lock(mQueueMutex);
+        read.swap(mHoloRead);
+        stores.swap(mHoloStores);
+    }
+    bool worked = read.has_value() || !stores.empty();
+    const bool converged = mSession->selected().empty() && mSession->previewVersion() < 0 &&
+                           mSession->solver().converged(mSolveEps);
+    if (mHoloServer && converged) {
+        if (mHoloDirty) {
+            // Without the light of the solution the holodeck matched, or when the scene file
+            // was saved in between and edited since, every element counts as changed.
+            invalidateHolodeck(mHoloLuminance.empty() || (mHoloBehindFile && mHoloUnsaved));
+            worked = true;
+        } else if (mHoloLuminance.empty()) {
+            mHoloLuminance = elementLuminance(mSession->solver().radiosity());
+        }
+    }
+    if (read) {
+        std::vector<ShadedPoint> points;
+        if (mHoloServer && !mHoloDirty && mSession->selected().empty())
+            points = holodeckPointsOf(*read);
+        mHoloStatus.served += std::int64_t(points.size());
+        {
+            std::lock_guard<std::mutex> lock(mQueueMutex);
+            mHoloPoints = HoloPoints{read->id, std::move(points)};
+        }
+        mRenderWake.notify_all();
+    }
+    if (!stores.empty() && mHoloServer && !mHoloDirty && !mHoloUnsaved)
+        storeHolodeckPoints(stores);
+    return worked;
+}
+
+std::vector<ShadedPoint> SessionRunner::holodeckPointsOf(const HoloRead& read) {
+    const double t0 = nowSeconds();
+    try {
+        const CameraRays rays(read.camera, read.width, read.height);
+        const auto view = viewRequests(mHoloFile->sections(), rays, std::max(1, read.width / 4),
+                                       std::max(1, read.height / 4), 1.0);
+        const std::vector<ShadedPoint> all = holodeckViewPoints(
+            *mHoloServer, view, mSession->discretization(), mSession->tracer(), rays, 0, 0);
+        std::vector<ShadedPoint> points = onePerPixel(all, read.width, read.height);
+        spdlog::debug("holodeck: {} points ({} samples) of a {}x{} view in {:.1f} ms",
+                      points.size(), all.size(), read.width, read.height,
+                      (nowSeconds() - t0) * 1e3);
+        return points;
+    } catch (const std::exception& e) {
+        report(std::string("holodeck: ") + e.what());
+        return {};
+    }
+}
+
+void SessionRunner::invalidateHolodeck(bool everyElement) {
+    const double t0 = nowSeconds();
+    std::vector<double> now = elementLuminance(mSession->solver().radiosity());
+    const std::vector<std::uint8_t> changed =
+        everyElement ? std::vector<std::uint8_t>(now.size(), 1)
+                     : changedElements(mHoloLuminance, now, mOptions.holodeckThreshold);
+    try {
+        const Invalidation result = mHoloServer->invalidate(mSession->tracer(), changed);
+        mHoloServer->flush();
+        mHoloStatus.invalidated += result.samples;
+        mHoloStatus.samples = mHoloFile->info().samples;
+        spdlog::debug("holodeck: edits took {} samples from {} beams ({} kept) in {:.1f} ms",
+                      result.samples, result.beams, result.kept, (nowSeconds() - t0) * 1e3);
+    } catch (const std::exception& e) {
+        report(std::string("holodeck: ") + e.what());
+    }
+    mHoloLuminance = std::move(now);
+    mHoloDirty = false;
+    // Matching the solution now, it matches the scene file when nothing was edited since the
+    // save (or it holds nothing any scene could contradict).
+    if (!mHoloUnsaved || everyElement) mHoloBehindFile = false;
+}
+
+void SessionRunner::holodeckSaved() {
+    if (mHoloDirty) mHoloBehindFile = true;
+    mHoloUnsaved = false;
+}
+
+void SessionRunner::storeHolodeckPoints(std::vector<HoloStore>& stores) {
+    const double t0 = nowSeconds();
+    std::int64_t added = 0;
+    try {
+        for (const HoloStore& store : stores)
+            if (store.lightSerial == mLightSerial)  // nothing changed since they were shaded
+                added += storeViewPoints(*mHoloServer, store.points, mSession->tracer(),
+                                         store.eye);
+        mHoloServer->flush();
+        mHoloStatus.samples = mHoloFile->info().samples;
+    } catch (const std::exception& e) {
+        report(std::string("holodeck: ") + e.what());
+    }
+    mHoloStatus.stored += added;
+    stores.clear();
+    spdlog::debug("holodeck: stored {} samples in {:.1f} ms", added, (nowSeconds() - t0) * 1e3);
+}
+
+void SessionRunner::closeHolodeck() {
+    if (!mHoloServer) return;
+    if (!mHoloDirty && !mHoloUnsaved && !mHoloStores.empty()) storeHolodeckPoints(mHoloStores);
+    // The scene file was saved with edits the holodeck did not forget yet: it forgets every
+    // element's light (the converged light of those edits is not known).
+    if (mHoloDirty && mHoloBehindFile) invalidateHolodeck(true);
+    try {
+        mHoloServer->flush();
+    } catch (const std::exception& e) {
+        spdlog::warn("holodeck: {}", e.what());
+    }
+    mHoloServer.reset();
+    mHoloFile.reset();
+}
+
+void SessionRunner::requestHolodeckPoints(DisplaySlot& slot, const Camera& camera, int w, int h,
+                                          std::uint64_t id) {
+    slot.holoRead = 0;
+    slot.holoPoints = 0;
+    slot.holoPositions.clear();
+    slot.convergedLight = slot.convergedFrame = 0;
+    slot.storedView = slot.storedLight = 0;
+    if (mOptions.holodeck.empty()) return;
+    if (id == 0) {
+        id = ++mHoloReadIds;
+        {
+            std::lock_guard<std::mutex> lock(mQueueMutex);
+            mHoloRead = HoloRead{id, camera, w, h};
+        }
+        mWake.notify_all();
+    }
+    slot.holoRead = id;
+    slot.holoReadTime = nowSeconds();
+}
+
+bool SessionRunner::takeHolodeckPoints(DisplaySlot& slot) {
+    if (slot.holoRead == 0) return true;
+    std::optional<HoloPoints> answer;
+    {
+        std::lock_guard<std::mutex> lock(mQueueMutex);
+        if (mHoloPoints && mHoloPoints->id == slot.holoRead) answer.swap(mHoloPoints);
+    }
+    if (!answer)
+        return slot.frames > 0 || nowSeconds() - slot.holoReadTime > kHolodeckWaitMs * 1e-3;
+    InteractiveDisplay& d = *slot.display;
+    // Stamped as points shaded now: the display relights them with its own.
+    for (ShadedPoint& p : answer->points) {
+        p.frame = d.cache().frame();
+        p.shading = d.shadingSerial();
+        slot.holoPositions.push_back(p.position);
+    }
+    d.insertShaded(answer->points);
+    slot.holoPoints = std::int64_t(answer->points.size());
+    slot.holoRead = 0;
+    return true;
+}
+
+void SessionRunner::handHolodeckPoints(const ViewRequest& view, const Light& light,
+                                       DisplaySlot& slot, int settledFrames,
+                                       const CameraRays& rays) {
+    if (mOptions.holodeck.empty() || view.interactive || !light.converged ||
+        slot.solution != light.serial || slot.convergedLight != light.serial ||
+        settledFrames < mOptions.settleFrames || slot.holoRead != 0 ||
+        (slot.storedView == view.serial && slot.storedLight == light.serial))
+        return;
+    slot.storedView = view.serial;
+    slot.storedLight = light.serial;
+    // At most one sample per pixel of the view: the pixels a point already in the holodeck
+    // (brought from it or stored) shows take no other, so revisiting a view does not grow it.
+    const RenderCache& cache = slot.display->cache();
+    const int w = rays.width(), h = rays.height();
+    std::vector<std::uint8_t> covered(static_cast<std::size_t>(w) * h, 0);
+    auto pixelOf = [&](const Vec3& position) -> long {
+        const auto pixel = rays.projectToPixel(position);
+        if (!pixel || pixel->x < 0 || pixel->y < 0 || pixel->x >= w || pixel->y >= h) return -1;
+        return static_cast<long>(pixel->y) * w + static_cast<long>(pixel->x);
+    };
+    for (const Vec3& position : slot.holoPositions)
+        if (const long pixel = pixelOf(position); pixel >= 0) covered[pixel] = 1;
+    const std::vector<CachePoint>& points = cache.points();
+    // The points shaded from the converged light, visible, one per uncovered pixel.
+    HoloStore store;
+    store.eye = rays.origin();
+    store.lightSerial = light.serial;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const CachePoint& p = points[i];
+        if (p.frame < slot.convergedFrame || cache.stale(i) || !cache.visible(i)) continue;
+        const long pixel = pixelOf(p.position);
+        if (pixel < 0 || covered[pixel]) continue;
+        covered[pixel] = 1;
+        slot.holoPositions.push_back(p.position);
+        store.points.push_back(p);
+    }
+    if (store.points.empty()) return;
+    spdlog::debug("holodeck: {} points handed over to be stored ({} in it before)",
+                  store.points.size(), slot.holoPositions.size() - store.points.size());
+    {
+        std::lock_guard<std::mutex> lock(mQueueMutex);
+        mHoloStores.push_back(std::move(store));
+    }
+    mWake.notify_all();
+}
+
+// ---------------------------------------------------------------------------------------------
 // Snapshots.
 
 void SessionRunner::publishDocument() {
@@ -1064,6 +1380,8 @@ void SessionRunner::publishLight() {
             mSession->solver().previewRadiosityFromEmission());
         light.previewComplete = mSession->solver().previewComplete();
     }
+    light.converged = light.previewVersion < 0 && mSession->selected().empty() &&
+                      mSession->solver().converged(mSolveEps);
     light.serial = ++mLightSerial;
     {
         // Out-of-date overlay: per element the |unshot radiosity| of its patch.
@@ -1135,6 +1453,7 @@ void SessionRunner::publishSolver(double solverMs) {
     s.solverMsPerIteration = solverMs;
     s.strategy = solver.options().strategy;
     s.redistributionThreshold = solver.options().redistributionThreshold;
+    s.holodeck = mHoloStatus;
     std::lock_guard<std::mutex> lock(mPublishMutex);
     mSolver = std::move(s);
 }

@@ -23,6 +23,16 @@
 // An edit reaches the displays as the EditEvent EditSession::apply returns (the solver took
 // the same event inside apply): applyDisplayEvent hands it to each live display
 // (InteractiveDisplay::apply) and keeps the drag's tracer subsets in step with it.
+// The holodeck (Ward & Simmons 1999; docs/holodeck.md), when the options name one, belongs to
+// the solver thread alone (HoloServer is not thread-safe), which serves it between shots: it
+// opens the file, answers a new display's request for its view's samples (the render thread
+// puts them into the display before its first frame, waiting for them at most
+// kHolodeckWaitMs), stores the points a display shaded from the converged solution once the
+// view rested (handed over by the render thread), and, once the solution converges after
+// edits, forgets what they changed (HoloServer::invalidate). Requests, answers and points to
+// store pass under mQueueMutex. While edits wait for that invalidation the holodeck is neither
+// read nor written; new points are stored only while the document is the one in the scene
+// file the holodeck belongs to (no edits since it was opened or saved there).
 //
 // Locking (enforced here; the order is top to bottom, nothing is taken while a lock lower
 // in the table is held):
@@ -61,6 +71,8 @@
 
 #include "edit/edit_session.h"
 #include "render/hifi_mesh.h"
+#include "render/holodeck/holo_file.h"
+#include "render/holodeck/holo_server.h"
 #include "render/interactive_display.h"
 #include "ui/picking.h"
 #include "ui/view_mode.h"
@@ -89,8 +101,23 @@ struct ViewportImage {
     /// Display modes: display frames rendered with this view and lighting (the cache fills).
     int settledFrames = 0;
     DisplayFrameStats display;   ///< display modes: the last frame's figures
+    /// Display modes: points the shown display took from the holodeck (before its first frame).
+    std::int64_t holodeckPoints = 0;
     double meanDifference = -1;  ///< difference mode: mean sRGB |epi − reference|, -1 none
     std::string note;            ///< what the viewport should say about the image
+};
+
+/// The holodeck as the status line shows it.
+struct HolodeckStatus {
+    std::string path;           ///< "" when the runner has none
+    bool open = false;          ///< opened (false before, or when it could not be: `error`)
+    std::string error;          ///< why it could not be opened
+    std::int64_t samples = 0;   ///< stored, after the last commit
+    std::int64_t served = 0;    ///< samples handed to displays as points
+    std::int64_t stored = 0;    ///< display points stored this session
+    std::int64_t invalidated = 0;  ///< samples dropped after edits this session
+    /// "holodeck: 234k samples" (with what this session took and gave), "" without one.
+    std::string toString() const;
 };
 
 /// Solver figures for the solver panel.
@@ -112,6 +139,7 @@ struct SolverSnapshot {
     /// George et al.'s interleaving strategy and threshold the solver uses now (applied).
     RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
     double redistributionThreshold = 0;
+    HolodeckStatus holodeck;
 };
 
 /// What the UI shows of one document object.
@@ -171,6 +199,14 @@ struct SessionRunnerOptions {
     /// Linux nice increment of the solver, render and display-shading threads (threaded
     /// runners): the UI thread keeps its frame rate on a busy machine. 0 leaves them as is.
     int backgroundNice = 5;
+    /// The holodeck file (docs/holodeck.md) the display modes start their views from and store
+    /// their converged points in, "" for none; created with the scene's sections when missing.
+    /// One that cannot be opened is one warning line (spdlog; SolverSnapshot::holodeck says
+    /// why) and the runner goes on without it.
+    std::string holodeck;
+    /// After edits, the relative change of an element's light that makes the holodeck forget
+    /// the samples on it (changedElements; replay --holodeck-threshold).
+    double holodeckThreshold = 0.01;
 };
 
 class SessionRunner {
@@ -195,6 +231,10 @@ public:
     /// is then (a duplicate of an object as the edits before it left it, a mesh loaded there),
     /// and applies like a submitted one. Exceptions are reported through takeMessages().
     void submitMade(std::function<EditCommand(EditSession&)> make);
+    /// Like post, for a task that writes the document to a file (File ▸ Save): when
+    /// `holodeckScene` (the file is the scene the holodeck belongs to) and the task succeeds,
+    /// the holodeck takes the display's points again (post() leaves it as it was).
+    void postSave(std::function<void(EditSession&)> task, bool holodeckScene);
     void setView(const ViewRequest& request);
     /// Pauses the automatic solver work (queued edits, including solve/converge, still run).
     void setPaused(bool paused);
@@ -247,6 +287,9 @@ private:
         std::shared_ptr<const std::vector<Rgb>> irradiance, fromEmission, previewBuffer,
             previewFromEmission;
         bool previewComplete = false;  ///< ProgressiveSolver::previewComplete()
+        /// Converged at the runner's threshold, nothing pending, no drag: what the holodeck may
+        /// keep.
+        bool converged = false;
         std::uint64_t serial = 0;
     };
     void runSolver();
@@ -320,6 +363,7 @@ private:
         EditSource source;
         std::function<void(EditSession&)> task;
         std::function<EditCommand(EditSession&)> make;
+        bool savesHolodeckScene = false;  ///< postSave for the holodeck's scene
     };
     std::deque<Queued> mQueue;
     /// What one solver iteration takes from the queue and flags (under mQueueMutex).
@@ -366,6 +410,64 @@ private:
     double mLastRateTime = 0, mLastHistoryTime = 0, mShotsPerSecond = 0;
     std::vector<float> mHistory;
     bool mSolverIdle = false;
+    double mSolveEps = 1e-3;  ///< the threshold of the last iteration (Light::converged)
+
+    // The holodeck. The requests and points pass under mQueueMutex; the file, the server and
+    // the rest are the solver thread's alone (the destructor's once it joined).
+    /// A display's request for its view's samples (render thread to solver thread).
+    struct HoloRead {
+        std::uint64_t id = 0;
+        Camera camera;
+        int width = 0, height = 0;
+    };
+    /// Its answer: points stamped with frame and shading 0 (the display stamps its own).
+    struct HoloPoints {
+        std::uint64_t id = 0;
+        std::vector<ShadedPoint> points;
+    };
+    /// Points a display shaded from the converged light `lightSerial`, seen from `eye`.
+    struct HoloStore {
+        std::vector<CachePoint> points;
+        Vec3 eye{0.0};
+        std::uint64_t lightSerial = 0;
+    };
+    std::optional<HoloRead> mHoloRead;      ///< under mQueueMutex
+    std::optional<HoloPoints> mHoloPoints;  ///< under mQueueMutex
+    std::vector<HoloStore> mHoloStores;     ///< under mQueueMutex
+    std::uint64_t mHoloReadIds = 0;         ///< render thread
+    /// The holodeck's work between shots: opens it, invalidates after edits once the solution
+    /// converged, answers the read and stores the points waiting. Returns whether it did work.
+    bool holodeckIteration();
+    void openHolodeck();
+    /// Forgets what the edits since the last invalidation changed: the elements whose light
+    /// moved beyond the threshold, or every element's when that is not known.
+    void invalidateHolodeck(bool everyElement);
+    /// A save of the holodeck's scene file succeeded (in applyCommands).
+    void holodeckSaved();
+    /// Stores what was handed over, makes the file match the scene file and flushes it
+    /// (the destructor, threads joined).
+    void closeHolodeck();
+    /// Stores the points handed over (solver thread, or the destructor).
+    void storeHolodeckPoints(std::vector<HoloStore>& stores);
+    std::vector<ShadedPoint> holodeckPointsOf(const HoloRead& read);
+    void publishHolodeck();
+    std::optional<HoloFile> mHoloFile;
+    std::unique_ptr<HoloServer> mHoloServer;
+    HolodeckStatus mHoloStatus;  ///< published with the solver snapshot
+    bool mHoloTried = false;
+    /// Edits applied since the holodeck last matched the solution (invalidated when it next
+    /// converges); while set, the holodeck is neither read nor written.
+    bool mHoloDirty = false;
+    /// Edits since the document was the holodeck's scene file (opened or saved there): no
+    /// new points go in.
+    bool mHoloUnsaved = false;
+    /// The scene file was saved with edits the holodeck had not yet forgotten: it matches the
+    /// file again only when it forgets them with nothing edited since the save (otherwise it
+    /// forgets every element's light).
+    bool mHoloBehindFile = false;
+    /// Element luminance of the solution the holodeck matches (empty before it first
+    /// converged).
+    std::vector<double> mHoloLuminance;
     // Render-thread state.
     double mMsPerPixel = 0;        ///< running estimate of the render cost
     double mLastLoadingImage = 0;  ///< the last Gouraud image while the display is built
@@ -389,6 +491,17 @@ private:
         bool pendingStructural = false;
         double frameMs = 0;  ///< running estimate of its frame time
         int frames = 0;      ///< frames rendered
+        // The holodeck (slot 0): the read it waits for (0 none) and since when; the points it
+        // took or handed over to be stored (where they are: the pixels they project to in a
+        // view take no other); the
+        // first cache frame whose points were shaded from the converged light `convergedLight`;
+        // the view and light it last handed points of.
+        std::uint64_t holoRead = 0;
+        double holoReadTime = 0;
+        std::int64_t holoPoints = 0;
+        std::vector<Vec3> holoPositions;
+        std::uint64_t convergedLight = 0, convergedFrame = 0;
+        std::uint64_t storedView = 0, storedLight = 0;
         bool ready() const { return display && !behind && solution != 0; }
     };
     /// Hands an edit's event to the live displays (InteractiveDisplay::apply) and marks the
@@ -407,6 +520,18 @@ private:
     /// or the difference from a reference of the same view (computed once the solver is idle).
     void overlayDisplayMode(const ViewRequest& view, const Light& light, DisplaySlot& slot,
                             ViewportImage& img);
+    /// The holodeck's part of a new slot-0 display: asks the solver thread for `camera`'s
+    /// samples at w × h (render thread, display mutex held; `id` an earlier request's).
+    void requestHolodeckPoints(DisplaySlot& slot, const Camera& camera, int w, int h,
+                               std::uint64_t id = 0);
+    /// Puts the answer into the slot's display when it came; false while the display's first
+    /// frame should still wait for it (at most kHolodeckWaitMs).
+    bool takeHolodeckPoints(DisplaySlot& slot);
+    /// Once the view rested on the converged light, hands the display's points shaded from it
+    /// (and not from the holodeck), at most one per pixel the holodeck does not show yet, to
+    /// the solver thread to store.
+    void handHolodeckPoints(const ViewRequest& view, const Light& light, DisplaySlot& slot,
+                            int settledFrames, const CameraRays& rays);
     std::mutex mDisplayMutex;
     DisplaySlot mSlots[2];
     /// The first display, built on a thread of its own (displayLanded).
@@ -416,6 +541,7 @@ private:
         int viewWidth = 0, viewHeight = 0;
     };
     std::future<BuiltDisplay> mBuild;
+    std::uint64_t mBuildHoloRead = 0;  ///< the holodeck read asked for the display being built
     std::uint64_t mEditBatches = 0;  ///< edit batches applied (written under mStructure exclusive)
     int mActiveSlot = 0;             ///< the slot rendered
     int mWantedSlot = 0;             ///< the slot the view asks for (1 while interactive)

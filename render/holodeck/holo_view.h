@@ -57,4 +57,14 @@ FillStats fillView(HoloServer& server, const PointShader& shader, const RayTrace
 std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& points,
                              const RayTracer& tracer, const Vec3& eye);
 
+/// Per element, the luminance of its radiosity (W/m²): what changedElements compares.
+std::vector<double> elementLuminance(const std::vector<Rgb>& radiosity);
+
+/// The elements whose light an edit changed, for HoloServer::invalidate: 1 where the
+/// luminance moved by more than `threshold` of what it was (`before`; values below a
+/// thousandth of `after`'s mean count as that), and for every element past `before`'s end
+/// (new elements); sized as `after`.
+std::vector<std::uint8_t> changedElements(const std::vector<double>& before,
+                                          const std::vector<double>& after, double threshold);
+
 }  // namespace penumbra
