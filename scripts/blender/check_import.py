@@ -8,11 +8,12 @@ The JSON line starts with "check_import: " and holds:
 - "objects": per mesh object its name, vertex count, "color" (a colour attribute from
   COLOR_0, Blender names it "Col"), "radiance" (a `_RADIANCE` attribute kept), its
   materials and its custom properties (node extras, e.g. penumbra_id);
-- "materials": per material its emission colour and strength (Principled BSDF or Emission
-  node) and whether it is unlit-like (no Principled BSDF);
+- "materials": per material its emission colour and strength (Principled BSDF, else the
+  Emission node Blender builds for an unlit material) and "principled" (false: unlit);
 - "cameras", "lights": their names.
 With --ids the objects' penumbra_id set must be exactly those ids; with --lamps each named
-object must have an emissive material (emission colour x strength above 0); with --color every
+object must have an emissive Principled BSDF material (emission colour x strength above 0; not
+an unlit material's emission shader); with --color every
 mesh object must have a colour attribute (Penumbra's exports carry COLOR_0). Exits 1 when the
 import raised or was cancelled, or when a check fails (the failures are in "failures").
 """
@@ -108,8 +109,10 @@ def check(result, ids, lamps, colour):
     by_id = {o["properties"].get("penumbra_id", o["name"]): o for o in result["objects"]}
     if ids is not None and sorted(by_id) != sorted(ids):
         failures.append("objects %s, expected %s" % (sorted(by_id), sorted(ids)))
+    # A lamp's material is a Principled BSDF with emission; Blender makes Penumbra's unlit
+    # materials (KHR_materials_unlit) an emission shader of the vertex colour, no Principled.
     emissive = {m["name"] for m in result["materials"]
-                if m["strength"] * max(m["emission"]) > 0}
+                if m["principled"] and m["strength"] * max(m["emission"]) > 0}
     for lamp in lamps or []:
         o = by_id.get(lamp)
         if o is None:
