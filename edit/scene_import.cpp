@@ -266,9 +266,9 @@ struct Importer {
         // all; a sphere emitting E from its surface sends E × its area. Its area as the solver
         // facets it (a little less than 4πr²) gives it exactly the light's power.
         const double r = options.lightRadius;
-        const Rgb power = glm::max(4 * M_PI * light.colour * light.intensity / kLumensPerWatt *
-                                       options.emissionScale,
-                                   Rgb(0.0));
+        const Rgb power = glm::max(
+            4 * M_PI * light.colour * light.intensity / kLumensPerWatt * options.emissionScale,
+            Rgb(0.0));
         const std::string name = light.name.empty() ? "light" : light.name;
         SceneObject object;
         object.id = objectIds.take("light-" + name, "light");

@@ -715,7 +715,8 @@ void expectTheBlenderRoomsMeshes(const Scene& scene, const std::string& file) {
     EXPECT_EQ(light->reflectance, Rgb(0.0));
 }
 
-TEST(SceneImport, BlendersGltfAndGlbExportsOfARoomImportWithTheirTransformsMaterialsLightAndCamera) {
+TEST(SceneImport,
+     BlendersGltfAndGlbExportsOfARoomImportWithTheirTransformsMaterialsLightAndCamera) {
     for (const std::string file : {"gltf/blender-room.gltf", "gltf/blender-room.glb"}) {
         std::vector<std::string> warnings;
         const Scene scene = importScene(blenderRoom(file), quiet(&warnings));
@@ -723,8 +724,8 @@ TEST(SceneImport, BlendersGltfAndGlbExportsOfARoomImportWithTheirTransformsMater
         EXPECT_TRUE(warnings.empty()) << warnings.front();
         std::vector<std::string> ids;
         for (const SceneObject& o : scene.objects) ids.push_back(o.id);
-        EXPECT_EQ(ids, (std::vector<std::string>{"Walls", "Floor", "BoxA", "BoxB", "Crate",
-                                                 "Panel", "light-Bulb"}))
+        EXPECT_EQ(ids, (std::vector<std::string>{"Walls", "Floor", "BoxA", "BoxB", "Crate", "Panel",
+                                                 "light-Bulb"}))
             << "ids from node names; the Shelf empty has no mesh";
         expectTheBlenderRoomsMeshes(scene, file);
         // Blender writes doubleSided for every material unless Backface Culling is ticked.
@@ -752,8 +753,7 @@ TEST(SceneImport, BlendersGltfAndGlbExportsOfARoomImportWithTheirTransformsMater
         const Vec3 position = fromBlender({1.7, -1.7, 1.6});
         EXPECT_LT(glm::length(cam.position - position), 1e-6);
         const Vec3 forward = glm::normalize(cam.lookAt - cam.position);
-        EXPECT_LT(glm::length(forward - glm::normalize(fromBlender({0, 0, 0.8}) - position)),
-                  1e-6);
+        EXPECT_LT(glm::length(forward - glm::normalize(fromBlender({0, 0, 0.8}) - position)), 1e-6);
         EXPECT_NEAR(glm::dot(cam.up, forward), 0, 1e-6);
         EXPECT_GT(cam.up.y, 0.9) << "upright";
         EXPECT_NEAR(cam.fovDeg, 2 * std::atan(18.0 / 24.0 / (640.0 / 480.0)) * 180 / M_PI, 1e-5);
