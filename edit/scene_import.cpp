@@ -22,6 +22,10 @@ namespace penumbra {
 namespace {
 
 constexpr double kMaxReflectance = 0.99;
+/// glTF light intensities are photometric (candela, lm/sr); Penumbra's emission is in watts.
+/// 683 lm per W (the luminous efficacy at 555 nm) is the factor Blender's glTF exporter and
+/// importer use both ways, so a Blender light of P watts imports with P watts.
+constexpr double kLumensPerWatt = 683.0;
 /// Receivers an imported scene is discretized into, about (Importer::chooseSettings).
 constexpr double kTargetElements = 4000;
 
@@ -258,12 +262,13 @@ struct Importer {
             warn("light '" + light.name +
                  "': a spot light's cone is not modelled; it emits in every direction as a "
                  "point light of the same intensity");
-        // A point light of intensity I (per steradian) sends Φ = 4πI in all; a sphere emitting
-        // E from its surface sends E × its area. Its area as the solver facets it (a little
-        // less than 4πr²) gives it exactly the light's power.
+        // A point light of intensity I (candela) sends Φ = 4πI lumens, 4πI / 683 watts, in
+        // all; a sphere emitting E from its surface sends E × its area. Its area as the solver
+        // facets it (a little less than 4πr²) gives it exactly the light's power.
         const double r = options.lightRadius;
-        const Rgb power =
-            glm::max(4 * M_PI * light.colour * light.intensity * options.emissionScale, Rgb(0.0));
+        const Rgb power = glm::max(
+            4 * M_PI * light.colour * light.intensity / kLumensPerWatt * options.emissionScale,
+            Rgb(0.0));
         const std::string name = light.name.empty() ? "light" : light.name;
         SceneObject object;
         object.id = objectIds.take("light-" + name, "light");

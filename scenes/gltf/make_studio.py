@@ -71,9 +71,11 @@ children.append(node(name="Panel", mesh=mesh("Panel", [[(-0.4, 0, -0.4), (0.4, 0
                                                         (0.4, 0, 0.4), (-0.4, 0, 0.4)]],
                                              panel_light),
                      translation=[0.0, 2.798, 0.0]))
-# A point light over the table (Blender: watts exported as candela).
+# A point light over the table: a 50 W Blender light, which Blender's exporter writes as
+# 50 / 4π W/sr × 683 lm/W candela.
 doc["extensions"]["KHR_lights_punctual"]["lights"].append(
-    {"name": "Bulb", "type": "point", "color": [1.0, 0.85, 0.7], "intensity": 4.0})
+    {"name": "Bulb", "type": "point", "color": [1.0, 0.85, 0.7],
+     "intensity": round(50.0 / (4 * math.pi) * 683, 3)})
 children.append(node(name="Bulb", translation=[1.6, 1.9, 1.2],
                      extensions={"KHR_lights_punctual": {"light": 0}}))
 # The camera in a corner looking at the table: turned 35 degrees about +y, then down.

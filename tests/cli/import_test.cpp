@@ -95,6 +95,39 @@ TEST(ImportCli, TheBundledGltfStudioSolvesAndRendersFromItsCamera) {
     fs::remove_all(dir);
 }
 
+TEST(ImportCli, TheRoomBlenderExportedSolvesWithItsPanelsAndBulbsPowerAndRendersLit) {
+    // scenes/gltf/blender-room.glb: made in Blender 3.4.1 by scripts/blender/make_scene.py.
+    // Emitted power: the panel's π × 8 × (1, 0.9, 0.75) W/m² over 0.6 m² and the 25 W bulb
+    // × (1, 0.8, 0.6), summed over R, G, B (the report's measure).
+    const fs::path dir = freshDir("blender");
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/gltf/blender-room.glb";
+    const std::string solve = exe() + "solve '" + scene + "' --max-shots 40 --report '" +
+                              (dir / "r.json").string() + "' 2> '" + (dir / "err.txt").string() +
+                              "'";
+    ASSERT_EQ(test::runShell(solve), 0) << test::readFile(dir / "err.txt");
+    EXPECT_EQ(test::readFile(dir / "err.txt").find("warning"), std::string::npos)
+        << test::readFile(dir / "err.txt");
+    const auto report = nlohmann::json::parse(test::readFile(dir / "r.json"));
+    const double expected = M_PI * 8.0 * 0.6 * (1.0 + 0.9 + 0.75) + 25.0 * (1.0 + 0.8 + 0.6);
+    EXPECT_NEAR(report["emitted_energy_w"].get<double>(), expected, 1e-5 * expected);
+    EXPECT_LT(report["unshot_fraction"].get<double>(), 1.0);
+
+    const fs::path png = dir / "room.png";
+    const std::string render = exe() + "render '" + scene + "' --camera Camera --max-shots 40 " +
+                               "--width 64 --height 48 --out '" + png.string() + "' 2> '" +
+                               (dir / "err2.txt").string() + "'";
+    ASSERT_EQ(test::runShell(render), 0) << test::readFile(dir / "err2.txt");
+    const Image image = readPng(png.string());
+    ASSERT_EQ(image.width, 64);
+    double mean = 0;
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) mean += luminance(image.at(x, y));
+    mean /= image.width * image.height;
+    EXPECT_GT(mean, 0.1) << "the room is lit";
+    EXPECT_LT(mean, 0.95) << "not washed out";
+    fs::remove_all(dir);
+}
+
 TEST(ImportCli, ABrokenGlbExitsWith2AndOneLineNamingIt) {
     const fs::path dir = freshDir("glb");
     const fs::path glb = dir / "broken.glb";

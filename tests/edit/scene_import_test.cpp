@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -331,16 +332,17 @@ TEST(SceneImport, APointLightBecomesASphereOfTheSamePowerAndACameraAViewpoint) {
     EXPECT_EQ(o.shape.type, ShapeType::Sphere);
     EXPECT_EQ(o.shape.radius, 0.1);
     EXPECT_EQ(o.transform.translate, Vec3(0.5, 2.0, -0.25));
-    // Its emitted power: 4π × intensity × colour, a point light's (the emission makes up for
-    // the facets having less area than the sphere).
+    // Its emitted power: 4π × intensity × colour in lumens, over 683 lm/W (the emission makes
+    // up for the facets having less area than the sphere).
     Discretization disc(scene);
     Rgb power(0.0);
     for (const Element& e : disc.elements())
         if (e.object == bulb)
             power += disc.elementMaterial(&e - disc.elements().data()).emission * e.area;
-    for (int c = 0; c < 3; ++c)
-        EXPECT_NEAR(power[c], 4 * M_PI * 3.0 * Rgb(1.0, 0.8, 0.6)[c],
-                    1e-9 * 4 * M_PI * 3.0 * Rgb(1.0, 0.8, 0.6)[c]);
+    for (int c = 0; c < 3; ++c) {
+        const double watts = 4 * M_PI * 3.0 * Rgb(1.0, 0.8, 0.6)[c] / 683;
+        EXPECT_NEAR(power[c], watts, 1e-9 * watts);
+    }
 
     ASSERT_EQ(scene.cameras.size(), 1u);
     const Camera& cam = scene.cameras[0];
@@ -579,6 +581,211 @@ TEST(SceneImport, BadFilesAreRefusedWithOneLineNamingTheFileAndIgnoredFeaturesAr
     }
     EXPECT_TRUE(named);
     EXPECT_TRUE(dark);
+}
+
+// scenes/gltf/blender-room.{gltf,glb} and scenes/obj/blender-room.obj: the room that
+// scripts/blender/make_scene.py builds, exported by Blender 3.4.1's own exporters. The numbers
+// below restate make_scene.py's; the expected file values are computed from them here. Blender
+// is Z-up and both exporters write Y-up: Blender (x, y, z) is (x, z, -y) in the files.
+
+std::string blenderRoom(const std::string& relative) {
+    return (fs::path(PENUMBRA_SOURCE_DIR) / "scenes" / relative).string();
+}
+
+Vec3 fromBlender(Vec3 p) { return {p.x, p.z, -p.y}; }
+
+/// The Crate's corner `local` (its 1 m cube's, ±0.5) in file coordinates: the Shelf empty's
+/// TRS after the Crate's own (Euler XYZ: X first, then Y, then Z), as make_scene.py sets them.
+Vec3 blenderCrateCorner(Vec3 local) {
+    Vec3 p(local.x * 0.6, local.y * 0.4, local.z * 0.5);
+    p = test::rotateAboutZ(test::rotateAboutX(p, 15.0), 40.0) + Vec3(0.2, 0.1, 0.4);
+    p = test::rotateAboutZ(1.25 * p, 30.0) + Vec3(0.9, -0.7, 0.0);
+    return fromBlender(p);
+}
+
+double triangleArea(const std::array<Vec3, 3>& t) {
+    return 0.5 * glm::length(glm::cross(t[1] - t[0], t[2] - t[0]));
+}
+
+/// World triangles of a mesh object.
+std::vector<std::array<Vec3, 3>> worldTriangles(const SceneObject& o) {
+    const std::vector<Vec3> p = worldPositions(o);
+    std::vector<std::array<Vec3, 3>> out;
+    for (const auto& t : o.shape.mesh.triangles) out.push_back({p[t[0]], p[t[1]], p[t[2]]});
+    return out;
+}
+
+double meshArea(const SceneObject& o) {
+    double area = 0;
+    for (const auto& t : worldTriangles(o)) area += triangleArea(t);
+    return area;
+}
+
+/// Σ emission × area over the scene's mesh objects (the lamps that are surfaces), W per channel.
+Rgb meshEmittedPower(const Scene& scene) {
+    Rgb power(0.0);
+    for (const SceneObject& o : scene.objects) {
+        if (o.shape.type != ShapeType::Mesh) continue;
+        const std::vector<std::array<Vec3, 3>> triangles = worldTriangles(o);
+        for (std::size_t t = 0; t < triangles.size(); ++t) {
+            // One material for the object, or one per triangle.
+            const Material& m = o.material.empty()
+                                    ? o.shape.mesh.materials[o.shape.mesh.triangleMaterial[t]]
+                                    : *scene.findMaterial(o.material);
+            power += m.emission * triangleArea(triangles[t]);
+        }
+    }
+    return power;
+}
+
+double distanceToNearest(const std::vector<Vec3>& points, Vec3 p) {
+    double best = 1e30;
+    for (const Vec3& q : points) best = std::min(best, glm::length(q - p));
+    return best;
+}
+
+void expectTheBlenderRoomsMeshes(const Scene& scene, const std::string& file) {
+    SCOPED_TRACE(file);
+    // Baked transforms: every corner of the Crate under its turned, scaled Shelf.
+    const SceneObject& crate = scene.objects[scene.findObject("Crate")];
+    const std::vector<Vec3> cratePoints = worldPositions(crate);
+    for (double x : {-0.5, 0.5})
+        for (double y : {-0.5, 0.5})
+            for (double z : {-0.5, 0.5}) {
+                const Vec3 corner = blenderCrateCorner({x, y, z});
+                EXPECT_LT(distanceToNearest(cratePoints, corner), 1e-5)
+                    << "Crate corner (" << x << ", " << y << ", " << z << ") expected at ("
+                    << corner.x << ", " << corner.y << ", " << corner.z << ")";
+            }
+    // The known corner Blender itself printed (make_scene.py): (1.031349, -0.059433, 0.866557).
+    EXPECT_NEAR(glm::length(blenderCrateCorner({0.5, 0.5, 0.5}) -
+                            fromBlender({1.031349, -0.059433, 0.866557})),
+                0, 1e-6);
+    // Two materials on the Crate (two glTF primitives): its top Wood, its sides Crate.
+    const TriMesh& crateMesh = crate.shape.mesh;
+    std::vector<std::string> names = crateMesh.materialNames;
+    std::sort(names.begin(), names.end());
+    ASSERT_EQ(names, (std::vector<std::string>{"Crate", "Wood"}));
+    const std::vector<std::array<Vec3, 3>> crateTriangles = worldTriangles(crate);
+    int woodTriangles = 0;
+    for (std::size_t t = 0; t < crateTriangles.size(); ++t) {
+        const auto& c = crateTriangles[t];
+        const Vec3 n = glm::normalize(glm::cross(c[1] - c[0], c[2] - c[0]));
+        const bool isWood = crateMesh.materialNames[crateMesh.triangleMaterial[t]] == "Wood";
+        woodTriangles += isWood;
+        // The top's normal is the Crate's +Z (Blender), tilted 15° about X: up by cos 15°.
+        EXPECT_EQ(isWood, n.y > 0.9) << "triangle " << t << " normal y " << n.y;
+    }
+    EXPECT_EQ(woodTriangles, 2);
+
+    // Walls: the 1 m cube scaled (4, 4, 3) at height 1.5, open below, every face inward.
+    const SceneObject& walls = scene.objects[scene.findObject("Walls")];
+    Vec3 lo(1e30), hi(-1e30);
+    for (const Vec3& p : worldPositions(walls)) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    EXPECT_LT(glm::length(lo - Vec3(-2, 0, -2)), 1e-6);
+    EXPECT_LT(glm::length(hi - Vec3(2, 3, 2)), 1e-6);
+    EXPECT_NEAR(meshArea(walls), 4 * 4 + 4 * 4 * 3, 1e-5) << "ceiling and four walls";
+    for (const auto& t : worldTriangles(walls)) {
+        const Vec3 n = glm::cross(t[1] - t[0], t[2] - t[0]);
+        const Vec3 centre = (t[0] + t[1] + t[2]) / 3.0;
+        EXPECT_GT(glm::dot(n, Vec3(0, 1.5, 0) - centre), 0) << "a wall faces the room";
+    }
+    // Floor 4 m × 4 m facing up; Panel 1 × 0.6 m at 2.98 m facing down.
+    const SceneObject& floor = scene.objects[scene.findObject("Floor")];
+    EXPECT_NEAR(meshArea(floor), 16, 1e-5);
+    const SceneObject& panel = scene.objects[scene.findObject("Panel")];
+    EXPECT_NEAR(meshArea(panel), 0.6, 1e-6);
+    EXPECT_NEAR(panel.transform.translate.y, 2.98, 1e-6);
+    for (const auto& t : worldTriangles(panel))
+        EXPECT_LT(glm::cross(t[1] - t[0], t[2] - t[0]).y, 0) << "the panel faces down";
+    for (const auto& t : worldTriangles(floor))
+        EXPECT_GT(glm::cross(t[1] - t[0], t[2] - t[0]).y, 0) << "the floor faces up";
+
+    // One material shared by the two boxes; the panel's emission π × colour × strength 8.
+    EXPECT_EQ(scene.objects[scene.findObject("BoxA")].material, "Wood");
+    EXPECT_EQ(scene.objects[scene.findObject("BoxB")].material, "Wood");
+    const Material* wood = scene.findMaterial("Wood");
+    ASSERT_NE(wood, nullptr);
+    EXPECT_LT(glm::length(wood->reflectance - Rgb(0.45, 0.3, 0.18)), 1e-6);
+    const Material* light = scene.findMaterial(panel.material);
+    ASSERT_NE(light, nullptr);
+    EXPECT_EQ(panel.material, "PanelLight");
+    EXPECT_LT(glm::length(light->emission - M_PI * 8.0 * Rgb(1.0, 0.9, 0.75)), 1e-5)
+        << "E = π × emissive × strength (docs/import.md)";
+    EXPECT_EQ(light->reflectance, Rgb(0.0));
+}
+
+TEST(SceneImport,
+     BlendersGltfAndGlbExportsOfARoomImportWithTheirTransformsMaterialsLightAndCamera) {
+    for (const std::string file : {"gltf/blender-room.gltf", "gltf/blender-room.glb"}) {
+        std::vector<std::string> warnings;
+        const Scene scene = importScene(blenderRoom(file), quiet(&warnings));
+        SCOPED_TRACE(file);
+        EXPECT_TRUE(warnings.empty()) << warnings.front();
+        std::vector<std::string> ids;
+        for (const SceneObject& o : scene.objects) ids.push_back(o.id);
+        EXPECT_EQ(ids, (std::vector<std::string>{"Walls", "Floor", "BoxA", "BoxB", "Crate", "Panel",
+                                                 "light-Bulb"}))
+            << "ids from node names; the Shelf empty has no mesh";
+        expectTheBlenderRoomsMeshes(scene, file);
+        // Blender writes doubleSided for every material unless Backface Culling is ticked.
+        EXPECT_TRUE(scene.findMaterial("Wood")->twoSided);
+
+        // The 25 W point light: a sphere at its place sending 25 W × its colour.
+        const int bulb = scene.findObject("light-Bulb");
+        ASSERT_GE(bulb, 0);
+        const SceneObject& sphere = scene.objects[bulb];
+        EXPECT_EQ(sphere.shape.type, ShapeType::Sphere);
+        EXPECT_LT(glm::length(sphere.transform.translate - fromBlender({-1.3, -1.2, 2.2})), 1e-6);
+        const Discretization disc(scene);
+        Rgb power(0.0);
+        for (const Element& e : disc.elements())
+            if (e.object == bulb)
+                power += disc.elementMaterial(&e - disc.elements().data()).emission * e.area;
+        const Rgb watts = 25.0 * Rgb(1.0, 0.8, 0.6);
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(power[c], watts[c], 1e-6 * watts[c]) << "channel " << c;
+
+        // The camera at (1.7, -1.7, 1.6) looking at (0, 0, 0.8); 24 mm on 36 mm at 4:3.
+        ASSERT_EQ(scene.cameras.size(), 1u);
+        const Camera& cam = scene.cameras[0];
+        EXPECT_EQ(cam.name, "Camera");
+        const Vec3 position = fromBlender({1.7, -1.7, 1.6});
+        EXPECT_LT(glm::length(cam.position - position), 1e-6);
+        const Vec3 forward = glm::normalize(cam.lookAt - cam.position);
+        EXPECT_LT(glm::length(forward - glm::normalize(fromBlender({0, 0, 0.8}) - position)), 1e-6);
+        EXPECT_NEAR(glm::dot(cam.up, forward), 0, 1e-6);
+        EXPECT_GT(cam.up.y, 0.9) << "upright";
+        EXPECT_NEAR(cam.fovDeg, 2 * std::atan(18.0 / 24.0 / (640.0 / 480.0)) * 180 / M_PI, 1e-5);
+    }
+}
+
+TEST(SceneImport, BlendersObjExportOfTheRoomMatchesItsGltfExport) {
+    std::vector<std::string> warnings;
+    const Scene obj = importScene(blenderRoom("obj/blender-room.obj"), quiet(&warnings));
+    EXPECT_TRUE(warnings.empty()) << warnings.front();
+    const Scene gltf = importScene(blenderRoom("gltf/blender-room.glb"), quiet());
+    std::vector<std::string> ids;
+    for (const SceneObject& o : obj.objects) ids.push_back(o.id);
+    EXPECT_EQ(ids, (std::vector<std::string>{"Walls", "Floor", "BoxA", "BoxB", "Crate", "Panel"}))
+        << "OBJ has no lights or cameras";
+    expectTheBlenderRoomsMeshes(obj, "obj/blender-room.obj");
+    EXPECT_FALSE(obj.findMaterial("Wood")->twoSided) << "OBJ has no two-sided flag";
+
+    // The same meshes: object count (the glTF adds the light's sphere), areas, emitted power.
+    std::size_t gltfMeshes = 0;
+    for (const SceneObject& o : gltf.objects) gltfMeshes += o.shape.type == ShapeType::Mesh;
+    EXPECT_EQ(gltfMeshes, obj.objects.size());
+    for (const SceneObject& o : obj.objects) {
+        const int g = gltf.findObject(o.id);
+        ASSERT_GE(g, 0) << o.id;
+        EXPECT_NEAR(meshArea(o), meshArea(gltf.objects[g]), 1e-5 * meshArea(o)) << o.id;
+    }
+    const Rgb objPower = meshEmittedPower(obj), gltfPower = meshEmittedPower(gltf);
+    EXPECT_LT(glm::length(objPower - gltfPower), 1e-5 * glm::length(objPower));
+    EXPECT_LT(glm::length(objPower - 0.6 * M_PI * 8.0 * Rgb(1.0, 0.9, 0.75)), 1e-4)
+        << "Ke = colour × strength, E = π Ke over the panel's 0.6 m²";
+    EXPECT_EQ(obj.settings.elementSize, gltf.settings.elementSize);
 }
 
 }  // namespace
