@@ -17,6 +17,7 @@
 #include "render/cdt.h"
 #include "render/edge_tree.h"
 #include "render/exact_irradiance.h"
+#include "render/light_change.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/ray_tracer.h"
@@ -784,9 +785,8 @@ std::vector<std::uint8_t> hifiRemeshElements(const Discretization& disc,
         const auto [first, count] = disc.elementRange(o);
         if (count > 0 && disc.elementMaterial(first).isEmitter()) return remesh;
     }
-    double mean = 0;
-    for (std::size_t e = 0; e < std::min(n, after.size()); ++e) mean += luminance(after[e]);
-    mean = n > 0 ? mean / double(n) : 0;
+    const std::vector<std::uint8_t> relit =
+        changedElements(elementLuminance(before), elementLuminance(after), threshold);
     // The events the changed objects cast before and after, and their bounds (contacts).
     const std::vector<Wedge> wedges = allWedges(disc, &changedObjects);
     std::vector<std::pair<Vec3, Vec3>> bounds;
@@ -797,8 +797,7 @@ std::vector<std::uint8_t> hifiRemeshElements(const Discretization& disc,
         bounds.emplace_back(lo, hi);
     }
     auto unchanged = [&](std::size_t e) {
-        const double y0 = luminance(before[e]), y1 = luminance(after[e]);
-        if (std::abs(y1 - y0) > threshold * std::max(y0, 1e-3 * mean)) return false;
+        if (relit[e]) return false;
         const int ei = static_cast<int>(e);
         const ElementGeometry g = geometryOf(disc, ei);
         // Near a changed object: its contact lines on this element may have come or gone.

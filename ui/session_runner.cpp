@@ -51,33 +51,8 @@ constexpr double kLoadingImageMs = 250;
 /// A new display's first frame waits at most this long for the holodeck's points of its view.
 constexpr double kHolodeckWaitMs = 500;
 
-
 bool sameCamera(const Camera& a, const Camera& b) {
     return a.position == b.position && a.lookAt == b.lookAt && a.up == b.up && a.fovDeg == b.fovDeg;
-}
-
-/// One point per pixel of a w × h raster, the nearest its centre: a holodeck filled in batch
-/// holds many samples per pixel of a view, and a display's cache keeps a few points per pixel
-/// (a larger batch evicts the warm-up's points and keeps its own last ones, not an even
-/// spread).
-std::vector<ShadedPoint> onePerPixel(const std::vector<ShadedPoint>& points, int w, int h) {
-    std::vector<int> best(static_cast<std::size_t>(w) * h, -1);
-    auto offCentre = [](const ShadedPoint& p) {
-        const double dx = p.pixel.x - std::floor(p.pixel.x) - 0.5;
-        const double dy = p.pixel.y - std::floor(p.pixel.y) - 0.5;
-        return dx * dx + dy * dy;
-    };
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        const int x = static_cast<int>(points[i].pixel.x), y = static_cast<int>(points[i].pixel.y);
-        if (x < 0 || y < 0 || x >= w || y >= h) continue;
-        int& b = best[static_cast<std::size_t>(y) * w + x];
-        if (b < 0 || offCentre(points[i]) < offCentre(points[std::size_t(b)]))
-            b = static_cast<int>(i);
-    }
-    std::vector<ShadedPoint> kept;
-    for (int b : best)
-        if (b >= 0) kept.push_back(points[std::size_t(b)]);
-    return kept;
 }
 
 }  // namespace
@@ -1170,12 +1145,10 @@ std::vector<ShadedPoint> SessionRunner::holodeckPointsOf(const HoloRead& read) {
         const CameraRays rays(read.camera, read.width, read.height);
         const auto view = viewRequests(mHoloFile->sections(), rays, std::max(1, read.width / 4),
                                        std::max(1, read.height / 4), 1.0);
-        const std::vector<ShadedPoint> all = holodeckViewPoints(
+        std::vector<ShadedPoint> points = holodeckViewPoints(
             *mHoloServer, view, mSession->discretization(), mSession->tracer(), rays, 0, 0);
-        std::vector<ShadedPoint> points = onePerPixel(all, read.width, read.height);
-        spdlog::debug("holodeck: {} points ({} samples) of a {}x{} view in {:.1f} ms",
-                      points.size(), all.size(), read.width, read.height,
-                      (nowSeconds() - t0) * 1e3);
+        spdlog::debug("holodeck: {} points of a {}x{} view in {:.1f} ms", points.size(),
+                      read.width, read.height, (nowSeconds() - t0) * 1e3);
         return points;
     } catch (const std::exception& e) {
         report(std::string("holodeck: ") + e.what());

@@ -98,10 +98,27 @@ std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
         p.shading = shading;
         keep[i] = 1;
     });
+    // One point per pixel, the nearest its centre: a holodeck filled in batch holds many
+    // samples per pixel of a view, and a display's cache keeps a few points per pixel (a
+    // larger batch would evict the warm-up's points and keep its own last ones, not an even
+    // spread).
+    const int w = camera.width(), h = camera.height();
+    std::vector<int> best(static_cast<std::size_t>(w) * h, -1);
+    auto offCentre = [](const ShadedPoint& p) {
+        const double dx = p.pixel.x - std::floor(p.pixel.x) - 0.5;
+        const double dy = p.pixel.y - std::floor(p.pixel.y) - 0.5;
+        return dx * dx + dy * dy;
+    };
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        if (!keep[i]) continue;
+        const int x = static_cast<int>(points[i].pixel.x), y = static_cast<int>(points[i].pixel.y);
+        int& b = best[static_cast<std::size_t>(y) * w + x];
+        if (b < 0 || offCentre(points[i]) < offCentre(points[std::size_t(b)]))
+            b = static_cast<int>(i);
+    }
     std::vector<ShadedPoint> out;
-    out.reserve(points.size());
-    for (std::size_t i = 0; i < points.size(); ++i)
-        if (keep[i]) out.push_back(points[i]);
+    for (int b : best)
+        if (b >= 0) out.push_back(points[std::size_t(b)]);
     return out;
 }
 
@@ -219,24 +236,6 @@ FillStats fillView(HoloServer& server, const PointShader& shader, const RayTrace
     stats.beams = std::int64_t(touched.size());
     stats.seconds = secondsSince(start);
     return stats;
-}
-
-std::vector<double> elementLuminance(const std::vector<Rgb>& radiosity) {
-    std::vector<double> y(radiosity.size());
-    for (std::size_t e = 0; e < radiosity.size(); ++e) y[e] = luminance(radiosity[e]);
-    return y;
-}
-
-std::vector<std::uint8_t> changedElements(const std::vector<double>& before,
-                                          const std::vector<double>& after, double threshold) {
-    double mean = 0;
-    for (double y : after) mean += y;
-    mean = after.empty() ? 0 : mean / double(after.size());
-    std::vector<std::uint8_t> changed(after.size(), 1);
-    for (std::size_t e = 0; e < std::min(after.size(), before.size()); ++e)
-        changed[e] =
-            std::abs(after[e] - before[e]) > threshold * std::max(before[e], 1e-3 * mean);
-    return changed;
 }
 
 }  // namespace penumbra

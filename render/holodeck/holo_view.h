@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "render/holodeck/holo_server.h"
+#include "render/light_change.h"
 #include "render/point_shader.h"
 #include "render/render_cache.h"
 
@@ -31,7 +32,9 @@ std::vector<HoloSection> holodeckSections(const Settings& settings, const Discre
 /// The samples of `view`'s beams (viewRequests) as shaded points of `camera`: each sample's ray
 /// is traced again in the scene as it is (a sample whose ray now ends elsewhere is stale and
 /// left out), its hit must be seen from the eye (one occlusion ray) and inside the raster.
-/// Points carry `frame` and `shading` (PointShader::stateSerial) like points shaded now.
+/// Of the samples in a pixel, the one nearest its centre is taken (a batch-filled holodeck
+/// holds many per pixel; more than one a pixel only crowds the display's cache). Points carry
+/// `frame` and `shading` (PointShader::stateSerial) like points shaded now.
 std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
                                             const std::vector<BeamRequest>& view,
                                             const Discretization& disc, const RayTracer& tracer,
@@ -56,15 +59,5 @@ FillStats fillView(HoloServer& server, const PointShader& shader, const RayTrace
 /// this one is left out) and whose ray crosses a section. Returns the samples added.
 std::int64_t storeViewPoints(HoloServer& server, const std::vector<CachePoint>& points,
                              const RayTracer& tracer, const Vec3& eye);
-
-/// Per element, the luminance of its radiosity (W/m²): what changedElements compares.
-std::vector<double> elementLuminance(const std::vector<Rgb>& radiosity);
-
-/// The elements whose light an edit changed, for HoloServer::invalidate: 1 where the
-/// luminance moved by more than `threshold` of what it was (`before`; values below a
-/// thousandth of `after`'s mean count as that), and for every element past `before`'s end
-/// (new elements); sized as `after`.
-std::vector<std::uint8_t> changedElements(const std::vector<double>& before,
-                                          const std::vector<double>& after, double threshold);
 
 }  // namespace penumbra
