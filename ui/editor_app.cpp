@@ -166,8 +166,8 @@ void EditorApp::openScene(const std::string& path) {
         isImportableScene(path) ? std::filesystem::path(path).replace_extension(".json").string()
                                 : path;
     if (!mOptions.log.empty()) session->openLog(mOptions.log);
-    // The previous scene's journal ends with its session (below); this one's starts now, after
-    // what an earlier session left unsaved was set aside.
+    // The previous scene's journal ends with its edit session (below); this one's starts now,
+    // after what an earlier run of the editor left unsaved was set aside.
     mRunner.reset();
     removeEmptyJournal();
     mUnsaved = {};  // an unanswered offer stays set aside for the next session on its scene
@@ -224,8 +224,8 @@ void EditorApp::saveScene(const std::string& path) {
         [path, old = mJournal, journal](EditSession& s) {
             s.saveScene(path);
             if (journal.empty()) return;
-            // What the journals held is in the file now, and so is whatever an earlier session
-            // left unsaved for `path` (the file replaces it).
+            // What the journals held is in the file now, and so is whatever an earlier run of the
+            // editor left unsaved for `path` (the file replaces it).
             s.closeLog();
             std::error_code ignored;
             for (const std::string& stale : {old, journal, journal + ".unsaved"})

@@ -114,9 +114,9 @@ struct HolodeckStatus {
     std::string error;          ///< why it could not be opened
     std::int64_t samples = 0;   ///< stored, after the last commit
     std::int64_t served = 0;    ///< samples handed to displays as points
-    std::int64_t stored = 0;    ///< display points stored this session
-    std::int64_t invalidated = 0;  ///< samples dropped after edits this session
-    /// "holodeck: 234k samples" (with what this session took and gave), "" without one.
+    std::int64_t stored = 0;    ///< display points stored since the runner opened it
+    std::int64_t invalidated = 0;  ///< samples dropped after edits since then
+    /// "holodeck: N samples" (with what this runner took and gave), "" without one.
     std::string toString() const;
 };
 
