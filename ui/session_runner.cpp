@@ -338,6 +338,10 @@ void SessionRunner::applyCommands(std::deque<Queued>& commands) {
     // The holodeck forgets what the edits changed once the solution converges again.
     for (const EditEvent& event : events)
         if (event.kind != EditEvent::Kind::Solved) mHoloDirty = mHoloUnsaved = true;
+    // The interpolants' next build re-meshes what the edits changed (mDisplayMutex is held).
+    for (const EditEvent& event : events)
+        if (event.kind != EditEvent::Kind::Solved)
+            for (int v : event.changed()) mHifiChanged.push_back(v);
     // The displays see a batch of drag positions as its last one.
     coalescePreviews(events);
     for (const EditEvent& event : events) applyDisplayEvent(event);
@@ -601,22 +605,25 @@ const HifiMesh* SessionRunner::hifiLanded(const ViewRequest& view, const Light& 
         mHifiBuild.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
         std::unique_ptr<HifiMesh> built = mHifiBuild.get();
         if (built && mHifiBuildSerial == light.serial) {
-            mHifi = std::move(built);
-            mHifiSerial = light.serial;
-            spdlog::debug("interpolants: {} triangles built in {:.1f} s (light {})",
-                          mHifi->stats().triangles, mHifi->stats().seconds, light.serial);
+            landHifi(std::move(built), light.serial, mHifiBuildRadiosity);
+            spdlog::debug("interpolants: {} triangles, {} elements meshed in {:.1f} s (light {})",
+                          mHifi->stats().triangles, mHifi->stats().remeshed,
+                          mHifi->stats().seconds, light.serial);
         } else {
             spdlog::debug("interpolants: build for light {} dropped (light {} now)",
                           mHifiBuildSerial, light.serial);
         }
     }
-    if (mHifi && mHifiSerial == light.serial) {
+    auto shown = [&] {
         char text[160];
-        std::snprintf(text, sizeof text, "interpolants: %d triangles, built in %.1f s",
-                      mHifi->stats().triangles, mHifi->stats().seconds);
+        std::snprintf(text, sizeof text,
+                      "interpolants: %d triangles, %d of %d elements meshed in %.1f s",
+                      mHifi->stats().triangles, mHifi->stats().remeshed, mHifi->stats().elements,
+                      mHifi->stats().seconds);
         note = text;
         return mHifi.get();
-    }
+    };
+    if (mHifi && mHifiSerial == light.serial) return shown();
     if (mHifiBuild.valid()) {
         if (mHifiBuildSerial != light.serial) mHifiOutdated = true;  // stops at its next element
         char text[160];
@@ -630,30 +637,57 @@ const HifiMesh* SessionRunner::hifiLanded(const ViewRequest& view, const Light& 
         return nullptr;
     }
     mHifiBuildSerial = light.serial;
+    mHifiBuildRadiosity = light.radiosity;
     mHifiProgress = 0;
     mHifiOutdated = false;
     note = "interpolants: building 0% (Gouraud meanwhile)";
+    HifiBase base = hifiBase();
+    mHifiBuildChanges = base.changed.size();
     if (!mOptions.threaded) {
         // renderIteration already holds the structure shared.
-        mHifi = buildHifiHeld(light.radiosity);
-        mHifiSerial = light.serial;
-        return mHifi.get();
+        std::unique_ptr<HifiMesh> built = buildHifiHeld(light.radiosity, base);
+        if (!built) return nullptr;
+        landHifi(std::move(built), light.serial, light.radiosity);
+        return shown();
     }
-    mHifiBuild = std::async(std::launch::async, [this, radiosity = light.radiosity] {
-        lowerThreadPriority(mOptions.backgroundNice);
-        return buildHifi(radiosity);
-    });
+    mHifiBuild = std::async(std::launch::async,
+                            [this, radiosity = light.radiosity, base = std::move(base)] {
+                                lowerThreadPriority(mOptions.backgroundNice);
+                                return buildHifi(radiosity, base);
+                            });
     return nullptr;
 }
 
+SessionRunner::HifiBase SessionRunner::hifiBase() {
+    HifiBase base;
+    if (!mHifi || !mHifiRadiosity) return base;  // nothing shown yet: a full build
+    base.mesh = mHifi;
+    base.radiosity = mHifiRadiosity;
+    std::lock_guard<std::mutex> lock(mDisplayMutex);
+    base.changed = mHifiChanged;
+    return base;
+}
+
+void SessionRunner::landHifi(std::unique_ptr<HifiMesh> mesh, std::uint64_t serial,
+                             std::shared_ptr<const std::vector<Rgb>> radiosity) {
+    mHifi = std::move(mesh);
+    mHifiSerial = serial;
+    mHifiRadiosity = std::move(radiosity);
+    // The edits the build took in are in the mesh now; later ones wait for the next build.
+    std::lock_guard<std::mutex> lock(mDisplayMutex);
+    mHifiChanged.erase(mHifiChanged.begin(),
+                       mHifiChanged.begin() +
+                           std::ptrdiff_t(std::min(mHifiBuildChanges, mHifiChanged.size())));
+}
+
 std::unique_ptr<HifiMesh> SessionRunner::buildHifi(
-    std::shared_ptr<const std::vector<Rgb>> radiosity) {
+    std::shared_ptr<const std::vector<Rgb>> radiosity, HifiBase base) {
     std::shared_lock<std::shared_mutex> structure(mStructure);
-    return buildHifiHeld(std::move(radiosity));
+    return buildHifiHeld(std::move(radiosity), base);
 }
 
 std::unique_ptr<HifiMesh> SessionRunner::buildHifiHeld(
-    std::shared_ptr<const std::vector<Rgb>> radiosity) {
+    std::shared_ptr<const std::vector<Rgb>> radiosity, const HifiBase& base) {
     const Discretization& disc = mSession->discretization();
     if (radiosity->size() != disc.elements().size()) return nullptr;
     try {
@@ -663,8 +697,18 @@ std::unique_ptr<HifiMesh> SessionRunner::buildHifiHeld(
         exact.setReflected(reflectedRadiosity(disc, *radiosity));
         HifiOptions options;
         options.cancelled = [this] { return mEditsWaiting.load() > 0 || mHifiOutdated.load(); };
-        auto mesh = std::make_unique<HifiMesh>();
-        mesh->build(disc, exact, options, [this](double f) { mHifiProgress = f; });
+        auto progress = [this](double f) { mHifiProgress = f; };
+        std::unique_ptr<HifiMesh> mesh;
+        if (base.mesh) {
+            // Only what the edits and the new lighting changed (HifiMesh::update).
+            mesh = std::make_unique<HifiMesh>(*base.mesh);
+            mesh->update(disc, exact,
+                         hifiRemeshElements(disc, *base.radiosity, *radiosity, base.changed),
+                         options, progress);
+        } else {
+            mesh = std::make_unique<HifiMesh>();
+            mesh->build(disc, exact, options, progress);
+        }
         if (mesh->stats().cancelled) return nullptr;
         return mesh;
     } catch (const std::exception& e) {

@@ -339,12 +339,28 @@ private:
     /// `still`) and says how far it got in `note`.
     const HifiMesh* hifiLanded(const ViewRequest& view, const Light& light, bool still,
                                std::string& note);
+    /// What a build starts from: the mesh shown last (null: none, a full build), the lighting
+    /// it was built of and the versions edits changed since (HifiMesh::update re-meshes only
+    /// what they and the new lighting changed).
+    struct HifiBase {
+        std::shared_ptr<const HifiMesh> mesh;
+        std::shared_ptr<const std::vector<Rgb>> radiosity;
+        std::vector<int> changed;
+    };
     /// The build itself (any thread): the interpolants of the structure now and `radiosity`;
     /// null when an edit came first. buildHifi takes the structure shared; buildHifiHeld is
     /// for a caller that holds it already (a shared_mutex must not be locked twice by one
     /// thread).
-    std::unique_ptr<HifiMesh> buildHifi(std::shared_ptr<const std::vector<Rgb>> radiosity);
-    std::unique_ptr<HifiMesh> buildHifiHeld(std::shared_ptr<const std::vector<Rgb>> radiosity);
+    std::unique_ptr<HifiMesh> buildHifi(std::shared_ptr<const std::vector<Rgb>> radiosity,
+                                        HifiBase base);
+    std::unique_ptr<HifiMesh> buildHifiHeld(std::shared_ptr<const std::vector<Rgb>> radiosity,
+                                            const HifiBase& base);
+    /// The base of a new build of the mesh shown (render thread).
+    HifiBase hifiBase();
+    /// A build landed: `mesh` of lighting `serial` (`radiosity`) is shown and the base of the
+    /// next (render thread).
+    void landHifi(std::unique_ptr<HifiMesh> mesh, std::uint64_t serial,
+                  std::shared_ptr<const std::vector<Rgb>> radiosity);
     void publishDocument();
     void publishLight();
     void publishSolver(double solverMs);
@@ -574,8 +590,16 @@ private:
     // Interpolant mode. The build runs on a thread of its own holding the structure shared;
     // an edit waiting for it (mEditsWaiting) or newer lighting (mHifiOutdated) stops it
     // between elements, so an edit waits for one element's samples, not the build.
-    std::unique_ptr<HifiMesh> mHifi;  ///< the mesh shown, of lighting mHifiSerial
+    std::shared_ptr<const HifiMesh> mHifi;  ///< the mesh shown, of lighting mHifiSerial
     std::uint64_t mHifiSerial = 0;
+    /// The lighting mHifi was built of, and how many of mHifiChanged its build had taken in.
+    std::shared_ptr<const std::vector<Rgb>> mHifiRadiosity;
+    std::size_t mHifiBuildChanges = 0;
+    /// The versions edits changed since mHifi was built (EditEvent::changed()): the solver
+    /// thread appends, the render thread takes them for a build and drops those a landed build
+    /// took in; both under mDisplayMutex.
+    std::vector<int> mHifiChanged;
+    std::shared_ptr<const std::vector<Rgb>> mHifiBuildRadiosity;  ///< the lighting being built
     std::future<std::unique_ptr<HifiMesh>> mHifiBuild;
     std::uint64_t mHifiBuildSerial = 0;  ///< the lighting being built
     std::atomic<double> mHifiProgress{0};
