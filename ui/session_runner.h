@@ -40,8 +40,9 @@
 //   mStructure     exclusive: edits, tasks        shared: a frame (released      shared: pick
 //                  (solverIteration)              while the EPI reconstructs),
 //                                                 display and interpolant builds
-//   mDisplayMutex  with mStructure: events to     every call on a display        —
-//                  the displays, shaders paused
+//   mDisplayMutex  with mStructure: events to     every call on a display; the   —
+//                  the displays, shaders paused;  interpolants' edits (a build
+//                  edits for the interpolants     takes, a landed one drops them)
 //   mQueueMutex    takes the queue and flags      reads the view request         submit, setView,
 //                                                                                flags
 //   mPublishMutex  publishes light, document,     publishes the image            reads snapshots
