@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -27,7 +28,7 @@ constexpr double kMaxReflectance = 0.99;
 /// importer use both ways, so a Blender light of P watts imports with P watts.
 constexpr double kLumensPerWatt = 683.0;
 /// Receivers an imported scene is discretized into, about (Importer::chooseSettings).
-constexpr double kTargetElements = 4000;
+constexpr double kTargetElements = 16000;
 
 std::string lowerExtension(const std::string& path) {
     std::string e = std::filesystem::path(path).extension().string();
@@ -215,28 +216,76 @@ struct Importer {
         scene.objects.push_back(std::move(object));
     }
 
-    /// Element and shooter sizes from the surface area: about kTargetElements receivers
-    /// whatever the scene's scale (the defaults' 0.1 m would give a large hall millions). The
-    /// point lights' spheres count too: a light beside meshes far smaller than it would
-    /// otherwise be split into as many elements as its area holds of theirs.
+    /// Element and shooter sizes: the smallest element size at which the solver makes at most
+    /// kTargetElements receivers of the meshes' fronts and the point lights' spheres, whatever
+    /// the scene's scale (the defaults' 0.1 m would give a large hall millions). Counted as the
+    /// solver splits them, not from the area: a triangle whose longest edge is n element sizes
+    /// becomes n² elements, so a quad made of two triangles gives about four times its area's
+    /// share. A two-sided material's back sheet doubles its faces but is not counted: the same
+    /// room from OBJ (one-sided) and from glTF (two-sided, as Blender writes it) gets the same
+    /// size. Rounded up to two significant digits (0.16, not 0.1573...).
     void chooseSettings() {
+        std::vector<double> longestEdges;  // per mesh triangle, world space
         double area = 0;
         for (const SceneObject& o : scene.objects) {
             const TriMesh& m = o.shape.mesh;
-            for (const auto& t : m.triangles)
-                area += 0.5 * glm::length(glm::cross(m.positions[t[1]] - m.positions[t[0]],
-                                                     m.positions[t[2]] - m.positions[t[0]]));
+            const glm::dmat3 linear(o.transform.worldFromObject());
+            for (const auto& t : m.triangles) {
+                const Vec3 p[3] = {linear * m.positions[t[0]], linear * m.positions[t[1]],
+                                   linear * m.positions[t[2]]};
+                area += 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+                longestEdges.push_back(std::max({glm::length(p[1] - p[0]),
+                                                 glm::length(p[2] - p[1]),
+                                                 glm::length(p[0] - p[2])}));
+            }
         }
+        std::vector<SceneObject> lights;
         for (const MeshFileLight& light : file.lights)
-            if (light.type != "directional")
+            if (light.type != "directional") {
+                lights.push_back(lightObject(light));
                 area += 4 * M_PI * options.lightRadius * options.lightRadius;
+            }
         if (!(area > 0)) return;
-        // Rounded up to two significant digits (0.16, not 0.1573...); divided, not multiplied,
-        // by the power of ten below 1 so the value prints as written.
-        const double element = std::sqrt(area / kTargetElements);
-        const double unit = std::pow(10.0, std::floor(std::log10(element)) - 1);
-        const double steps = std::ceil(element / unit - 1e-9);
-        scene.settings.elementSize = unit < 1 ? steps / std::round(1 / unit) : steps * unit;
+        auto elementsAt = [&](double size) {
+            double count = 0;
+            for (double longest : longestEdges) {
+                const double n = std::max(1.0, std::ceil(longest / size - 1e-9));
+                count += n * n;
+            }
+            for (const SceneObject& light : lights) {
+                Scene one;
+                one.settings.elementSize = size;
+                one.settings.patchSize = 4 * size;
+                one.materials.push_back({"light", Material{}});
+                one.objects.push_back(light);
+                one.objects.back().material = "light";
+                try {
+                    count += static_cast<double>(Discretization(one).elements().size());
+                } catch (const std::invalid_argument&) {
+                    return std::numeric_limits<double>::infinity();  // too fine for the sphere
+                }
+            }
+            return count;
+        };
+        auto twoDigitsUp = [](double size) {
+            // Divided, not multiplied, by the power of ten below 1 so the value prints as
+            // written.
+            const double unit = std::pow(10.0, std::floor(std::log10(size)) - 1);
+            const double steps = std::ceil(size / unit - 1e-9);
+            return unit < 1 ? steps / std::round(1 / unit) : steps * unit;
+        };
+        // The count falls as the size grows; it reaches the target between a quarter and four
+        // times the size that would share the area out evenly, unless the meshes' own triangles
+        // already outnumber it (then the largest: every triangle one element).
+        const double even = std::sqrt(area / kTargetElements);
+        double lo = even / 4, hi = 4 * even;
+        if (elementsAt(hi) <= kTargetElements) {
+            for (int i = 0; i < 40 && hi - lo > 1e-3 * hi; ++i) {
+                const double mid = 0.5 * (lo + hi);
+                (elementsAt(mid) <= kTargetElements ? hi : lo) = mid;
+            }
+        }
+        scene.settings.elementSize = twoDigitsUp(hi);
         scene.settings.patchSize = 4 * scene.settings.elementSize;
     }
 
@@ -252,6 +301,17 @@ struct Importer {
         return area;
     }
 
+    /// A point light's sphere, without its id and material.
+    SceneObject lightObject(const MeshFileLight& light) const {
+        SceneObject object;
+        object.shape.type = ShapeType::Sphere;
+        object.shape.radius = options.lightRadius;
+        object.shape.segments = 16;
+        object.transform.translate = light.position;
+        object.patchSize = 2 * options.lightRadius;
+        return object;
+    }
+
     void addLight(const MeshFileLight& light) {
         if (light.type == "directional") {
             warn("light '" + light.name +
@@ -265,18 +325,12 @@ struct Importer {
         // A point light of intensity I (candela) sends Φ = 4πI lumens, 4πI / 683 watts, in
         // all; a sphere emitting E from its surface sends E × its area. Its area as the solver
         // facets it (a little less than 4πr²) gives it exactly the light's power.
-        const double r = options.lightRadius;
         const Rgb power = glm::max(
             4 * M_PI * light.colour * light.intensity / kLumensPerWatt * options.emissionScale,
             Rgb(0.0));
         const std::string name = light.name.empty() ? "light" : light.name;
-        SceneObject object;
+        SceneObject object = lightObject(light);
         object.id = objectIds.take("light-" + name, "light");
-        object.shape.type = ShapeType::Sphere;
-        object.shape.radius = r;
-        object.shape.segments = 16;
-        object.transform.translate = light.position;
-        object.patchSize = 2 * r;
         Material m;
         m.reflectance = Rgb(0.0);
         m.emission = Rgb(1.0);

@@ -788,5 +788,31 @@ TEST(SceneImport, BlendersObjExportOfTheRoomMatchesItsGltfExport) {
     EXPECT_EQ(obj.settings.elementSize, gltf.settings.elementSize);
 }
 
+// docs/import.md: a scene without Penumbra's settings is split into about 16,000 elements (the
+// fronts of its surfaces), counted here by the solver's own discretization, whatever the
+// file's scale and however its meshes are triangulated.
+TEST(SceneImport, AnImportedSceneGetsAboutTheTargetNumberOfElements) {
+    for (const char* file : {"obj/blender-room.obj", "gltf/blender-room.glb",
+                             "gltf/studio.gltf", "gltf/cornell.gltf"}) {
+        const Scene scene = importScene(blenderRoom(file), quiet());
+        const Discretization disc(scene);
+        std::size_t fronts = 0;
+        for (const Element& e : disc.elements())
+            fronts += !disc.objects()[e.object].isBackFace(e.face);
+        EXPECT_LE(fronts, 16000u) << file;
+        EXPECT_GE(fronts, 12000u) << file << ": element size " << scene.settings.elementSize;
+        // One step of the two digits smaller would pass the target.
+        Scene finer = scene;
+        const double unit = std::pow(10.0, std::floor(std::log10(scene.settings.elementSize)) - 1);
+        finer.settings.elementSize = scene.settings.elementSize - unit;
+        finer.settings.patchSize = 4 * finer.settings.elementSize;
+        const Discretization finerDisc(finer);
+        std::size_t finerFronts = 0;
+        for (const Element& e : finerDisc.elements())
+            finerFronts += !finerDisc.objects()[e.object].isBackFace(e.face);
+        EXPECT_GT(finerFronts, 16000u) << file << ": element size " << scene.settings.elementSize;
+    }
+}
+
 }  // namespace
 }  // namespace penumbra
