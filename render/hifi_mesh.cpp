@@ -231,6 +231,128 @@ bool wedgeOnElement(const Wedge& w, const Element& el, const PlaneFrame& frame,
     return true;
 }
 
+/// The wedges by where they can cut an element, so that an element tests only the wedges
+/// that may reach it, not every wedge in the scene. A wedge's region beyond its blocker is
+/// the convex part of its plane between its two rays; clipped to the scene's box, it is
+/// bounded by a box, and the boxes by a bounding-volume hierarchy.
+class WedgeIndex {
+public:
+    /// No index: query() answers every wedge.
+    WedgeIndex() = default;
+    WedgeIndex(const std::vector<Wedge>& wedges, const Discretization& disc) : mIndexed(true) {
+        Box3 scene;
+        for (const ObjectSurface& surface : disc.objects())
+            if (surface.alive)
+                for (const Vec3& p : surface.worldPositions) scene.extend(p);
+        if (scene.empty()) return;
+        const double diagonal = glm::length(scene.hi - scene.lo);
+        mPad = 1e-6 * diagonal + 1e-12;
+        scene.lo -= Vec3(mPad);
+        scene.hi += Vec3(mPad);
+        // Far enough along the rays to leave the box (the rays part by less than 180°).
+        const double far = 1e3 * (diagonal + 1);
+        for (const Wedge& w : wedges) {
+            const Vec3 d0 = glm::normalize(w.b[0] - w.a[0]), d1 = glm::normalize(w.b[1] - w.a[1]);
+            Box3 box;
+            for (const Vec3& p :
+                 clipToBox({w.b[0], w.b[1], w.b[1] + far * d1, w.b[0] + far * d0}, scene))
+                box.extend(p);
+            if (!box.empty()) box.lo -= Vec3(mPad), box.hi += Vec3(mPad);
+            mBoxes.push_back(box);
+        }
+        for (std::size_t i = 0; i < wedges.size(); ++i)
+            if (!mBoxes[i].empty()) mOrder.push_back(static_cast<int>(i));
+        if (!mOrder.empty()) build(0, static_cast<int>(mOrder.size()));
+    }
+
+    /// The wedges whose region may meet `poly`'s box, ascending (of `count` wedges).
+    void query(const std::vector<Vec3>& poly, std::size_t count, std::vector<int>& out) const {
+        out.clear();
+        if (!mIndexed) {
+            for (std::size_t i = 0; i < count; ++i) out.push_back(static_cast<int>(i));
+            return;
+        }
+        if (mNodes.empty()) return;
+        Box3 box;
+        for (const Vec3& p : poly) box.extend(p);
+        box.lo -= Vec3(mPad);
+        box.hi += Vec3(mPad);
+        int stack[64];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const Node& node = mNodes[stack[--top]];
+            if (!node.box.overlaps(box)) continue;
+            if (node.left < 0) {
+                for (int i = node.begin; i < node.end; ++i)
+                    if (mBoxes[mOrder[i]].overlaps(box)) out.push_back(mOrder[i]);
+            } else {
+                stack[top++] = node.left;
+                stack[top++] = node.right;
+            }
+        }
+        std::sort(out.begin(), out.end());
+    }
+
+private:
+    struct Node {
+        Box3 box;
+        int begin = 0, end = 0, left = -1, right = -1;
+    };
+
+    /// Sutherland–Hodgman against the box's six planes.
+    static std::vector<Vec3> clipToBox(std::vector<Vec3> poly, const Box3& box) {
+        for (int axis = 0; axis < 3 && !poly.empty(); ++axis)
+            for (int side = 0; side < 2 && !poly.empty(); ++side) {
+                // Inside: x[axis] >= lo (side 0), x[axis] <= hi (side 1).
+                auto distance = [&](const Vec3& p) {
+                    return side == 0 ? p[axis] - box.lo[axis] : box.hi[axis] - p[axis];
+                };
+                std::vector<Vec3> kept;
+                for (std::size_t k = 0; k < poly.size(); ++k) {
+                    const Vec3& p = poly[k];
+                    const Vec3& q = poly[(k + 1) % poly.size()];
+                    const double dp = distance(p), dq = distance(q);
+                    if (dp >= 0) kept.push_back(p);
+                    if ((dp >= 0) != (dq >= 0)) kept.push_back(p + (dp / (dp - dq)) * (q - p));
+                }
+                poly = std::move(kept);
+            }
+        return poly;
+    }
+
+    int build(int begin, int end) {
+        Node node;
+        for (int i = begin; i < end; ++i) node.box.extend(mBoxes[mOrder[i]]);
+        node.begin = begin;
+        node.end = end;
+        const int index = static_cast<int>(mNodes.size());
+        mNodes.push_back(node);
+        // Leaves of up to 8; a median split keeps the depth under the query's stack.
+        if (end - begin <= 8) return index;
+        const Vec3 extent = node.box.hi - node.box.lo;
+        const int axis =
+            extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+        const int mid = (begin + end) / 2;
+        std::nth_element(mOrder.begin() + begin, mOrder.begin() + mid, mOrder.begin() + end,
+                         [&](int a, int b) {
+                             return mBoxes[a].lo[axis] + mBoxes[a].hi[axis] <
+                                    mBoxes[b].lo[axis] + mBoxes[b].hi[axis];
+                         });
+        const int left = build(begin, mid);
+        const int right = build(mid, end);
+        mNodes[index].left = left;
+        mNodes[index].right = right;
+        return index;
+    }
+
+    std::vector<Box3> mBoxes;  ///< per wedge (empty: its region misses the scene)
+    std::vector<int> mOrder;   ///< the wedges with a box, in tree order
+    std::vector<Node> mNodes;
+    double mPad = 0;
+    bool mIndexed = false;
+};
+
 struct ElementGeometry {
     std::vector<Vec3> poly;
     std::vector<glm::dvec2> poly2;
@@ -246,12 +368,14 @@ ElementGeometry geometryOf(const Discretization& disc, int e) {
 }
 
 std::vector<Discontinuity> rankWedges(const Discretization& disc, int e, const ElementGeometry& g,
-                                      const std::vector<Wedge>& wedges) {
+                                      const std::vector<Wedge>& wedges, const WedgeIndex& index) {
     std::vector<Discontinuity> out;
-    for (const Wedge& w : wedges) {
+    std::vector<int> candidates;
+    index.query(g.poly, wedges.size(), candidates);
+    for (int i : candidates) {
         glm::dvec2 a, b;
         double weight = 0;
-        if (wedgeOnElement(w, disc.elements()[e], g.frame, g.poly2, a, b, weight))
+        if (wedgeOnElement(wedges[i], disc.elements()[e], g.frame, g.poly2, a, b, weight))
             out.push_back({g.frame.to3(a), g.frame.to3(b), weight});
     }
     std::sort(out.begin(), out.end(),
@@ -419,6 +543,7 @@ struct HifiBuild {
           exact(x),
           options(o),
           wedges(allWedges(d)),
+          wedgeIndex(wedges, d),
           contacts(d),
           perElement(d.elements().size()),
           tracer(x.tracer()) {}
@@ -426,6 +551,7 @@ struct HifiBuild {
     const ExactIrradiance& exact;
     const HifiOptions& options;
     const std::vector<Wedge> wedges;
+    const WedgeIndex wedgeIndex;
     const ContactIndex contacts;
     std::vector<std::vector<HifiTriangle>> perElement;
     const RayTracer* tracer;       ///< finds covered triangles (null: none is dropped)
@@ -470,7 +596,7 @@ struct ElementSegments {
 ElementSegments discontinuitiesOn(HifiBuild& b, int e, const ElementGeometry& g, double size) {
     ElementSegments s;
     int kept = 0;
-    for (const Discontinuity& d : rankWedges(b.disc, e, g, b.wedges)) {
+    for (const Discontinuity& d : rankWedges(b.disc, e, g, b.wedges, b.wedgeIndex)) {
         if (kept >= b.options.maxDiscontinuities || d.weight < b.options.minWeight) break;
         s.shadow.emplace_back(g.frame.to2(d.a), g.frame.to2(d.b));
         ++kept;
@@ -698,8 +824,11 @@ void runReportingProgress(Work&& work, const std::atomic<int>& done, int count,
 
 }  // namespace
 
-std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element) {
-    return rankWedges(disc, element, geometryOf(disc, element), allWedges(disc));
+std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element,
+                                                 WedgeSearch search) {
+    const std::vector<Wedge> wedges = allWedges(disc);
+    return rankWedges(disc, element, geometryOf(disc, element), wedges,
+                      search == WedgeSearch::Indexed ? WedgeIndex(wedges, disc) : WedgeIndex());
 }
 
 std::vector<Discontinuity> contactLines(const Discretization& disc, int element,
@@ -789,6 +918,7 @@ std::vector<std::uint8_t> hifiRemeshElements(const Discretization& disc,
         changedElements(elementLuminance(before), elementLuminance(after), threshold);
     // The events the changed objects cast before and after, and their bounds (contacts).
     const std::vector<Wedge> wedges = allWedges(disc, &changedObjects);
+    const WedgeIndex wedgeIndex(wedges, disc);
     std::vector<std::pair<Vec3, Vec3>> bounds;
     for (int o : changedObjects) {
         Vec3 lo(1e300), hi(-1e300);
@@ -810,10 +940,12 @@ std::vector<std::uint8_t> hifiRemeshElements(const Discretization& disc,
                 return false;
         // Crossed by an event of a changed object strong enough to be meshed, before or after
         // (the element's mean light may hold while a penumbra moves across it).
-        for (const Wedge& w : wedges) {
+        std::vector<int> candidates;
+        wedgeIndex.query(g.poly, wedges.size(), candidates);
+        for (int i : candidates) {
             glm::dvec2 a, b;
             double weight = 0;
-            if (wedgeOnElement(w, disc.elements()[e], g.frame, g.poly2, a, b, weight) &&
+            if (wedgeOnElement(wedges[i], disc.elements()[e], g.frame, g.poly2, a, b, weight) &&
                 weight >= options.minWeight)
                 return false;
         }

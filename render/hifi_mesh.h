@@ -153,8 +153,13 @@ struct Discontinuity {
     double weight = 0;
 };
 
+/// How an element's wedges are found: through the bounding-volume hierarchy over the wedges'
+/// regions (what builds use), or by testing every wedge in the scene (its reference).
+enum class WedgeSearch { Indexed, Every };
+
 /// The VE/EV discontinuities of every emitter on element `e`, clipped to it, strongest first.
-std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element);
+std::vector<Discontinuity> shadowDiscontinuities(const Discretization& disc, int element,
+                                                 WedgeSearch search = WedgeSearch::Indexed);
 /// The contact lines on element `e`, clipped to it.
 std::vector<Discontinuity> contactLines(const Discretization& disc, int element,
                                         double contactFraction);

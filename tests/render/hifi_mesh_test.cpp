@@ -130,6 +130,57 @@ TEST(HifiMesh, ShadowEventsLieOnTheCardsPenumbraBoundaries) {
     EXPECT_GT(onBoundary, 0);
 }
 
+TEST(HifiMesh, TheWedgeIndexFindsWhatTestingEveryWedgeFinds) {
+    // The card scene with a tessellated sphere and a turned box among the blockers and a wall
+    // beside them: on every element, the wedges found through the bounding-volume hierarchy
+    // cut the same segments, with the same weights and in the same order, as every wedge
+    // tested in turn.
+    Scene scene;
+    scene.materials = {{"grey", {}}, {"lamp", {}}, {"black", {}}};
+    scene.materials[0].material.reflectance = Rgb(0.5);
+    scene.materials[1].material.emission = Rgb(10.0);
+    scene.objects.push_back(test::makeQuad("floor", 2, 2, "grey", {0, 0, 0}));
+    scene.objects.push_back(test::makeQuad("wall", 2, 1, "grey", {0, 0.5, -1}, {90, 0, 0}));
+    scene.objects.push_back(test::makeQuad("lamp", 0.4, 0.4, "lamp", {0, 1, 0}, {180, 0, 0}));
+    scene.objects.push_back(
+        test::makeQuad("card", 0.3, 0.3, "black", {0.45, 0.5, 0.1}, {180, 0, 0}));
+    SceneObject ball;
+    ball.id = "ball";
+    ball.material = "grey";
+    ball.shape.type = ShapeType::Sphere;
+    ball.shape.radius = 0.12;
+    ball.shape.segments = 12;
+    ball.transform.translate = {-0.4, 0.3, 0.2};
+    scene.objects.push_back(ball);
+    SceneObject box;
+    box.id = "box";
+    box.material = "grey";
+    box.shape.type = ShapeType::Box;
+    box.shape.size = {0.2, 0.3, 0.2};
+    box.transform.translate = {0.1, 0.15, -0.5};
+    box.transform.rotateDeg = {0, 30, 0};
+    scene.objects.push_back(box);
+    scene.settings.patchSize = 0.5;
+    scene.settings.elementSize = 0.125;
+    const Discretization disc(scene);
+    int cut = 0, uncut = 0;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+        const int ei = static_cast<int>(e);
+        const std::vector<Discontinuity> indexed = shadowDiscontinuities(disc, ei);
+        const std::vector<Discontinuity> every =
+            shadowDiscontinuities(disc, ei, WedgeSearch::Every);
+        ASSERT_EQ(indexed.size(), every.size()) << "element " << e;
+        for (std::size_t k = 0; k < every.size(); ++k) {
+            EXPECT_EQ(indexed[k].a, every[k].a) << "element " << e;
+            EXPECT_EQ(indexed[k].b, every[k].b) << "element " << e;
+            EXPECT_EQ(indexed[k].weight, every[k].weight) << "element " << e;
+        }
+        (every.empty() ? uncut : cut) += 1;
+    }
+    EXPECT_GT(cut, 20) << "the blockers cast events on many elements";
+    EXPECT_GT(uncut, 20);
+}
+
 /// A 2 m floor (patches 0.5 m, elements 0.25 m) with a 0.4 m box resting on it off the
 /// floor's element grid: footprint x ∈ [−0.1, 0.3], z ∈ [−0.16, 0.24]; with a lamp to its
 /// side when `lit`.
