@@ -242,9 +242,37 @@ void ExactIrradiance::rebuild() {
                             std::llround(std::floor(c.z)))]
             .push_back(static_cast<int>(i));
     }
+    buildElementCells();
     const double diag = mObjects.empty() ? 1.0 : glm::length(sceneHi - sceneLo);
     mEpsilon = 1e-9 * std::max(diag, 1e-6);
     if (!mReflected.empty()) setReflected(std::move(mReflected));
+}
+
+void ExactIrradiance::buildElementCells() {
+    mElementCells.clear();
+    const double k = mOptions.nearElementRadii;
+    if (!(k > 0)) return;
+    std::vector<int> sources;
+    for (const SourcePatch& sp : mPatches)
+        for (int e : mDisc.patches()[sp.patch].elements) sources.push_back(e);
+    if (sources.empty()) return;
+    // Cells about the size of most near balls (the third quartile), so a ball covers a few
+    // cells; no smaller than an eighth of the largest, so no ball covers more than 17 a side.
+    std::vector<double> reach;
+    for (int e : sources) reach.push_back(k * mElementRadius[e]);
+    const double largest = *std::max_element(reach.begin(), reach.end());
+    std::nth_element(reach.begin(), reach.begin() + reach.size() * 3 / 4, reach.end());
+    mElementCellSize = std::max({reach[reach.size() * 3 / 4], largest / 8, 1e-6});
+    for (int e : sources) {
+        const Vec3 c = mDisc.elements()[e].centroid;
+        const double r = k * mElementRadius[e];
+        const Vec3 lo = glm::floor((c - r) / mElementCellSize),
+                   hi = glm::floor((c + r) / mElementCellSize);
+        for (long long i = std::llround(lo.x); i <= std::llround(hi.x); ++i)
+            for (long long j = std::llround(lo.y); j <= std::llround(hi.y); ++j)
+                for (long long m = std::llround(lo.z); m <= std::llround(hi.z); ++m)
+                    mElementCells[cellKey(i, j, m)].push_back(e);
+    }
 }
 
 int ExactIrradiance::buildNodes(int begin, int end) {
@@ -557,6 +585,19 @@ void ExactIrradiance::addGathered(const Vec3& x, const Vec3& n, Parts& parts) co
         for (const SourcePatch& sp : mPatches) gather(sp);
         return;
     }
+    if (mOptions.nearElementRadii > 0) {
+        // Element by element: those whose near ball holds x are listed in x's cell.
+        const Vec3 c = glm::floor(x / mElementCellSize);
+        const auto it = mElementCells.find(
+            cellKey(std::llround(c.x), std::llround(c.y), std::llround(c.z)));
+        if (it == mElementCells.end()) return;
+        for (int e : it->second) {
+            const Rgb b = mReflected[e];
+            if (!(b.x > 0 || b.y > 0 || b.z > 0) || !nearElement(e, x)) continue;
+            addSource(x, n, mDisc.elementPolygon(e), b, parts);
+        }
+        return;
+    }
     const Vec3 c = x / mCellSize;
     const long long ci = std::llround(std::floor(c.x)), cj = std::llround(std::floor(c.y)),
                     ck = std::llround(std::floor(c.z));
@@ -565,19 +606,8 @@ void ExactIrradiance::addGathered(const Vec3& x, const Vec3& n, Parts& parts) co
             for (long long k = ck - 1; k <= ck + 1; ++k) {
                 const auto it = mPatchCells.find(cellKey(i, j, k));
                 if (it == mPatchCells.end()) continue;
-                for (int p : it->second) {
-                    if (!nearPatch(mPatches[p].patch, x)) continue;
-                    if (!(mOptions.nearElementRadii > 0)) {
-                        gather(mPatches[p]);
-                        continue;
-                    }
-                    const Patch& P = mDisc.patches()[mPatches[p].patch];
-                    for (int e : P.elements) {
-                        const Rgb b = mReflected[e];
-                        if (!(b.x > 0 || b.y > 0 || b.z > 0) || !nearElement(e, x)) continue;
-                        addSource(x, n, mDisc.elementPolygon(e), b, parts);
-                    }
-                }
+                for (int p : it->second)
+                    if (nearPatch(mPatches[p].patch, x)) gather(mPatches[p]);
             }
 }
 

@@ -147,6 +147,8 @@ private:
         int root = -1;  ///< in mNodes
     };
     int buildNodes(int begin, int end);
+    /// Fills mElementCells (nothing without nearElementRadii).
+    void buildElementCells();
     struct Source {
         std::vector<Vec3> polygon;  ///< convex, counter-clockwise seen from the front
         Rgb radiosity{0.0};
@@ -209,6 +211,11 @@ private:
     std::uint64_t cellKey(long long i, long long j, long long k) const;
     std::vector<Rgb> mReflected;         ///< per element
     std::vector<double> mElementRadius;  ///< bounding radius about the centroid, per element
+    /// With farRays and nearElementRadii: the source elements by the grid cells their near
+    /// balls (nearElementRadii × the element's radius about its centroid) overlap, so a
+    /// point's near elements are all in its own cell (cells of mElementCellSize).
+    std::unordered_map<std::uint64_t, std::vector<int>> mElementCells;
+    double mElementCellSize = 1;
     std::vector<Rgb> mPatchReflected;    ///< per patch, area-weighted mean
     double mEpsilon = 1e-9;              ///< length tolerance, from the scene's size
 };

@@ -230,5 +230,66 @@ TEST(ExactIrradiance, GatherMatchesAHemisphereOfRaysOverTheSameElements) {
     }
 }
 
+TEST(ExactIrradiance, TheNearFieldHoldsEveryElementWithinItsNearBallAndNoOther) {
+    // Elements of very different sizes (a room of 0.5 m elements, a finely tessellated ball):
+    // with the far field by rays, the gathered part at a point is the direct light and,
+    // element by element, every source element whose near ball (nearElementRadii of its own
+    // radius about its centroid) holds the point, found through the element grid. Summed
+    // here by testing every element of the scene.
+    Scene scene;
+    test::addMaterial(scene, "grey", Rgb(0.5));
+    test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(20.0));
+    test::addClosedRoom(scene, 2.0, "grey");
+    scene.objects.push_back(test::makeQuad("lamp", 0.5, 0.5, "lamp", {0, 0.99, 0}, {180, 0, 0}));
+    SceneObject ball;
+    ball.id = "ball";
+    ball.shape.type = ShapeType::Sphere;
+    ball.shape.radius = 0.3;
+    ball.shape.segments = 48;
+    ball.material = "grey";
+    ball.transform.translate = Vec3(0.2, -0.69, 0.1);
+    scene.objects.push_back(ball);
+    scene.settings.patchSize = 0.5;
+    scene.settings.elementSize = 0.5;
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    std::vector<Rgb> reflected(disc.elements().size());
+    for (std::size_t e = 0; e < reflected.size(); ++e)
+        reflected[e] = Rgb(0.1 + 0.01 * double(e % 17), 0.2, 0.3);
+    ExactIrradianceOptions options;
+    options.farRays = 16;
+    ExactIrradiance hybrid(disc, options, &tracer);
+    hybrid.setReflected(reflected);
+    const ExactIrradiance direct(disc, ExactIrradianceOptions{});
+    std::vector<std::pair<Vec3, Vec3>> points = {{Vec3(0.2, -1, 0.45), Vec3(0, 1, 0)},
+                                                 {Vec3(-0.7, -1, -0.7), Vec3(0, 1, 0)},
+                                                 {Vec3(0.9, -0.2, 0.3), Vec3(0, 0, 1)}};
+    // Points on the ball, where its own small elements are near.
+    for (int k = 0; k < 6; ++k) {
+        const double a = 0.9 * k;
+        const Vec3 n = glm::normalize(Vec3(std::cos(a), -0.3 + 0.2 * k, std::sin(a)));
+        points.push_back({ball.transform.translate + 0.3 * n, n});
+    }
+    int nearTotal = 0;
+    for (const auto& [x, n] : points) {
+        Rgb expected = direct.direct(x, n);
+        int near = 0;
+        for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+            const std::vector<Vec3> poly = disc.elementPolygon(static_cast<int>(e));
+            const Vec3 c = disc.elements()[e].centroid;
+            double radius = 0;
+            for (const Vec3& p : poly) radius = std::max(radius, glm::length(p - c));
+            if (glm::length(x - c) > options.nearElementRadii * radius) continue;
+            ++near;
+            expected += reflected[e] * direct.visibleFormFactor(x, n, poly);
+        }
+        nearTotal += near;
+        const Rgb gathered = hybrid.irradianceParts(x, n, false).gathered;
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(gathered[c], expected[c], 1e-9 * expected[c]) << x.x << " " << x.y;
+    }
+    EXPECT_GT(nearTotal, 3 * static_cast<int>(points.size())) << "near elements were tested";
+}
+
 }  // namespace
 }  // namespace penumbra
