@@ -154,8 +154,10 @@ Image InterpolantGlRenderer::render(const Discretization& disc, const HifiMesh& 
     Image image(w, h);
     mIds.resize(static_cast<std::size_t>(w) * h);
     mBary.resize(static_cast<std::size_t>(w) * h * 2);
-    std::vector<std::uint32_t> rowIds(mIds.size());
-    std::vector<float> rowBary(mBary.size());
+    mRowIds.resize(mIds.size());
+    mRowBary.resize(mBary.size());
+    std::uint32_t* rowIds = mRowIds.data();
+    float* rowBary = mRowBary.data();
 
     // CameraRays' projection as a matrix (pixel centres where CameraRays puts them).
     const double tanHalfY = 0.5 * h / rays.pixelsPerUnit();
@@ -208,13 +210,16 @@ Image InterpolantGlRenderer::render(const Discretization& disc, const HifiMesh& 
         start = Clock::now();
         glPixelStorei(GL_PACK_ALIGNMENT, 1);
         glReadBuffer(GL_COLOR_ATTACHMENT0);
-        glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_INT, rowIds.data());
+        glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_INT, rowIds);
         glReadBuffer(GL_COLOR_ATTACHMENT1);
-        glReadPixels(0, 0, w, h, GL_RG, GL_FLOAT, rowBary.data());
+        glReadPixels(0, 0, w, h, GL_RG, GL_FLOAT, rowBary);
         t.readMs += msSince(start);
 
         start = Clock::now();
         const int triangles = static_cast<int>(mesh.triangles().size());
+        // Radiance B/π averaged over the n² samples: the last pass scales.
+        const bool last = k + 1 == n * n;
+        const double scale = 1.0 / (M_PI * n * n);
         tbb::parallel_for(0, h, [&](int y) {
             const int row = h - 1 - y;  // GL's rows run bottom up
             for (int x = 0; x < w; ++x) {
@@ -224,16 +229,17 @@ Image InterpolantGlRenderer::render(const Discretization& disc, const HifiMesh& 
                 mIds[px] = id;
                 mBary[2 * px] = rowBary[2 * gl];
                 mBary[2 * px + 1] = rowBary[2 * gl + 1];
-                if (id == 0 || static_cast<int>(id) > triangles) continue;
-                const double s = rowBary[2 * gl], tt = rowBary[2 * gl + 1];
-                image.at(x, y) += mesh.radiosity(disc, static_cast<int>(id) - 1, s, tt);
+                Rgb& pixel = image.at(x, y);
+                if (id != 0 && static_cast<int>(id) <= triangles) {
+                    const double s = rowBary[2 * gl], tt = rowBary[2 * gl + 1];
+                    pixel += mesh.radiosity(disc, static_cast<int>(id) - 1, s, tt);
+                }
+                if (last) pixel *= scale;
             }
         });
         t.evaluateMs += msSince(start);
     }
     glBindVertexArray(0);
-    const double scale = 1.0 / (M_PI * n * n);
-    for (Rgb& p : image.pixels) p *= scale;
     if (timing) *timing = t;
     return image;
 }

@@ -50,6 +50,10 @@ private:
     float mSceneSize = 1;
     std::vector<std::uint32_t> mIds;
     std::vector<float> mBary;
+    /// GL's rows (bottom up) as read back, kept between frames: a 1280 × 720 frame would
+    /// otherwise allocate and clear 11 MB for them.
+    std::vector<std::uint32_t> mRowIds;
+    std::vector<float> mRowBary;
 };
 
 }  // namespace penumbra
