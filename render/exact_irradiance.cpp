@@ -657,12 +657,18 @@ std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization
                                         const SolverOptions& options, double eps,
                                         std::uint64_t maxShots) {
     std::vector<Rgb> out = reflectedRadiosity(disc, solved);
-    if (scene.settings.patchSize <= scene.settings.elementSize) return out;
     Scene leafScene = scene;
     leafScene.settings.patchSize = scene.settings.elementSize;
     Discretization fine(leafScene);
     RayTracer tracer(fine);
-    ProgressiveSolver solver(fine, tracer, options);
+    // Receivers in the open (SolverOptions::placeReceivers): with patches already elements,
+    // the solve is needed only when some receiver moves.
+    if (fine.placeReceivers(tracer) == 0 &&
+        scene.settings.patchSize <= scene.settings.elementSize)
+        return out;
+    SolverOptions leafOptions = options;
+    leafOptions.placeReceivers = true;
+    ProgressiveSolver solver(fine, tracer, leafOptions);
     solver.converge(eps, maxShots);
     const std::vector<Rgb> fineReflected = reflectedRadiosity(fine, solver);
     // The same elements, grouped differently: matched by object and centroid.

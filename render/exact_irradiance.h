@@ -231,8 +231,11 @@ std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const std::vecto
 /// converged to `eps` (at most `maxShots`). A patch shoots its mean radiosity, which at a
 /// concave contact (a box on a floor) is not what its elements near the contact send, so a
 /// gather from a coarse-patch solution there comes out low. Elements are matched by object
-/// and centroid; `disc`'s own patches stay the gather's source groups. Returns `solved`'s
-/// reflected radiosity when the patches already are the elements.
+/// and centroid; `disc`'s own patches stay the gather's source groups. The second solve
+/// places its receivers in the open (SolverOptions::placeReceivers): a floor element the foot
+/// of a box crosses with its centroid under the box would otherwise send nothing toward the
+/// box's face, whose foot it fills half the view of. Returns `solved`'s reflected radiosity
+/// when the patches already are the elements and no receiver moves.
 std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
                                         const ProgressiveSolver& solved,
                                         const SolverOptions& options, double eps,

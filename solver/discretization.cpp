@@ -2,12 +2,16 @@
 //        (split, region growing) · Discretization queries · subdivision
 #include "solver/discretization.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <functional>
 #include <map>
 #include <sstream>
 #include <stdexcept>
+
+#include "solver/ray_tracer.h"
 
 namespace penumbra {
 
@@ -133,6 +137,56 @@ void Discretization::finishElement(int e) {
         total += a;
     }
     el.centroid = total > 0 ? c / total : poly[0];
+    el.receiver = el.centroid;
+}
+
+int Discretization::placeReceivers(const RayTracer& tracer) {
+    const double eps = tracer.epsilon();
+    // Inside another object's solid: the normal and four rays tilted 45° from it all meet the
+    // same other object from behind. Under an open surface (a one-sided panel hung above) the
+    // tilted rays pass beside it.
+    auto insideSolid = [&](const Element& el, const Vec3& x) {
+        Vec3 t = std::abs(el.normal.x) > 0.5 ? glm::cross(el.normal, Vec3(0, 1, 0))
+                                             : glm::cross(el.normal, Vec3(1, 0, 0));
+        t = glm::normalize(t);
+        const Vec3 b = glm::cross(el.normal, t);
+        const Vec3 directions[5] = {el.normal, el.normal + t, el.normal - t, el.normal + b,
+                                    el.normal - b};
+        int solid = -1;
+        for (const Vec3& d : directions) {
+            const RayTracer::FirstHit hit = tracer.firstHit(x + eps * el.normal, glm::normalize(d));
+            if (hit.element < 0 || !hit.backFace) return false;
+            const int o = mElements[hit.element].object;
+            if (o == el.object || (solid >= 0 && o != solid)) return false;
+            solid = o;
+        }
+        return true;
+    };
+    tbb::parallel_for(std::size_t(0), mElements.size(), [&](std::size_t e) {
+        Element& el = mElements[e];
+        el.receiver = el.centroid;
+        if (!elementAlive(static_cast<int>(e)) || !insideSolid(el, el.centroid)) return;
+        // Sample points of the element: per fan triangle, its centroid and the points a
+        // third of the way from it to each corner.
+        const std::vector<Vec3> poly = elementPolygon(static_cast<int>(e));
+        std::vector<Vec3> open;
+        for (std::size_t i = 1; i + 1 < poly.size(); ++i) {
+            const Vec3 c = (poly[0] + poly[i] + poly[i + 1]) / 3.0;
+            for (const Vec3& p : {c, c + (poly[0] - c) * (2.0 / 3.0),
+                                  c + (poly[i] - c) * (2.0 / 3.0), c + (poly[i + 1] - c) * (2.0 / 3.0)})
+                if (!insideSolid(el, p)) open.push_back(p);
+        }
+        if (open.empty()) return;  // wholly covered: it receives nothing wherever it samples
+        Vec3 mean(0.0);
+        for (const Vec3& p : open) mean += p;
+        mean /= static_cast<double>(open.size());
+        el.receiver = *std::min_element(open.begin(), open.end(), [&](const Vec3& a, const Vec3& b) {
+            return glm::length(a - mean) < glm::length(b - mean);
+        });
+    });
+    int moved = 0;
+    for (const Element& el : mElements) moved += el.receiver != el.centroid;
+    return moved;
 }
 
 void accumulateFanAreas(const std::vector<Vec3>& poly, std::vector<double>& cumulative) {

@@ -14,6 +14,8 @@
 
 namespace penumbra {
 
+class RayTracer;
+
 /// Double-precision points, so world positions and areas are exact to ~1e-15.
 struct ElementMeshTraits : OpenMesh::DefaultTraits {
     using Point = OpenMesh::Vec3d;
@@ -56,6 +58,10 @@ struct Element {
     double area = 0;
     Vec3 centroid{0};
     Vec3 normal{0};
+    /// Where the solver takes the light it receives: its centroid, or, when the centroid lies
+    /// inside a solid resting on it (a floor element a box's foot crosses), a point of the
+    /// element in the open (Discretization::placeReceivers).
+    Vec3 receiver{0};
     std::vector<int> vertices;
     std::string toString() const;
 };
@@ -95,6 +101,12 @@ public:
     /// Marks an object removed (or restored). Indices stay valid.
     void setAlive(int object, bool alive);
     bool elementAlive(int element) const { return mObjects[mElements[element].object].alive; }
+    /// Moves the receiver of every alive element whose centroid lies inside another object's
+    /// solid (every ray of a small fan about its normal meets that object from inside) to the
+    /// point of the element in the open nearest the mean of its open sample points; the
+    /// others receive at their centroids (SolverOptions::placeReceivers). Returns how many
+    /// receivers are not at their centroids.
+    int placeReceivers(const RayTracer& tracer);
     bool patchAlive(int patch) const { return mObjects[mPatches[patch].object].alive; }
     /// Replaces the material of every patch of `object` (a material edit).
     void setObjectMaterial(int object, const Material& material);

@@ -38,6 +38,7 @@ SolverOptions interactiveSolverOptions() {
 
 ProgressiveSolver::ProgressiveSolver(Discretization& disc, RayTracer& tracer, SolverOptions options)
     : mDisc(disc), mTracer(tracer), mOptions(options), mImpl(std::make_unique<Impl>()) {
+    if (mOptions.placeReceivers) mDisc.placeReceivers(mTracer);
     initialize();
 }
 
@@ -307,7 +308,7 @@ void ProgressiveSolver::shootPatch(int shooter) {
                             const int e = els[i];
                             if (!mayReceive(shooter, e, {})) continue;
                             const Element& el = mDisc.elements()[e];
-                            receivers[m] = {el.centroid, el.normal, static_cast<std::uint64_t>(e)};
+                            receivers[m] = {el.receiver, el.normal, static_cast<std::uint64_t>(e)};
                             receiving[m++] = e;
                         }
                         formFactorsToPatch(mDisc, mTracer, shooter, receivers, m, mOptions.seed,
@@ -342,7 +343,7 @@ bool ProgressiveSolver::mayReceive(int shooter, int e, const Visibility& visibil
         return false;
     // Cull pairs that cannot see each other: receiver behind the shooter's bounding plane or
     // shooter behind the receiver's plane.
-    Vec3 toReceiver = el.centroid - P.centroid;
+    Vec3 toReceiver = el.receiver - P.centroid;
     if (glm::dot(toReceiver, P.normal) < -P.radius) return false;
     if (glm::dot(-toReceiver, el.normal) < -P.radius) return false;
     return true;
@@ -352,7 +353,7 @@ Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
                                       const Visibility& visibility, int* rays) const {
     if (!mayReceive(shooter, e, visibility)) return Rgb(0.0);
     const Element& el = mDisc.elements()[e];
-    PointToPatch ff = formFactorToPatch(mDisc, mTracer, el.centroid, el.normal, shooter,
+    PointToPatch ff = formFactorToPatch(mDisc, mTracer, el.receiver, el.normal, shooter,
                                         static_cast<std::uint64_t>(e), mOptions.seed,
                                         mOptions.maxRaysPerPair, visibility);
     if (rays) *rays += ff.rays;
@@ -365,10 +366,10 @@ Rgb ProgressiveSolver::irradianceChange(int shooter, int e, const Rgb& dB, const
     const Element& el = mDisc.elements()[e];
     if (el.patch == shooter) return Rgb(0.0);
     // The same culls as irradianceFrom: pairs that cannot see each other.
-    Vec3 toReceiver = el.centroid - P.centroid;
+    Vec3 toReceiver = el.receiver - P.centroid;
     if (glm::dot(toReceiver, P.normal) < -P.radius) return Rgb(0.0);
     if (glm::dot(-toReceiver, el.normal) < -P.radius) return Rgb(0.0);
-    PointToPatch ff = formFactorChange(mDisc, mTracer, el.centroid, el.normal, shooter,
+    PointToPatch ff = formFactorChange(mDisc, mTracer, el.receiver, el.normal, shooter,
                                        static_cast<std::uint64_t>(e), mOptions.seed,
                                        mOptions.maxRaysPerPair, before, after, changed);
     return dB * ff.visible;

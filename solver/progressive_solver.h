@@ -27,6 +27,11 @@ enum class RedistributionStrategy {
 struct SolverOptions {
     std::uint64_t seed = 1;
     int maxRaysPerPair = 16;       ///< visibility rays for the closest pairs
+    /// Discretization::placeReceivers before solving: elements whose centroid a solid resting
+    /// on them covers receive at a point in the open. For solves from scratch only (the
+    /// interpolants' leaf solve): redistribution's edits keep every receiver where it was,
+    /// and a fresh solve of the edited scene would place some elsewhere.
+    bool placeReceivers = false;
     double gradientThreshold = 0;  ///< >0: adaptive element subdivision (Cohen §3.4)
     int maxSubdivisionLevel = 2;
     /// Once the strongest shooter carries less than this fraction of the emitted power, all

@@ -327,7 +327,7 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
                 // the receiver to the shooter patch?
                 bool inShaft = false;
                 for (const auto& [centre, radius] : c.spheres)
-                    if (sphereMeetsCone(el.centroid, P.centroid, P.radius + margin, centre,
+                    if (sphereMeetsCone(el.receiver, P.centroid, P.radius + margin, centre,
                                         radius + margin)) {
                         inShaft = true;
                         break;
@@ -385,7 +385,7 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
             RayRandom rng{hashPair(seed, static_cast<std::uint64_t>(e))};
             Vec3 tx, ty;
             frameAround(el.normal, tx, ty);
-            const Vec3 origin = el.centroid + el.normal * eps;
+            const Vec3 origin = el.receiver + el.normal * eps;
             Rgb sum(0.0);
             for (int k = 0; k < nx * ny; ++k) {
                 const double u = (k % nx + rng.next()) / nx, v = (k / nx + rng.next()) / ny;
