@@ -666,8 +666,9 @@ std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization
     if (fine.placeReceivers(tracer) == 0 &&
         scene.settings.patchSize <= scene.settings.elementSize)
         return out;
+    // Receivers are placed already: the solver need not place them again.
     SolverOptions leafOptions = options;
-    leafOptions.placeReceivers = true;
+    leafOptions.placeReceivers = false;
     ProgressiveSolver solver(fine, tracer, leafOptions);
     solver.converge(eps, maxShots);
     const std::vector<Rgb> fineReflected = reflectedRadiosity(fine, solver);
