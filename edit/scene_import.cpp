@@ -225,47 +225,31 @@ struct Importer {
     /// room from OBJ (one-sided) and from glTF (two-sided, as Blender writes it) gets the same
     /// size. Rounded up to two significant digits (0.16, not 0.1573...).
     void chooseSettings() {
-        std::vector<double> longestEdges;  // per mesh triangle, world space
+        // What is counted: the meshes' fronts and the lights' spheres, as one scene.
+        Scene counted;
+        counted.objects = scene.objects;
         double area = 0;
         for (const SceneObject& o : scene.objects) {
             const TriMesh& m = o.shape.mesh;
             const glm::dmat3 linear(o.transform.worldFromObject());
-            for (const auto& t : m.triangles) {
-                const Vec3 p[3] = {linear * m.positions[t[0]], linear * m.positions[t[1]],
-                                   linear * m.positions[t[2]]};
-                area += 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
-                longestEdges.push_back(std::max({glm::length(p[1] - p[0]),
-                                                 glm::length(p[2] - p[1]),
-                                                 glm::length(p[0] - p[2])}));
-            }
+            for (const auto& t : m.triangles)
+                area += 0.5 * glm::length(glm::cross(linear * (m.positions[t[1]] - m.positions[t[0]]),
+                                                     linear * (m.positions[t[2]] - m.positions[t[0]])));
         }
-        std::vector<SceneObject> lights;
         for (const MeshFileLight& light : file.lights)
             if (light.type != "directional") {
-                lights.push_back(lightObject(light));
+                counted.objects.push_back(lightObject(light));
                 area += 4 * M_PI * options.lightRadius * options.lightRadius;
             }
         if (!(area > 0)) return;
         auto elementsAt = [&](double size) {
-            double count = 0;
-            for (double longest : longestEdges) {
-                const double n = std::max(1.0, std::ceil(longest / size - 1e-9));
-                count += n * n;
+            counted.settings.elementSize = size;
+            counted.settings.patchSize = 4 * size;
+            try {
+                return Discretization::countElements(counted);
+            } catch (const std::invalid_argument&) {
+                return std::numeric_limits<double>::infinity();  // too fine for some object
             }
-            for (const SceneObject& light : lights) {
-                Scene one;
-                one.settings.elementSize = size;
-                one.settings.patchSize = 4 * size;
-                one.materials.push_back({"light", Material{}});
-                one.objects.push_back(light);
-                one.objects.back().material = "light";
-                try {
-                    count += static_cast<double>(Discretization(one).elements().size());
-                } catch (const std::invalid_argument&) {
-                    return std::numeric_limits<double>::infinity();  // too fine for the sphere
-                }
-            }
-            return count;
         };
         auto twoDigitsUp = [](double size) {
             // Divided, not multiplied, by the power of ten below 1 so the value prints as

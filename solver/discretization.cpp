@@ -298,6 +298,7 @@ struct ShapeFaces {
     int nextGroup = 0;
     std::map<int, std::vector<Vec3>> groupOutline;  ///< per group, its boundary (object space)
     double planned = 0;  ///< elements of the object so far (checkElementCount)
+    bool countOnly = false;  ///< plan the elements (planned) without building any faces
 
     void addShape(const Shape& shape) {
         switch (shape.type) {
@@ -396,6 +397,7 @@ struct ShapeFaces {
         while (pv * ev < grid.minCellsV) ++ev;
         planned += static_cast<double>(pu) * eu * pv * ev;
         checkElementCount(planned);
+        if (countOnly) return;
         int nu = pu * eu, nv = pv * ev;
         // Orientation: cross(dP/du, dP/dv) must point outward.
         Vec3 du = grid.point(0.51, 0.5) - grid.point(0.49, 0.5);
@@ -445,14 +447,16 @@ struct ShapeFaces {
 
     void addMesh(const TriMesh& tm) {
         std::vector<VHandle> base;
-        base.reserve(tm.positions.size());
-        for (const Vec3& p : tm.positions) base.push_back(builder.addVertex(p));
+        if (!countOnly) {
+            base.reserve(tm.positions.size());
+            for (const Vec3& p : tm.positions) base.push_back(builder.addVertex(p));
+        }
         // Points on a split edge are shared by both triangles: key (lo, hi, step from lo).
         std::map<std::tuple<int, int, int>, VHandle> edgePoints;
         for (std::size_t t = 0; t < tm.triangles.size(); ++t) {
             const auto& tri = tm.triangles[t];
             int material = objectMaterial;
-            if (material < 0) {
+            if (material < 0 && !countOnly) {
                 int tmi = t < tm.triangleMaterial.size() ? tm.triangleMaterial[t] : 0;
                 material = meshMaterials.at(std::clamp(tmi, 0, int(meshMaterials.size()) - 1));
             }
@@ -464,6 +468,7 @@ struct ShapeFaces {
             int n = cellsFor(longest, elementSize);
             planned += static_cast<double>(n) * n;
             checkElementCount(planned);
+            if (countOnly) continue;
             if (n == 1) {
                 builder.addFace({base[tri[0]], base[tri[1]], base[tri[2]]}, -1, material);
                 continue;
@@ -511,6 +516,26 @@ struct ShapeFaces {
 };
 
 }  // namespace
+
+double Discretization::countElements(const Scene& scene) {
+    double count = 0;
+    for (const SceneObject& obj : scene.objects) {
+        ObjectSurface surface;
+        SurfaceBuilder builder{surface, {}, {}, {}};
+        const std::vector<int> noMeshMaterials;
+        ShapeFaces faces(builder, glm::dmat3(obj.transform.worldFromObject()),
+                         obj.patchSize > 0 ? obj.patchSize : scene.settings.patchSize,
+                         scene.settings.elementSize, 0, noMeshMaterials);
+        faces.countOnly = true;
+        try {
+            faces.addShape(obj.shape);
+        } catch (const std::invalid_argument& e) {
+            throw std::invalid_argument("object '" + obj.id + "': " + e.what());
+        }
+        count += faces.planned;
+    }
+    return count;
+}
 
 void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
     mObjects.push_back({});

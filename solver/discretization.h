@@ -94,6 +94,11 @@ public:
     /// Throws std::invalid_argument naming the object when an object has no valid faces.
     explicit Discretization(const Scene& scene);
 
+    /// The front elements the constructor would split `scene`'s objects into (before it drops
+    /// degenerate faces; back sheets not counted), planned without building them. Throws
+    /// std::invalid_argument as the constructor does when an object would be too many.
+    static double countElements(const Scene& scene);
+
     /// Appends a new object version (patches and elements after all existing ones) built
     /// from `object`, with materials looked up in `scene`. Returns its object index. Throws
     /// std::invalid_argument as the constructor does.

@@ -580,6 +580,43 @@ TEST(Discretization, IcosahedronSplitStaysClosed) {
     checkIcosahedron(Transform{}, 3.0, 1);  // no split
 }
 
+TEST(Discretization, CountElementsPlansWhatTheConstructorBuilds) {
+    // Every kind of shape, transformed, one with its own patch size, at three element sizes:
+    // the planned count is the number of elements built (one-sided, so no back sheets).
+    SceneObject quad = test::makeQuad("quad", 2.3, 1.1, "white", {0, 0, 0});
+    quad.patchSize = 0.9;
+    SceneObject box = makeShape("box", ShapeType::Box);
+    box.shape.size = Vec3(0.9, 0.45, 1.3);
+    box.transform.rotateDeg = Vec3(0, 30, 0);
+    SceneObject sphere = makeShape("sphere", ShapeType::Sphere);
+    sphere.shape.radius = 0.5;
+    sphere.shape.segments = 10;
+    sphere.transform.scale = Vec3(2.0, 1.0, 0.7);
+    SceneObject cylinder = makeShape("cylinder", ShapeType::Cylinder);
+    cylinder.shape.radius = 0.4;
+    cylinder.shape.height = 0.9;
+    cylinder.shape.segments = 12;
+    SceneObject tri = makeShape("tri", ShapeType::Mesh);
+    tri.shape.mesh.positions = {{0, 0, 0}, {1.3, 0, 0}, {0, 0, -0.9}, {0.2, 0.01, 0.3}};
+    tri.shape.mesh.triangles = {{0, 1, 2}, {0, 3, 1}};
+    tri.transform.scale = Vec3(1.5);
+    for (const double E : {0.05, 0.13, 0.4}) {
+        const Scene scene = sceneWith({quad, box, sphere, cylinder, tri}, 4 * E, E);
+        const Discretization disc(scene);
+        EXPECT_EQ(Discretization::countElements(scene),
+                  static_cast<double>(disc.elements().size()))
+            << "element size " << E;
+    }
+    // Too fine: refused as the constructor refuses it, naming the object.
+    const Scene tooFine = sceneWith({sphere}, 4e-6, 1e-6);
+    try {
+        (void)Discretization::countElements(tooFine);
+        ADD_FAILURE() << "a sphere of 1e-6 elements was counted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("'sphere'"), std::string::npos) << e.what();
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Vertex values and neighbours
 
