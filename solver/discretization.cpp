@@ -519,10 +519,10 @@ struct ShapeFaces {
 
 double Discretization::countElements(const Scene& scene) {
     double count = 0;
+    ObjectSurface surface;  // untouched when counting
+    SurfaceBuilder builder{surface, {}, {}, {}};
+    const std::vector<int> noMeshMaterials;
     for (const SceneObject& obj : scene.objects) {
-        ObjectSurface surface;
-        SurfaceBuilder builder{surface, {}, {}, {}};
-        const std::vector<int> noMeshMaterials;
         ShapeFaces faces(builder, glm::dmat3(obj.transform.worldFromObject()),
                          obj.patchSize > 0 ? obj.patchSize : scene.settings.patchSize,
                          scene.settings.elementSize, 0, noMeshMaterials);

@@ -2,8 +2,8 @@
 
 #include "solver/scene.h"
 
+#include <cmath>
 #include <cstdio>
-#include <glm/gtc/matrix_transform.hpp>
 
 namespace penumbra {
 
@@ -24,14 +24,22 @@ std::string Material::toString() const {
 }
 
 Mat4 Transform::worldFromObject() const {
-    // M = T · Rz · Ry · Rx · S: scale first, then rotate about X, Y, Z, then translate.
-    const Mat4 identity(1.0);
-    const Mat4 translation = glm::translate(identity, translate);
-    const Mat4 rotationX = glm::rotate(identity, glm::radians(rotateDeg.x), Vec3(1, 0, 0));
-    const Mat4 rotationY = glm::rotate(identity, glm::radians(rotateDeg.y), Vec3(0, 1, 0));
-    const Mat4 rotationZ = glm::rotate(identity, glm::radians(rotateDeg.z), Vec3(0, 0, 1));
-    const Mat4 scaling = glm::scale(identity, scale);
-    return translation * rotationZ * rotationY * rotationX * scaling;
+    // M = T · Rz · Ry · Rx · S: scale first, then rotate about X, Y, Z, then translate. The
+    // product written out rather than as four 4×4 products (glm is column-major:
+    // m[column][row]): it runs for every object at each size the importer's size search tries.
+    const Vec3 r = glm::radians(rotateDeg);
+    const double ca = std::cos(r.x), sa = std::sin(r.x);
+    const double cb = std::cos(r.y), sb = std::sin(r.y);
+    const double cc = std::cos(r.z), sc = std::sin(r.z);
+    const Vec3 columns[3] = {
+        Vec3(cc * cb, sc * cb, -sb),
+        Vec3(cc * sb * sa - sc * ca, sc * sb * sa + cc * ca, cb * sa),
+        Vec3(cc * sb * ca + sc * sa, sc * sb * ca - cc * sa, cb * ca),
+    };
+    Mat4 m(1.0);
+    for (int j = 0; j < 3; ++j) m[j] = glm::dvec4(columns[j] * scale[j], 0.0);
+    m[3] = glm::dvec4(translate, 1.0);
+    return m;
 }
 
 std::string Transform::toString() const {
