@@ -6,8 +6,9 @@
 # target found something: its inputs are in build-fuzz/findings/TARGET/ (crash-*, leak-*,
 # timeout-*, oom-*), each to become a regression test.
 #
-#   scripts/fuzz.sh [--runs N | --seconds S] [--jobs J] [TARGET ...]
+#   scripts/fuzz.sh [--runs N | --seconds S] [--jobs J] [TARGET[=RUNS] ...]
 #
+# TARGET=RUNS gives that target its own number of runs (to bring each to a total).
 # Defaults: 10,000,000 runs per target, two targets at a time, every target (scene log obj off
 # ply gltf glb import_gltf import_glb import_obj holodeck).
 set -euo pipefail
@@ -37,7 +38,8 @@ fi
 dir=build-fuzz
 CC=clang CXX=clang++ cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DPENUMBRA_FUZZ=ON -DPENUMBRA_BUILD_TESTS=OFF >/dev/null
-cmake --build "$dir" -j2 --target "${targets[@]/#/fuzz_}"
+names=("${targets[@]%%=*}")
+cmake --build "$dir" -j2 --target "${names[@]/#/fuzz_}"
 
 # Seed corpora: the bundled scenes and logs, and a few small files of each mesh format.
 seeds=$dir/seeds
@@ -167,7 +169,8 @@ PY
 
 # The runs, `jobs` targets at a time; each target's corpus grows in build-fuzz/corpus/TARGET.
 run_one() {
-  local t=$1
+  local t=${1%%=*} runs=$runs
+  [ "$1" != "$t" ] && runs=${1#*=}
   local corpus=$dir/corpus/$t findings=$dir/findings/$t log=$dir/logs/$t.txt
   mkdir -p "$corpus" "$findings" "$dir/logs"
   local limit=(-runs="$runs")
