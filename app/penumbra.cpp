@@ -252,6 +252,14 @@ Camera pickCamera(const Scene& scene, const std::string& scenePath, const std::s
     return Camera{};
 }
 
+/// The fields every `render` report has: the image written, the mode and the size.
+void addImageFields(nlohmann::json& report, const RenderArgs& r) {
+    report["image"] = r.out;
+    report["mode"] = r.mode;
+    report["width"] = r.width;
+    report["height"] = r.height;
+}
+
 /// The holodeck beside a scene: its path with the extension .hdk.
 std::string defaultHolodeckPath(const std::string& scene) {
     return std::filesystem::path(scene).replace_extension(".hdk").string();
@@ -441,10 +449,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
         writePng(display.edgeImage(), siblingPath(r.out, "edges"));
     }
     nlohmann::json report = session->reportJson();
-    report["image"] = r.out;
-    report["mode"] = r.mode;
-    report["width"] = r.width;
-    report["height"] = r.height;
+    addImageFields(report, r);
     report["sample_fraction"] = r.sampleFraction;
     report["warmup"] = r.warmup;
     report["smooth_radius"] = r.smooth;
@@ -479,10 +484,7 @@ int runPathTraceRender(const SolveArgs& a, const RenderArgs& r) {
     if (tty) std::fprintf(stderr, "\n");
     writeImage(traced.image, r.out);
     nlohmann::json report;
-    report["image"] = r.out;
-    report["mode"] = r.mode;
-    report["width"] = r.width;
-    report["height"] = r.height;
+    addImageFields(report, r);
     report["samples_per_pixel"] = options.samplesPerPixel;
     report["paths"] = traced.paths;
     report["seconds"] = traced.seconds;
@@ -529,8 +531,7 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     writeImage(image, r.out);
     nlohmann::json report = lit->reportJson();
-    report["image"] = r.out;
-    report["mode"] = r.mode;
+    addImageFields(report, r);
     report["pixel_pass"] = pass;
     report["hifi"] = hifiReport(mesh);
     report["hifi"]["render_ms"] = ms;
@@ -560,23 +561,13 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
     if (r.mode == "interpolant") return runInterpolantRender(a, r);
     if (r.mode != "gouraud") return runDisplayRender(a, r);
     auto lit = openAndSolve(a);
-    const Scene& scene = lit->scene();
-    Camera camera;
-    if (!r.camera.empty()) {
-        const Camera* c = scene.findCamera(r.camera);
-        if (!c) throw InputError(a.scene, "cameras", "no camera named '" + r.camera + "'");
-        camera = *c;
-    } else if (const Camera* c = scene.findCamera("default")) {
-        camera = *c;
-    } else if (!scene.cameras.empty()) {
-        camera = scene.cameras.front();
-    }
+    const Camera camera = pickCamera(lit->scene(), a.scene, r.camera);
     Image image =
         renderGouraud(lit->discretization(), lit->tracer(), lit->solver().displayRadiosity(),
                       camera, r.width, r.height, r.samples);
     writeImage(image, r.out);
     nlohmann::json report = lit->reportJson();
-    report["image"] = r.out;
+    addImageFields(report, r);
     if (!r.compare.empty())
         report["relative_rmse"] = compareWith(image, r.compare, lit->discretization(),
                                               lit->tracer(), CameraRays(camera, r.width, r.height));
