@@ -321,10 +321,90 @@ double compareWith(const Image& image, const std::string& path, const Discretiza
     return relativeRmse(image, reference, emitterMask(disc, tracer, rays));
 }
 
+InteractiveDisplayOptions displayOptionsOf(const RenderArgs& r, std::uint64_t seed) {
+    InteractiveDisplayOptions options;
+    options.width = r.width;
+    options.height = r.height;
+    options.sampleFraction = r.sampleFraction;
+    options.epi.smoothRadius = r.smooth;
+    options.maxPenumbraPixels = r.maxPenumbraPixels;
+    options.shader.seed = seed;
+    options.cache.seed = seed;
+    return options;
+}
+
+/// `render --holodeck` (Ward & Simmons 1999): the first frame takes the holodeck's samples of
+/// the view; at the end the points the display shaded itself go into it. A new file gets the
+/// scene's sections.
+class RenderHolodeck {
+public:
+    RenderHolodeck(const std::string& path, const EditSession& session)
+        : mFile(path, holodeckSections(session.scene().settings, session.discretization())),
+          mServer(mFile, nullptr) {}
+
+    /// Puts the holodeck's samples of the view into the display. Returns the milliseconds.
+    double seedView(InteractiveDisplay& display, EditSession& session, const CameraRays& rays,
+                    int width, int height) {
+        const auto start = std::chrono::steady_clock::now();
+        const auto view = viewRequests(mFile.sections(), rays, std::max(1, width / 4),
+                                       std::max(1, height / 4), 1.0);
+        const std::vector<ShadedPoint> points =
+            holodeckViewPoints(mServer, view, session.discretization(), session.tracer(), rays,
+                               display.cache().frame(), display.shadingSerial());
+        display.insertShaded(points);
+        for (const ShadedPoint& p : points) mFromHolodeck.insert(positionKey(p.position));
+        mSamples = std::int64_t(points.size());
+        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+            .count();
+    }
+    std::int64_t samples() const { return mSamples; }
+
+    /// Stores the points the display shaded itself (not those the holodeck brought).
+    void storeShaded(const InteractiveDisplay& display, EditSession& session, const Vec3& eye) {
+        std::vector<CachePoint> shaded;
+        for (const CachePoint& p : display.cache().points())
+            if (!mFromHolodeck.count(positionKey(p.position))) shaded.push_back(p);
+        mStored = storeViewPoints(mServer, shaded, session.tracer(), eye);
+    }
+
+    void addTo(nlohmann::json& report) const {
+        report["holodeck"] = mFile.path();
+        report["holodeck_samples"] = mSamples;
+        report["holodeck_stored"] = mStored;
+    }
+
+private:
+    /// A point's identity: its position's bits.
+    static std::uint64_t positionKey(const Vec3& p) {
+        std::uint64_t bits[3];
+        std::memcpy(bits, &p.x, sizeof bits);
+        return hashPair(hashPair(bits[0], bits[1]), bits[2]);
+    }
+
+    HoloFile mFile;
+    HoloServer mServer;
+    std::unordered_set<std::uint64_t> mFromHolodeck;
+    std::int64_t mSamples = 0, mStored = 0;
+};
+
+/// `render --mode reference`: one frame of the display's brute-force reference.
+Image referenceFrame(InteractiveDisplay& display, const CameraRays& rays, int samples, int k,
+                     nlohmann::json& entry) {
+    const auto start = std::chrono::steady_clock::now();
+    Image image = display.renderReference(rays, samples);
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+            .count();
+    entry.update({{"frame", k},
+                  {"total_ms", ms},
+                  {"reconstruct_ms", 0.0},
+                  {"new_sample_fraction", double(samples) * samples}});
+    return image;
+}
+
 /// `render --mode epi|cache|reference`: the interactive display (Bala et al. 2003) over an
 /// edit session, frames along an orbit or while replaying an edit log one line per frame.
 int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
-    using Clock = std::chrono::steady_clock;
     // Read every input before solving.
     const SolverOptions options = solverOptionsOf(a);
     auto session = EditSession::open(a.scene, options, a.import);
@@ -336,37 +416,13 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     const int frames = r.frames > 0 ? r.frames : (r.log.empty() ? 1 : int(edits.size()) + 1);
 
     session->converge(a.converge, a.maxShots);
-    InteractiveDisplayOptions displayOptions;
-    displayOptions.width = r.width;
-    displayOptions.height = r.height;
-    displayOptions.sampleFraction = r.sampleFraction;
-    displayOptions.epi.smoothRadius = r.smooth;
-    displayOptions.maxPenumbraPixels = r.maxPenumbraPixels;
-    displayOptions.shader.seed = a.seed;
-    displayOptions.cache.seed = a.seed;
     InteractiveDisplay display(session->discretization(), session->tracer(), options,
-                               displayOptions);
+                               displayOptionsOf(r, a.seed));
     display.updateSolution(session->solver());
 
     const bool reference = r.mode == "reference";
-    const bool useEdges = r.mode == "epi";
-    // The holodeck (Ward & Simmons): the first frame takes its samples of the view, and the
-    // points the display shades go into it at the end. A new file gets the scene's sections.
-    std::optional<HoloFile> holo;
-    std::unique_ptr<HoloServer> holoServer;
-    if (!r.holodeck.empty() && !reference) {
-        holo.emplace(r.holodeck,
-                     holodeckSections(session->scene().settings, session->discretization()));
-        holoServer = std::make_unique<HoloServer>(*holo, nullptr);
-    }
-    std::int64_t holodeckSamples = 0;
-    // The points the holodeck brought (their positions' bits): not stored again.
-    std::unordered_set<std::uint64_t> fromHolodeck;
-    auto positionKey = [](const Vec3& p) {
-        std::uint64_t bits[3];
-        std::memcpy(bits, &p.x, sizeof bits);
-        return hashPair(hashPair(bits[0], bits[1]), bits[2]);
-    };
+    std::optional<RenderHolodeck> holodeck;
+    if (!r.holodeck.empty() && !reference) holodeck.emplace(r.holodeck, *session);
     nlohmann::json frameReports = nlohmann::json::array();
     Image image;
     std::optional<CameraRays> rays;
@@ -386,36 +442,18 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
         const Camera frameCamera = r.log.empty() ? orbitCamera(camera, k * r.orbitDeg) : camera;
         rays.emplace(frameCamera, r.width, r.height);
         if (reference) {
-            const auto start = Clock::now();
-            image = display.renderReference(*rays, r.samples);
-            const double ms =
-                std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-            entry.update({{"frame", k},
-                          {"total_ms", ms},
-                          {"reconstruct_ms", 0.0},
-                          {"new_sample_fraction", double(r.samples) * r.samples}});
+            image = referenceFrame(display, *rays, r.samples, k, entry);
         } else {
-            double holodeckMs = 0;
-            if (k == 0 && holoServer) {
-                const auto start = Clock::now();
-                const auto view = viewRequests(holo->sections(), *rays, std::max(1, r.width / 4),
-                                               std::max(1, r.height / 4), 1.0);
-                const std::vector<ShadedPoint> points = holodeckViewPoints(
-                    *holoServer, view, session->discretization(), session->tracer(), *rays,
-                    display.cache().frame(), display.shadingSerial());
-                display.insertShaded(points);
-                for (const ShadedPoint& p : points) fromHolodeck.insert(positionKey(p.position));
-                holodeckSamples = std::int64_t(points.size());
-                holodeckMs =
-                    std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-            }
+            const double holodeckMs =
+                k == 0 && holodeck ? holodeck->seedView(display, *session, *rays, r.width, r.height)
+                                   : 0.0;
             // The warm-up shades what the holodeck did not bring.
             const double warmPoints = r.warmup * r.width * r.height;
-            if (k == 0 && r.warmup > 0 && double(holodeckSamples) < warmPoints)
-                display.warmUp(*rays, r.warmup);
-            image = display.renderFrame(*rays, useEdges);
+            const double brought = holodeck ? double(holodeck->samples()) : 0.0;
+            if (k == 0 && r.warmup > 0 && brought < warmPoints) display.warmUp(*rays, r.warmup);
+            image = display.renderFrame(*rays, r.mode == "epi");
             entry.update(frameJson(display.lastFrame()));
-            if (k == 0 && holoServer) {
+            if (k == 0 && holodeck) {
                 entry["holodeck_ms"] = holodeckMs;
                 entry["total_ms"] = entry["total_ms"].get<double>() + holodeckMs;
             }
@@ -433,13 +471,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
         frameReports.push_back(std::move(entry));
     }
     writeImage(image, r.out);
-    std::int64_t holodeckStored = 0;
-    if (holoServer) {
-        std::vector<CachePoint> shaded;
-        for (const CachePoint& p : display.cache().points())
-            if (!fromHolodeck.count(positionKey(p.position))) shaded.push_back(p);
-        holodeckStored = storeViewPoints(*holoServer, shaded, session->tracer(), rays->origin());
-    }
+    if (holodeck) holodeck->storeShaded(display, *session, rays->origin());
     if (r.overlay == "edges") {
         // The reference shades no EPI: run one display frame from the final camera for it.
         if (reference) {
@@ -455,11 +487,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     report["smooth_radius"] = r.smooth;
     report["max_penumbra_pixels"] = r.maxPenumbraPixels;
     report["frames"] = std::move(frameReports);
-    if (holoServer) {
-        report["holodeck"] = holo->path();
-        report["holodeck_samples"] = holodeckSamples;
-        report["holodeck_stored"] = holodeckStored;
-    }
+    if (holodeck) holodeck->addTo(report);
     if (!r.compare.empty())
         report["relative_rmse"] =
             compareWith(image, r.compare, session->discretization(), session->tracer(), *rays);
