@@ -145,7 +145,8 @@ TEST_F(CrashSafety, AKilledEditingSessionKeepsEveryAcknowledgedEditAndAWholeScen
         Child child = spawn({PENUMBRA_CRASH_CHILD, dir.string()});
         bool killed = false;
         // One trial in ten during start-up (loading, a first solve); the others after a random
-        // edit of the first 150 and up to 3 ms more (an edit takes about 1.5 ms here).
+        // edit of the first 150 and up to 3 ms more (longer than an edit takes, so kills land
+        // inside edits as well as between them).
         const bool early = random.next() < 0.1;
         const int after = early ? 0 : 1 + static_cast<int>(random.next() * 150);
         const auto delay =
