@@ -384,66 +384,6 @@ void EdgeFinder::computeEventBoxes(Pair& pair) const {
     pair.boxTree.build(pair.boxes);
 }
 
-// ---------------------------------------------------------------------------------------------
-// BoxTree: a static bounding-volume hierarchy over event boxes
-
-void EdgeFinder::BoxTree::build(const std::vector<Box3>& boxes) {
-    nodes.clear();
-    items.clear();
-    for (int i = 0; i < static_cast<int>(boxes.size()); ++i)
-        if (!boxes[i].empty()) items.push_back(i);
-    if (items.empty()) return;
-    nodes.reserve(2 * items.size() / 4 + 2);
-    // Top-down, median split of the box centres on the longest axis; leaves of up to 8.
-    struct Task {
-        int node, begin, end;
-    };
-    std::vector<Task> stack = {{0, 0, static_cast<int>(items.size())}};
-    nodes.push_back({});
-    while (!stack.empty()) {
-        Task t = stack.back();
-        stack.pop_back();
-        Box3 box, centres;
-        for (int i = t.begin; i < t.end; ++i) {
-            box.extend(boxes[items[i]]);
-            centres.extend(boxes[items[i]].centre());
-        }
-        nodes[t.node] = {box, t.begin, t.end, -1};
-        if (t.end - t.begin <= 8) continue;
-        Vec3 ext = centres.hi - centres.lo;
-        int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
-        int mid = t.begin + (t.end - t.begin) / 2;
-        std::nth_element(items.begin() + t.begin, items.begin() + mid, items.begin() + t.end,
-                         [&](int a, int b) {
-                             return boxes[a].lo[axis] + boxes[a].hi[axis] <
-                                    boxes[b].lo[axis] + boxes[b].hi[axis];
-                         });
-        int child = static_cast<int>(nodes.size());
-        nodes[t.node].child = child;
-        nodes.push_back({});
-        nodes.push_back({});
-        stack.push_back({child, t.begin, mid});
-        stack.push_back({child + 1, mid, t.end});
-    }
-}
-
-void EdgeFinder::BoxTree::query(const Box3& box, std::vector<int>& out) const {
-    if (nodes.empty() || box.empty()) return;
-    int stack[128];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const Node& node = nodes[stack[--top]];
-        if (!node.box.overlaps(box)) continue;
-        if (node.child < 0) {
-            for (int i = node.begin; i < node.end; ++i) out.push_back(items[i]);
-        } else {
-            stack[top++] = node.child;
-            stack[top++] = node.child + 1;
-        }
-    }
-}
-
 void EdgeFinder::computeEvent(int lightIndex, int blockerIndex, Pair& pair, int e,
                               Counters& counters) const {
     const ShadowEvent& ev = pair.events[e];

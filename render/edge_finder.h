@@ -162,20 +162,6 @@ private:
         bool alive = true;
         unsigned version = 1;
     };
-    /// A static bounding-volume hierarchy over boxes (a pair's event boxes): which events a
-    /// moved receiver's bounds may meet.
-    struct BoxTree {
-        struct Node {
-            Box3 box;
-            int begin = 0, end = 0;
-            int child = -1;
-        };
-        std::vector<Node> nodes;
-        std::vector<int> items;  ///< box indices in tree order (empty boxes left out)
-        void build(const std::vector<Box3>& boxes);
-        /// Appends the indices of boxes overlapping `box`.
-        void query(const Box3& box, std::vector<int>& out) const;
-    };
     /// A receiver whose bounds meet an event's region, with the range of s there
     /// (eventRange).
     struct NearReceiver {
@@ -191,7 +177,7 @@ private:
         std::vector<EventFrame> frames;
         std::vector<Box3> boxes;  ///< per event: its region clipped to mSceneBox
         Box3 bound;               ///< union of `boxes`: the shadow-volume bound
-        BoxTree boxTree;          ///< over `boxes`
+        BoxTree boxTree;          ///< over `boxes`: the events a moved receiver's bounds may meet
         /// Per event: receivers whose bounds meet it, with the smallest s there.
         std::vector<std::vector<NearReceiver>> near;
         /// Per event: the coverage threshold it was decided with (EventCoverage); receivers

@@ -13,20 +13,6 @@ namespace penumbra {
 // ---------------------------------------------------------------------------------------------
 // Box3
 
-Box3 Box3::transformed(const Mat4& m) const {
-    Box3 out;
-    if (empty()) return out;
-    for (int i = 0; i < 8; ++i) out.extend(Vec3(m * glm::dvec4(corner(i), 1.0)));
-    return out;
-}
-
-std::string Box3::toString() const {
-    std::ostringstream s;
-    s << "Box3{(" << lo.x << ' ' << lo.y << ' ' << lo.z << ") - (" << hi.x << ' ' << hi.y << ' '
-      << hi.z << ")}";
-    return s.str();
-}
-
 // ---------------------------------------------------------------------------------------------
 // EdgeMesh
 

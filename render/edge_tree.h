@@ -12,42 +12,11 @@
 #include <string>
 #include <vector>
 
+#include "render/box_tree.h"
 #include "solver/discretization.h"
 #include "solver/scene.h"
 
 namespace penumbra {
-
-/// Axis-aligned box; empty when lo > hi.
-struct Box3 {
-    Vec3 lo{1e300};
-    Vec3 hi{-1e300};
-    void extend(const Vec3& p) {
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
-    }
-    void extend(const Box3& b) {
-        lo = glm::min(lo, b.lo);
-        hi = glm::max(hi, b.hi);
-    }
-    bool empty() const { return lo.x > hi.x; }
-    /// Both non-empty and sharing at least a point.
-    bool overlaps(const Box3& b) const {
-        return !empty() && !b.empty() && lo.x <= b.hi.x && b.lo.x <= hi.x && lo.y <= b.hi.y &&
-               b.lo.y <= hi.y && lo.z <= b.hi.z && b.lo.z <= hi.z;
-    }
-    /// `b` lies inside this box (an empty `b` always does).
-    bool contains(const Box3& b) const {
-        return b.empty() || (!empty() && lo.x <= b.lo.x && lo.y <= b.lo.y && lo.z <= b.lo.z &&
-                             b.hi.x <= hi.x && b.hi.y <= hi.y && b.hi.z <= hi.z);
-    }
-    Vec3 centre() const { return 0.5 * (lo + hi); }
-    Vec3 corner(int i) const {
-        return {(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z};
-    }
-    /// Box of the 8 corners mapped by `m` (affine).
-    Box3 transformed(const Mat4& m) const;
-    std::string toString() const;
-};
 
 /// One mesh edge. f0 is the face whose boundary runs v0 → v1 (counter-clockwise winding);
 /// f1 the face on the other side, or -1 for a boundary edge.

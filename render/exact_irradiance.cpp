@@ -152,7 +152,6 @@ ExactIrradiance::ExactIrradiance(const Discretization& disc, ExactIrradianceOpti
 
 void ExactIrradiance::rebuild() {
     mBlockers.clear();
-    mNodes.clear();
     mObjects.clear();
     mEmitters.clear();
     mPatches.clear();
@@ -218,7 +217,10 @@ void ExactIrradiance::rebuild() {
         }
         ob.count = static_cast<int>(mBlockers.size()) - ob.first;
         if (ob.count > 0) {
-            ob.root = buildNodes(ob.first, ob.first + ob.count);
+            std::vector<Box3> boxes(ob.count);
+            for (int b = 0; b < ob.count; ++b)
+                boxes[b] = Box3{mBlockers[ob.first + b].lo, mBlockers[ob.first + b].hi};
+            ob.tree.build(boxes);
             sceneLo = glm::min(sceneLo, ob.lo);
             sceneHi = glm::max(sceneHi, ob.hi);
             mObjects.push_back(ob);
@@ -273,35 +275,6 @@ void ExactIrradiance::buildElementCells() {
                 for (long long m = std::llround(lo.z); m <= std::llround(hi.z); ++m)
                     mElementCells[cellKey(i, j, m)].push_back(e);
     }
-}
-
-int ExactIrradiance::buildNodes(int begin, int end) {
-    BlockerNode node;
-    node.lo = Vec3(1e300);
-    node.hi = Vec3(-1e300);
-    for (int b = begin; b < end; ++b) {
-        node.lo = glm::min(node.lo, mBlockers[b].lo);
-        node.hi = glm::max(node.hi, mBlockers[b].hi);
-    }
-    node.begin = begin;
-    node.end = end;
-    const int index = static_cast<int>(mNodes.size());
-    mNodes.push_back(node);
-    if (end - begin <= 8) return index;
-    // Median split of the box centres along the longest axis.
-    const Vec3 extent = node.hi - node.lo;
-    const int axis =
-        extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
-    const int mid = (begin + end) / 2;
-    std::nth_element(mBlockers.begin() + begin, mBlockers.begin() + mid, mBlockers.begin() + end,
-                     [axis](const Blocker& a, const Blocker& b) {
-                         return a.lo[axis] + a.hi[axis] < b.lo[axis] + b.hi[axis];
-                     });
-    const int left = buildNodes(begin, mid);
-    const int right = buildNodes(mid, end);
-    mNodes[index].left = left;
-    mNodes[index].right = right;
-    return index;
 }
 
 void ExactIrradiance::setReflected(std::vector<Rgb> reflected) {
@@ -383,27 +356,15 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
     const double lift = 1e3 * mEpsilon;
     std::vector<Vec3> clipA, clipB;
     std::vector<Vec2> shadow;
-    std::vector<int> candidates, stack;
+    std::vector<int> candidates;
     for (const ObjectBlockers& ob : mObjects) {
         if (ob.object == ignoreObject || !boxOverlaps(ob.lo, ob.hi)) continue;
         // The blockers whose boxes meet the pyramid's, through the object's box tree.
         candidates.clear();
-        stack.clear();
-        stack.push_back(ob.root);
-        while (!stack.empty()) {
-            const BlockerNode& node = mNodes[stack.back()];
-            stack.pop_back();
-            if (!boxOverlaps(node.lo, node.hi)) continue;
-            if (node.left < 0) {
-                for (int b = node.begin; b < node.end; ++b) candidates.push_back(b);
-            } else {
-                stack.push_back(node.right);
-                stack.push_back(node.left);
-            }
-        }
+        ob.tree.visit([&](const Box3& box) { return boxOverlaps(box.lo, box.hi); }, candidates);
         for (int b : candidates) {
             if (visible.empty()) break;
-            const Blocker& B = mBlockers[b];
+            const Blocker& B = mBlockers[ob.first + b];
             if (!boxOverlaps(B.lo, B.hi)) continue;
             // A polygon whose plane passes through x cannot hide anything from x.
             if (std::abs(glm::dot(x - B.polygon[0], B.normal)) <= lift) continue;

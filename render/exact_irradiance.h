@@ -14,6 +14,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "render/box_tree.h"
 #include "solver/scene.h"
 
 namespace penumbra {
@@ -133,20 +134,12 @@ private:
         Vec3 lo, hi;                ///< bounds
         int object = -1;
     };
-    /// A node of an object's bounding-box tree over its blockers: blockers [begin, end) of
-    /// mBlockers, children or a leaf.
-    struct BlockerNode {
-        Vec3 lo, hi;
-        int begin = 0, end = 0;
-        int left = -1, right = -1;
-    };
     struct ObjectBlockers {
         int first = 0, count = 0;  ///< range in mBlockers
         Vec3 lo, hi;
         int object = -1;
-        int root = -1;  ///< in mNodes
+        BoxTree tree;  ///< over the object's blockers (indices from first)
     };
-    int buildNodes(int begin, int end);
     /// Fills mElementCells (nothing without nearElementRadii).
     void buildElementCells();
     struct Source {
@@ -200,7 +193,6 @@ private:
     ExactIrradianceOptions mOptions;
     const RayTracer* mTracer = nullptr;
     std::vector<Blocker> mBlockers;
-    std::vector<BlockerNode> mNodes;
     std::vector<ObjectBlockers> mObjects;
     std::vector<Source> mEmitters;
     std::vector<SourcePatch> mPatches;  ///< alive patches (indirect sources)
@@ -216,8 +208,8 @@ private:
     /// point's near elements are all in its own cell (cells of mElementCellSize).
     std::unordered_map<std::uint64_t, std::vector<int>> mElementCells;
     double mElementCellSize = 1;
-    std::vector<Rgb> mPatchReflected;    ///< per patch, area-weighted mean
-    double mEpsilon = 1e-9;              ///< length tolerance, from the scene's size
+    std::vector<Rgb> mPatchReflected;  ///< per patch, area-weighted mean
+    double mEpsilon = 1e-9;            ///< length tolerance, from the scene's size
 };
 
 /// Per element, the radiosity the solution reflects: B − E (ρ·H plus the solver's ambient

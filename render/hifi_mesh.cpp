@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "core/random.h"
+#include "render/box_tree.h"
 #include "render/camera_rays.h"
 #include "render/cdt.h"
 #include "render/edge_tree.h"
@@ -260,9 +261,7 @@ public:
             if (!box.empty()) box.lo -= Vec3(mPad), box.hi += Vec3(mPad);
             mBoxes.push_back(box);
         }
-        for (std::size_t i = 0; i < wedges.size(); ++i)
-            if (!mBoxes[i].empty()) mOrder.push_back(static_cast<int>(i));
-        if (!mOrder.empty()) build(0, static_cast<int>(mOrder.size()));
+        mTree.build(mBoxes);
     }
 
     /// The wedges whose region may meet `poly`'s box, ascending (of `count` wedges).
@@ -272,34 +271,17 @@ public:
             for (std::size_t i = 0; i < count; ++i) out.push_back(static_cast<int>(i));
             return;
         }
-        if (mNodes.empty()) return;
         Box3 box;
         for (const Vec3& p : poly) box.extend(p);
         box.lo -= Vec3(mPad);
         box.hi += Vec3(mPad);
-        int stack[64];
-        int top = 0;
-        stack[top++] = 0;
-        while (top > 0) {
-            const Node& node = mNodes[stack[--top]];
-            if (!node.box.overlaps(box)) continue;
-            if (node.left < 0) {
-                for (int i = node.begin; i < node.end; ++i)
-                    if (mBoxes[mOrder[i]].overlaps(box)) out.push_back(mOrder[i]);
-            } else {
-                stack[top++] = node.left;
-                stack[top++] = node.right;
-            }
-        }
+        mTree.query(box, out);
+        const auto missed = [&](int w) { return !mBoxes[w].overlaps(box); };
+        out.erase(std::remove_if(out.begin(), out.end(), missed), out.end());
         std::sort(out.begin(), out.end());
     }
 
 private:
-    struct Node {
-        Box3 box;
-        int begin = 0, end = 0, left = -1, right = -1;
-    };
-
     /// Sutherland–Hodgman against the box's six planes.
     static std::vector<Vec3> clipToBox(std::vector<Vec3> poly, const Box3& box) {
         for (int axis = 0; axis < 3 && !poly.empty(); ++axis)
@@ -321,34 +303,8 @@ private:
         return poly;
     }
 
-    int build(int begin, int end) {
-        Node node;
-        for (int i = begin; i < end; ++i) node.box.extend(mBoxes[mOrder[i]]);
-        node.begin = begin;
-        node.end = end;
-        const int index = static_cast<int>(mNodes.size());
-        mNodes.push_back(node);
-        // Leaves of up to 8; a median split keeps the depth under the query's stack.
-        if (end - begin <= 8) return index;
-        const Vec3 extent = node.box.hi - node.box.lo;
-        const int axis =
-            extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
-        const int mid = (begin + end) / 2;
-        std::nth_element(mOrder.begin() + begin, mOrder.begin() + mid, mOrder.begin() + end,
-                         [&](int a, int b) {
-                             return mBoxes[a].lo[axis] + mBoxes[a].hi[axis] <
-                                    mBoxes[b].lo[axis] + mBoxes[b].hi[axis];
-                         });
-        const int left = build(begin, mid);
-        const int right = build(mid, end);
-        mNodes[index].left = left;
-        mNodes[index].right = right;
-        return index;
-    }
-
     std::vector<Box3> mBoxes;  ///< per wedge (empty: its region misses the scene)
-    std::vector<int> mOrder;   ///< the wedges with a box, in tree order
-    std::vector<Node> mNodes;
+    BoxTree mTree;             ///< over mBoxes
     double mPad = 0;
     bool mIndexed = false;
 };
