@@ -225,28 +225,32 @@ struct Importer {
     /// room from OBJ (one-sided) and from glTF (two-sided, as Blender writes it) gets the same
     /// size. Rounded up to two significant digits (0.16, not 0.1573...).
     void chooseSettings() {
-        // What is counted: the meshes' fronts and the lights' spheres, as one scene.
-        Scene counted;
-        counted.objects = scene.objects;
+        // What is counted: the meshes' fronts (the scene itself: its settings are set below
+        // anyway) and the lights' spheres.
+        Scene lights;
         double area = 0;
         for (const SceneObject& o : scene.objects) {
             const TriMesh& m = o.shape.mesh;
             const glm::dmat3 linear(o.transform.worldFromObject());
-            for (const auto& t : m.triangles)
-                area += 0.5 * glm::length(glm::cross(linear * (m.positions[t[1]] - m.positions[t[0]]),
-                                                     linear * (m.positions[t[2]] - m.positions[t[0]])));
+            for (const auto& t : m.triangles) {
+                const Vec3 p0 = linear * m.positions[t[0]];
+                area += 0.5 * glm::length(glm::cross(linear * m.positions[t[1]] - p0,
+                                                     linear * m.positions[t[2]] - p0));
+            }
         }
         for (const MeshFileLight& light : file.lights)
             if (light.type != "directional") {
-                counted.objects.push_back(lightObject(light));
+                lights.objects.push_back(lightObject(light));
                 area += 4 * M_PI * options.lightRadius * options.lightRadius;
             }
         if (!(area > 0)) return;
         auto elementsAt = [&](double size) {
-            counted.settings.elementSize = size;
-            counted.settings.patchSize = 4 * size;
+            for (Scene* counted : {&scene, &lights}) {
+                counted->settings.elementSize = size;
+                counted->settings.patchSize = 4 * size;
+            }
             try {
-                return Discretization::countElements(counted);
+                return Discretization::countElements(scene) + Discretization::countElements(lights);
             } catch (const std::invalid_argument&) {
                 return std::numeric_limits<double>::infinity();  // too fine for some object
             }

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "solver/scene.h"
+#include "core/math.h"
 
 namespace penumbra {
 

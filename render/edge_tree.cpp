@@ -1,4 +1,4 @@
-// Index: Box3 · EdgeMesh (welding, OpenMesh adjacency, planes, sharp edges) · EdgeTree build ·
+// Index: EdgeMesh (welding, OpenMesh adjacency, planes, sharp edges) · EdgeTree build ·
 //        EdgeTree traversal (point eye, polygon eye)
 #include "render/edge_tree.h"
 
@@ -9,9 +9,6 @@
 #include <unordered_map>
 
 namespace penumbra {
-
-// ---------------------------------------------------------------------------------------------
-// Box3
 
 // ---------------------------------------------------------------------------------------------
 // EdgeMesh

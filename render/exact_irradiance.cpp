@@ -223,7 +223,7 @@ void ExactIrradiance::rebuild() {
             ob.tree.build(boxes);
             sceneLo = glm::min(sceneLo, ob.lo);
             sceneHi = glm::max(sceneHi, ob.hi);
-            mObjects.push_back(ob);
+            mObjects.push_back(std::move(ob));
         }
     }
     mElementRadius.assign(elements.size(), 0.0);

@@ -26,6 +26,18 @@ while [ $# -gt 0 ]; do
     *) targets+=("$1"); shift ;;
   esac
 done
+for t in "${targets[@]}"; do
+  if [[ "$t" == *=* ]]; then
+    if ! [[ "${t#*=}" =~ ^[0-9]+$ ]]; then
+      echo "fuzz.sh: $t: the runs after '=' must be a whole number" >&2
+      exit 2
+    fi
+    if [ "$seconds" -gt 0 ]; then
+      echo "fuzz.sh: $t: TARGET=RUNS counts runs; it does not go with --seconds" >&2
+      exit 2
+    fi
+  fi
+done
 [ ${#targets[@]} -gt 0 ] || targets=(scene log obj off ply gltf glb import_gltf import_glb import_obj holodeck)
 
 # The build's dependencies, and Clang (libFuzzer ships with Debian's clang package).
