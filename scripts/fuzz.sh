@@ -179,6 +179,11 @@ with open(f"{seeds}/holodeck/torn.hdk", "wb") as f:
     f.write(committed + appended + appended[:17])
 PY
 
+# ASan without allocation stacks: recording a stack for every allocation is most of an
+# allocation-heavy target's time (the importers'), and a finding's input run again with the
+# default options shows them. A user's own ASAN_OPTIONS come after and win.
+export ASAN_OPTIONS="malloc_context_size=0${ASAN_OPTIONS:+:$ASAN_OPTIONS}"
+
 # The runs, `jobs` targets at a time; each target's corpus grows in build-fuzz/corpus/TARGET.
 run_one() {
   local t=${1%%=*} runs=$runs
