@@ -78,6 +78,27 @@ public:
             }
         }
     }
+    /// Calls `leaf(begin, end)` with the positions [begin, end) in items() of every leaf whose
+    /// node boxes all pass `overlaps(const Box3&)`, the first child first (the tree's own
+    /// order): a caller that stores its data in tree order (permuted by items()) reads it
+    /// front to back.
+    template <class Overlaps, class Leaf>
+    void visitLeaves(Overlaps&& overlaps, Leaf&& leaf) const {
+        if (mNodes.empty()) return;
+        int stack[128];  // a median split halves the items: depth ≤ log2(n) + 1
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const Node& node = mNodes[stack[--top]];
+            if (!overlaps(node.box)) continue;
+            if (node.child < 0) {
+                leaf(node.begin, node.end);
+            } else {
+                stack[top++] = node.child + 1;
+                stack[top++] = node.child;
+            }
+        }
+    }
     /// visit() with the nodes that overlap `box`.
     void query(const Box3& box, std::vector<int>& out) const {
         if (box.empty()) return;

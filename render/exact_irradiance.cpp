@@ -221,6 +221,19 @@ void ExactIrradiance::rebuild() {
             for (int b = 0; b < ob.count; ++b)
                 boxes[b] = Box3{mBlockers[ob.first + b].lo, mBlockers[ob.first + b].hi};
             ob.tree.build(boxes);
+            // The object's blockers in tree order, so that a pyramid's candidates are read
+            // front to back (those with an empty box, never visited, go last).
+            const std::vector<int>& order = ob.tree.items();
+            std::vector<Blocker> sorted;
+            sorted.reserve(ob.count);
+            std::vector<char> taken(ob.count, 0);
+            for (int b : order) {
+                sorted.push_back(std::move(mBlockers[ob.first + b]));
+                taken[b] = 1;
+            }
+            for (int b = 0; b < ob.count; ++b)
+                if (!taken[b]) sorted.push_back(std::move(mBlockers[ob.first + b]));
+            std::move(sorted.begin(), sorted.end(), mBlockers.begin() + ob.first);
             sceneLo = glm::min(sceneLo, ob.lo);
             sceneHi = glm::max(sceneHi, ob.hi);
             mObjects.push_back(std::move(ob));
@@ -361,7 +374,10 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
         if (ob.object == ignoreObject || !boxOverlaps(ob.lo, ob.hi)) continue;
         // The blockers whose boxes meet the pyramid's, through the object's box tree.
         candidates.clear();
-        ob.tree.visit([&](const Box3& box) { return boxOverlaps(box.lo, box.hi); }, candidates);
+        ob.tree.visitLeaves([&](const Box3& box) { return boxOverlaps(box.lo, box.hi); },
+                            [&](int begin, int end) {
+                                for (int k = begin; k < end; ++k) candidates.push_back(k);
+                            });
         for (int b : candidates) {
             if (visible.empty()) break;
             const Blocker& B = mBlockers[ob.first + b];

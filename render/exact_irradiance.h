@@ -138,7 +138,7 @@ private:
         int first = 0, count = 0;  ///< range in mBlockers
         Vec3 lo, hi;
         int object = -1;
-        BoxTree tree;  ///< over the object's blockers (indices from first)
+        BoxTree tree;  ///< over the object's blockers, which are stored in its order
     };
     /// Fills mElementCells (nothing without nearElementRadii).
     void buildElementCells();

@@ -1,7 +1,8 @@
 // BoxTree against brute force: over random boxes (some empty, many equal, some degenerate to a
 // point), a query returns every box that overlaps the query box, each once, and nothing that
 // is empty; the tree's structure holds (leaves of at most 8, every node's box holds its
-// items', the items are the non-empty boxes); visit() prunes by its predicate.
+// items', the items are the non-empty boxes); visit() prunes by its predicate; visitLeaves()
+// gives the leaves' ranges of items() in tree order.
 #include "render/box_tree.h"
 
 #include <gtest/gtest.h>
@@ -114,6 +115,38 @@ TEST(BoxTree, VisitPrunesByItsPredicate) {
             EXPECT_TRUE(found.count(i)) << i;
         }
     }
+}
+
+TEST(BoxTree, VisitLeavesGivesTreeOrderRangesFrontToBack) {
+    const std::vector<Box3> boxes = randomBoxes(9, 700);
+    const BoxTree tree(boxes);
+    // Everything: the leaves tile items() in order, the first child first.
+    int next = 0;
+    tree.visitLeaves([](const Box3&) { return true; },
+                     [&](int begin, int end) {
+                         EXPECT_EQ(begin, next);
+                         EXPECT_LT(begin, end);
+                         EXPECT_LE(end - begin, 8);
+                         next = end;
+                     });
+    EXPECT_EQ(next, static_cast<int>(tree.items().size()));
+    // A box query through the positions finds what brute force finds among the boxes.
+    const Box3 query{Vec3(0.2, 0.3, 0.1), Vec3(0.5, 0.6, 0.4)};
+    std::set<int> found;
+    tree.visitLeaves([&](const Box3& b) { return b.overlaps(query); },
+                     [&](int begin, int end) {
+                         for (int k = begin; k < end; ++k) {
+                             const int i = tree.items()[k];
+                             if (boxes[i].overlaps(query)) {
+                                 EXPECT_TRUE(found.insert(i).second) << "once";
+                             }
+                         }
+                     });
+    std::set<int> expected;
+    for (int i = 0; i < static_cast<int>(boxes.size()); ++i)
+        if (boxes[i].overlaps(query)) expected.insert(i);
+    EXPECT_FALSE(expected.empty());
+    EXPECT_EQ(found, expected);
 }
 
 }  // namespace
