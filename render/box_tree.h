@@ -63,20 +63,9 @@ public:
     /// whose node boxes all pass `overlaps(const Box3&)`; the boxes themselves are not tested.
     template <class Overlaps>
     void visit(Overlaps&& overlaps, std::vector<int>& out) const {
-        if (mNodes.empty()) return;
-        int stack[128];  // a median split halves the items: depth ≤ log2(n) + 1
-        int top = 0;
-        stack[top++] = 0;
-        while (top > 0) {
-            const Node& node = mNodes[stack[--top]];
-            if (!overlaps(node.box)) continue;
-            if (node.child < 0) {
-                for (int i = node.begin; i < node.end; ++i) out.push_back(mItems[i]);
-            } else {
-                stack[top++] = node.child;
-                stack[top++] = node.child + 1;
-            }
-        }
+        walk<false>(overlaps, [&](int begin, int end) {
+            for (int i = begin; i < end; ++i) out.push_back(mItems[i]);
+        });
     }
     /// Calls `leaf(begin, end)` with the positions [begin, end) in items() of every leaf whose
     /// node boxes all pass `overlaps(const Box3&)`, the first child first (the tree's own
@@ -84,20 +73,7 @@ public:
     /// front to back.
     template <class Overlaps, class Leaf>
     void visitLeaves(Overlaps&& overlaps, Leaf&& leaf) const {
-        if (mNodes.empty()) return;
-        int stack[128];  // a median split halves the items: depth ≤ log2(n) + 1
-        int top = 0;
-        stack[top++] = 0;
-        while (top > 0) {
-            const Node& node = mNodes[stack[--top]];
-            if (!overlaps(node.box)) continue;
-            if (node.child < 0) {
-                leaf(node.begin, node.end);
-            } else {
-                stack[top++] = node.child + 1;
-                stack[top++] = node.child;
-            }
-        }
+        walk<true>(overlaps, leaf);
     }
     /// visit() with the nodes that overlap `box`.
     void query(const Box3& box, std::vector<int>& out) const {
@@ -110,6 +86,26 @@ public:
     const std::vector<int>& items() const { return mItems; }
 
 private:
+    /// The depth-first walk behind visit() and visitLeaves(): `leaf(begin, end)` for each leaf
+    /// whose node boxes all pass `overlaps`, children in order or reversed.
+    template <bool kFirstChildFirst, class Overlaps, class Leaf>
+    void walk(Overlaps& overlaps, Leaf&& leaf) const {
+        if (mNodes.empty()) return;
+        int stack[128];  // a median split halves the items: depth ≤ log2(n) + 1
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const Node& node = mNodes[stack[--top]];
+            if (!overlaps(node.box)) continue;
+            if (node.child < 0) {
+                leaf(node.begin, node.end);
+            } else {
+                stack[top++] = kFirstChildFirst ? node.child + 1 : node.child;
+                stack[top++] = kFirstChildFirst ? node.child : node.child + 1;
+            }
+        }
+    }
+
     std::vector<Node> mNodes;
     std::vector<int> mItems;
 };
