@@ -418,7 +418,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
     session->converge(a.converge, a.maxShots);
     InteractiveDisplay display(session->discretization(), session->tracer(), options,
                                displayOptionsOf(r, a.seed));
-    display.updateSolution(session->solver());
+    display.apply(SolutionView::of(session->solver()));
 
     const bool reference = r.mode == "reference";
     std::optional<RenderHolodeck> holodeck;
@@ -436,7 +436,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
             // A drag's preview is traced without a subset of its own (the whole scene,
             // filtered): one frame per line, nothing to amortize.
             display.apply(event, {}, &session->solver());
-            display.updateSolution(session->solver());
+            display.apply(SolutionView::of(session->solver()));
             entry["edit"] = {{"line", logged.line}, {"op", logged.command.opName()}};
         }
         const Camera frameCamera = r.log.empty() ? orbitCamera(camera, k * r.orbitDeg) : camera;

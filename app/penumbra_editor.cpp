@@ -1,6 +1,6 @@
 // penumbra-editor [SCENE] [--emission-scale S] [--light-size R] [--units mm|cm|m] [--log LOG]
 // [--play LOG] [--screenshot PNG --frames N] [--mode NAME] [--recover] [--no-journal]
-//                 [--display-divisor N] [--interactive-divisor N]
+//                 [--display-divisor N]
 //                 [--holodeck FILE | --no-holodeck]
 //                 [--bench-drag ID [--frames N] [--record DIR] [--no-references]]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
@@ -56,10 +56,13 @@ int main(int argc, char** argv) {
     app.add_option("--display-divisor", options.displayDivisor,
                    "edge-and-point modes render the viewport at 1/N resolution (upscaled)")
         ->check(CLI::PositiveNumber);
-    app.add_option("--interactive-divisor", options.interactiveDisplayDivisor,
-                   "edge-and-point modes while the view moves or an object is dragged: 1 keeps "
-                   "full resolution (default), N renders 1/N, 0 picks N from the frame time")
-        ->check(CLI::NonNegativeNumber);
+    // Accepted so that existing command lines keep working: the one display keeps the
+    // viewport's resolution while the view moves or an object is dragged.
+    int interactiveDivisor = 1;
+    auto* interactive = app.add_option("--interactive-divisor", interactiveDivisor,
+                                       "no longer used: the display keeps its resolution while "
+                                       "the view moves or an object is dragged")
+                            ->check(CLI::NonNegativeNumber);
     auto* holodeck = app.add_option("--holodeck", options.holodeck,
                                     "the holodeck (ray cache) views start from and store their "
                                     "points in (created if missing; default: SCENE.hdk when it "
@@ -78,6 +81,8 @@ int main(int argc, char** argv) {
         return app.exit(e) == 0 ? 0 : 2;
     }
     penumbra::initLogging(verbose);
+    if (*interactive && interactiveDivisor != 1)
+        spdlog::warn("--interactive-divisor is no longer used: the display keeps its resolution");
     options.mode = *penumbra::parseViewMode(mode);
     if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
     if (!options.benchDrag.empty()) options.journal = false;

@@ -325,7 +325,7 @@ CaseResult runCase(const DisplayBenchOptions& options, const std::string& name,
     start = Clock::now();
     InteractiveDisplay display(session->discretization(), session->tracer(),
                                interactiveSolverOptions(), displayOptions);
-    display.updateSolution(session->solver());
+    display.apply(SolutionView::of(session->solver()));
     res.setupMs = msSince(start);
     std::fprintf(stderr, "bench display: %s: solved in %.0f ms, display built in %.0f ms\n",
                  name.c_str(), res.solveMs, res.setupMs);

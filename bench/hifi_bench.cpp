@@ -83,7 +83,7 @@ void measureUpdate(const HifiBenchOptions& o, EditSession& session, const Solver
     displayOptions.width = o.errorWidth;
     displayOptions.height = o.errorHeight;
     InteractiveDisplay display(disc, session.tracer(), options, displayOptions);
-    display.updateSolution(session.solver());
+    display.apply(SolutionView::of(session.solver()));
     const Image reference = display.renderReference(small, 2);
     renderer.upload(mesh);
     c.errUpdate = relativeRmse(renderer.render(disc, mesh, small, 2), reference,
@@ -144,7 +144,7 @@ HifiCase runCase(const HifiBenchOptions& o, const std::string& name, nlohmann::j
     displayOptions.width = o.errorWidth;
     displayOptions.height = o.errorHeight;
     InteractiveDisplay display(disc, tracer, options, displayOptions);
-    display.updateSolution(session->solver());
+    display.apply(SolutionView::of(session->solver()));
     const Image reference = display.renderReference(small, 2);
     const std::vector<std::uint8_t> mask = emitterMask(disc, tracer, small);
     const Image gouraud = renderGouraud(disc, tracer, session->solver().displayRadiosity(), camera,

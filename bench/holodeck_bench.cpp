@@ -77,7 +77,7 @@ void measureFirstFrame(EditSession& session, const SolverOptions& options, const
     Image reference;
     {
         InteractiveDisplay display(disc, session.tracer(), options, displayOptions);
-        display.updateSolution(session.solver());
+        display.apply(SolutionView::of(session.solver()));
         display.warmUp(rays);
         Image image = display.renderFrame(rays);
         reference = display.renderReference(rays, 2);
@@ -86,7 +86,7 @@ void measureFirstFrame(EditSession& session, const SolverOptions& options, const
         c.display30Error = displayRmse(image, reference);
     }
     InteractiveDisplay display(disc, session.tracer(), options, displayOptions);
-    display.updateSolution(session.solver());
+    display.apply(SolutionView::of(session.solver()));
     const auto start = Clock::now();
     HoloFile holo = HoloFile::openReadOnly(file);
     HoloServer server(holo, nullptr);

@@ -75,6 +75,7 @@ public:
     Discretization& discretization() { return mLit->discretization(); }
     const Discretization& discretization() const { return mLit->solver().discretization(); }
     RayTracer& tracer() { return mLit->tracer(); }
+    const RayTracer& tracer() const { return mLit->tracer(); }
     ProgressiveSolver& solver() { return mLit->solver(); }
     const ProgressiveSolver& solver() const { return mLit->solver(); }
 

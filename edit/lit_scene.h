@@ -29,6 +29,7 @@ public:
     const Scene& scene() const { return mScene; }
     Discretization& discretization() { return *mDisc; }
     RayTracer& tracer() { return *mTracer; }
+    const RayTracer& tracer() const { return *mTracer; }
     ProgressiveSolver& solver() { return *mSolver; }
     const ProgressiveSolver& solver() const { return *mSolver; }
 

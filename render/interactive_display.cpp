@@ -473,18 +473,26 @@ std::size_t InteractiveDisplay::relightChanged() {
     return any ? mCache.relight(delta, stale) : 0;
 }
 
-std::size_t InteractiveDisplay::updateSolution(const ProgressiveSolver& solver) {
-    mShader->updateSolution(solver);
-    return relightChanged();
+SolutionView SolutionView::of(const ProgressiveSolver& solver) {
+    SolutionView view;
+    view.irradiance = &solver.irradiance();
+    view.fromEmission = &solver.irradianceFromEmission();
+    if (solver.previewObject() >= 0) {
+        view.previewRadiosity = &solver.previewRadiosity();
+        view.previewFromEmission = &solver.previewRadiosityFromEmission();
+        view.previewObject = solver.previewObject();
+        view.previewComplete = solver.previewComplete();
+    }
+    return view;
 }
 
-std::size_t InteractiveDisplay::updateSolution(const std::vector<Rgb>& irradiance,
-                                               const std::vector<Rgb>& fromEmission,
-                                               const std::vector<Rgb>* previewRadiosity,
-                                               const std::vector<Rgb>* previewFromEmission,
-                                               int previewObject, bool previewComplete) {
-    mShader->updateSolution(irradiance, fromEmission, previewRadiosity, previewFromEmission,
-                            previewObject, previewComplete);
+std::size_t InteractiveDisplay::apply(const SolutionView& solution) {
+    if (!solution.irradiance || !solution.fromEmission)
+        throw std::invalid_argument(
+            "InteractiveDisplay::apply: a SolutionView without irradiance or fromEmission");
+    mShader->updateSolution(*solution.irradiance, *solution.fromEmission, solution.previewRadiosity,
+                            solution.previewFromEmission, solution.previewObject,
+                            solution.previewComplete);
     return relightChanged();
 }
 
@@ -791,25 +799,6 @@ std::size_t InteractiveDisplay::endDrag(int added, const ProgressiveSolver* solv
     changed += relightChanged();
     trustShown(added);
     return changed;
-}
-
-std::size_t InteractiveDisplay::catchUpFrom(const InteractiveDisplay& source,
-                                            const std::vector<int>& changedObjects) {
-    if (&source.mDisc != &mDisc)
-        throw std::invalid_argument("InteractiveDisplay::catchUpFrom: another Discretization");
-    mShader->cancelPending();
-    if (!mOptions.synchronous) (void)mShader->takeResults();
-    std::unordered_set<int> objects(changedObjects.begin(), changedObjects.end());
-    objects.insert(mShader->previewObject());
-    objects.insert(source.mShader->previewObject());
-    std::size_t dropped = mCache.invalidateObjects(objects);
-    mShader->copyDirectFrom(*source.mShader);
-    syncEdges();
-    syncLights();
-    mShadowsStale = true;
-    setOccluder(source.mOccluder, source.mOccluderOnly, source.mOccluderFrames);
-    noteAlive();
-    return dropped + relightChanged();
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -4,9 +4,9 @@
 // finder (render/edge_finder.h) and the edge-and-point image (render/edge_point_image.h) into
 // frames, and tells them about edits.
 //
-// Index: DisplayStageTimes · DisplayFrameStats · InteractiveDisplayOptions · InteractiveDisplay
-//        (frames, warm-up, edits and solution updates, reference and error) · projectEdges ·
-//        imageRmse
+// Index: DisplayStageTimes · DisplayFrameStats · InteractiveDisplayOptions · SolutionView ·
+//        InteractiveDisplay (frames, warm-up, edits and solution updates, reference and error) ·
+//        projectEdges · imageRmse
 //
 // One frame (renderFrame):
 //   1. shaded points: synchronous mode inserts the points shaded at the end of the previous
@@ -14,7 +14,7 @@
 //   2. the cache reprojects its points to the frame's camera (visible ScreenPoints), less those
 //      behind an object that moved in front of them (hideOccluded);
 //   3. edges: silhouettes and forward-facing sharp edges from the eye (per frame), shadow edges
-//      (kept, recomputed only after notifyChanged), clipped to the near plane and projected;
+//      (kept, recomputed only after an edit), clipped to the near plane and projected;
 //   4. EdgePointImage::build + reconstruct(useEdges) (useEdges false: the render-cache baseline
 //      "cache" from the same points); pixels no point reached (holes) from a one-ray fallback;
 //   5. new sample requests (a fraction of the pixels, default 2%) from the cache's priority image;
@@ -210,17 +210,35 @@ struct PenumbraOrder {
     Box3 bounds;                                    ///< every finite endpoint of the bucketed edges
 };
 
+/// The solver's lighting as the display takes it: views of the solver's arrays or of copies
+/// of them, read only during apply(). (What PointShader::updateSolution's overloads take.)
+struct SolutionView {
+    const std::vector<Rgb>* irradiance = nullptr;    ///< required: ProgressiveSolver::irradiance()
+    const std::vector<Rgb>* fromEmission = nullptr;  ///< required: its irradianceFromEmission()
+    /// While the solver previews: its previewRadiosity() and previewRadiosityFromEmission()
+    /// (null: none), previewObject() and previewComplete().
+    const std::vector<Rgb>* previewRadiosity = nullptr;
+    const std::vector<Rgb>* previewFromEmission = nullptr;
+    int previewObject = -1;
+    bool previewComplete = false;
+    /// Views of `solver`'s own arrays (irradiance(), irradianceFromEmission(), and while it
+    /// previews, previewRadiosity(), previewRadiosityFromEmission(), previewObject(),
+    /// previewComplete()).
+    static SolutionView of(const ProgressiveSolver& solver);
+};
+
 /// The display for one Discretization/RayTracer and the ProgressiveSolver over them. Not
-/// thread-safe: call everything from one (the render) thread. In asynchronous mode, the
+/// thread-safe: call everything from one (the render) thread. The display changes only through
+/// apply() (edits and new lighting) and the frame calls. In asynchronous mode, the
 /// Discretization and RayTracer may only change while the shader is paused: hold
-/// `PointShader::Pause pause(display.shader());` around the edit and call notifyChanged()
-/// before the pause ends.
+/// `PointShader::Pause pause(display.shader());` around the edit and apply() its event before
+/// the pause ends.
 class InteractiveDisplay {
 public:
     /// `disc`, `tracer` must outlive the display; `solverOptions` are the options of the solver
     /// whose solution is displayed (PointShader reproduces its form factors). Builds the edge
     /// trees (EdgeFinder over `disc`), the cache and the EPI; direct lighting only until
-    /// updateSolution(). Throws std::invalid_argument for a non-positive size.
+    /// apply(SolutionView). Throws std::invalid_argument for a non-positive size.
     InteractiveDisplay(const Discretization& disc, const RayTracer& tracer,
                        const SolverOptions& solverOptions, InteractiveDisplayOptions options = {});
     /// A display of another size (`options`) over `source`'s scene that takes its edge finder,
@@ -243,9 +261,8 @@ public:
     /// reconstructed (the editor's render thread: an edit waits for a step, not a frame).
     /// beginFrame (steps 1–3: points, hiding, edges) and finishFrame (holes filled, requests;
     /// the stats of lastFrame()) read the structure and the cache like renderFrame and must not
-    /// overlap an edit; reconstructFrame (step 4, the EPI's own arrays) may: notifyChanged,
-    /// setPreview, clearPreview, endDrag and updateSolution never touch the EPI. Call them in
-    /// order, one frame at a time.
+    /// overlap an edit; reconstructFrame (step 4, the EPI's own arrays) may: apply() never
+    /// touches the EPI. Call them in order, one frame at a time.
     void beginFrame(const CameraRays& camera, bool useEdges = true);
     Image reconstructFrame();
     void finishFrame(const CameraRays& camera, Image& image);
@@ -279,82 +296,35 @@ public:
     // meanwhile); points behind a moved or new object are hidden from the frames, not dropped
     // (setOccluder). Pixels no point reaches take the fallback (fillHoles).
 
-    /// Snapshots the solver's solution for the indirect part (PointShader::updateSolution) and
-    /// relights the cached points whose element shading changed (relightChanged). Returns the
-    /// points marked stale.
-    std::size_t updateSolution(const ProgressiveSolver& solver);
-    /// The same from copies of the solver's arrays (PointShader::updateSolution overload).
-    std::size_t updateSolution(const std::vector<Rgb>& irradiance,
-                               const std::vector<Rgb>& fromEmission,
-                               const std::vector<Rgb>* previewRadiosity = nullptr,
-                               const std::vector<Rgb>* previewFromEmission = nullptr,
-                               int previewObject = -1, bool previewComplete = false);
     /// Takes an edit (EditSession::apply's event; the structure already changed, shader paused
     /// in asynchronous mode): the one way the display learns of edits. Changed → notifyChanged
     /// (event.changed(), `solver`), then setPreview(event.preview) when a drag goes on;
-    /// DragBegan → beginDrag(origin) and setPreview(preview); PreviewMoved → setPreview;
-    /// DragEnded → endDrag when this display followed the drag to its last preview, else
-    /// clearPreview and notifyChanged(added); Solved → nothing. `drag` holds the RayTracer
-    /// subsets the caller keeps alive for the drag (its origin alone from DragBegan to
-    /// DragEnded; the preview alone until the next preview); `solver`, when given, is passed
-    /// to each step (a snapshot of its solution, instead of the next updateSolution). Returns
-    /// the points moved, dropped or marked.
+    /// DragBegan → clearPreview when a preview is shown, beginDrag(origin) and
+    /// setPreview(preview); PreviewMoved → setPreview; DragEnded → endDrag when this display
+    /// followed the drag to its last preview, else clearPreview and notifyChanged(added);
+    /// Solved → nothing. `drag` holds the RayTracer subsets the caller keeps alive for the
+    /// drag (its origin alone from DragBegan to DragEnded; the preview alone until the next
+    /// preview); `solver`, when given, is passed to each step (a snapshot of its solution,
+    /// instead of the next apply(SolutionView)). Returns the points moved, dropped or marked.
     struct DragVisibility {
         Visibility origin;
         Visibility preview;
     };
     std::size_t apply(const EditEvent& event, const DragVisibility& drag = {},
                       const ProgressiveSolver* solver = nullptr);
+    /// New lighting, no edit: snapshots the solution for the indirect part
+    /// (PointShader::updateSolution) and relights the cached points whose element shading
+    /// changed (relightChanged). apply(SolutionView::of(solver)) takes the solver's own arrays;
+    /// a view of copies lets another thread's published snapshot in while the solver keeps
+    /// shooting. Returns the points marked stale. Throws std::invalid_argument when
+    /// `solution.irradiance` or `solution.fromEmission` is null.
+    std::size_t apply(const SolutionView& solution);
 
-    // The steps apply() takes, public for tests that check one of them alone and for
-    // catching up a display that missed edits.
-
-    /// After an edit changed `changedObjects` (Discretization object versions added, removed,
-    /// or with a new material; EditEvent::changed()): a version that
-    /// replaced another of the same object (a move) takes its points; a removed object's
-    /// points go; an added object hides what it covers for kOccluderFrames frames; points on
-    /// an object with a new material are stale. Then brings the edge finder up to date
-    /// (syncWith, lights of emitting objects), recomputes the direct lighting the change
-    /// affects (PointShader::refreshDirect(changed)), takes the solver's solution when given,
-    /// relights (relightChanged) and marks the shadow edges for recomputation at the next
-    /// frame (only stale light–blocker pairs are redone). Pending asynchronous requests and
-    /// results from before the edit are discarded. Returns the points moved, dropped or marked.
-    std::size_t notifyChanged(const std::vector<int>& changedObjects,
-                              const ProgressiveSolver* solver = nullptr);
-    /// Drag preview (George et al.'s temporary buffer): shows `previewVersion`, the dead object
-    /// version the solver previews (ProgressiveSolver::previewObject(): the dragged object at
-    /// its current position), lit by the solver's previewRadiosity() and casting its shadows
-    /// (PointShader::setPreview; `previewOnly` a RayTracer subset admitting only it, kept
-    /// alive by the caller until the next setPreview/clearPreview). The previous preview's
-    /// points (or, at a drag's first move, the origin's) move with the object; what it covers
-    /// in the frames' views is hidden while it is previewed; takes the solver's solution when
-    /// given and relights (with backgroundPreview the moving shadow's estimate comes later,
-    /// in renderFrame). Requests in flight stay (results on an earlier preview are dropped
-    /// when taken). Call like notifyChanged (asynchronous mode: shader paused). Returns the
-    /// points moved or marked.
-    std::size_t setPreview(int previewVersion, const Visibility& previewOnly = {},
-                           const ProgressiveSolver* solver = nullptr);
-    /// Ends the preview (call before notifyChanged of the unselect): its points wait for that
-    /// notifyChanged, which carries them to the object's new version, or go at the next frame.
-    /// Returns the points marked.
-    std::size_t clearPreview(const ProgressiveSolver* solver = nullptr);
-    /// George et al.'s select, instead of notifyChanged({origin}) and a preview computed from
-    /// scratch: `origin` was just removed from the scene and is previewed where it was, so
-    /// nothing shown changes (no point dropped, no direct light recomputed); later previews
-    /// are estimated relative to it (PointShader::beginDrag). Call like notifyChanged, then
-    /// setPreview.
-    void beginDrag(int origin, const Visibility& originOnly = {});
-    /// George et al.'s unselect after beginDrag, instead of clearPreview and
-    /// notifyChanged({added}): `added` (the preview version) is alive in the scene again; the
-    /// last change becomes part of H_direct (PointShader::endDrag); the object's points stay
-    /// (stale) and hide what it covers for kOccluderFrames frames; relights. Returns the points
-    /// marked.
-    std::size_t endDrag(int added, const ProgressiveSolver* solver = nullptr);
     /// The origin of the drag in progress, -1 for none.
     int dragOrigin() const { return mShader->dragOrigin(); }
     /// The object whose cover hides points from the frames (a moving, new or dropped object),
     /// -1 for none; and whether its hiding test still filters the whole scene for it (no
-    /// RayTracer subset of its own: after notifyChanged and endDrag).
+    /// RayTracer subset of its own: after an edit added it, or a drag ended).
     int occluder() const { return mOccluder; }
     bool occluderNeedsSubset() const {
         return mOccluder >= 0 && mOccluderOnly.subset < 0 && mOccluderFrames != 0;
@@ -368,14 +338,6 @@ public:
     /// The preview version whose background estimate is queued or running (its subset must
     /// stay alive meanwhile), -1 for none (PointShader::directJobPreview).
     int directJobPreview() const { return mShader->directJobPreview(); }
-    /// Brings this display up to date with `source` (another display over the same scene that
-    /// saw every edit) after this one missed edits that changed `changedObjects`: drops points
-    /// on them and on both displays' preview versions, follows the edge finder (syncWith),
-    /// takes the source's direct light, solution and preview (PointShader::copyDirectFrom:
-    /// nothing recomputed) and relights. Call with both shaders paused. Returns the points
-    /// dropped or marked.
-    std::size_t catchUpFrom(const InteractiveDisplay& source,
-                            const std::vector<int>& changedObjects);
     /// The preview version shown, -1 for none.
     int previewVersion() const { return mShader->previewObject(); }
     /// Milliseconds the last shadow-edge recomputation took (after a change, or the first frame).
@@ -411,6 +373,50 @@ public:
     std::string toString() const;
 
 private:
+    // -- apply()'s steps -----------------------------------------------------------------------
+
+    /// After an edit changed `changedObjects` (Discretization object versions added, removed,
+    /// or with a new material; EditEvent::changed()): a version that
+    /// replaced another of the same object (a move) takes its points; a removed object's
+    /// points go; an added object hides what it covers for kOccluderFrames frames; points on
+    /// an object with a new material are stale. Then brings the edge finder up to date
+    /// (syncWith, lights of emitting objects), recomputes the direct lighting the change
+    /// affects (PointShader::refreshDirect(changed)), takes the solver's solution when given,
+    /// relights (relightChanged) and marks the shadow edges for recomputation at the next
+    /// frame (only stale light–blocker pairs are redone). Pending asynchronous requests and
+    /// results from before the edit are discarded. Returns the points moved, dropped or marked.
+    std::size_t notifyChanged(const std::vector<int>& changedObjects,
+                              const ProgressiveSolver* solver = nullptr);
+    /// Drag preview (George et al.'s temporary buffer): shows `previewVersion`, the dead object
+    /// version the solver previews (ProgressiveSolver::previewObject(): the dragged object at
+    /// its current position), lit by the solver's previewRadiosity() and casting its shadows
+    /// (PointShader::setPreview; `previewOnly` a RayTracer subset admitting only it, kept
+    /// alive by the caller until the next setPreview/clearPreview). The previous preview's
+    /// points (or, at a drag's first move, the origin's) move with the object; what it covers
+    /// in the frames' views is hidden while it is previewed; takes the solver's solution when
+    /// given and relights (with backgroundPreview the moving shadow's estimate comes later,
+    /// in renderFrame). Requests in flight stay (results on an earlier preview are dropped
+    /// when taken). Returns the points moved or marked.
+    std::size_t setPreview(int previewVersion, const Visibility& previewOnly = {},
+                           const ProgressiveSolver* solver = nullptr);
+    /// Ends the preview (before notifyChanged of the unselect): its points wait for that
+    /// notifyChanged, which carries them to the object's new version, or go at the next frame.
+    /// Returns the points marked.
+    std::size_t clearPreview(const ProgressiveSolver* solver = nullptr);
+    /// George et al.'s select, instead of notifyChanged({origin}) and a preview computed from
+    /// scratch: `origin` was just removed from the scene and is previewed where it was, so
+    /// nothing shown changes (no point dropped, no direct light recomputed); later previews
+    /// are estimated relative to it (PointShader::beginDrag). Followed by setPreview.
+    void beginDrag(int origin, const Visibility& originOnly = {});
+    /// George et al.'s unselect after beginDrag, instead of clearPreview and
+    /// notifyChanged({added}): `added` (the preview version) is alive in the scene again; the
+    /// last change becomes part of H_direct (PointShader::endDrag); the object's points stay
+    /// (stale) and hide what it covers for kOccluderFrames frames; relights. Returns the points
+    /// marked.
+    std::size_t endDrag(int added, const ProgressiveSolver* solver = nullptr);
+
+    // -- Helpers of the steps and frames -------------------------------------------------------
+
     /// Per element from the shader's snapshots: the radiance (E + ρ·(H_direct + H_indirect))/π
     /// and the luminance of its direct part ρ·H_direct/π.
     void elementShading(std::vector<Rgb>& total, std::vector<double>& direct) const;

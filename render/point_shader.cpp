@@ -13,13 +13,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#ifdef __linux__
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
-#endif
-
 #include "core/random.h"
+#include "core/thread_priority.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/ray_tracer.h"
@@ -1343,12 +1338,7 @@ Rgb PointShader::shadeFallback(const Vec3& origin, const Vec3& direction) const 
 // Workers
 
 void PointShader::workerLoop() {
-#ifdef __linux__
-    if (mOptions.workerNice > 0)
-        (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)),
-                          getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid))) +
-                              mOptions.workerNice);
-#endif
+    lowerThreadPriority(mOptions.workerNice);
     std::vector<ShadeRequest> batch;
     std::vector<ShadedPoint> done;
     bool jobTurn = true;  // alternate H_direct chunks and shading batches

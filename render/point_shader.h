@@ -39,6 +39,8 @@
 namespace penumbra {
 
 class Discretization;
+class InteractiveDisplay;
+struct PointShaderTestAccess;
 
 // ---------------------------------------------------------------------------------------------
 // Requests and results
@@ -167,26 +169,11 @@ public:
     /// emitter merged into one polygon) and H_direct(e) = Σ_j E_j·F(e←j) for every element
     /// (oneTBB parallel). Call after any change to emitters or after subdivision.
     void refreshDirect();
-    /// Incremental refresh after an edit: `changedObjects` are the object versions added or
-    /// removed. Recomputes H_direct(e) for elements on changed objects, new elements, and
-    /// elements whose shaft to some emitter patch meets a changed object's bounding sphere; a
-    /// changed emitter triggers refreshDirect().
-    void refreshDirect(const std::vector<int>& changedObjects);
     /// Snapshots the solver's element irradiance: H_indirect(e) = H_e − H_e,emission and its
     /// per-vertex blend. Call from the thread that steps the solver, between steps; shading
     /// picks the new snapshot up at its next batch. `solver` must be over the same
     /// Discretization.
     void updateSolution(const ProgressiveSolver& solver);
-    /// The same from copies: `irradiance` = ProgressiveSolver::irradiance(), `fromEmission`
-    /// its irradianceFromEmission(), and while `previewObject` ≥ 0 is the solver's
-    /// previewObject(), `previewRadiosity` and `previewFromEmission` its previewRadiosity()
-    /// and previewRadiosityFromEmission() (null: none), and `previewComplete` its
-    /// previewComplete(). Lets another thread update the display from a published snapshot
-    /// while the solver keeps shooting.
-    void updateSolution(const std::vector<Rgb>& irradiance, const std::vector<Rgb>& fromEmission,
-                        const std::vector<Rgb>* previewRadiosity = nullptr,
-                        const std::vector<Rgb>* previewFromEmission = nullptr,
-                        int previewObject = -1, bool previewComplete = false);
     /// H_direct(e) for every element (W/m²), as used by updateSolution() (with a preview set:
     /// in the world that includes the preview object).
     std::vector<Rgb> elementDirect() const;
@@ -198,59 +185,18 @@ public:
 
     // -- Drag preview (George et al.'s temporary buffer) -------------------------------------
 
-    /// Shows `object`, a dead object version present in the tracer (ProgressiveSolver::
-    /// previewObject(): the dragged object at its current position), as if it were in the
-    /// scene: primary rays see it and shadow rays are blocked by it. `previewOnly` must admit
-    /// exactly that object (a RayTracer::createSubset visibility, kept alive by the caller while
-    /// the preview is set); without a subset the rays use a Visibility::world filter over
-    /// every version (correct, slower as drag versions pile up). Estimates H_direct in the
-    /// preview world at element centroids with the point sampling of directIrradiance: for
-    /// the object's elements, and the change the object makes for elements whose shaft to a
-    /// light meets its bounding sphere (rays traced twice only where the object blocks). From the
-    /// next updateSolution() on, H_indirect(e) = H_e − H_e,emission + (T_e − T_e,emission)/ρ_e,
-    /// T = the solver's previewRadiosity() (when the solver's previewObject() is `object`): the
-    /// per-sample direct light shows the object's shadow, the buffer its reflected light; the
-    /// H_direct estimate lights the fallback. Call while paused (or without workers). Returns
-    /// the elements whose H_direct changed.
-    std::vector<int> setPreview(int object, const Visibility& previewOnly = {});
-    /// Back to the scene without a preview object (H_direct as before setPreview). During a
-    /// drag (beginDrag) the origin's removal is then recomputed (refreshDirect({origin})).
-    std::vector<int> clearPreview();
+    // A drag is InteractiveDisplay's: its apply() takes the preview's steps (private below).
+
     /// The preview object, -1 for none.
     int previewObject() const;
-
-    /// Starts a drag (George et al.'s select): `origin`, the object version just removed from
-    /// the scene, is previewed where it was, so nothing shown changes and H_direct(e) is not
-    /// recomputed: it keeps the light with `origin` in place. Every later preview's change is
-    /// estimated relative to it: the light `origin` blocked comes back and the preview's is
-    /// taken away; for an emitting object its light moves (the lights of `origin` give way to
-    /// the preview's, for the per-sample direct light and H_direct(e) alike). `originOnly`
-    /// admits exactly `origin` (a RayTracer subset kept alive by the caller until endDrag or
-    /// clearPreview), or is empty (a world filter). Call while paused, before setPreview.
-    void beginDrag(int origin, const Visibility& originOnly = {});
-    /// Ends a drag started with beginDrag (George et al.'s unselect): `added`, the preview
-    /// version, is now alive in the scene. The change it and the origin make becomes part of
-    /// H_direct(e) (estimated now, synchronously, with the preview's light sampling; no
-    /// recomputation of the rest) and the preview ends. Returns the elements whose H_direct
-    /// changed. Call while paused; the preview subset must still be alive.
-    std::vector<int> endDrag(int added);
     /// The origin of the drag in progress (beginDrag), -1 for none.
     int dragOrigin() const { return mDragOrigin; }
-    /// backgroundPreview: when the workers have finished a queued H_direct estimate, applies
-    /// it (the indirect snapshot is rebuilt from the last solution) and starts the estimate of
-    /// a newer preview if one was set meanwhile; returns the elements whose H_direct changed
-    /// (empty when nothing finished). Call from the thread that calls setPreview/updateSolution.
-    std::vector<int> takeDirectUpdate();
     /// An H_direct estimate is queued, being computed or waits for takeDirectUpdate().
     bool directUpdatePending() const;
     /// The preview object of the estimate the workers have (queued, running or done, not yet
     /// taken), -1 for none: its `previewOnly` subset must stay alive until then, also after a
     /// newer setPreview (which lets the running estimate finish rather than restart it).
     int directJobPreview() const;
-    /// Takes `source`'s lights, H_direct, solution snapshot, preview and drag (same
-    /// Discretization; `source` paused or on this thread); queues its own estimate when the
-    /// source's is pending. Call while paused.
-    void copyDirectFrom(const PointShader& source);
 
     // -- Synchronous shading -----------------------------------------------------------------
 
@@ -316,6 +262,73 @@ public:
     std::string toString() const;
 
 private:
+    friend class InteractiveDisplay;
+    /// Checks one of the steps below alone (defined by the tests).
+    friend struct PointShaderTestAccess;
+
+    // -- The display's steps (InteractiveDisplay::apply) -------------------------------------
+
+    /// Incremental refresh after an edit: `changedObjects` are the object versions added or
+    /// removed. Recomputes H_direct(e) for elements on changed objects, new elements, and
+    /// elements whose shaft to some emitter patch meets a changed object's bounding sphere; a
+    /// changed emitter triggers refreshDirect().
+    void refreshDirect(const std::vector<int>& changedObjects);
+    /// updateSolution(solver) from views of the solver's arrays or of copies of them
+    /// (InteractiveDisplay::apply(SolutionView)): `irradiance` = ProgressiveSolver::
+    /// irradiance(), `fromEmission` its irradianceFromEmission(), and while `previewObject` ≥ 0
+    /// is the solver's previewObject(), `previewRadiosity` and `previewFromEmission` its
+    /// previewRadiosity() and previewRadiosityFromEmission() (null: none), and
+    /// `previewComplete` its previewComplete(). Lets another thread update the display from a
+    /// published snapshot while the solver keeps shooting.
+    void updateSolution(const std::vector<Rgb>& irradiance, const std::vector<Rgb>& fromEmission,
+                        const std::vector<Rgb>* previewRadiosity = nullptr,
+                        const std::vector<Rgb>* previewFromEmission = nullptr,
+                        int previewObject = -1, bool previewComplete = false);
+    /// Shows `object`, a dead object version present in the tracer (ProgressiveSolver::
+    /// previewObject(): the dragged object at its current position), as if it were in the
+    /// scene: primary rays see it and shadow rays are blocked by it. `previewOnly` must admit
+    /// exactly that object (a RayTracer::createSubset visibility, kept alive by the caller while
+    /// the preview is set); without a subset the rays use a Visibility::world filter over
+    /// every version (correct, slower as drag versions pile up). Estimates H_direct in the
+    /// preview world at element centroids with the point sampling of directIrradiance: for
+    /// the object's elements, and the change the object makes for elements whose shaft to a
+    /// light meets its bounding sphere (rays traced twice only where the object blocks). From the
+    /// next updateSolution() on, H_indirect(e) = H_e − H_e,emission + (T_e − T_e,emission)/ρ_e,
+    /// T = the solver's previewRadiosity() (when the solver's previewObject() is `object`): the
+    /// per-sample direct light shows the object's shadow, the buffer its reflected light; the
+    /// H_direct estimate lights the fallback. Call while paused (or without workers). Returns
+    /// the elements whose H_direct changed.
+    std::vector<int> setPreview(int object, const Visibility& previewOnly = {});
+    /// Back to the scene without a preview object (H_direct as before setPreview). During a
+    /// drag (beginDrag) the origin's removal is then recomputed (refreshDirect({origin})).
+    std::vector<int> clearPreview();
+    /// Starts a drag (George et al.'s select): `origin`, the object version just removed from
+    /// the scene, is previewed where it was, so nothing shown changes and H_direct(e) is not
+    /// recomputed: it keeps the light with `origin` in place. Every later preview's change is
+    /// estimated relative to it: the light `origin` blocked comes back and the preview's is
+    /// taken away; for an emitting object its light moves (the lights of `origin` give way to
+    /// the preview's, for the per-sample direct light and H_direct(e) alike). `originOnly`
+    /// admits exactly `origin` (a RayTracer subset kept alive by the caller until endDrag or
+    /// clearPreview), or is empty (a world filter). Call while paused, before setPreview.
+    void beginDrag(int origin, const Visibility& originOnly = {});
+    /// Ends a drag started with beginDrag (George et al.'s unselect): `added`, the preview
+    /// version, is now alive in the scene. The change it and the origin make becomes part of
+    /// H_direct(e) (estimated now, synchronously, with the preview's light sampling; no
+    /// recomputation of the rest) and the preview ends. Returns the elements whose H_direct
+    /// changed. Call while paused; the preview subset must still be alive.
+    std::vector<int> endDrag(int added);
+    /// backgroundPreview: when the workers have finished a queued H_direct estimate, applies
+    /// it (the indirect snapshot is rebuilt from the last solution) and starts the estimate of
+    /// a newer preview if one was set meanwhile; returns the elements whose H_direct changed
+    /// (empty when nothing finished). Call from the thread that calls setPreview/updateSolution.
+    std::vector<int> takeDirectUpdate();
+    /// Takes `source`'s lights, H_direct, solution snapshot, preview and drag (same
+    /// Discretization; `source` paused or on this thread); queues its own estimate when the
+    /// source's is pending. Call while paused.
+    void copyDirectFrom(const PointShader& source);
+
+    // -- Parts -------------------------------------------------------------------------------
+
     struct Light;
     struct State;
     struct DirectJob;

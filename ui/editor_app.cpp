@@ -190,7 +190,6 @@ void EditorApp::openScene(const std::string& path) {
     }
     SessionRunnerOptions runnerOptions;
     runnerOptions.displayDivisor = std::max(1, mOptions.displayDivisor);
-    runnerOptions.interactiveDisplayDivisor = std::max(0, mOptions.interactiveDisplayDivisor);
     // The holodeck belongs to the scene file (saved beside it), not to an imported one.
     runnerOptions.holodeck = editorHolodeckPath(mOptions, path);
     mRunner = std::make_unique<SessionRunner>(std::move(session), runnerOptions);

@@ -5,7 +5,7 @@
 // edit log live and `--screenshot` saves the window after `--frames` frames.
 //
 // The window reads the document and lighting only through SessionRunner's snapshots and
-// changes them only by submitting edit commands (STYLE.md: the UI emits commands and keeps
+// changes them only by submitting edit commands (docs/style.md: the UI emits commands and keeps
 // no copy of the model).
 
 #include <cstdint>
@@ -55,9 +55,6 @@ struct EditorOptions {
     /// viewport shows Gouraud until the display has been built (seconds in large scenes).
     ViewMode mode = ViewMode::EdgeAndPoint;
     int displayDivisor = 1;  ///< display modes render viewport / d pixels (SessionRunnerOptions)
-    /// Display modes while interacting: 1 full resolution (default), d ≥ 2 a reduced display,
-    /// 0 automatic (SessionRunnerOptions::interactiveDisplayDivisor).
-    int interactiveDisplayDivisor = 1;
     /// The recovery journal (ui/recovery.h): kept unless `log` names a log of the user's own
     /// or a drag is benchmarked.
     bool journal = true;

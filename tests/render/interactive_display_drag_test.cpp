@@ -1,10 +1,11 @@
 // The edge-and-point display through a whole drag as the editor runs it (George et al.'s
-// select → temporary buffer → unselect): InteractiveDisplay::beginDrag keeps the direct light
-// of the scene as it was, setPreview estimates each position's change relative to the drag's
-// origin (in the background with PointShaderOptions::backgroundPreview), endDrag folds the last
-// change in. Independent references: the scene built with the object really at its new place
-// and solved from scratch (a dragged lamp must light the scene from there), a display that
-// recomputes the removal the old way (refreshDirect), and the edge finder's silhouettes.
+// select → temporary buffer → unselect): InteractiveDisplay::apply of the select (DragBegan)
+// keeps the direct light of the scene as it was, each position (PreviewMoved) estimates its
+// change relative to the drag's origin (in the background with
+// PointShaderOptions::backgroundPreview), the drop (DragEnded) folds the last change in.
+// Independent references: the scene built with the object really at its new place and solved
+// from scratch (a dragged lamp must light the scene from there), a display that recomputes the
+// removal the old way (refreshDirect), and the edge finder's silhouettes.
 //
 // Index: helpers · a dragged lamp lights the scene from its new place · the origin-relative
 //        estimate against recomputation · background estimate = synchronous estimate ·
@@ -16,6 +17,7 @@
 #include <cmath>
 #include <thread>
 
+#include "display_events.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
 #include "render/interactive_display.h"
@@ -118,26 +120,26 @@ TEST(InteractiveDisplayDrag, DraggedLampLightsTheSceneFromItsNewPlace) {
     drag.session->converge(1e-3);
     InteractiveDisplay display(drag.session->discretization(), drag.session->tracer(),
                                SolverOptions{}, displayOptions());
-    display.updateSolution(drag.session->solver());
+    display.apply(SolutionView::of(drag.session->solver()));
     const Image before = shaded(display);
 
     select(drag, display, "lamp");
     // The select shows what was there: same light, same image (same sample patterns).
     drag.session->converge(1e-3);
-    display.updateSolution(drag.session->solver());
+    display.apply(SolutionView::of(drag.session->solver()));
     const double atSelect = displayRmse(shaded(display), before);
     EXPECT_LT(atSelect, 0.02) << "selecting the lamp changed the image";
 
     move(drag, display, "lamp", kLampPlace);
     drag.session->converge(1e-3);  // the temporary buffer holds the lamp's light at its place
-    display.updateSolution(drag.session->solver());
+    display.apply(SolutionView::of(drag.session->solver()));
     const Image preview = shaded(display);
 
     // Reference: the lamp really there, solved and shaded from scratch.
     auto reference = movedAndSolved("lamp", kLampPlace);
     InteractiveDisplay refDisplay(reference->discretization(), reference->tracer(), SolverOptions{},
                                   displayOptions());
-    refDisplay.updateSolution(reference->solver());
+    refDisplay.apply(SolutionView::of(reference->solver()));
     const Image expected = shaded(refDisplay);
 
     const double previewError = displayRmse(preview, expected);
@@ -153,7 +155,7 @@ TEST(InteractiveDisplayDrag, DraggedLampLightsTheSceneFromItsNewPlace) {
                   {drag.originSubset.visibility(), drag.previewSubset.visibility()},
                   &drag.session->solver());
     drag.session->converge(1e-3);
-    display.updateSolution(drag.session->solver());
+    display.apply(SolutionView::of(drag.session->solver()));
     const double droppedError = displayRmse(shaded(display), expected);
     std::printf("lamp drop: vs moved %.4f\n", droppedError);
     EXPECT_LT(droppedError, 0.006);
@@ -176,16 +178,19 @@ TEST(InteractiveDisplayDrag, OriginRelativeDirectLightMatchesRecomputation) {
     const EditEvent sel = drag.session->apply(SelectCommand{"slab"});
     drag.origin = sel.preview;
     drag.originSubset = RayTracer::SubsetHandle(drag.session->tracer(), {drag.origin});
-    display.beginDrag(drag.origin, drag.originSubset.visibility());
     drag.previewSubset = RayTracer::SubsetHandle(drag.session->tracer(), {drag.origin});
-    EXPECT_EQ(display.setPreview(drag.origin, drag.previewSubset.visibility()), 0u);
+    ASSERT_EQ(sel.kind, EditEvent::Kind::DragBegan);
+    ASSERT_EQ(sel.origin, drag.origin);
+    EXPECT_EQ(display.apply(sel, {drag.originSubset.visibility(), drag.previewSubset.visibility()}),
+              0u);
     EXPECT_EQ(display.shader().elementDirect(), atStart);
 
     // A move: H_direct in the preview world, against a display that recomputed the removal
     // (notifyChanged, the old path) and estimates the preview from there.
     move(drag, display, "slab", kNewPlace);
     InteractiveDisplay recomputed(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
-    recomputed.setPreview(drag.preview, drag.previewSubset.visibility());
+    recomputed.apply(test::previewMovedEvent(drag.origin, drag.preview),
+                     {Visibility{}, drag.previewSubset.visibility()});
     const std::vector<int> alive = aliveElements(disc);
     const std::vector<Rgb> mine = display.shader().elementDirect();
     const std::vector<Rgb> theirs = recomputed.shader().elementDirect();
@@ -222,8 +227,8 @@ TEST(InteractiveDisplayDrag, BackgroundEstimateEqualsTheSynchronousOne) {
     async.shader.directChunk = 32;  // many chunks, interleaved with shading
     InteractiveDisplay background(disc, drag.session->tracer(), SolverOptions{}, async);
     InteractiveDisplay inline_(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
-    background.updateSolution(drag.session->solver());
-    inline_.updateSolution(drag.session->solver());
+    background.apply(SolutionView::of(drag.session->solver()));
+    inline_.apply(SolutionView::of(drag.session->solver()));
 
     const EditEvent sel = drag.session->apply(SelectCommand{"slab"});
     drag.origin = sel.preview;
@@ -237,14 +242,14 @@ TEST(InteractiveDisplayDrag, BackgroundEstimateEqualsTheSynchronousOne) {
     std::vector<Rgb> bg;
     {
         PointShader::Pause pause(background.shader());
-        background.beginDrag(drag.origin, drag.originSubset.visibility());
-        background.setPreview(drag.preview, drag.previewSubset.visibility());
+        background.apply(test::dragBeganEvent(drag.origin, drag.preview),
+                         {drag.originSubset.visibility(), drag.previewSubset.visibility()});
         // Nothing estimated yet: the preview's direct light waits for the workers.
         EXPECT_TRUE(background.shader().directUpdatePending());
         EXPECT_EQ(background.directJobPreview(), drag.preview);
     }
-    inline_.beginDrag(drag.origin, drag.originSubset.visibility());
-    inline_.setPreview(drag.preview, drag.previewSubset.visibility());
+    inline_.apply(test::dragBeganEvent(drag.origin, drag.preview),
+                  {drag.originSubset.visibility(), drag.previewSubset.visibility()});
 
     // Frames take the finished estimate (bounded number of frames, each waits for the workers).
     const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
@@ -274,7 +279,7 @@ TEST(InteractiveDisplayDrag, DraggedObjectHasSilhouetteEdgesAtItsPreviewPosition
     drag.session->converge(1e-3);
     const Discretization& disc = drag.session->discretization();
     InteractiveDisplay display(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
-    display.updateSolution(drag.session->solver());
+    display.apply(SolutionView::of(drag.session->solver()));
     select(drag, display, "slab");
     move(drag, display, "slab", kNewPlace);
 

@@ -19,6 +19,7 @@
 #include <string>
 #include <unordered_set>
 
+#include "display_events.h"
 #include "edit/edit_session.h"
 #include "render/interactive_display.h"
 #include "solver/discretization.h"
@@ -52,7 +53,7 @@ std::unique_ptr<InteractiveDisplay> makeDisplay(EditSession& session,
                                                 InteractiveDisplayOptions options) {
     auto display = std::make_unique<InteractiveDisplay>(session.discretization(), session.tracer(),
                                                         interactiveSolverOptions(), options);
-    display->updateSolution(session.solver());
+    display->apply(SolutionView::of(session.solver()));
     return display;
 }
 
@@ -215,7 +216,8 @@ TEST(InteractiveDisplay, EditInvalidatesMovedObjectAndConvergesToTheNewReference
     changed.insert(changed.end(), result.removed.begin(), result.removed.end());
     ASSERT_FALSE(changed.empty());
     const auto start = std::chrono::steady_clock::now();
-    const std::size_t dropped = display->notifyChanged(changed, &session->solver());
+    const std::size_t dropped =
+        display->apply(test::changedEvent(result.added, result.removed), {}, &session->solver());
     const double notifyMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     for (const CachePoint& p : display->cache().points())

@@ -9,8 +9,10 @@
 #include <cmath>
 #include <map>
 
+#include "display_events.h"
 #include "edit/edit_session.h"
 #include "lit_room_display.h"
+#include "point_shader_test_access.h"
 #include "render/camera_rays.h"
 #include "render/interactive_display.h"
 #include "solver/discretization.h"
@@ -56,9 +58,9 @@ struct DragDisplay {
         : origin(s.session->tracer(), {s.origin}),
           display(s.session->discretization(), s.session->tracer(), SolverOptions{},
                   displayOptions()) {
-        display.updateSolution(s.session->solver());
-        display.beginDrag(s.origin, origin.visibility());
-        display.setPreview(s.origin, origin.visibility(), &s.session->solver());
+        display.apply(SolutionView::of(s.session->solver()));
+        display.apply(test::dragBeganEvent(s.origin, s.origin),
+                      {origin.visibility(), origin.visibility()}, &s.session->solver());
     }
 };
 
@@ -73,7 +75,8 @@ TEST(InteractiveDisplayMove, PointsBehindTheMovedObjectAreExactlyThoseItCoversFr
     // The slab moves over the floor the camera saw: those floor points are now behind it.
     const int preview = moveSlab(s, test::kLitRoomSlabDragTarget);
     RayTracer::SubsetHandle subset(s.session->tracer(), {preview});
-    display.setPreview(preview, subset.visibility(), &s.session->solver());
+    display.apply(test::previewMovedEvent(s.origin, preview),
+                  {drag.origin.visibility(), subset.visibility()}, &s.session->solver());
     display.renderFrame(rays);
 
     // Brute force: every cached point not on the slab, behind it from the eye (a closest hit
@@ -113,22 +116,23 @@ TEST(InteractiveDisplayMove, TheMovedObjectsPointsFollowItAndNoPixelIsLeftEmpty)
     s.origin = s.session->objectVersion("slab");
     const Discretization& disc = s.session->discretization();
     InteractiveDisplay display(disc, s.session->tracer(), SolverOptions{}, displayOptions());
-    display.updateSolution(s.session->solver());
+    display.apply(SolutionView::of(s.session->solver()));
     const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
     display.warmUp(rays, 1.0);
     display.renderFrame(rays);
     s.session->apply(SelectCommand{"slab"});
     RayTracer::SubsetHandle origin(s.session->tracer(), {s.origin});
-    display.beginDrag(s.origin, origin.visibility());
     std::vector<Vec3> before;
     for (const CachePoint& p : display.cache().points())
         if (p.object == s.origin) before.push_back(p.position);
     ASSERT_GT(before.size(), 100u);
 
+    // The select reaches the display coalesced with the first move (DragBegan previewing it).
     const Vec3 by = test::kLitRoomSlabDragTarget - Vec3(0.2, -0.8, 0.1);
     const int preview = moveSlab(s, test::kLitRoomSlabDragTarget);
     RayTracer::SubsetHandle subset(s.session->tracer(), {preview});
-    display.setPreview(preview, subset.visibility(), &s.session->solver());
+    display.apply(test::dragBeganEvent(s.origin, preview),
+                  {origin.visibility(), subset.visibility()}, &s.session->solver());
     std::vector<Vec3> after;
     for (std::size_t i = 0; i < display.cache().size(); ++i) {
         const CachePoint& p = display.cache().points()[i];
@@ -160,7 +164,7 @@ TEST(InteractiveDisplayMove, TheMovedObjectsPointsFollowItAndNoPixelIsLeftEmpty)
     InteractiveDisplayOptions plain = displayOptions();
     plain.fillHoles = false;
     InteractiveDisplay bare(disc, s.session->tracer(), SolverOptions{}, plain);
-    bare.updateSolution(s.session->solver());
+    bare.apply(SolutionView::of(s.session->solver()));
     const Image empty = bare.renderFrame(rays);
     EXPECT_EQ(bare.lastFrame().unfilledPixels, bare.lastFrame().unsampledPixels);
     EXPECT_EQ(bare.lastFrame().unfilledPixels, std::size_t(kSize * kSize));
@@ -178,14 +182,14 @@ TEST(InteractiveDisplayMove, PointsShadedBeforeTheirElementWasRelitArriveStale) 
     options.sampleFraction = 0.3;
     InteractiveDisplay display(session->discretization(), session->tracer(), SolverOptions{},
                                options);
-    display.updateSolution(session->solver());
+    display.apply(SolutionView::of(session->solver()));
     const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
     display.warmUp(rays, 0.5);
     display.renderFrame(rays);  // requests go to the workers
     display.shader().waitIdle();
     const std::size_t before = display.cache().size();
     session->converge(1e-3);
-    display.updateSolution(session->solver());
+    display.apply(SolutionView::of(session->solver()));
     display.renderFrame(rays);  // takes the results shaded with the older state
     ASSERT_GT(display.cache().size(), before) << "results arrived";
     std::map<int, bool> relit;  // element → its older points were marked stale
@@ -215,11 +219,12 @@ TEST(InteractiveDisplayMove, TheFallbackOfANewDragPositionIsNeverBlack) {
     so.threads = 0;
     PointShader shader(disc, s.session->tracer(), SolverOptions{}, so);
     shader.updateSolution(s.session->solver());
-    shader.beginDrag(s.origin, origin.visibility());
-    shader.setPreview(s.origin, origin.visibility());
+    PointShaderTestAccess::beginDrag(shader, s.origin, origin.visibility());
+    PointShaderTestAccess::setPreview(shader, s.origin, origin.visibility());
     const int preview = moveSlab(s, test::kLitRoomSlabDragTarget);
     RayTracer::SubsetHandle subset(s.session->tracer(), {preview});
-    shader.setPreview(preview, subset.visibility());  // no updateSolution after it
+    // No updateSolution after it.
+    PointShaderTestAccess::setPreview(shader, preview, subset.visibility());
 
     const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
     int onSlab = 0;
@@ -256,7 +261,7 @@ double settledReflectedLight(Scene3& s, int object) {
 }
 
 TEST(InteractiveDisplayMove, ADroppedObjectKeepsItsReflectedLightUntilTheNextSnapshot) {
-    // The editor ends a drag (endDrag) before the solver's next snapshot reaches the display:
+    // The editor ends a drag (DragEnded) before the solver's next snapshot reaches the display:
     // the snapshot it has is the drag's, in which the dropped version has no light of its own
     // (the preview buffer had it). Its last buffer's reflected light stands in at once, close
     // to what the converged solution gives it, instead of none.
@@ -266,13 +271,18 @@ TEST(InteractiveDisplayMove, ADroppedObjectKeepsItsReflectedLightUntilTheNextSna
     InteractiveDisplay& display = drag.display;
     const int preview = moveSlab(s, test::kLitRoomSlabDragTarget);
     RayTracer::SubsetHandle subset(s.session->tracer(), {preview});
-    display.setPreview(preview, subset.visibility(), &s.session->solver());
+    display.apply(test::previewMovedEvent(s.origin, preview),
+                  {drag.origin.visibility(), subset.visibility()}, &s.session->solver());
     s.session->solve(200);  // the preview buffer complete
-    display.updateSolution(s.session->solver());
+    display.apply(SolutionView::of(s.session->solver()));
     const EditEvent r = s.session->apply(UnselectCommand{});
+    ASSERT_EQ(r.kind, EditEvent::Kind::DragEnded);
     ASSERT_EQ(r.added.size(), 1u);
     const int dropped = r.added[0];
-    display.endDrag(dropped);  // no snapshot yet
+    // The display followed the drag to the dropped version: the drop folds its last change in.
+    ASSERT_EQ(display.previewVersion(), dropped);
+    display.apply(r);  // no snapshot yet
+    ASSERT_EQ(display.dragOrigin(), -1);
 
     const double shown = reflectedLight(disc, dropped, display.shader().elementIndirect());
     const double expected = settledReflectedLight(s, dropped);
@@ -292,9 +302,10 @@ TEST(InteractiveDisplayMove, ADropJustAfterAMoveKeepsTheDragsLightNotABufferThat
     const int first = moveSlab(s, test::kLitRoomSlabDragTarget);
     {
         RayTracer::SubsetHandle subset(s.session->tracer(), {first});
-        display.setPreview(first, subset.visibility(), &s.session->solver());
+        display.apply(test::previewMovedEvent(s.origin, first),
+                      {drag.origin.visibility(), subset.visibility()}, &s.session->solver());
         s.session->solve(200);
-        display.updateSolution(s.session->solver());
+        display.apply(SolutionView::of(s.session->solver()));
     }
     TransformCommand t;
     t.id = "slab";
@@ -302,18 +313,22 @@ TEST(InteractiveDisplayMove, ADropJustAfterAMoveKeepsTheDragsLightNotABufferThat
     const int last = s.session->apply(t).preview;
     ASSERT_GE(last, 0);
     RayTracer::SubsetHandle subset(s.session->tracer(), {last});
-    display.setPreview(last, subset.visibility(), &s.session->solver());
+    display.apply(test::previewMovedEvent(s.origin, last),
+                  {drag.origin.visibility(), subset.visibility()}, &s.session->solver());
     s.session->solve(1);
-    display.updateSolution(s.session->solver());
+    display.apply(SolutionView::of(s.session->solver()));
     ASSERT_FALSE(s.session->solver().previewComplete());
     const EditEvent r = s.session->apply(UnselectCommand{});
+    ASSERT_EQ(r.kind, EditEvent::Kind::DragEnded);
     ASSERT_EQ(r.added.size(), 1u);
     const int dropped = r.added[0];
-    display.endDrag(dropped);
+    ASSERT_EQ(display.previewVersion(), dropped);
+    display.apply(r);
+    ASSERT_EQ(display.dragOrigin(), -1);
 
     const double shown = reflectedLight(disc, dropped, display.shader().elementIndirect());
     // Still so after the next snapshot (the solver has not yet reached the dropped version).
-    display.updateSolution(s.session->solver());
+    display.apply(SolutionView::of(s.session->solver()));
     const double next = reflectedLight(disc, dropped, display.shader().elementIndirect());
     const double expected = settledReflectedLight(s, dropped);
     ASSERT_GT(expected, 0.0);

@@ -1,13 +1,15 @@
 // The edge-and-point display during a drag (George et al.'s temporary buffer): the dragged
 // object exists only as the solver's dead preview version plus per-element preview radiosity.
-// InteractiveDisplay::setPreview must show it where it now is, lit by that buffer, with its
-// shadow. Independent reference: the same scene built with the object really at the new place
-// and solved from scratch, rendered by the same display pipeline with the same sample patterns.
+// The display's preview (InteractiveDisplay::apply of PreviewMoved) must show it where it now
+// is, lit by that buffer, with its shadow. Independent reference: the same scene built with the
+// object really at the new place and solved from scratch, rendered by the same display pipeline
+// with the same sample patterns.
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
+#include "display_events.h"
 #include "edit/edit_session.h"
 #include "lit_room_display.h"
 #include "render/camera_rays.h"
@@ -52,7 +54,7 @@ double maskedDifference(const Image& a, const Image& b, const std::vector<std::u
 
 struct Dragged {
     std::unique_ptr<EditSession> session;
-    int preview = -1;
+    int origin = -1, preview = -1;
 };
 
 /// The lit room solved, the slab selected and moved to kNewPlace, the preview solved.
@@ -60,7 +62,7 @@ Dragged dragSlab() {
     Dragged d;
     d.session = std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{});
     d.session->converge(1e-3);
-    d.session->apply(SelectCommand{"slab"});
+    d.origin = d.session->apply(SelectCommand{"slab"}).origin;
     TransformCommand t;
     t.id = "slab";
     t.translate = kNewPlace;
@@ -85,7 +87,7 @@ TEST(InteractiveDisplayPreview, DraggedObjectAppearsAtItsNewPlaceLitByThePreview
     reference.converge(1e-3);
     InteractiveDisplay refDisplay(reference.discretization(), reference.tracer(), SolverOptions{},
                                   displayOptions());
-    refDisplay.updateSolution(reference.solver());
+    refDisplay.apply(SolutionView::of(reference.solver()));
     const Image expected = settle(refDisplay);
 
     // Which pixels show the slab in the reference, and which its neighbourhood.
@@ -104,18 +106,19 @@ TEST(InteractiveDisplayPreview, DraggedObjectAppearsAtItsNewPlaceLitByThePreview
 
     // Without the preview, the display shows the room without the slab.
     InteractiveDisplay blind(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
-    blind.updateSolution(drag.session->solver());
+    blind.apply(SolutionView::of(drag.session->solver()));
     const Image without = settle(blind);
 
     // With the preview: through a tracer subset (as the editor does), and through the world
     // filter (no subset).
     RayTracer::SubsetHandle subset(drag.session->tracer(), {drag.preview});
     InteractiveDisplay display(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
-    display.setPreview(drag.preview, subset.visibility(), &drag.session->solver());
+    display.apply(test::previewMovedEvent(drag.origin, drag.preview), {{}, subset.visibility()},
+                  &drag.session->solver());
     EXPECT_EQ(display.previewVersion(), drag.preview);
     const Image with = settle(display);
     InteractiveDisplay filtered(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
-    filtered.setPreview(drag.preview, Visibility{}, &drag.session->solver());
+    filtered.apply(test::previewMovedEvent(drag.origin, drag.preview), {}, &drag.session->solver());
     const Image withFilter = settle(filtered);
 
     // A primary ray through the slab's new place meets the preview version (and the scene
@@ -148,7 +151,7 @@ TEST(InteractiveDisplayPreview, ShadowFollowsTheDragAndClearPreviewRestoresTheSc
     const Discretization& disc = drag.session->discretization();
     RayTracer::SubsetHandle subset(drag.session->tracer(), {drag.preview});
     InteractiveDisplay display(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
-    display.updateSolution(drag.session->solver());
+    display.apply(SolutionView::of(drag.session->solver()));
     const Image before = settle(display);
 
     // The floor point straight under the moved slab (the lamp is above the centre of the
@@ -159,13 +162,14 @@ TEST(InteractiveDisplayPreview, ShadowFollowsTheDragAndClearPreviewRestoresTheSc
     const int px = static_cast<int>(pixel->x), py = static_cast<int>(pixel->y);
 
     // Points in the shadow region are dropped when the preview is set.
-    const std::size_t dropped =
-        display.setPreview(drag.preview, subset.visibility(), &drag.session->solver());
+    const std::size_t dropped = display.apply(test::previewMovedEvent(drag.origin, drag.preview),
+                                              {{}, subset.visibility()}, &drag.session->solver());
     EXPECT_GT(dropped, 0u);
     const Image during = settle(display);
     EXPECT_LT(luminance(during.at(px, py)), 0.7 * luminance(before.at(px, py)));
 
-    display.clearPreview(&drag.session->solver());
+    // The preview ends with nothing added (a drag this display only saw the preview of).
+    display.apply(test::dragEndedEvent(drag.origin, {}), {}, &drag.session->solver());
     EXPECT_EQ(display.previewVersion(), -1);
     const Image after = settle(display);
     EXPECT_NEAR(luminance(after.at(px, py)), luminance(before.at(px, py)),

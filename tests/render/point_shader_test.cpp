@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "point_shader_test_access.h"
 #include "render/camera_rays.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
@@ -262,7 +263,7 @@ TEST(PointShader, IncrementalDirectRefreshEqualsFullRecomputation) {
         tracer.updateAlive(slab);
         const int added = disc.addObject(scene, moved);
         tracer.addObject(added);
-        shader.refreshDirect({slab, added});
+        PointShaderTestAccess::refreshDirect(shader, {slab, added});
     }
     const auto incremental = shader.elementDirect();
     const PointShader fresh(disc, tracer, SolverOptions{}, syncOptions());

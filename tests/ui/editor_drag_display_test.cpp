@@ -90,7 +90,6 @@ nlohmann::json dragAndCheck(const std::string& scene, const std::string& object,
 TEST(EditorDragDisplay, DefaultViewIsEdgeAndPointAndADragShowsTheMoveWithinFewFrames) {
     EditorOptions options;
     EXPECT_EQ(options.mode, ViewMode::EdgeAndPoint) << "the editor's default view";
-    EXPECT_EQ(options.interactiveDisplayDivisor, 1) << "full resolution while interacting";
     options.scene = kSource + "/scenes/cube-room.json";
     options.quiet = true;
     options.displayDivisor = 2;

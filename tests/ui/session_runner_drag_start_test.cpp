@@ -1,9 +1,8 @@
 // Starting and ending a drag in the edge-and-point display costs the runner one iteration
 // each, counted in iterations (SessionRunner::pump: one solver iteration, one render), not in
-// milliseconds: the reduced display is made ahead of time (a copy of the full one), the select
-// recomputes no direct light (InteractiveDisplay::beginDrag), each position's direct change is
-// estimated on the shader's workers, and the drop folds it in (endDrag) and brings the full
-// display up to date by copying the reduced one.
+// milliseconds: the one display (full resolution, also while interacting) takes the select
+// without recomputing direct light (InteractiveDisplay's DragBegan), each position's direct
+// change is estimated on the shader's workers, and the drop folds it in (DragEnded).
 
 #include <gtest/gtest.h>
 
@@ -47,7 +46,6 @@ TEST(SessionRunnerDragStart, DragStartsMovesAndDropsWithinOneIterationEach) {
     options.threaded = false;
     options.solveBudgetMs = 20;
     options.displayFrameMs = 0;
-    options.interactiveDisplayDivisor = 2;
     options.settleFrames = 10;
     SessionRunner runner(std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{}),
                          options);
@@ -57,8 +55,9 @@ TEST(SessionRunnerDragStart, DragStartsMovesAndDropsWithinOneIterationEach) {
     const int origin = runner.document()->find("slab")->version;
     ASSERT_GE(origin, 0);
 
-    // Select and the first position, with the view interactive: the next image is the reduced
-    // display showing the object moved (a preview version other than the one selected).
+    // Select and the first position, with the view interactive: the next image is the display
+    // at full resolution showing the object moved (a preview version other than the one
+    // selected).
     runner.submit(SelectCommand{"slab"});
     TransformCommand t;
     t.id = "slab";
@@ -69,7 +68,7 @@ TEST(SessionRunnerDragStart, DragStartsMovesAndDropsWithinOneIterationEach) {
     const int start = pumpsUntil(runner, 50, [&](const ViewportImage& img) {
         if (img.previewVersion < 0 || img.previewVersion == origin) return false;
         first = img.previewVersion;
-        return img.reduced;
+        return !img.reduced && img.render.radiance.width == kSize;
     });
     EXPECT_EQ(start, 1) << "pumps until the first moved image";
     EXPECT_EQ(runner.solver().selected, "slab");
@@ -78,17 +77,17 @@ TEST(SessionRunnerDragStart, DragStartsMovesAndDropsWithinOneIterationEach) {
     t.translate = test::kLitRoomSlabDragTarget + Vec3(0.1, 0, 0.1);
     runner.submitCoalescing(t);
     const int next = pumpsUntil(runner, 50, [&](const ViewportImage& img) {
-        return img.reduced && img.previewVersion >= 0 && img.previewVersion != first;
+        return img.previewVersion >= 0 && img.previewVersion != first;
     });
     EXPECT_EQ(next, 1) << "pumps until the next position's image";
 
-    // The drop: the full display, up to date, by the next iteration.
+    // The drop: the display, up to date, by the next iteration.
     runner.submit(UnselectCommand{});
     runner.setView(view(false));
     const int drop = pumpsUntil(runner, 50, [&](const ViewportImage& img) {
         return !img.reduced && img.previewVersion < 0 && img.mode == ViewMode::EdgeAndPoint;
     });
-    EXPECT_EQ(drop, 1) << "pumps until the full display is back";
+    EXPECT_EQ(drop, 1) << "pumps until the dropped state is shown";
     EXPECT_EQ(runner.solver().selected, "");
     EXPECT_TRUE(runner.takeMessages().empty());
 }

@@ -15,6 +15,7 @@
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
 #include "render/gouraud_renderer.h"
+#include "render/hifi_mesh.h"
 #include "render/path_tracer.h"
 #include "runner_test_support.h"
 #include "test_scenes.h"

@@ -101,7 +101,7 @@ TEST_F(RunnerHolodeck, FirstFrameStartsFromTheHolodeckAndIsNoWorse) {
         options.height = kHeight;
         InteractiveDisplay display(session->discretization(), session->tracer(),
                                    interactiveSolverOptions(), options);
-        display.updateSolution(session->solver());
+        display.apply(SolutionView::of(session->solver()));
         reference = display.renderReference(CameraRays(camera(*session), kWidth, kHeight), 4);
     }
     double errors[2] = {0, 0};
