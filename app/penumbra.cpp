@@ -22,6 +22,7 @@
 #include "app/import_flags.h"
 #include "app/mpi_world.h"
 #include "bench/bench.h"
+#include "core/durable_file.h"
 #include "core/input_error.h"
 #include "core/log.h"
 #include "core/random.h"

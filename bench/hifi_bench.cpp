@@ -9,12 +9,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "bench/bench.h"
+#include "core/durable_file.h"
 #include "core/timing.h"
 #include "edit/edit_command.h"
 #include "edit/edit_session.h"
@@ -226,7 +226,7 @@ int runHifiBench(const HifiBenchOptions& options) {
                     c.edited.c_str(), c.updateSeconds,
                     c.updateSeconds > 0 ? c.buildSeconds / c.updateSeconds : 0.0, c.remeshed,
                     c.alive, 100 * c.errUpdate);
-    if (!options.jsonOut.empty()) std::ofstream(options.jsonOut) << all.dump(2) << "\n";
+    if (!options.jsonOut.empty()) writeFileAtomically(options.jsonOut, all.dump(2) + "\n");
     return 0;
 }
 

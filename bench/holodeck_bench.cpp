@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "bench/bench.h"
+#include "core/durable_file.h"
 #include "core/timing.h"
 #include "edit/edit_session.h"
 #include "edit/lit_scene.h"

@@ -18,6 +18,8 @@
 #include <vector>
 
 #include "bench/bench.h"
+#include "core/durable_file.h"
+#include "core/log.h"
 #include "edit/lit_scene.h"
 #include "edit/scene_io.h"
 #include "render/image.h"
@@ -251,12 +253,17 @@ int runRedistributionBench(const RedistributionBenchOptions& options) {
             w.setAdded(false);
             yBefore = luminances(*w.disc, before.radiosity());
             yBefore.resize(yAfter.size(), 0.0);
-            if (FILE* f = cache ? std::fopen(cachePath.c_str(), "wb") : nullptr) {
-                std::size_t n = yAfter.size();
-                std::fwrite(&n, sizeof n, 1, f);
-                std::fwrite(yAfter.data(), sizeof(double), n, f);
-                std::fwrite(yBefore.data(), sizeof(double), n, f);
-                std::fclose(f);
+            if (cache) {
+                // Whole or not at all: a torn cache would read as a shorter reference.
+                const std::size_t n = yAfter.size();
+                std::string bytes(reinterpret_cast<const char*>(&n), sizeof n);
+                bytes.append(reinterpret_cast<const char*>(yAfter.data()), n * sizeof(double));
+                bytes.append(reinterpret_cast<const char*>(yBefore.data()), n * sizeof(double));
+                try {
+                    writeFileAtomically(cachePath, bytes);
+                } catch (const std::exception& e) {
+                    spdlog::warn("reference cache not written: {}", e.what());
+                }
             }
         }
         // The 1% of alive elements that change most (George et al.'s second error term).

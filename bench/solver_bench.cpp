@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "bench/bench.h"
+#include "core/durable_file.h"
 #include "core/random.h"
 #include "core/timing.h"
 #include "edit/lit_scene.h"

@@ -11,17 +11,16 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <glm/gtc/constants.hpp>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <stdexcept>
-#include <system_error>
 #include <tuple>
 
 #include "core/colour.h"
+#include "core/durable_file.h"
 #include "edit/scene_io.h"
 #include "solver/discretization.h"
 
@@ -93,30 +92,6 @@ std::string base64Encode(const std::string& bytes) {
         out.push_back('=');
     }
     return out;
-}
-
-/// Writes `contents` to a temporary file next to `path` and renames it over `path`.
-void writeFileAtomically(const std::string& path, const std::string& contents) {
-    const std::string temporary = path + ".tmp";
-    {
-        std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-        if (!out) throw std::runtime_error("cannot open " + temporary + " for writing");
-        out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
-        out.close();
-        if (!out) {
-            std::error_code ignored;
-            std::filesystem::remove(temporary, ignored);
-            throw std::runtime_error("cannot write " + path);
-        }
-    }
-    std::error_code error;
-    std::filesystem::rename(temporary, path, error);
-    if (error) {
-        std::error_code ignored;
-        std::filesystem::remove(temporary, ignored);
-        throw std::runtime_error("cannot rename " + temporary + " to " + path + ": " +
-                                 error.message());
-    }
 }
 
 // ---------------------------------------------------------------------------------------

@@ -36,10 +36,10 @@ class Discretization;
 ///   colours as `v x y z r g b` with r g b = radiance B/π sRGB-encoded and clipped to
 ///   [0,1] (the convention MeshLab and Blender read), polygon faces per element.
 ///
-/// Writes a temporary file next to `path`, then renames it over `path`.
-/// Throws std::invalid_argument naming the extension for an unknown one, or when
-/// elementRadiosity does not have one value per element; std::runtime_error naming the file
-/// when it cannot be written.
+/// Writes with writeFileAtomically (core/durable_file.h; the .mtl first): a kill leaves the
+/// old file or the whole new one. Throws std::invalid_argument naming the extension for an
+/// unknown one, or when elementRadiosity does not have one value per element; InputError
+/// naming the file and the reason when it cannot be written.
 /// `scene`, when given, names each object's material in the glTF nodes' extras, and its
 /// cameras become glTF perspective camera nodes.
 void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementRadiosity,

@@ -1,11 +1,11 @@
 #include "edit/lit_scene.h"
 
 #include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 
+#include "core/durable_file.h"
 #include "core/input_error.h"
 #include "edit/scene_io.h"
 
@@ -77,21 +77,6 @@ std::vector<ProbePoint> readProbePoints(const std::string& path) {
         points.push_back({Vec3(v[0], v[1], v[2]), glm::normalize(n)});
     }
     return points;
-}
-
-void writeFileAtomically(const std::string& path, const std::string& text) {
-    std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw std::runtime_error(path + ": cannot write");
-        out << text;
-        out.flush();
-        if (!out) throw std::runtime_error(path + ": write failed");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw std::runtime_error(path + ": cannot rename temporary file into place");
-    }
 }
 
 void saveSolution(const LitScene& lit, const std::string& path) {

@@ -8,6 +8,9 @@
 #include <string>
 #include <vector>
 
+// writeFileAtomically: saveSolution's, and the one for callers that write files of their own
+// beside a lit scene's.
+#include "core/durable_file.h"
 #include "edit/scene_import.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
@@ -53,11 +56,8 @@ struct ProbePoint {
 std::vector<ProbePoint> readProbePoints(const std::string& path);
 
 /// Writes the element radiosities and unshot patch radiosities as JSON
-/// ("penumbra-solution/1"), to a temporary name then renamed.
+/// ("penumbra-solution/1") with writeFileAtomically. Throws InputError naming the file when it
+/// cannot be written.
 void saveSolution(const LitScene& lit, const std::string& path);
-
-/// Writes `text` to `path` atomically (temporary name in the same directory, then rename).
-/// Throws std::runtime_error naming the file on failure.
-void writeFileAtomically(const std::string& path, const std::string& text);
 
 }  // namespace penumbra

@@ -34,8 +34,8 @@
 #include <tiny_obj_loader.h>
 
 #include "core/colour.h"
+#include "core/durable_file.h"
 #include "core/input_error.h"
-#include "edit/lit_scene.h"
 
 namespace penumbra {
 
@@ -1394,48 +1394,39 @@ MeshFileScene loadMeshFileScene(const std::string& path) {
     return scene;
 }
 
-/// writeFileAtomically, failing with the InputError saveObjMesh promises.
-static void writeMeshText(const std::string& path, const std::string& text) {
-    try {
-        writeFileAtomically(path, text);
-    } catch (const std::runtime_error&) {
-        throw InputError(path, "", "cannot write the file");
-    }
-}
-
 void saveObjMesh(const TriMesh& mesh, const std::string& path) {
     const bool materials = !mesh.triangleMaterial.empty() && !mesh.materials.empty();
-    const std::filesystem::path objPath(path);
     const std::filesystem::path mtlPath = std::filesystem::path(path).replace_extension(".mtl");
-    std::ostringstream obj;
-    obj.precision(9);
-    obj << "# penumbra mesh\n";
-    if (materials) obj << "mtllib " << mtlPath.filename().string() << "\n";
-    for (const Vec3& p : mesh.positions) obj << "v " << p.x << ' ' << p.y << ' ' << p.z << "\n";
-    int current = -1;
-    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-        if (materials && mesh.triangleMaterial[t] != current) {
-            current = mesh.triangleMaterial[t];
-            obj << "usemtl m" << current << "\n";
-        }
-        const auto& f = mesh.triangles[t];
-        obj << "f " << f[0] + 1 << ' ' << f[1] + 1 << ' ' << f[2] + 1 << "\n";
-    }
     if (materials) {
-        std::ostringstream mtl;
-        mtl.precision(9);
-        for (std::size_t m = 0; m < mesh.materials.size(); ++m) {
-            const Material& material = mesh.materials[m];
-            mtl << "newmtl m" << m << "\n";
-            if (m < mesh.materialNames.size()) mtl << "# " << mesh.materialNames[m] << "\n";
-            mtl << "Kd " << material.reflectance.x << ' ' << material.reflectance.y << ' '
-                << material.reflectance.z << "\n";
-            mtl << "Ke " << material.emission.x << ' ' << material.emission.y << ' '
-                << material.emission.z << "\n";
-        }
-        writeMeshText(mtlPath.string(), mtl.str());
+        writeFileAtomically(mtlPath.string(), [&](std::ostream& mtl) {
+            mtl.precision(9);
+            for (std::size_t m = 0; m < mesh.materials.size(); ++m) {
+                const Material& material = mesh.materials[m];
+                mtl << "newmtl m" << m << "\n";
+                if (m < mesh.materialNames.size()) mtl << "# " << mesh.materialNames[m] << "\n";
+                mtl << "Kd " << material.reflectance.x << ' ' << material.reflectance.y << ' '
+                    << material.reflectance.z << "\n";
+                mtl << "Ke " << material.emission.x << ' ' << material.emission.y << ' '
+                    << material.emission.z << "\n";
+            }
+        });
     }
-    writeMeshText(objPath.string(), obj.str());
+    writeFileAtomically(path, [&](std::ostream& obj) {
+        obj.precision(9);
+        obj << "# penumbra mesh\n";
+        if (materials) obj << "mtllib " << mtlPath.filename().string() << "\n";
+        for (const Vec3& p : mesh.positions)
+            obj << "v " << p.x << ' ' << p.y << ' ' << p.z << "\n";
+        int current = -1;
+        for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+            if (materials && mesh.triangleMaterial[t] != current) {
+                current = mesh.triangleMaterial[t];
+                obj << "usemtl m" << current << "\n";
+            }
+            const auto& f = mesh.triangles[t];
+            obj << "f " << f[0] + 1 << ' ' << f[1] + 1 << ' ' << f[2] + 1 << "\n";
+        }
+    });
 }
 
 }  // namespace penumbra

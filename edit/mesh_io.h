@@ -87,8 +87,8 @@ MeshFileScene loadMeshFileScene(const std::string& path);
 
 /// Writes `mesh` as an OBJ file; with per-triangle materials also an MTL file beside it
 /// (`Kd` the reflectance, `Ke` the emission as loadMeshFile reads it back), named after the
-/// OBJ with the extension .mtl. Written to temporary names and renamed. Throws InputError
-/// when a file cannot be written.
+/// OBJ with the extension .mtl. Each written with writeFileAtomically (the .mtl first).
+/// Throws InputError naming the file when one cannot be written.
 void saveObjMesh(const TriMesh& mesh, const std::string& path);
 
 }  // namespace penumbra

@@ -5,9 +5,6 @@
 
 #include "edit/scene_io.h"
 
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -22,6 +19,7 @@
 #include <string_view>
 #include <unordered_map>
 
+#include "core/durable_file.h"
 #include "core/input_error.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_import.h"
@@ -829,43 +827,7 @@ void saveScene(const Scene& scene, const std::string& path) {
         saveObjMesh(object.shape.mesh, (directory / file).string());
         object.shape.file = file;
     }
-    const std::string text = formatSceneText(sceneToJson(written));
-    auto fail = [&](const std::string& what) {
-        throw InputError(path, "", "cannot write scene file: " + what);
-    };
-
-    // Write a temporary file next to the target, so the rename cannot cross file systems.
-    std::string temporary =
-        (directory / ("." + target.filename().string() + ".tmp-XXXXXX")).string();
-    const int fd = ::mkstemp(temporary.data());
-    if (fd < 0) fail(std::strerror(errno));
-    auto abandon = [&](const std::string& what) {
-        ::close(fd);
-        ::unlink(temporary.c_str());
-        fail(what);
-    };
-    for (size_t written = 0; written < text.size();) {
-        const ssize_t n = ::write(fd, text.data() + written, text.size() - written);
-        if (n < 0) {
-            if (errno == EINTR) continue;
-            abandon(std::strerror(errno));
-        }
-        written += static_cast<size_t>(n);
-    }
-
-    // Keep an existing file's permissions; a new file gets rw-r--r-- (mkstemp makes rw-------).
-    struct stat existing {};
-    const mode_t mode = ::stat(path.c_str(), &existing) == 0 ? (existing.st_mode & 07777) : 0644;
-    if (::fchmod(fd, mode) != 0 || ::fsync(fd) != 0) abandon(std::strerror(errno));
-    if (::close(fd) != 0) {
-        ::unlink(temporary.c_str());
-        fail(std::strerror(errno));
-    }
-    if (::rename(temporary.c_str(), path.c_str()) != 0) {
-        const std::string reason = std::strerror(errno);
-        ::unlink(temporary.c_str());
-        fail(reason);
-    }
+    writeFileAtomically(path, formatSceneText(sceneToJson(written)));
 }
 
 std::string describeType(const Json& value) {

@@ -73,13 +73,13 @@ nlohmann::ordered_json transformToJson(const Transform& transform);
 /// columns on one line (an object per line for typical scenes). Ends with a newline.
 std::string formatSceneText(const nlohmann::ordered_json& json);
 
-/// Writes formatSceneText(sceneToJson(scene)) to `path` atomically: a temporary file in the
-/// same directory, flushed to disk, then renamed over `path`. Mesh shapes without a `file`
+/// Writes formatSceneText(sceneToJson(scene)) to `path` with writeFileAtomically (durable; an
+/// existing file keeps its permission bits). Mesh shapes without a `file`
 /// (an imported scene's) are first written as OBJ (+MTL) files into `STEM-meshes/` beside
 /// it, and the scene file names them. Mesh `file` paths are written
 /// as stored, i.e. relative to the directory the scene was loaded from: save next to it (or
-/// into a directory with the same relative mesh paths). Throws InputError when the file
-/// cannot be written.
+/// into a directory with the same relative mesh paths). Throws InputError
+/// `PATH: cannot write (STEP): REASON` when the file cannot be written.
 void saveScene(const Scene& scene, const std::string& path);
 
 /// A mesh shape's `file`, written relative to `fromDir`, rewritten relative to `toDir` so it

@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <sstream>
 #include <stdexcept>
-#include <system_error>
 
 // Debian's libstb already holds the stb implementations: include declarations only.
 #include <stb_image.h>
@@ -16,27 +15,58 @@
 // Debian's libtinyexr is a shared library (CMake target tinyexr::tinyexr): declarations only.
 #include <tinyexr.h>
 
+#include "core/durable_file.h"
+
 namespace penumbra {
 
 namespace {
 
-/// A temporary name next to `path`, so the final rename stays on one filesystem.
-std::string temporaryPathFor(const std::string& path) { return path + ".tmp"; }
-
-/// Moves a finished temporary file over `path`; removes it and throws on failure.
-void commitTemporary(const std::string& temporary, const std::string& path) {
-    std::error_code error;
-    std::filesystem::rename(temporary, path, error);
-    if (error) {
-        std::filesystem::remove(temporary, error);
-        throw std::runtime_error("cannot rename " + temporary + " to " + path + ": " +
-                                 error.message());
+/// The OpenEXR file of RGB `values` (width × height, interleaved) as tinyexr's SaveEXR
+/// writes it: channels B, G, R as 32-bit floats, ZIP compressed (none when both sides are
+/// under 16 pixels). Empty with `error` set when tinyexr fails.
+std::string encodeExr(const std::vector<float>& values, int width, int height,
+                      std::string& error) {
+    const std::size_t n = static_cast<std::size_t>(width) * height;
+    std::vector<float> planes[3];
+    for (int c = 0; c < 3; ++c) {
+        planes[c].resize(n);
+        for (std::size_t i = 0; i < n; ++i) planes[c][i] = values[3 * i + c];
     }
-}
+    float* channels[3] = {planes[2].data(), planes[1].data(), planes[0].data()};  // B, G, R
 
-void discardTemporary(const std::string& temporary) {
-    std::error_code ignored;
-    std::filesystem::remove(temporary, ignored);
+    EXRImage exrImage;
+    InitEXRImage(&exrImage);
+    exrImage.num_channels = 3;
+    exrImage.images = reinterpret_cast<unsigned char**>(channels);
+    exrImage.width = width;
+    exrImage.height = height;
+
+    EXRHeader header;
+    InitEXRHeader(&header);
+    header.compression_type = width < 16 && height < 16 ? TINYEXR_COMPRESSIONTYPE_NONE
+                                                        : TINYEXR_COMPRESSIONTYPE_ZIP;
+    EXRChannelInfo info[3] = {};
+    int pixelTypes[3], requestedTypes[3];
+    for (int c = 0; c < 3; ++c) {
+        info[c].name[0] = "BGR"[c];
+        pixelTypes[c] = requestedTypes[c] = TINYEXR_PIXELTYPE_FLOAT;
+    }
+    header.num_channels = 3;
+    header.channels = info;
+    header.pixel_types = pixelTypes;
+    header.requested_pixel_types = requestedTypes;
+
+    unsigned char* memory = nullptr;
+    const char* message = nullptr;
+    const std::size_t size = SaveEXRImageToMemory(&exrImage, &header, &memory, &message);
+    std::string bytes;
+    if (size > 0 && memory) bytes.assign(reinterpret_cast<const char*>(memory), size);
+    std::free(memory);
+    if (bytes.empty()) {
+        error = message ? message : "cannot encode";
+        if (message) FreeEXRErrorMessage(message);
+    }
+    return bytes;
 }
 
 void checkImage(const Image& image, const std::string& path) {
@@ -88,13 +118,14 @@ void writePng(const Image& image, const std::string& path) {
         bytes[3 * i + 2] = encodeByte(p.z);
     }
 
-    const std::string temporary = temporaryPathFor(path);
-    if (stbi_write_png(temporary.c_str(), image.width, image.height, 3, bytes.data(),
-                       image.width * 3) == 0) {
-        discardTemporary(temporary);
-        throw std::runtime_error("cannot write PNG " + path);
-    }
-    commitTemporary(temporary, path);
+    writeFileAtomically(path, [&](std::ostream& out) {
+        const auto append = [](void* context, void* data, int size) {
+            static_cast<std::ostream*>(context)->write(static_cast<const char*>(data), size);
+        };
+        if (stbi_write_png_to_func(append, &out, image.width, image.height, 3, bytes.data(),
+                                   image.width * 3) == 0)
+            throw std::runtime_error("cannot write PNG " + path + ": encoding failed");
+    });
 }
 
 void writeExr(const Image& image, const std::string& path) {
@@ -107,20 +138,15 @@ void writeExr(const Image& image, const std::string& path) {
         values[3 * i + 2] = static_cast<float>(image.pixels[i].z);
     }
 
-    const std::string temporary = temporaryPathFor(path);
-    const char* error = nullptr;
-    int status = SaveEXR(values.data(), image.width, image.height, 3, /*save_as_fp16=*/0,
-                         temporary.c_str(), &error);
-    if (status != TINYEXR_SUCCESS) {
-        std::string message = error ? error : "error " + std::to_string(status);
-        if (error) FreeEXRErrorMessage(error);
+    std::string message;
+    const std::string bytes = encodeExr(values, image.width, image.height, message);
+    if (bytes.empty()) {
         // tinyexr messages may end in a newline; keep the report to one line.
         std::replace(message.begin(), message.end(), '\n', ' ');
         while (!message.empty() && message.back() == ' ') message.pop_back();
-        discardTemporary(temporary);
         throw std::runtime_error("cannot write EXR " + path + ": " + message);
     }
-    commitTemporary(temporary, path);
+    writeFileAtomically(path, bytes);
 }
 
 void writeImage(const Image& image, const std::string& path) {

@@ -31,12 +31,13 @@ struct Image {
 };
 
 /// Writes 8-bit RGB PNG: each channel sRGB-encoded, clipped to [0,1] (NaN → 0) and rounded.
-/// Writes a temporary file next to `path` and renames it over `path`.
-/// Throws std::runtime_error with a one-line message naming the file on failure.
+/// Written with writeFileAtomically (core/durable_file.h). Throws std::runtime_error (InputError
+/// when the file cannot be written) with a one-line message naming the file on failure.
 void writePng(const Image& image, const std::string& path);
 
 /// Writes the linear values as a 32-bit float RGB OpenEXR file (tinyexr; ZIP compressed
-/// except for tiny images). Temporary file plus rename; throws std::runtime_error.
+/// except for tiny images), encoded in memory and written with writeFileAtomically; throws
+/// std::runtime_error as writePng.
 void writeExr(const Image& image, const std::string& path);
 
 /// Writes by extension (case-insensitive): `.png` → writePng, `.exr` → writeExr.

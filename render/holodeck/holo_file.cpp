@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "core/durable_file.h"
 #include "core/input_error.h"
 
 namespace penumbra {
@@ -94,6 +95,13 @@ std::vector<std::uint8_t> encodeHeader(const std::vector<HoloSection>& sections)
     return h;
 }
 
+/// A new, empty file: the header and two empty superblock slots.
+std::vector<std::uint8_t> encodeNewFile(const std::vector<HoloSection>& sections) {
+    std::vector<std::uint8_t> bytes = encodeHeader(sections);
+    bytes.resize(bytes.size() + 2 * kSlotBytes, 0);
+    return bytes;
+}
+
 /// A superblock slot: the commit's sequence number, its directory record, the file's end.
 struct Slot {
     std::uint64_t sequence = 0, dirOffset = 0, dirBytes = 0, end = 0;
@@ -128,10 +136,7 @@ HoloFile::HoloFile(const std::string& path, const std::vector<HoloSection>& sect
     if (!std::filesystem::exists(path)) create(sections);
     mFd = ::open(path.c_str(), O_RDWR | O_CLOEXEC);
     if (mFd < 0) fail("", "cannot open: " + errnoText());
-    readHeader();
-    readDirectory();
-    recoverTail();
-    rebuildFreeList();
+    load();
     // Adopted records become part of a durable directory at once.
     if (mRecovered > 0) commit();
 }
@@ -140,11 +145,15 @@ HoloFile HoloFile::openReadOnly(const std::string& path) {
     HoloFile file(path, false, Unopened{});
     file.mFd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (file.mFd < 0) file.fail("", "cannot open: " + errnoText());
-    file.readHeader();
-    file.readDirectory();
-    file.recoverTail();
-    file.rebuildFreeList();
+    file.load();
     return file;
+}
+
+void HoloFile::load() {
+    readHeader();
+    readDirectory();
+    recoverTail();
+    rebuildFreeList();
 }
 
 HoloFile::HoloFile(HoloFile&& o) noexcept
@@ -176,21 +185,10 @@ void HoloFile::fail(const std::string& where, const std::string& problem) const 
 void HoloFile::create(const std::vector<HoloSection>& sections) {
     if (sections.empty() || sections.size() > kMaxSections)
         fail("", "a new holodeck needs 1 to " + std::to_string(kMaxSections) + " sections");
-    // Header and empty slots, written to a temporary name and renamed: a new file is whole
-    // or absent.
-    std::vector<std::uint8_t> bytes = encodeHeader(sections);
-    bytes.resize(bytes.size() + 2 * kSlotBytes, 0);
-    const std::string tmp = mPath + ".tmp";
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd < 0) fail("", "cannot create: " + errnoText());
-    const bool ok =
-        ::write(fd, bytes.data(), bytes.size()) == ssize_t(bytes.size()) && ::fsync(fd) == 0;
-    ::close(fd);
-    if (!ok || ::rename(tmp.c_str(), mPath.c_str()) != 0) {
-        const std::string why = errnoText();
-        ::unlink(tmp.c_str());
-        fail("", "cannot create: " + why);
-    }
+    // Written whole (writeFileAtomically): a new file is complete or absent.
+    const std::vector<std::uint8_t> bytes = encodeNewFile(sections);
+    writeFileAtomically(mPath, std::string_view(reinterpret_cast<const char*>(bytes.data()),
+                                                 bytes.size()));
 }
 
 void HoloFile::readHeader() {
@@ -550,16 +548,21 @@ HoloFileInfo HoloFile::info() const {
 
 void HoloFile::optimize(const std::string& path) {
     HoloFile source = openReadOnly(path);
-    const std::string tmp = path + ".optimize";
-    std::filesystem::remove(tmp);
+    // The collated copy is built in an AtomicFile (a unique temporary beside `path`), through a
+    // HoloFile on a duplicate of its descriptor, and replaces `path` durably once committed.
+    AtomicFile replacement(path);
     {
-        HoloFile target(tmp, source.sections());
+        HoloFile target(path, true, Unopened{});
+        target.mFd = ::fcntl(replacement.fd(), F_DUPFD_CLOEXEC, 0);
+        if (target.mFd < 0) target.fail("", "cannot write the optimized file: " + errnoText());
+        const std::vector<std::uint8_t> bytes = encodeNewFile(source.sections());
+        target.writeAt(0, bytes.data(), bytes.size());
+        target.load();
         for (const auto& [section, beam] : source.storedBeams())
             target.writeBeam(section, beam, source.readBeam(section, beam));
         target.commit();
     }
-    if (::rename(tmp.c_str(), path.c_str()) != 0)
-        source.fail("", "cannot replace with the optimized file: " + errnoText());
+    replacement.commit();
 }
 
 }  // namespace penumbra

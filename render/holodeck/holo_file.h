@@ -78,7 +78,8 @@ public:
     HoloFileInfo info() const;
 
     /// Rewrites the file with its beams collated in section and beam order and no free
-    /// fragments (§2.2's optimizer): written to a temporary file, then renamed over `path`.
+    /// fragments (§2.2's optimizer): built in an AtomicFile beside `path`, which replaces `path`
+    /// durably once complete (core/durable_file.h). Throws InputError naming `path`.
     static void optimize(const std::string& path);
 
 private:
@@ -88,7 +89,11 @@ private:
     };
     struct Unopened {};
     HoloFile(const std::string& path, bool writable, Unopened);
+    /// Writes a new, empty file at mPath with writeFileAtomically.
     void create(const std::vector<HoloSection>& sections);
+    /// Reads the header and directory of the open mFd, adopts records after the last commit
+    /// and builds the free list.
+    void load();
     void readHeader();
     void readDirectory();
     void recoverTail();

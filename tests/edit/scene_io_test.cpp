@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -1096,8 +1097,11 @@ TEST(SceneIo, SaveIsAtomicAndKeepsPermissions) {
     EXPECT_EQ(files, 1u);
     EXPECT_EQ(loadScene(path).materials.size(), 1u);
 
+    // A new file: 0666 less the umask, as any file the user's programs create.
     const std::string fresh = dir.file("new.json");
+    const mode_t mask = ::umask(022);
     saveScene(scene, fresh);
+    ::umask(mask);
     ASSERT_EQ(::stat(fresh.c_str(), &info), 0);
     EXPECT_EQ(info.st_mode & 0777, 0644u);
 }
@@ -1106,7 +1110,8 @@ TEST(SceneIo, SaveIntoMissingDirectoryThrows) {
     TempDir dir;
     const std::string path = dir.file("no/such/dir/out.json");
     const std::string message = inputErrorOf([&] { saveScene(Scene{}, path); });
-    EXPECT_TRUE(startsWith(message, path + ": cannot write scene file")) << message;
+    EXPECT_TRUE(startsWith(message, path + ": cannot write")) << message;
+    EXPECT_NE(message.find(std::strerror(ENOENT)), std::string::npos) << message;
 }
 
 }  // namespace
