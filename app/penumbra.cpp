@@ -22,6 +22,7 @@
 #include "app/import_flags.h"
 #include "app/mpi_world.h"
 #include "bench/bench.h"
+#include "bench/display_report.h"
 #include "core/durable_file.h"
 #include "core/input_error.h"
 #include "core/log.h"
@@ -275,41 +276,6 @@ std::string siblingPath(const std::string& path, const std::string& suffix) {
     return (p.parent_path() / name).string();
 }
 
-nlohmann::json frameJson(const DisplayFrameStats& f) {
-    const DisplayStageTimes& t = f.times;
-    return {{"frame", f.frame},
-            {"total_ms", t.totalMs},
-            {"reconstruct_ms", t.reconstructMs()},
-            {"new_sample_fraction", f.newSampleFraction},
-            {"find_edges_ms", t.findEdgesMs},
-            {"silhouette_ms", t.silhouetteMs},
-            {"shadow_ms", t.shadowMs},
-            {"project_ms", t.projectMs},
-            {"rasterize_ms", t.rasterizeMs},
-            {"points_ms", t.pointsMs},
-            {"reachability_ms", t.reachabilityMs},
-            {"interpolate_ms", t.interpolateMs},
-            {"anti_alias_ms", t.antiAliasMs},
-            {"complex_filter_ms", t.complexFilterMs},
-            {"smooth_ms", t.smoothMs},
-            {"fill_ms", t.fillMs},
-            {"hide_ms", t.hideMs},
-            {"request_ms", t.requestMs},
-            {"shade_ms", t.shadeMs},
-            {"new_samples", f.newSamples},
-            {"requested_samples", f.requestedSamples},
-            {"visible_points", f.visiblePoints},
-            {"silhouette_edges", f.silhouetteEdges},
-            {"sharp_edges", f.sharpEdges},
-            {"shadow_edges", f.shadowEdges},
-            {"screen_edges", f.screenEdges},
-            {"empty_pixels", f.emptyPixels},
-            {"simple_pixels", f.simplePixels},
-            {"complex_pixels", f.complexPixels},
-            {"unsampled_pixels", f.unsampledPixels},
-            {"unfilled_pixels", f.unfilledPixels}};
-}
-
 /// The relative RMSE of `image` against the EXR `path`, lamps left out, for the report.
 double compareWith(const Image& image, const std::string& path, const Discretization& disc,
                    const RayTracer& tracer, const CameraRays& rays) {
@@ -453,7 +419,7 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
             const double brought = holodeck ? double(holodeck->samples()) : 0.0;
             if (k == 0 && r.warmup > 0 && brought < warmPoints) display.warmUp(*rays, r.warmup);
             image = display.renderFrame(*rays, r.mode == "epi");
-            entry.update(frameJson(display.lastFrame()));
+            entry.update(displayFrameJson(display.lastFrame()));
             if (k == 0 && holodeck) {
                 entry["holodeck_ms"] = holodeckMs;
                 entry["total_ms"] = entry["total_ms"].get<double>() + holodeckMs;

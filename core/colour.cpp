@@ -21,6 +21,10 @@ double srgbEncodeClipped(double linear) {
     return std::min(v, 1.0);
 }
 
+std::uint8_t srgbByteExact(double linear) {
+    return static_cast<std::uint8_t>(std::lround(srgbEncodeClipped(linear) * 255.0));
+}
+
 std::uint8_t srgbByte(double linear) {
     // threshold[k]: the smallest linear value shown as byte k (the decoded midpoint between
     // k − 1 and k); start[i]: the byte at the start of bin i of kBins equal bins over [0, 1].

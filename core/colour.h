@@ -10,8 +10,11 @@ namespace penumbra {
 double srgbEncode(double linear);
 /// Inverse of srgbEncode.
 double srgbDecode(double encoded);
-/// srgbEncode clipped to [0, 1]; NaN gives 0.
+/// srgbEncode clipped to [0, 1]: the displayed value of a linear value (NaN → 0, +∞ → 1).
 double srgbEncodeClipped(double linear);
+/// The 8-bit display value of a linear value, computed exactly: round(255 ·
+/// srgbEncodeClipped(linear)). What image files store and the editor's viewport shows.
+std::uint8_t srgbByteExact(double linear);
 /// The 8-bit display value of a linear value: sRGB-encoded, clipped to [0, 1] (NaN → 0) and
 /// rounded, by table lookup (for whole frames: no pow per channel). Equals
 /// round(255 · srgbEncode(v)) except within a rounding error of a byte boundary.

@@ -2,11 +2,25 @@
 
 namespace penumbra {
 
-Vec3 newellNormal(const std::vector<Vec3>& polygon) {
+namespace {
+
+/// Newell's sum over the k corners corner(0), …, corner(k − 1): Σ corner(i) × corner(i + 1).
+template <typename Corner>
+Vec3 newellSum(std::size_t k, Corner&& corner) {
     Vec3 n(0.0);
-    for (std::size_t i = 0, k = polygon.size(); i < k; ++i)
-        n += glm::cross(polygon[i], polygon[(i + 1) % k]);
+    for (std::size_t i = 0; i < k; ++i) n += glm::cross(corner(i), corner((i + 1) % k));
     return n;
+}
+
+}  // namespace
+
+Vec3 newellNormal(const std::vector<Vec3>& polygon) {
+    return newellSum(polygon.size(), [&](std::size_t i) -> const Vec3& { return polygon[i]; });
+}
+
+Vec3 newellNormal(const std::vector<Vec3>& positions, const int* corners, std::size_t count) {
+    return newellSum(count,
+                     [&](std::size_t i) -> const Vec3& { return positions[corners[i]]; });
 }
 
 Vec3 unitNormal(const std::vector<Vec3>& polygon) {

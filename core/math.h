@@ -30,6 +30,9 @@ double distanceToSegment(const V& p, const V& a, const V& b) {
 /// Newell's method: the area vector of a polygon (normal direction, length twice the area),
 /// exact for planar polygons and the best-fit normal of nearly planar ones.
 Vec3 newellNormal(const std::vector<Vec3>& polygon);
+/// newellNormal of an indexed face: the polygon positions[corners[0]], …,
+/// positions[corners[count − 1]].
+Vec3 newellNormal(const std::vector<Vec3>& positions, const int* corners, std::size_t count);
 
 /// newellNormal normalized; zero for a degenerate polygon.
 Vec3 unitNormal(const std::vector<Vec3>& polygon);

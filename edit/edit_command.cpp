@@ -1,6 +1,6 @@
 // Edit commands ↔ log lines.
-// Index: names and small helpers · value checks · parsing JSON values · parsing text
-//        (repeated keys, line and column) · serializing
+// Index: names and small helpers · value checks · parsing JSON values · public API ·
+//        serializing
 
 #include "edit/edit_command.h"
 
@@ -281,17 +281,6 @@ EditOp parseOp(const CommandReader& in, const std::string& op, const EditSource&
     in.fail("op", "unknown op '" + op + "' (expected " + kOpList + ")");
 }
 
-// ---------------------------------------------------------------------------------------------
-// Parsing text: repeated keys, line and column.
-
-/// nlohmann's message without its "[json.exception...] parse error at ...: " prefix.
-std::string parseProblem(const std::string& message) {
-    const size_t at = message.find("parse error");
-    if (at == std::string::npos) return message;
-    const size_t colon = message.find(": ", at);
-    return colon == std::string::npos ? message : message.substr(colon + 2);
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -413,14 +402,10 @@ EditCommand parseEditCommand(const std::string& line, const EditSource& source, 
         const size_t column = error.byte > 0 ? error.byte : 1;
         std::string where = source.where();
         where += (where.empty() ? "column " : ", column ") + std::to_string(column);
-        throw InputError(source.file, where, parseProblem(error.what()));
+        throw InputError(source.file, where, jsonErrorProblem(error.what()));
     } catch (const Json::exception& error) {
         // e.g. out_of_range: "number overflow parsing '1e999'".
-        std::string problem = error.what();
-        const size_t bracket = problem.find("] ");
-        if (problem.rfind("[json.exception", 0) == 0 && bracket != std::string::npos)
-            problem = problem.substr(bracket + 2);
-        fail(source, "", problem);
+        fail(source, "", jsonErrorProblem(error.what()));
     }
     if (problem) {
         if (problem->tooDeep) fail(source, problem->path, "nesting deeper than 64 levels");

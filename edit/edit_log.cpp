@@ -7,13 +7,13 @@
 
 #include <cerrno>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 
 #include "core/input_error.h"
+#include "core/log.h"
 
 namespace penumbra {
 
@@ -69,10 +69,10 @@ EditLogWriter::EditLogWriter(const std::string& path)
             if (isValidJson(last)) {
                 ok = writeAll(mFd, "\n");
             } else {
-                std::fprintf(stderr,
-                             "penumbra: %s: line %d: warning: truncated final line (no newline, "
-                             "not valid JSON) removed before appending\n",
-                             path.c_str(), countLines(text, start));
+                spdlog::warn(
+                    "{}: line {}: truncated final line (no newline, not valid JSON) removed "
+                    "before appending",
+                    path, countLines(text, start));
                 ok = ::ftruncate(mFd, static_cast<off_t>(start)) == 0;
             }
             if (!ok || ::fsync(mFd) != 0) {
@@ -126,10 +126,8 @@ std::vector<LoggedEdit> readEditLog(const std::string& path, const std::string& 
         if (line.find_first_not_of(" \t") == std::string::npos) continue;
         if (!complete && !isValidJson(line)) {
             // A crash mid-write: report it, keep everything before it.
-            std::fprintf(stderr,
-                         "penumbra: %s: line %d: warning: truncated final line (no newline, not "
-                         "valid JSON) skipped\n",
-                         path.c_str(), lineNo);
+            spdlog::warn("{}: line {}: truncated final line (no newline, not valid JSON) skipped",
+                         path, lineNo);
             break;
         }
         EditSource source{path, lineNo};

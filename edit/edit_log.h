@@ -11,8 +11,8 @@
 namespace penumbra {
 
 /// Appends edits to a log file. Opening an existing log appends to it; a final line cut off
-/// by a crash (no newline and not valid JSON) is reported on stderr and cut away first, so the
-/// new lines do not run into it. Not copyable; closes the file on destruction.
+/// by a crash (no newline and not valid JSON) is reported (spdlog::warn) and cut away first, so
+/// the new lines do not run into it. Not copyable; closes the file on destruction.
 class EditLogWriter {
 public:
     /// Opens (creates) `path` for appending. Throws InputError naming the file when it cannot
@@ -48,8 +48,8 @@ struct LoggedEdit {
 
 /// Reads every edit of the log at `path`. Blank lines are skipped. A malformed line throws
 /// InputError `PATH: line N: ...` (nothing is returned). A final line without newline that is
-/// not valid JSON (a crash mid-write) is reported as one warning line on stderr,
-/// `penumbra: PATH: line N: warning: ...`, and skipped; the lines before it are returned.
+/// not valid JSON (a crash mid-write) is reported as one warning, `PATH: line N: truncated
+/// final line ...` (spdlog::warn, core/log.h), and skipped; the lines before it are returned.
 /// "add" objects' mesh files resolve relative to `meshBaseDir` (the scene's directory); their
 /// materials are checked when the edit is applied. Throws InputError when the file cannot be
 /// read.

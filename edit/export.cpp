@@ -21,6 +21,7 @@
 
 #include "core/colour.h"
 #include "core/durable_file.h"
+#include "core/file_name.h"
 #include "edit/scene_io.h"
 #include "solver/discretization.h"
 
@@ -141,12 +142,8 @@ std::vector<LitObject> collectLitObjects(const Discretization& disc,
         LitObject& object = lit[element.object];
         object.polygons.push_back(element.vertices);
         object.polygonMaterial.push_back(disc.patches()[element.patch].material);
-        Vec3 newell(0.0);
-        const size_t n = element.vertices.size();
-        for (size_t i = 0; i < n; ++i) {
-            newell += glm::cross(object.positions[element.vertices[i]],
-                                 object.positions[element.vertices[(i + 1) % n]]);
-        }
+        const Vec3 newell =
+            newellNormal(object.positions, element.vertices.data(), element.vertices.size());
         for (int v : element.vertices) object.normals[v] += newell;
     }
     for (LitObject& object : lit) {
@@ -690,13 +687,6 @@ std::string encodeMtl(const Discretization& disc, const std::vector<LitObject>& 
         out += "illum 1\n";
     }
     return out;
-}
-
-std::string lowerExtension(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return ext;
 }
 
 }  // namespace

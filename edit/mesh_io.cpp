@@ -22,7 +22,6 @@
 #include <functional>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
-#include <iostream>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -35,7 +34,9 @@
 
 #include "core/colour.h"
 #include "core/durable_file.h"
+#include "core/file_name.h"
 #include "core/input_error.h"
+#include "core/log.h"
 
 namespace penumbra {
 
@@ -109,13 +110,7 @@ void triangulatePolygon(const std::vector<Vec3>& positions, const int* vertices,
     }
 
     // Project onto the coordinate plane most perpendicular to the Newell normal.
-    Vec3 normal(0.0);
-    for (size_t i = 0; i < n; ++i) {
-        const Vec3& p = positions[vertices[i]];
-        const Vec3& q = positions[vertices[(i + 1) % n]];
-        normal +=
-            Vec3((p.y - q.y) * (p.z + q.z), (p.z - q.z) * (p.x + q.x), (p.x - q.x) * (p.y + q.y));
-    }
+    const Vec3 normal = newellNormal(positions, vertices, n);
     constexpr size_t kMaxEarClippingVertices = 1024;
     const Vec3 absNormal = glm::abs(normal);
     if (n > kMaxEarClippingVertices || !(absNormal.x + absNormal.y + absNormal.z > 0.0)) {
@@ -242,9 +237,9 @@ TriMesh buildTriMesh(const PolygonSoup& soup, const std::string& path) {
                                               std::to_string(faceCount) + " are degenerate)");
     }
     if (degenerate > 0) {
-        std::cerr << "warning: " << path << ": dropped " << degenerate << " degenerate face"
-                  << (degenerate == 1 ? "" : "s")
-                  << " (zero area, repeated vertex or non-finite coordinate)" << std::endl;
+        spdlog::warn("{}: dropped {} degenerate face{} (zero area, repeated vertex or non-finite "
+                     "coordinate)",
+                     path, degenerate, degenerate == 1 ? "" : "s");
     }
 
     // Keep only referenced vertices, in first-use order.
@@ -1316,13 +1311,6 @@ MeshFileScene readObjScene(const std::string& path) {
     return scene;
 }
 
-std::string lowerCaseExtension(const std::string& path) {
-    std::string extension = std::filesystem::path(path).extension().string();
-    std::transform(extension.begin(), extension.end(), extension.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return extension;
-}
-
 /// Reads the file with the reader its (lower-case) extension names.
 PolygonSoup readByExtension(const std::string& path, const std::string& extension) {
     if (extension == ".obj") return readObj(path);
@@ -1354,7 +1342,7 @@ TriMesh loadMeshFile(const std::string& path) {
         throw InputError(path, "", std::string("cannot read mesh file: ") + std::strerror(errno));
     }
 
-    const std::string extension = lowerCaseExtension(path);
+    const std::string extension = lowerExtension(path);
     PolygonSoup soup;
     try {
         soup = readByExtension(path, extension);
@@ -1374,7 +1362,7 @@ MeshFileScene loadMeshFileScene(const std::string& path) {
         throw InputError(path, "", "is a directory, not a scene file");
     if (!std::ifstream(path, std::ios::binary).good())
         throw InputError(path, "", std::string("cannot read file: ") + std::strerror(errno));
-    const std::string extension = lowerCaseExtension(path);
+    const std::string extension = lowerExtension(path);
     MeshFileScene scene;
     try {
         if (extension == ".gltf" || extension == ".glb")

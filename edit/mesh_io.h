@@ -13,8 +13,8 @@ namespace penumbra {
 /// (case-insensitive): .obj, .off, .ply, .stl, .gltf, .glb.
 /// - Polygons are triangulated (ear clipping in the polygon's plane; fan as a fallback).
 /// - Degenerate faces (fewer than 3 vertices, a repeated vertex, a non-finite coordinate, or
-///   zero area at single-precision resolution) are dropped; if any were, ONE line
-///   `warning: PATH: dropped N degenerate faces (...)` goes to stderr.
+///   zero area at single-precision resolution) are dropped; if any were, ONE warning
+///   `PATH: dropped N degenerate faces (...)` is logged (spdlog::warn, core/log.h).
 /// - Unreferenced vertices are removed, so every position is finite and used.
 /// - Materials: OBJ `Kd` / glTF `baseColorFactor` (rgb) become reflectance clamped to
 ///   [0, 0.99]; OBJ `Ke` / glTF `emissiveFactor` (× KHR_materials_emissive_strength) become

@@ -6,14 +6,15 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <iostream>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 
+#include "core/file_name.h"
 #include "core/input_error.h"
+#include "core/log.h"
 #include "edit/mesh_io.h"
 #include "edit/scene_io.h"
 #include "solver/discretization.h"
@@ -29,13 +30,6 @@ constexpr double kMaxReflectance = 0.99;
 constexpr double kLumensPerWatt = 683.0;
 /// Receivers an imported scene is discretized into, about (Importer::chooseSettings).
 constexpr double kTargetElements = 16000;
-
-std::string lowerExtension(const std::string& path) {
-    std::string e = std::filesystem::path(path).extension().string();
-    std::transform(e.begin(), e.end(), e.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return e;
-}
 
 std::string rgbText(const Rgb& c) {
     std::ostringstream out;
@@ -87,11 +81,10 @@ struct Importer {
     MeshFileScene file;
 
     void warn(const std::string& what) const {
-        const std::string line = "warning: " + path + ": " + what;
         if (options.warn)
-            options.warn(line);
+            options.warn("warning: " + path + ": " + what);
         else
-            std::cerr << line << std::endl;
+            spdlog::warn("{}: {}", path, what);
     }
 
     Material convert(const MeshFileMaterial& m, const std::string& name) const {

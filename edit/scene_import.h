@@ -23,7 +23,8 @@ struct ImportOptions {
     double lightRadius = 0.05;
     /// OBJ files: metres per file unit (--units mm 0.001, cm 0.01, m 1). glTF is in metres.
     double objUnit = 1.0;
-    /// Receives each warning line (`warning: FILE: ...`); null writes them to stderr.
+    /// Receives each warning line (`warning: FILE: ...`); null logs them (spdlog::warn,
+    /// `FILE: ...`).
     std::function<void(const std::string&)> warn;
 };
 

@@ -511,15 +511,6 @@ std::string lineAndColumn(const std::string& text, size_t offset) {
     return "line " + std::to_string(line) + ", column " + std::to_string(offset - lineStart + 1);
 }
 
-/// nlohmann's message without its "[json.exception...] parse error at line L, column C: "
-/// prefix (the position is reported separately).
-std::string parseProblem(const std::string& message) {
-    const size_t at = message.find("parse error");
-    if (at == std::string::npos) return message;
-    const size_t colon = message.find(": ", at);
-    return colon == std::string::npos ? message : message.substr(colon + 2);
-}
-
 constexpr int kMaxNesting = 64;
 
 /// Parses `text`, failing on malformed JSON, on nesting deeper than kMaxNesting and on a
@@ -534,14 +525,11 @@ Json parseSceneText(const std::string& text, const std::string& sourceName) {
         json = parseJsonTracked(text, problem);
     } catch (const Json::parse_error& error) {
         const size_t offset = error.byte > 0 ? error.byte - 1 : 0;
-        throw InputError(sourceName, lineAndColumn(text, offset), parseProblem(error.what()));
+        throw InputError(sourceName, lineAndColumn(text, offset),
+                         jsonErrorProblem(error.what()));
     } catch (const Json::exception& error) {
         // out_of_range: a number beyond a double ("number overflow parsing '1e999'").
-        std::string problem = error.what();
-        const size_t bracket = problem.find("] ");
-        if (problem.rfind("[json.exception", 0) == 0 && bracket != std::string::npos)
-            problem = problem.substr(bracket + 2);
-        throw InputError(sourceName, "", problem);
+        throw InputError(sourceName, "", jsonErrorProblem(error.what()));
     }
     if (problem) {
         if (problem->tooDeep)
@@ -828,6 +816,18 @@ void saveScene(const Scene& scene, const std::string& path) {
         object.shape.file = file;
     }
     writeFileAtomically(path, formatSceneText(sceneToJson(written)));
+}
+
+std::string jsonErrorProblem(const std::string& message) {
+    const size_t at = message.find("parse error");
+    if (at != std::string::npos) {
+        const size_t colon = message.find(": ", at);
+        return colon == std::string::npos ? message : message.substr(colon + 2);
+    }
+    const size_t bracket = message.find("] ");
+    if (message.rfind("[json.exception", 0) == 0 && bracket != std::string::npos)
+        return message.substr(bracket + 2);
+    return message;
 }
 
 std::string describeType(const Json& value) {

@@ -103,6 +103,10 @@ struct JsonStructureProblem {
     std::string key;     ///< the repeated key
     bool tooDeep = false;
 };
+/// An nlohmann exception's message as the readers report it: without its
+/// "[json.exception.KIND.N] " prefix, and for a parse error without "parse error at line L,
+/// column C: " too (the readers state the position themselves).
+std::string jsonErrorProblem(const std::string& message);
 /// Parses `text` (nlohmann's exceptions propagate) and reports the first structural problem
 /// in `problem`; the scene loader and the edit-log reader turn it into their own messages.
 nlohmann::ordered_json parseJsonTracked(const std::string& text,

@@ -158,16 +158,12 @@ void EdgeMesh::copyFacesAndPlanes(const ElementMesh& om, const std::vector<int>&
     mFacePlanes.resize(om.n_faces());
     mFaceStart.push_back(0);
     for (auto fh : om.faces()) {
-        Vec3 n(0.0), c(0.0);
         int first = static_cast<int>(mFaceVertices.size());
         for (auto vh : om.fv_range(fh)) mFaceVertices.push_back(vh.idx());
         int count = static_cast<int>(mFaceVertices.size()) - first;
-        for (int i = 0; i < count; ++i) {
-            const Vec3& a = mPositions[mFaceVertices[first + i]];
-            const Vec3& b = mPositions[mFaceVertices[first + (i + 1) % count]];
-            n += glm::cross(a, b);
-            c += a;
-        }
+        const Vec3 n = newellNormal(mPositions, &mFaceVertices[first], std::size_t(count));
+        Vec3 c(0.0);
+        for (int i = 0; i < count; ++i) c += mPositions[mFaceVertices[first + i]];
         mFaceStart.push_back(static_cast<int>(mFaceVertices.size()));
         double len = glm::length(n);
         FacePlane& plane = mFacePlanes[fh.idx()];
@@ -503,42 +499,18 @@ double EdgeTree::splitCost(const std::vector<int>& order, int from, int to) cons
 // ---------------------------------------------------------------------------------------------
 // EdgeTree traversal
 
-std::size_t EdgeTree::silhouetteRecords(const Vec3& eye, std::vector<int>& records,
-                                        EdgeTreeStats* stats) const {
-    if (mRecords.empty()) return 0;
-    const double e[3] = {eye.x, eye.y, eye.z};
+template <typename Culled, typename Visit>
+void EdgeTree::walk(Culled&& culled, Visit&& visit, EdgeTreeStats* stats) const {
     long long visited = 0, tested = 0;
-    std::size_t found = 0;
     int stack[128];
     int top = 0;
     stack[top++] = 0;
     while (top > 0) {
         const Node& node = mNodes[stack[--top]];
         ++visited;
-        // Interval form of eq. 1: [N]·(e − c) − [d] over every face below.
-        double lo = 0, hi = 0, mag = 0;
-        for (int k = 0; k < 3; ++k) {
-            double w = e[k] - node.c[k];
-            double a = node.nLo[k] * w, b = node.nHi[k] * w;
-            lo += std::min(a, b);
-            hi += std::max(a, b);
-            mag += std::abs(w) + std::abs(node.c[k]);
-        }
-        double tol = 1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi));
-        if (lo - node.dHi > tol || hi - node.dLo < -tol) continue;  // all front or all back
-        int last = node.child < 0 ? node.end : node.begin + node.stored;
-        // Every tested record is written and the count advances on silhouettes only: about a
-        // third of the tested edges are silhouettes, in no pattern a branch could predict.
-        const std::size_t room = found + static_cast<std::size_t>(last - node.begin);
-        if (records.size() < room) records.resize(std::max(room, 2 * records.size()));
-        int* out = records.data();
-        for (int i = node.begin; i < last; ++i) {
-            const Record& r = mRecords[i];
-            bool front0 = r.n0[0] * e[0] + r.n0[1] * e[1] + r.n0[2] * e[2] - r.d0 > 0;
-            bool front1 = r.n1[0] * e[0] + r.n1[1] * e[1] + r.n1[2] * e[2] - r.d1 > 0;
-            out[found] = i;
-            found += front0 != front1;  // eq. 1
-        }
+        if (culled(node)) continue;
+        const int last = node.child < 0 ? node.end : node.begin + node.stored;
+        visit(node.begin, last);
         tested += last - node.begin;
         if (node.child >= 0) {
             stack[top++] = node.child;
@@ -549,6 +521,42 @@ std::size_t EdgeTree::silhouetteRecords(const Vec3& eye, std::vector<int>& recor
         stats->nodesVisited += visited;
         stats->edgesTested += tested;
     }
+}
+
+std::size_t EdgeTree::silhouetteRecords(const Vec3& eye, std::vector<int>& records,
+                                        EdgeTreeStats* stats) const {
+    if (mRecords.empty()) return 0;
+    const double e[3] = {eye.x, eye.y, eye.z};
+    std::size_t found = 0;
+    // Interval form of eq. 1: [N]·(e − c) − [d] over every face below; culled when it excludes
+    // zero (all front or all back).
+    const auto culled = [&](const Node& node) {
+        double lo = 0, hi = 0, mag = 0;
+        for (int k = 0; k < 3; ++k) {
+            double w = e[k] - node.c[k];
+            double a = node.nLo[k] * w, b = node.nHi[k] * w;
+            lo += std::min(a, b);
+            hi += std::max(a, b);
+            mag += std::abs(w) + std::abs(node.c[k]);
+        }
+        double tol = 1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi));
+        return lo - node.dHi > tol || hi - node.dLo < -tol;
+    };
+    const auto visit = [&](int begin, int last) {
+        // Every tested record is written and the count advances on silhouettes only: about a
+        // third of the tested edges are silhouettes, in no pattern a branch could predict.
+        const std::size_t room = found + static_cast<std::size_t>(last - begin);
+        if (records.size() < room) records.resize(std::max(room, 2 * records.size()));
+        int* out = records.data();
+        for (int i = begin; i < last; ++i) {
+            const Record& r = mRecords[i];
+            bool front0 = r.n0[0] * e[0] + r.n0[1] * e[1] + r.n0[2] * e[2] - r.d0 > 0;
+            bool front1 = r.n1[0] * e[0] + r.n1[1] * e[1] + r.n1[2] * e[2] - r.d1 > 0;
+            out[found] = i;
+            found += front0 != front1;  // eq. 1
+        }
+    };
+    walk(culled, visit, stats);
     return found;
 }
 
@@ -583,14 +591,8 @@ void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::ve
     if (mRecords.empty() || region.empty()) return;
     Box3 box;
     for (const Vec3& p : region) box.extend(p);
-    long long visited = 0, tested = 0;
-    int stack[128];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const Node& node = mNodes[stack[--top]];
-        ++visited;
-        // Interval eye: [N]·([e] − c) − [d].
+    // Interval eye: [N]·([e] − c) − [d].
+    const auto culled = [&](const Node& node) {
         double lo = 0, hi = 0, mag = 0;
         for (int k = 0; k < 3; ++k) {
             double w0 = box.lo[k] - node.c[k], w1 = box.hi[k] - node.c[k];
@@ -600,9 +602,10 @@ void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::ve
             mag += std::max(std::abs(w0), std::abs(w1)) + std::abs(node.c[k]);
         }
         double tol = 1e-12 * (mag + std::abs(node.dLo) + std::abs(node.dHi));
-        if (lo - node.dHi > tol || hi - node.dLo < -tol) continue;
-        int last = node.child < 0 ? node.end : node.begin + node.stored;
-        for (int i = node.begin; i < last; ++i) {
+        return lo - node.dHi > tol || hi - node.dLo < -tol;
+    };
+    const auto visit = [&](int begin, int last) {
+        for (int i = begin; i < last; ++i) {
             const Record& r = mRecords[i];
             bool allFront = true, allBack = true;
             for (const Vec3& v : region) {
@@ -613,16 +616,8 @@ void EdgeTree::findSilhouetteCandidates(const std::vector<Vec3>& region, std::ve
             }
             if (!allFront && !allBack) out.push_back(r.edge);
         }
-        tested += last - node.begin;
-        if (node.child >= 0) {
-            stack[top++] = node.child;
-            stack[top++] = node.child + 1;
-        }
-    }
-    if (stats) {
-        stats->nodesVisited += visited;
-        stats->edgesTested += tested;
-    }
+    };
+    walk(culled, visit, stats);
 }
 
 std::string EdgeTree::toString() const {

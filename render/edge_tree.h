@@ -208,6 +208,11 @@ private:
     int splitAtBestAxis(std::vector<int>& order, int mid, int end) const;
     /// A split half's cost: its normal extent × the root's size plus its midpoints' extent.
     double splitCost(const std::vector<int>& order, int from, int to) const;
+    /// Depth-first walk from the root: a node for which `culled(node)` holds is skipped with
+    /// everything below it; otherwise `visit(begin, last)` gets the records it stores
+    /// [begin, last) and its children are walked. Counts into `stats` when given.
+    template <typename Culled, typename Visit>
+    void walk(Culled&& culled, Visit&& visit, EdgeTreeStats* stats) const;
     /// Eq. 1 over the tree: the record indices of the interior silhouette edges in
     /// records[0, returned count) (`records` only grows; entries past the count are scratch).
     std::size_t silhouetteRecords(const Vec3& eye, std::vector<int>& records,

@@ -1,11 +1,8 @@
 #include "render/image.h"
 
 #include <algorithm>
-#include <cctype>
-#include <cmath>
 #include <cstdint>
 #include <cstdlib>
-#include <filesystem>
 #include <sstream>
 #include <stdexcept>
 
@@ -15,7 +12,9 @@
 // Debian's libtinyexr is a shared library (CMake target tinyexr::tinyexr): declarations only.
 #include <tinyexr.h>
 
+#include "core/colour.h"
 #include "core/durable_file.h"
+#include "core/file_name.h"
 
 namespace penumbra {
 
@@ -76,20 +75,6 @@ void checkImage(const Image& image, const std::string& path) {
     }
 }
 
-std::uint8_t encodeByte(double linear) {
-    double v = srgbEncode(linear);
-    if (!(v > 0.0)) return 0;  // also NaN
-    if (v >= 1.0) return 255;
-    return static_cast<std::uint8_t>(std::lround(v * 255.0));
-}
-
-std::string lowerExtension(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return ext;
-}
-
 }  // namespace
 
 Image::Image(int w, int h, const Rgb& fill) : width(w), height(h) {
@@ -113,9 +98,9 @@ void writePng(const Image& image, const std::string& path) {
     std::vector<std::uint8_t> bytes(static_cast<size_t>(image.width) * image.height * 3);
     for (size_t i = 0; i < image.pixels.size(); ++i) {
         const Rgb& p = image.pixels[i];
-        bytes[3 * i + 0] = encodeByte(p.x);
-        bytes[3 * i + 1] = encodeByte(p.y);
-        bytes[3 * i + 2] = encodeByte(p.z);
+        bytes[3 * i + 0] = srgbByteExact(p.x);
+        bytes[3 * i + 1] = srgbByteExact(p.y);
+        bytes[3 * i + 2] = srgbByteExact(p.z);
     }
 
     writeFileAtomically(path, [&](std::ostream& out) {

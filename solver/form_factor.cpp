@@ -13,13 +13,6 @@ namespace penumbra {
 
 namespace {
 
-Vec3 polygonNormal(const std::vector<Vec3>& poly) {
-    Vec3 n(0.0);
-    for (std::size_t i = 0; i < poly.size(); ++i)
-        n += glm::cross(poly[i], poly[(i + 1) % poly.size()]);
-    return n;
-}
-
 /// Uniform point in a convex polygon: the fan triangle by area (r0 ∈ [0, 1]; `fans` from
 /// accumulateFanAreas), then a uniform point of it.
 Vec3 samplePolygon(const std::vector<Vec3>& poly, const std::vector<double>& fans, double r0,
@@ -97,7 +90,7 @@ double clippedFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
 double polygonFormFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& polygon) {
     thread_local std::vector<Vec3> clipped;
     bool usesClipped = false;
-    return clippedFormFactor(x, n, polygon, polygonNormal(polygon), clipped, usesClipped);
+    return clippedFormFactor(x, n, polygon, newellNormal(polygon), clipped, usesClipped);
 }
 
 int visibilityRayCount(double fUnoccluded, int maxRays) {

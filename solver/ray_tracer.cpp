@@ -6,11 +6,11 @@
 #include <array>
 #include <atomic>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string>
 
+#include "core/log.h"
 #include "solver/discretization.h"
 
 namespace penumbra {
@@ -18,8 +18,7 @@ namespace penumbra {
 namespace {
 
 void reportEmbreeError(void*, RTCError code, const char* message) {
-    std::fprintf(stderr, "penumbra: Embree error %d: %s\n", static_cast<int>(code),
-                 message ? message : "");
+    spdlog::error("Embree error {}: {}", static_cast<int>(code), message ? message : "");
 }
 
 /// Context carrying the visibility rule into the filter function.

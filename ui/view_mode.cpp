@@ -30,8 +30,6 @@ std::uint8_t toByte(double v) {
     return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255.0));
 }
 
-double encoded(double v) { return srgbEncode(std::clamp(std::isfinite(v) ? v : 0.0, 0.0, 1.0)); }
-
 }  // namespace
 
 const char* viewModeLabel(ViewMode mode) { return kModes[static_cast<int>(mode)].label; }
@@ -66,7 +64,7 @@ void blendEdges(std::vector<std::uint8_t>& rgba, const Image& classes, double al
         if (std::max({k.x, k.y, k.z}) <= 0.3) continue;
         for (int c = 0; c < 3; ++c) {
             const double v = rgba[4 * i + c] / 255.0;
-            rgba[4 * i + c] = toByte(v + alpha * (encoded(k[c]) - v));
+            rgba[4 * i + c] = toByte(v + alpha * (srgbEncodeClipped(k[c]) - v));
         }
     }
 }
@@ -110,7 +108,8 @@ std::vector<std::uint8_t> differenceImage(const Image& a, const Image& reference
             mean /= double(f * f);
             const Rgb& r = reference.at(x, y);
             double d = 0;
-            for (int c = 0; c < 3; ++c) d += std::abs(encoded(mean[c]) - encoded(r[c]));
+            for (int c = 0; c < 3; ++c)
+                d += std::abs(srgbEncodeClipped(mean[c]) - srgbEncodeClipped(r[c]));
             d /= 3.0;
             sum += d;
             std::uint8_t colour[4];

@@ -6,11 +6,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <glm/gtc/constants.hpp>
 #include <stdexcept>
-#include <string>
 
+#include "core/colour.h"
 #include "render/camera_rays.h"
+#include "render/gouraud_renderer.h"
 #include "solver/discretization.h"
 #include "solver/ray_tracer.h"
 
@@ -19,72 +19,23 @@ namespace penumbra {
 ViewportRender renderViewport(const Discretization& disc, const RayTracer& tracer,
                               const std::vector<Rgb>& radiosity, const Camera& camera, int width,
                               int height, int previewVersion, int highlightVersion) {
-    if (radiosity.size() != disc.elements().size())
-        throw std::invalid_argument("renderViewport: " + std::to_string(radiosity.size()) +
-                                    " radiosity values for " +
-                                    std::to_string(disc.elements().size()) + " elements");
-    const CameraRays rays(camera, width, height);
-    const auto& objects = disc.objects();
-    const auto& elements = disc.elements();
-
-    // Which versions are seen: the current scene, plus the preview version while dragging.
-    std::vector<std::uint8_t> world;
-    Visibility visibility;
-    const bool preview = previewVersion >= 0 && previewVersion < static_cast<int>(objects.size());
-    if (preview) {
-        world.resize(objects.size());
-        for (std::size_t o = 0; o < objects.size(); ++o) world[o] = objects[o].alive ? 1 : 0;
-        world[previewVersion] = 1;
-        visibility.world = &world;
-    }
-
-    // Per-vertex radiosity of the versions that can be seen (dead versions pile up during
-    // drags; skip them).
-    std::vector<std::vector<Rgb>> vertexRadiosity(objects.size());
-    tbb::parallel_for(std::size_t(0), objects.size(), [&](std::size_t o) {
-        if (objects[o].alive || (preview && static_cast<int>(o) == previewVersion))
-            vertexRadiosity[o] = disc.vertexValues(static_cast<int>(o), radiosity);
-    });
-
+    // The Gouraud view at one sample per pixel, with the preview version and what each pixel
+    // shows.
     ViewportRender out;
-    out.radiance = Image(width, height);
-    out.objectAt.assign(static_cast<std::size_t>(width) * height, -1);
-    const double invPi = glm::one_over_pi<double>();
-
-    // One primary ray through each pixel centre.
-    tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
-        for (int y = r.begin(); y != r.end(); ++y)
-            for (int x = 0; x < width; ++x) {
-                const RayHit hit = tracer.intersect(
-                    rays.origin(), rays.rayDirection(x + 0.5, y + 0.5), 0.0, 1e30, visibility);
-                if (hit.object < 0 || hit.element < 0) continue;
-                out.objectAt[static_cast<std::size_t>(y) * width + x] = hit.object;
-                const Element& element = elements[hit.element];
-                if (hit.backFace && !objects[element.object].twoSided) continue;
-                const std::vector<Rgb>& vr = vertexRadiosity[element.object];
-                Rgb b(0.0);
-                if (hit.weights.size() == element.vertices.size() && !vr.empty()) {
-                    for (std::size_t i = 0; i < element.vertices.size(); ++i)
-                        b += hit.weights[i] * vr[element.vertices[i]];
-                } else {
-                    b = radiosity[hit.element];
-                }
-                out.radiance.at(x, y) = b * invPi;
-            }
-    });
+    GouraudExtras extras;
+    extras.previewVersion = previewVersion;
+    extras.objectAt = &out.objectAt;
+    out.radiance = renderGouraud(disc, tracer, radiosity, camera, width, height, 1, extras);
 
     // Display: sRGB, clipped; the selected object's border in orange.
     out.rgba.resize(static_cast<std::size_t>(width) * height * 4);
-    auto encode = [](double v) {
-        const double e = srgbEncode(std::clamp(std::isfinite(v) ? v : 0.0, 0.0, 1.0));
-        return static_cast<std::uint8_t>(std::lround(e * 255.0));
-    };
     tbb::parallel_for(0, height, [&](int y) {
         for (int x = 0; x < width; ++x) {
             const std::size_t i = static_cast<std::size_t>(y) * width + x;
             std::uint8_t* p = &out.rgba[4 * i];
             const Rgb& c = out.radiance.at(x, y);
-            p[0] = encode(c.x), p[1] = encode(c.y), p[2] = encode(c.z), p[3] = 255;
+            p[0] = srgbByteExact(c.x), p[1] = srgbByteExact(c.y), p[2] = srgbByteExact(c.z);
+            p[3] = 255;
         }
     });
     if (highlightVersion >= 0)

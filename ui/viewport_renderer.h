@@ -1,10 +1,11 @@
 #pragma once
-// The viewport's image of the lit scene: the Gouraud radiosity view (render/gouraud_renderer.h's
-// shading: Embree primary rays, per-vertex radiosity blended with the hit's barycentric
-// weights, radiance B/π, black backs of one-sided surfaces) at one sample per pixel, plus what
-// the editor needs on top: the object being dragged, which has left the solution and exists
-// only as the solver's preview version (George et al.'s temporary buffer), and an outline of
-// the selected object. Stays here until the edge-and-point display (render/) replaces it.
+// The viewport's image of the lit scene: the Gouraud radiosity view (renderGouraud,
+// render/gouraud_renderer.h: Embree primary rays, per-vertex radiosity blended with the hit's
+// barycentric weights, radiance B/π, black backs of one-sided surfaces) at one sample per pixel,
+// with what the editor needs on top: the object being dragged, which has left the solution and
+// exists only as the solver's preview version (George et al.'s temporary buffer), which object
+// each pixel shows, and an outline of the selected object. Stays here until the edge-and-point
+// display (render/) replaces it.
 
 #include <cstdint>
 #include <vector>

@@ -97,9 +97,15 @@ TEST_F(RenderModesCli, FramesOverlayAndReport) {
     ASSERT_TRUE(report.contains("frames"));
     ASSERT_EQ(report["frames"].size(), 3u);
     for (const json& f : report["frames"]) {
-        for (const char* key : {"total_ms", "reconstruct_ms", "new_sample_fraction",
-                                "find_edges_ms", "rasterize_ms", "points_ms", "reachability_ms",
-                                "interpolate_ms", "anti_alias_ms", "complex_filter_ms"}) {
+        // Every figure of bench/display_report.h's displayFrameJson.
+        for (const char* key :
+             {"frame", "total_ms", "reconstruct_ms", "new_sample_fraction", "find_edges_ms",
+              "silhouette_ms", "shadow_ms", "project_ms", "rasterize_ms", "points_ms",
+              "reachability_ms", "interpolate_ms", "anti_alias_ms", "complex_filter_ms",
+              "smooth_ms", "fill_ms", "hide_ms", "request_ms", "shade_ms", "new_samples",
+              "requested_samples", "visible_points", "silhouette_edges", "sharp_edges",
+              "shadow_edges", "screen_edges", "empty_pixels", "simple_pixels", "complex_pixels",
+              "unsampled_pixels", "unfilled_pixels"}) {
             ASSERT_TRUE(f.contains(key)) << key << " missing in " << f.dump();
             EXPECT_GE(f[key].get<double>(), 0.0) << key;
         }

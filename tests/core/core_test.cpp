@@ -1,12 +1,15 @@
 // The core library against values worked out independently: Newell's normal of known
-// polygons, the plane frame's round trip and orientation, the sRGB curve's published
-// constants, and SplitMix64's published first outputs for seed 0.
+// polygons (and of an indexed face), the plane frame's round trip and orientation, the sRGB
+// curve's published constants and its bytes, file extensions, and SplitMix64's published
+// first outputs for seed 0.
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 #include "core/colour.h"
+#include "core/file_name.h"
 #include "core/math.h"
 #include "core/random.h"
 #include "core/timing.h"
@@ -26,6 +29,21 @@ TEST(CoreMath, NewellNormalIsTwiceTheAreaAlongTheNormal) {
     // Reversed winding flips it; a degenerate polygon has none.
     EXPECT_NEAR(glm::dot(unitNormal({a + w, a + u + w, a + u, a}), Vec3(r, r, 0)), -1.0, 1e-12);
     EXPECT_EQ(glm::length(unitNormal({Vec3(0, 0, 0), Vec3(1, 1, 0), Vec3(2, 2, 0)})), 0.0);
+}
+
+TEST(CoreMath, NewellNormalOfAnIndexedFaceIsThatOfItsPolygon) {
+    const std::vector<Vec3> positions = {{9, 9, 9}, {0, 0, 1}, {2, 0.5, 1}, {2, 2, 1.5}, {0, 2, 1}};
+    const int corners[] = {1, 2, 3, 4};
+    const Vec3 indexed = newellNormal(positions, corners, 4);
+    EXPECT_EQ(indexed, newellNormal({positions[1], positions[2], positions[3], positions[4]}));
+    EXPECT_GT(indexed.z, 0) << "counter-clockwise seen from +z";
+}
+
+TEST(CoreFileName, LowerExtensionKeepsTheDotAndLowersAscii) {
+    EXPECT_EQ(lowerExtension("scenes/Room.GLTF"), ".gltf");
+    EXPECT_EQ(lowerExtension("out.Ply"), ".ply");
+    EXPECT_EQ(lowerExtension("dir.d/noext"), "");
+    EXPECT_EQ(lowerExtension("archive.tar.GZ"), ".gz");
 }
 
 TEST(CoreMath, PlaneFrameRoundTripsAndKeepsCounterClockwise) {
@@ -59,6 +77,15 @@ TEST(CoreColour, SrgbCurveMatchesTheStandardsConstants) {
     }
     EXPECT_EQ(srgbByte(-1), 0);
     EXPECT_EQ(srgbByte(7), 255);
+    // The exact byte: the curve clipped and rounded, NaN and negatives black, overflow white.
+    for (int k = 0; k <= 1000; ++k) {
+        const double v = k / 1000.0;
+        EXPECT_EQ(int(srgbByteExact(v)), int(std::lround(255 * srgbEncode(v)))) << v;
+    }
+    EXPECT_EQ(srgbByteExact(std::nan("")), 0);
+    EXPECT_EQ(srgbByteExact(-0.5), 0);
+    EXPECT_EQ(srgbByteExact(1.5), 255);
+    EXPECT_EQ(srgbByteExact(std::numeric_limits<double>::infinity()), 255);
 }
 
 TEST(CoreRandom, SplitMix64GivesThePublishedSequenceForSeedZero) {

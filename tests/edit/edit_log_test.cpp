@@ -15,6 +15,7 @@
 #include "edit/edit_command.h"
 #include "edit/edit_session.h"
 #include "edit/scene_io.h"
+#include "log_capture.h"
 #include "test_scenes.h"
 
 namespace penumbra {
@@ -228,21 +229,27 @@ TEST(EditLog, TruncatedFinalLineIsReportedAndSkipped) {
               "{\"op\":\"select\",\"id\":\"crate\"}\n\n{\"op\":\"move\",\"id\":\"crate\",\"by\":[0."
               "1,0,0]}\n"
               "{\"op\":\"move\",\"id\":\"cr");
-    ::testing::internal::CaptureStderr();
-    const auto edits = readEditLog(log.string());
-    const std::string err = ::testing::internal::GetCapturedStderr();
+    std::vector<LoggedEdit> edits;
+    std::string err;
+    {
+        test::LogCapture capture;
+        edits = readEditLog(log.string());
+        err = capture.text();
+    }
     ASSERT_EQ(edits.size(), 2u);
     EXPECT_EQ(edits[0].line, 1);
     EXPECT_EQ(edits[1].line, 3) << "blank lines count";
     EXPECT_STREQ(edits[1].command.opName(), "move");
     EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
-    EXPECT_NE(err.find(log.string() + ": line 4: warning: truncated"), std::string::npos) << err;
+    EXPECT_EQ(err.rfind("warning: " + log.string() + ": line 4: truncated", 0), 0u) << err;
 
     // A complete final line without newline is kept.
     writeFile(log, "{\"op\":\"unselect\"}\n{\"op\":\"solve\",\"shots\":3}");
-    ::testing::internal::CaptureStderr();
-    EXPECT_EQ(readEditLog(log.string()).size(), 2u);
-    EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+    {
+        test::LogCapture capture;
+        EXPECT_EQ(readEditLog(log.string()).size(), 2u);
+        EXPECT_EQ(capture.text(), "");
+    }
 
     // A truncated line that is not the last is malformed, not skipped.
     writeFile(log, "{\"op\":\"unselect\"}\n{\"op\":\"solve\",\"sh\n{\"op\":\"undo\"}\n");
@@ -255,15 +262,22 @@ TEST(EditLog, TruncatedFinalLineIsReportedAndSkipped) {
 
     // Reopening a log that ends in a cut-off line removes it before appending.
     writeFile(log, "{\"op\":\"unselect\"}\n{\"op\":\"solve\",\"sh");
-    ::testing::internal::CaptureStderr();
+    std::vector<LoggedEdit> reopened;
     {
-        EditLogWriter writer(log.string());
-        writer.append(UndoCommand{});
+        test::LogCapture capture;
+        {
+            EditLogWriter writer(log.string());
+            writer.append(UndoCommand{});
+        }
+        EXPECT_NE(capture.text().find("warning: " + log.string() + ": line 2: truncated"),
+                  std::string::npos)
+            << capture.text();
     }
-    EXPECT_NE(::testing::internal::GetCapturedStderr().find("line 2: warning"), std::string::npos);
-    ::testing::internal::CaptureStderr();
-    const auto reopened = readEditLog(log.string());
-    EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+    {
+        test::LogCapture capture;
+        reopened = readEditLog(log.string());
+        EXPECT_EQ(capture.text(), "");
+    }
     ASSERT_EQ(reopened.size(), 2u);
     EXPECT_STREQ(reopened[1].command.opName(), "undo");
     EXPECT_EQ(reopened[1].line, 2);

@@ -270,6 +270,56 @@ TEST(Gouraud, DeterministicAcrossThreadCounts) {
     EXPECT_GT(lit, 100) << "the box should cover part of the image";
 }
 
+TEST(Gouraud, APreviewVersionIsSeenAsIfAliveAndObjectAtNamesWhatEachPixelShows) {
+    // A wall and, in front of its centre, a smaller quad: the "dragged" object. Dead, it is
+    // gone from the plain image; as the preview version it is seen exactly as when alive.
+    Scene scene = oneObjectScene(ShapeType::Quad, Vec3(6, 0, 6), Vec3(90, 0, 0), false, 0.5);
+    SceneObject mover = scene.objects[0];
+    mover.id = "mover";
+    mover.shape.size = Vec3(1, 0, 1);
+    mover.transform.translate = Vec3(0, 0, 1);
+    scene.objects.push_back(mover);
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    std::vector<Rgb> b;
+    for (const Element& e : disc.elements())
+        b.push_back(e.object == 0 ? Rgb(1, 2, 3) : Rgb(3 + e.centroid.x, 2, 1 - e.centroid.y));
+    const Camera camera = cameraAt(Vec3(0.3, 0.2, 4), Vec3(0, 0, 0));
+    const int w = 33, h = 25;
+
+    std::vector<int> aliveAt;
+    GouraudExtras alive;
+    alive.objectAt = &aliveAt;
+    const Image withMover = renderGouraud(disc, tracer, b, camera, w, h, 1, alive);
+    ASSERT_EQ(aliveAt.size(), std::size_t(w * h));
+    const int centre = (h / 2) * w + w / 2;
+    EXPECT_EQ(aliveAt[centre], 1) << "the mover covers the centre";
+    EXPECT_EQ(aliveAt[0], 0) << "the wall fills the corner";
+    EXPECT_EQ(withMover.pixels, renderGouraud(disc, tracer, b, camera, w, h, 1).pixels)
+        << "objectAt changes nothing in the image";
+
+    disc.setAlive(1, false);
+    tracer.updateAlive(1);
+    std::vector<int> deadAt;
+    GouraudExtras dead;
+    dead.objectAt = &deadAt;
+    const Image withoutMover = renderGouraud(disc, tracer, b, camera, w, h, 1, dead);
+    EXPECT_EQ(deadAt[centre], 0) << "the wall behind the dead mover";
+    EXPECT_NE(withoutMover.pixels[centre], withMover.pixels[centre]);
+
+    std::vector<int> previewAt;
+    GouraudExtras preview;
+    preview.previewVersion = 1;
+    preview.objectAt = &previewAt;
+    const Image previewed = renderGouraud(disc, tracer, b, camera, w, h, 1, preview);
+    EXPECT_EQ(previewAt, aliveAt);
+    for (std::size_t i = 0; i < previewed.pixels.size(); ++i)
+        ASSERT_EQ(previewed.pixels[i], withMover.pixels[i]) << "pixel index " << i;
+
+    // objectAt is per pixel: one sample each.
+    EXPECT_THROW(renderGouraud(disc, tracer, b, camera, w, h, 2, preview), std::invalid_argument);
+}
+
 TEST(Gouraud, RejectsBadArguments) {
     const Scene scene = facingQuadScene();
     const Discretization disc(scene);
