@@ -1,6 +1,7 @@
 #include "core/thread_priority.h"
 
 #ifdef __linux__
+#include <pthread.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -15,6 +16,16 @@ void lowerThreadPriority(int nice) {
     (void)setpriority(PRIO_PROCESS, tid, getpriority(PRIO_PROCESS, tid) + nice);
 #else
     (void)nice;
+#endif
+}
+
+void nameThisThread(const char* name) {
+#ifdef __linux__
+    char shortName[16] = {};
+    for (int i = 0; i < 15 && name[i]; ++i) shortName[i] = name[i];
+    (void)pthread_setname_np(pthread_self(), shortName);
+#else
+    (void)name;
 #endif
 }
 

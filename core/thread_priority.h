@@ -9,4 +9,8 @@ namespace penumbra {
 /// machine.
 void lowerThreadPriority(int nice);
 
+/// Names the calling thread (at most 15 characters; Linux shows it in top -H, ps -L and
+/// debuggers), nothing elsewhere.
+void nameThisThread(const char* name);
+
 }  // namespace penumbra

@@ -144,6 +144,7 @@ public:
     int lightCount() const { return static_cast<int>(mLights.size()); }
     const EdgeTree& tree(int object) const { return *mObjects[object].tree; }
     const Light& light(int index) const { return mLights[index].light; }
+    bool lightAlive(int index) const { return mLights[index].alive; }
     std::string toString() const;
 
 private:

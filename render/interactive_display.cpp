@@ -19,6 +19,7 @@
 
 #include "core/random.h"
 #include "core/timing.h"
+#include "render/shadow_volume.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
 #include "solver/ray_tracer.h"
@@ -61,7 +62,8 @@ std::string DisplayStageTimes::toString() const {
     s.precision(3);
     s << "DisplayStageTimes{edges " << findEdgesMs << " ms (silhouettes " << silhouetteMs
       << ", shadows " << shadowMs << ", project " << projectMs << "), rasterize " << rasterizeMs
-      << ", points " << pointsMs << " (relight " << relightMs << ", hide " << hideMs << "), reach "
+      << ", points " << pointsMs << " (relight " << relightMs << ", hide " << hideMs
+      << ", shadow drop " << shadowDropMs << "), reach "
       << reachabilityMs << ", interp " << interpolateMs << ", aa " << antiAliasMs << ", complex "
       << complexFilterMs << ", smooth " << smoothMs << ", fill " << fillMs << ", request "
       << requestMs << ", total " << totalMs << ", shade " << shadeMs << "}";
@@ -75,8 +77,8 @@ std::string DisplayFrameStats::toString() const {
       << screenEdges << " on screen, " << visiblePoints << " points, " << newSamples << " new ("
       << newSampleFraction << "), " << requestedSamples << " requested, pixels " << emptyPixels
       << " empty / " << simplePixels << " simple / " << complexPixels << " complex, "
-      << unsampledPixels << " unsampled (" << unfilledPixels << " unfilled)"
-      << (usedEdges ? "" : ", no edges") << "}";
+      << unsampledPixels << " unsampled (" << unfilledPixels << " unfilled), "
+      << droppedShadowed << " dropped in moved shadows" << (usedEdges ? "" : ", no edges") << "}";
     return s.str();
 }
 
@@ -217,8 +219,16 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
     hideOccluded(camera);
     st.times.hideMs = msSince(hideStart);
     // Take the points the asynchronous workers finished.
+    std::vector<ShadedPoint> done;
+    if (!mOptions.synchronous) done = mShader->takeResults();
+    // The lamps a dragged object blocks now or blocked before: the points whose view of them
+    // changed go, and so do results there shaded before it moved.
+    if (!mMovedVersions.empty()) {
+        const auto dropStart = Clock::now();
+        st.droppedShadowed = dropShadowed(done, camera);
+        st.times.shadowDropMs = msSince(dropStart);
+    }
     if (!mOptions.synchronous) {
-        std::vector<ShadedPoint> done = mShader->takeResults();
         // Requested before the dragged object moved on: a hit on a version no longer shown
         // goes (the rest of the scene is as it was; its light changes come as relights).
         const int preview = mShader->previewObject();
@@ -496,6 +506,123 @@ std::size_t InteractiveDisplay::apply(const SolutionView& solution) {
     return relightChanged();
 }
 
+std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
+                                             const CameraRays& camera) {
+    std::vector<int> moved;
+    moved.swap(mMovedVersions);
+    // The object where the last frame showed it and where it is now (the places in between
+    // were never shown), as world boxes a little larger than the object.
+    auto boxOf = [&](int v) {
+        const auto& positions = mDisc.objects()[v].worldPositions;
+        Vec3 lo = positions.front(), hi = positions.front();
+        for (const Vec3& p : positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+        const Vec3 pad(4 * mTracer.epsilon() + 1e-6 * glm::length(hi - lo));
+        return std::pair<Vec3, Vec3>(lo - pad, hi + pad);
+    };
+    if (mDisc.objects()[moved.front()].worldPositions.empty() ||
+        mDisc.objects()[moved.back()].worldPositions.empty())
+        return 0;
+    const auto [thenLo, thenHi] = boxOf(moved.front());
+    const auto [nowLo, nowHi] = boxOf(moved.back());
+    // The live lamps other than the moved object (a dragged object that emits is not here).
+    std::vector<ShaftLight> lights;
+    for (int l = 0; l < mEdges.lightCount(); ++l)
+        if (mEdges.lightAlive(l) &&
+            std::find(moved.begin(), moved.end(), mEdges.light(l).object) == moved.end())
+            lights.emplace_back(mEdges.light(l));
+    if (lights.empty()) return 0;
+    // How much the move changed the share of the lamps the object hides from x (the lamps
+    // weighted by their form factors at x), relative to the light arriving there.
+    auto shadowChange = [&](const Vec3& x, const Vec3& n) {
+        double change = 0, total = 0;
+        for (const ShaftLight& light : lights) {
+            const double w = lightWeight(x, n, light);
+            if (!(w > 0)) continue;
+            total += w;
+            change += w * std::abs(blockedFraction(x, light, nowLo, nowHi) -
+                                   blockedFraction(x, light, thenLo, thenHi));
+        }
+        return total > 0 ? change / total : 0.0;
+    };
+    // Per element: whether the change exceeds kShadowChange of its light at the centroid or at
+    // a corner (pulled in a little: a shadow's edge may cross a large element anywhere). Its
+    // points go together: the element's estimate shows the change no better than they do.
+    constexpr double kShadowChange = 0.1;
+    const std::size_t elements = mDisc.elements().size();
+    std::vector<std::uint8_t> changed(elements, 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, elements, 512),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t e = r.begin(); e != r.end(); ++e) {
+            const Element& el = mDisc.elements()[e];
+            if (std::find(moved.begin(), moved.end(), el.object) != moved.end()) continue;
+            if (!mDisc.objects()[el.object].alive) continue;
+            const auto& world = mDisc.objects()[el.object].worldPositions;
+            bool any = shadowChange(el.centroid, el.normal) > kShadowChange;
+            for (std::size_t k = 0; !any && k < el.vertices.size(); ++k)
+                any = shadowChange(world[el.vertices[k]] +
+                                       0.1 * (el.centroid - world[el.vertices[k]]),
+                                   el.normal) > kShadowChange;
+            changed[e] = any ? 1 : 0;
+        }
+    });
+    auto shadowed = [&](int element) {
+        return element >= 0 && static_cast<std::size_t>(element) < elements && changed[element];
+    };
+    const std::vector<CachePoint>& points = mCache.points();
+    std::vector<std::uint8_t> drop(points.size(), 0);
+    std::size_t seen = 0;  // dropped points the last frame showed
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        drop[i] = points[i].object >= 0 && shadowed(points[i].element) ? 1 : 0;
+        seen += drop[i] && mCache.visible(i) && !mCache.hidden(i);
+    }
+    // One pixel per cell of the dropped points' pixels in this view, re-shaded below; the cell
+    // grows so that at most shadowReshadeMax are.
+    int cell = std::max(0, mOptions.shadowReshadeCell);
+    const double cap = std::max(1, mOptions.shadowReshadeMax);
+    if (cell > 0 && double(seen) > cap * cell * cell)
+        cell = static_cast<int>(std::ceil(std::sqrt(double(seen) / cap)));
+    std::vector<ShadeRequest> requests;
+    if (cell > 0) {
+        const int cw = (mOptions.width + cell - 1) / cell, ch = (mOptions.height + cell - 1) / cell;
+        std::vector<std::uint8_t> taken(static_cast<std::size_t>(cw) * ch, 0);
+        // Requested in the frame being made (reproject numbers it next).
+        const std::uint64_t frame = mCache.frame() + 1;
+        auto request = [&](const Vec3& position) {
+            const auto pixel = camera.projectToPixel(position);
+            if (!pixel || pixel->x < 0 || pixel->y < 0 || pixel->x >= mOptions.width ||
+                pixel->y >= mOptions.height)
+                return;
+            const int x = static_cast<int>(pixel->x), y = static_cast<int>(pixel->y);
+            std::uint8_t& t = taken[static_cast<std::size_t>(y / cell) * cw + x / cell];
+            if (t) return;
+            t = 1;
+            const glm::dvec2 p(x + 0.5, y + 0.5);
+            requests.push_back({p, camera.origin(), camera.rayDirection(p.x, p.y), frame});
+        };
+        // The moved object's own points, where they were when the frame before was drawn:
+        // what it uncovered there has no point yet.
+        const int now = moved.back();
+        const Mat4 thenFromNow = mDisc.objects()[moved.front()].worldFromObject *
+                                 glm::inverse(mDisc.objects()[now].worldFromObject);
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            // Dropped, seen in the last frame and not now behind the moved object.
+            if (drop[i] && mCache.visible(i) && !mCache.hidden(i)) request(points[i].position);
+            if (points[i].object == now)
+                request(Vec3(thenFromNow * glm::dvec4(points[i].position, 1.0)));
+        }
+    }
+    const std::size_t dropped = mCache.invalidatePoints(drop);
+    std::erase_if(results, [&](const ShadedPoint& p) {
+        return p.shading < mMoveSerial && p.object >= 0 && shadowed(p.element);
+    });
+    if (!requests.empty()) {
+        std::vector<ShadedPoint> done = shadeAll(requests);
+        mCache.insert(done);
+        mInsertedSinceFrame += done.size();
+    }
+    return dropped;
+}
+
 void InteractiveDisplay::syncLights() {
     // Which objects emit (from their patches' materials).
     const int objects = static_cast<int>(mDisc.objects().size());
@@ -740,6 +867,19 @@ std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility&
     }
     // The moving shadow: with backgroundPreview the estimate comes later (renderFrame).
     (void)mShader->setPreview(previewVersion, previewOnly);
+    // The points whose view of a lamp the move changed go at the next frame (dropShadowed).
+    // A moved lamp changes every point's light: its estimate alone follows it.
+    const bool moved = from >= 0 && previewVersion >= 0 && from != previewVersion &&
+                       mDisc.objects()[from].worldFromObject !=
+                           mDisc.objects()[previewVersion].worldFromObject;
+    bool emits = false;
+    for (const Patch& p : mDisc.patches())
+        emits = emits || (p.object == previewVersion && mDisc.materials()[p.material].isEmitter());
+    if (moved && !emits && mOptions.followShadows) {
+        if (mMovedVersions.empty()) mMovedVersions.push_back(from);
+        mMovedVersions.push_back(previewVersion);
+        mMoveSerial = mShader->stateSerial();
+    }
     // Its silhouettes (object-space queries: the version reuses the object's edge tree) and,
     // when on, the shadows it casts now.
     syncEdges();

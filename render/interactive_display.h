@@ -57,6 +57,7 @@ struct DisplayStageTimes {
     double pointsMs = 0;         ///< cache insert + reprojection + EPI point placement
     double relightMs = 0;        ///<   of which relighting after a preview's estimate
     double hideMs = 0;           ///<   of which hiding the points behind a moving object
+    double shadowDropMs = 0;     ///<   of which dropping the points a drag's move shadowed
     double reachabilityMs = 0;   ///< §5.2
     double interpolateMs = 0;    ///< §5.3
     double antiAliasMs = 0;      ///< §5.3
@@ -83,6 +84,9 @@ struct DisplayFrameStats {
     std::size_t newSamples = 0;        ///< points inserted for this frame (shaded since last)
     double newSampleFraction = 0;      ///< newSamples / pixels
     std::size_t requestedSamples = 0;  ///< requests made at the end of this frame
+    /// Points dropped at this frame's start: in the old or new shadow volume of a dragged
+    /// object (their view of a lamp changed).
+    std::size_t droppedShadowed = 0;
     std::size_t emptyPixels = 0, simplePixels = 0, complexPixels = 0;
     /// Pixels no cached point reached (EdgePointImage::holes): shown from the fallback
     /// (InteractiveDisplayOptions::fillHoles), else black.
@@ -134,6 +138,18 @@ struct InteractiveDisplayOptions {
     /// in a second or two instead of at the base rate. The editor's asynchronous display has
     /// shader capacity to spare for it; 0 (the default) keeps synchronous output unchanged.
     double changedSampleFraction = 0;
+    /// A drag's move drops the points whose view of a lamp it changed (the object's old and new
+    /// shadow volumes) at the next frame; false keeps them with the element-level estimate of
+    /// the change (PointShader's preview job) until they are re-shaded.
+    bool followShadows = true;
+    /// Of the pixels a move emptied (the dropped points', and those the object uncovered), one
+    /// in each square of shadowReshadeCell² is re-shaded at once, in the frame (synchronously,
+    /// oneTBB), so the frame shows the shadow where the object is from sparse points and the
+    /// shadow's edges; the asynchronous shader fills the rest. 0: none at once (the region
+    /// waits for the shader, shown from the fallback).
+    int shadowReshadeCell = 5;
+    /// At most this many re-shaded at once (larger cells beyond): the frame's cost.
+    int shadowReshadeMax = 2000;
     /// Synchronous: every frame's requests are shaded before renderFrame returns and appear in
     /// the next frame; output depends only on the inputs (CLI, tests, benchmarks).
     /// Asynchronous: requests go to the shader's worker threads; each frame takes what is done.
@@ -500,6 +516,17 @@ private:
     /// The preview clearPreview ended, whose points the next notifyChanged carries to the
     /// object's new version or drops (-1 none).
     int mLeftPreview = -1;
+    // The drag's moving shadows (Bala et al. §6, moving objects): the preview versions shown
+    // since the last frame's pass (the first is the one that frame showed), and the shader
+    // state of the last move; the next frame drops the points in their shadow volumes.
+    std::vector<int> mMovedVersions;
+    std::uint64_t mMoveSerial = 0;
+    /// Drops the cached points that lie in the shadow volume of a version in mMovedVersions for
+    /// some live lamp (their view of it changed), and the finished `results` there that were
+    /// shaded before the last move; re-shades one of their pixels in `camera`'s view per
+    /// shadowReshadeCell² square at once. The rest are empty pixels: re-shaded first, shown
+    /// from the fallback meanwhile. Returns the cached points dropped.
+    std::size_t dropShadowed(std::vector<ShadedPoint>& results, const CameraRays& camera);
 };
 
 /// Clips world edges to the camera's near plane (view depth ≥ nearPlane) and projects them to

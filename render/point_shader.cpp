@@ -1338,6 +1338,7 @@ Rgb PointShader::shadeFallback(const Vec3& origin, const Vec3& direction) const 
 // Workers
 
 void PointShader::workerLoop() {
+    nameThisThread("shade");
     lowerThreadPriority(mOptions.workerNice);
     std::vector<ShadeRequest> batch;
     std::vector<ShadedPoint> done;

@@ -1005,6 +1005,14 @@ std::size_t RenderCache::dropIf(Drop drop) {
     return before - kept;
 }
 
+std::size_t RenderCache::invalidatePoints(const std::vector<std::uint8_t>& drop) {
+    if (drop.size() != mPoints.size())
+        throw std::invalid_argument("RenderCache::invalidatePoints: " + std::to_string(drop.size()) +
+                                    " flags for " + std::to_string(mPoints.size()) + " points");
+    // dropIf reads each point before it moves: its index is its place in mPoints then.
+    return dropIf([&](const CachePoint& p) { return drop[&p - mPoints.data()] != 0; });
+}
+
 std::size_t RenderCache::invalidateObjects(const std::unordered_set<int>& objects) {
     return dropIf([&](const CachePoint& p) { return objects.count(p.object) > 0; });
 }

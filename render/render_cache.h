@@ -155,6 +155,8 @@ public:
     std::size_t invalidateRegion(const Vec3& centre, double radius);
     /// Drops every point on one of `elements`. Returns how many.
     std::size_t invalidateElements(const std::unordered_set<int>& elements);
+    /// Drops point i where drop[i] != 0 (indices of points(); sized as it). Returns how many.
+    std::size_t invalidatePoints(const std::vector<std::uint8_t>& drop);
     void clear();
 
     // -- Keeping points across an edit (instead of dropping them) ----------------------------

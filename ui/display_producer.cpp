@@ -60,6 +60,7 @@ void DisplayProducer::stop() {
 }
 
 void DisplayProducer::run() {
+    nameThisThread("render");
     lowerThreadPriority(mOptions.backgroundNice);
     for (;;) {
         const bool rendered = iterate();
@@ -346,6 +347,7 @@ bool DisplayProducer::displayLanded(const ViewRequest& view) {
         }
         // Not niced: the user waits for it.
         mBuild = std::async(std::launch::async, [this, make] {
+            nameThisThread("display-build");
             std::shared_lock<std::shared_mutex> structure(mShared.structure);
             return make();
         });

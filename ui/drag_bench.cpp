@@ -87,6 +87,28 @@ void compareObjectPixels(EditSession& session, const CameraRays& rays, int versi
     e.objectWrong = a.empty() ? -1.0 : double(wrong) / double(a.size() / 3);
 }
 
+/// The error of `image` over the floor's pixels (the scene object "floor", where the dragged
+/// object's shadow falls), against the reference of its state: the shadow at the object's place
+/// or not. -1 without a floor.
+void compareFloorPixels(EditSession& session, const CameraRays& rays,
+                        const std::vector<std::uint8_t>& referenceBytes, DragBenchImage& e) {
+    const int floor = session.objectVersion("floor");
+    if (floor < 0) return;
+    std::vector<std::uint8_t> a, b;
+    for (int y = 0; y < e.height; ++y)
+        for (int x = 0; x < e.width; ++x) {
+            const RayHit hit =
+                session.tracer().intersect(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
+            if (hit.object != floor) continue;
+            const std::size_t k = 3 * (static_cast<std::size_t>(y) * e.width + x);
+            for (int c = 0; c < 3; ++c) {
+                a.push_back((*e.shown)[k + c]);
+                b.push_back(referenceBytes[k + c]);
+            }
+        }
+    e.floorError = relativeError(a, b);
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -247,6 +269,10 @@ nlohmann::json DragBench::analyse() {
     for (const DragBenchImage& e : mImages)
         if (!e.afterDrop) maxWrong = std::max(maxWrong, e.objectWrong);
     out["max_drag_object_wrong_fraction"] = maxWrong;
+    double maxFloor = -1;
+    for (const DragBenchImage& e : mImages)
+        if (!e.afterDrop) maxFloor = std::max(maxFloor, e.floorError);
+    out["max_drag_floor_error"] = maxFloor;
     out["settled_reference_error"] = mSettled.referenceError;
     return out;
 }
@@ -265,6 +291,8 @@ void DragBench::analyseImages(nlohmann::json& out) const {
     }
     out["images"] = mImages.size();
     out["drag_images"] = drag;
+    // Lit images the viewport received a second while the object moved (select to drop).
+    out["drag_images_per_s"] = mDropped && mDrop > mStart ? drag / (mDrop - mStart) : 0.0;
     out["max_unsampled_fraction"] = maxUnsampledFraction;
     out["max_unfilled_fraction"] = maxUnfilledFraction;
     out["max_unfilled_pixels"] = maxUnfilled;
@@ -360,6 +388,7 @@ nlohmann::json DragBench::compareWithReference(EditSession& session,
     const auto referenceBytes = displayedBytes(reference);
     e.referenceError = relativeError(*e.shown, *referenceBytes);
     compareObjectPixels(session, rays, session.objectVersion(mOptions.object), *referenceBytes, e);
+    compareFloorPixels(session, rays, *referenceBytes, e);
     nlohmann::json entry = {{"phase", &e == &mSettled ? "settled"
                                       : e.afterDrop   ? "after-drop"
                                                       : "drag"},
@@ -368,6 +397,7 @@ nlohmann::json DragBench::compareWithReference(EditSession& session,
                             {"object_error", e.objectError},
                             {"object_pixels", e.objectPixels},
                             {"object_wrong_fraction", e.objectWrong},
+                            {"floor_error", e.floorError},
                             {"transform", transformJson(e.transform)}};
     if (!mOptions.recordDir.empty()) {
         char name[40];

@@ -65,6 +65,9 @@ struct DragBenchImage {
     /// more than 51 of 255): holes, background through it, the object elsewhere.
     double objectWrong = -1;
     double settledError = -1;  ///< relativeDisplayRmse against the settled image
+    /// The same as referenceError over the floor's pixels (where the dragged object's shadow
+    /// falls), -1 none.
+    double floorError = -1;
 };
 
 class DragBench {
@@ -100,7 +103,7 @@ public:
     void settledAgain(const std::shared_ptr<const ViewportImage>& image);
 
     /// Computes the errors (references included: seconds each) and the figures, as JSON:
-    /// images, max_unsampled_fraction, max_unfilled_fraction, reduced_share,
+    /// images, drag_images_per_s, max_unsampled_fraction, max_unfilled_fraction, reduced_share,
     /// settle_ms (from the drop until every later image is within the tolerance of the
     /// settled one; -1 when the window ends before), error_at_window_end, reference errors.
     nlohmann::json analyse();

@@ -51,6 +51,7 @@ void HolodeckService::stop() {
 }
 
 void HolodeckService::run() {
+    nameThisThread("holodeck");
     lowerThreadPriority(mOptions.backgroundNice);
     for (;;) {
         const bool worked = iterate();

@@ -86,6 +86,7 @@ const HifiMesh* InterpolantService::landed(const PublishedLight& light, bool sti
     }
     mBuild = std::async(std::launch::async,
                         [this, radiosity = light.radiosity, base = std::move(base)] {
+                            nameThisThread("hifi-build");
                             lowerThreadPriority(mOptions.backgroundNice);
                             std::shared_lock<std::shared_mutex> structure(mShared.structure);
                             return build(radiosity, base);

@@ -50,6 +50,7 @@ void SolverWorker::stop() {
 }
 
 void SolverWorker::run() {
+    nameThisThread("solver");
     lowerThreadPriority(mOptions.backgroundNice);
     for (;;) {
         const bool worked = iterate();
