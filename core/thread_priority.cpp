@@ -1,5 +1,7 @@
 #include "core/thread_priority.h"
 
+#include <algorithm>
+
 #ifdef __linux__
 #include <pthread.h>
 #include <sys/resource.h>
@@ -13,7 +15,8 @@ void lowerThreadPriority(int nice) {
 #ifdef __linux__
     if (nice <= 0) return;
     const auto tid = static_cast<id_t>(syscall(SYS_gettid));
-    (void)setpriority(PRIO_PROCESS, tid, getpriority(PRIO_PROCESS, tid) + nice);
+    const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(getpid()));
+    (void)setpriority(PRIO_PROCESS, tid, std::min(19, base + nice));
 #else
     (void)nice;
 #endif

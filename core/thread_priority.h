@@ -3,10 +3,11 @@
 
 namespace penumbra {
 
-/// Lowers the calling thread's scheduling priority by `nice` (a Linux nice increment; nothing
-/// for nice ≤ 0 or elsewhere): background threads (the editor's solver, render, build and
-/// shading threads) yield the cores to the UI thread, so frames keep their rate on a loaded
-/// machine.
+/// Sets the calling thread's scheduling priority `nice` steps below the process's main thread
+/// (a Linux nice value relative to it, whatever the thread inherited from the one that made it;
+/// nothing for nice ≤ 0 or elsewhere): background threads (the editor's solver, build and
+/// shading threads) yield the cores to the UI and render threads, so the window and its lit
+/// images keep their rate on a loaded machine.
 void lowerThreadPriority(int nice);
 
 /// Names the calling thread (at most 15 characters; Linux shows it in top -H, ps -L and

@@ -61,7 +61,7 @@ void DisplayProducer::stop() {
 
 void DisplayProducer::run() {
     nameThisThread("render");
-    lowerThreadPriority(mOptions.backgroundNice);
+    lowerThreadPriority(mOptions.renderNice);
     for (;;) {
         const bool rendered = iterate();
         std::unique_lock<std::mutex> lock(mViewMutex);

@@ -49,7 +49,8 @@ struct DisplayProducerOptions {
     int referenceDivisor = 4;        ///< difference mode: reference at display / d pixels
     /// The first display is built on a thread of its own (else in iterate(), tests).
     bool threaded = true;
-    int backgroundNice = 0;  ///< Linux nice increment of the render and shading threads
+    int renderNice = 0;      ///< nice of the render thread (SessionRunnerOptions::renderNice)
+    int backgroundNice = 0;  ///< nice of the display's shading workers
 };
 
 class DisplayProducer : public EditListener {

@@ -241,8 +241,13 @@ void DragBench::workerLoop() {
                 std::cerr << "penumbra-editor: --record: " << e.what() << "\n";
             }
         }
+        std::size_t outline = 0;
+        const std::vector<std::uint8_t>& rgba = job.image->render.rgba;
+        for (std::size_t k = 0; k + 3 < rgba.size(); k += 4)
+            outline += rgba[k] == 255 && rgba[k + 1] == 150 && rgba[k + 2] == 20;
         std::lock_guard<std::mutex> lock(mMutex);
         job.entry->shown = std::move(bytes);
+        job.entry->outlinePixels = outline;
         mBusy = false;
         mDone.notify_all();
     }
@@ -289,8 +294,15 @@ void DragBench::analyseImages(nlohmann::json& out) const {
         reduced += e.reduced ? 1 : 0;
         drag += e.afterDrop ? 0 : 1;
     }
+    // Drag images without the selection outline, and when (seconds before the drop).
+    nlohmann::json withoutOutlineAt = nlohmann::json::array();
+    for (const DragBenchImage& e : mImages)
+        if (!e.afterDrop && e.outlinePixels == 0) withoutOutlineAt.push_back(e.seconds);
+    const std::size_t withoutOutline = withoutOutlineAt.size();
+    out["drag_images_without_outline_s"] = std::move(withoutOutlineAt);
     out["images"] = mImages.size();
     out["drag_images"] = drag;
+    out["drag_images_without_outline"] = withoutOutline;
     // Lit images the viewport received a second while the object moved (select to drop).
     out["drag_images_per_s"] = mDropped && mDrop > mStart ? drag / (mDrop - mStart) : 0.0;
     out["max_unsampled_fraction"] = maxUnsampledFraction;

@@ -64,6 +64,9 @@ struct DragBenchImage {
     /// Of those pixels, the share showing something else than the object (a channel off by
     /// more than 51 of 255): holes, background through it, the object elsewhere.
     double objectWrong = -1;
+    /// Pixels of the selection outline (drawSelectionOutline's colour) in the image: a drag
+    /// image without one shows the object unselected (the outline blinks).
+    std::size_t outlinePixels = 0;
     double settledError = -1;  ///< relativeDisplayRmse against the settled image
     /// The same as referenceError over the floor's pixels (where the dragged object's shadow
     /// falls), -1 none.

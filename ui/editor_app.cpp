@@ -93,9 +93,9 @@ EditorApp::EditorApp(EditorOptions options) : mOptions(std::move(options)) {
     // lower frame cap there (still above 30 fps).
     if (const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER))) {
         const std::string name = renderer;
-        if (name.find("llvmpipe") != std::string::npos ||
-            name.find("softpipe") != std::string::npos)
-            mOptions.maxFps = std::min(mOptions.maxFps, mOptions.softwareGlMaxFps);
+        mSoftwareGl = name.find("llvmpipe") != std::string::npos ||
+                      name.find("softpipe") != std::string::npos;
+        if (mSoftwareGl) mOptions.maxFps = std::min(mOptions.maxFps, mOptions.softwareGlMaxFps);
     }
 
     // Input wakes the frame loop: these count every event (ImGui's backend, installed next,
@@ -302,6 +302,12 @@ bool EditorApp::needsFrame() {
         mInputEventsSeen = mInputEvents;
         mEagerUntil = now + kEagerSeconds;
     }
+    // A drag under a software GL: the window is drawn when a lit image of the viewport comes
+    // (the object, its light and its outline move in those), and the gizmo at least every
+    // kDragRedrawSeconds. Each drawn frame costs llvmpipe most of a core, which the render
+    // thread making those images needs.
+    if ((mDragGizmo || mDrag.active()) && mSoftwareGl && mRunner)
+        return mRunner->image() != mShown || now - mLastDrawn >= kDragRedrawSeconds;
     if (now < mEagerUntil || !mScripted.empty() || mDragGizmo || mDrag.active()) return true;
     // Until a frame has told the runner the view is no longer interactive.
     if (now - mLastInteraction < kInteractiveSeconds + 0.2) return true;

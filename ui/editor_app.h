@@ -260,6 +260,9 @@ private:
     /// The view request stays `interactive` this long after the last camera move or drag.
     static constexpr double kInteractiveSeconds = 0.3;
     static constexpr double kBusyRedrawSeconds = 0.25;  ///< status refresh while the light changes
+    /// Under a software GL while dragging: frames without a new lit image at most this often.
+    static constexpr double kDragRedrawSeconds = 0.05;
+    bool mSoftwareGl = false;  ///< the window is drawn by Mesa's llvmpipe or softpipe
     static constexpr double kIdleRedrawSeconds = 1.0;
     std::uint64_t mInputEvents = 0, mInputEventsSeen = 0;
     double mEagerUntil = 0;

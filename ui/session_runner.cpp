@@ -25,6 +25,7 @@ SessionRunner::SessionRunner(std::unique_ptr<EditSession> session, SessionRunner
     display.settleFrames = options.settleFrames;
     display.referenceDivisor = options.referenceDivisor;
     display.threaded = options.threaded;
+    display.renderNice = mOptions.threaded ? mOptions.renderNice : 0;
     display.backgroundNice = nice;
     mDisplay = std::make_unique<DisplayProducer>(mShared, mBoard, display, *mHifi, *mHolodeck);
     // Listeners in order: the display first (its shader pauses before the structure changes).

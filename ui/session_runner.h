@@ -59,8 +59,13 @@ struct SessionRunnerOptions {
     /// Interpolant mode: far-field rays per exact irradiance sample (ExactIrradianceOptions::
     /// farRays, as `render --mode interpolant`).
     int hifiGatherRays = 256;
-    /// Linux nice increment of the solver, render and display-shading threads (threaded
-    /// runners): the UI thread keeps its frame rate on a busy machine. 0 leaves them as is.
+    /// Scheduling priorities (threaded runners; Linux nice values relative to the UI thread,
+    /// 0 leaves a thread level with it). The window and the viewport's lit images come first:
+    /// the render thread, which makes them, runs at renderNice (0: level with the UI thread);
+    /// the work behind them yields to both: the display's shading workers, the solver, the
+    /// holodeck and the interpolant builds run at backgroundNice. On a busy machine a drag so
+    /// gets its frames ahead of the solver's shots.
+    int renderNice = 0;
     int backgroundNice = 5;
     /// The holodeck file (docs/holodeck.md) the display modes start their views from and store
     /// their converged points in, "" for none; created with the scene's sections when missing.
