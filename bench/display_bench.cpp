@@ -9,12 +9,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "bench/bench.h"
+#include "bench/display_report.h"
+#include "core/durable_file.h"
 #include "core/timing.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
@@ -108,31 +109,6 @@ InteractiveDisplayOptions displayOptionsFor(const DisplayBenchOptions& options) 
     return displayOptions;
 }
 
-/// One frame's stage times and counts, as the JSON report lists them per frame.
-nlohmann::json frameJson(const DisplayFrameStats& f) {
-    return {{"total_ms", f.times.totalMs},
-            {"reconstruct_ms", f.times.reconstructMs()},
-            {"find_edges_ms", f.times.findEdgesMs},
-            {"silhouette_ms", f.times.silhouetteMs},
-            {"shadow_ms", f.times.shadowMs},
-            {"project_ms", f.times.projectMs},
-            {"rasterize_ms", f.times.rasterizeMs},
-            {"points_ms", f.times.pointsMs},
-            {"reachability_ms", f.times.reachabilityMs},
-            {"interpolate_ms", f.times.interpolateMs},
-            {"anti_alias_ms", f.times.antiAliasMs},
-            {"complex_filter_ms", f.times.complexFilterMs},
-            {"smooth_ms", f.times.smoothMs},
-            {"request_ms", f.times.requestMs},
-            {"shade_ms", f.times.shadeMs},
-            {"new_sample_fraction", f.newSampleFraction},
-            {"silhouette_edges", f.silhouetteEdges},
-            {"sharp_edges", f.sharpEdges},
-            {"shadow_edges", f.shadowEdges},
-            {"screen_edges", f.screenEdges},
-            {"complex_pixels", f.complexPixels}};
-}
-
 /// Warms the display up at `camera`, then renders options.frames frames along an orbit from it
 /// (options.sampleFraction new samples each): means over frames 1..F−1 and the edge counts go
 /// into `res`, each frame's figures into the returned array, the last frame's camera into
@@ -156,7 +132,7 @@ nlohmann::json runOrbitFrames(InteractiveDisplay& display, const Camera& camera,
         }
         res.silhouetteEdges = f.silhouetteEdges + f.sharpEdges;
         res.shadowEdges = f.shadowEdges;
-        frames.push_back(frameJson(f));
+        frames.push_back(displayFrameJson(f));
     }
     if (counted > 0) {
         DisplayStageTimes scaled;
@@ -449,7 +425,7 @@ int runDisplayBench(const DisplayBenchOptions& options) {
         all.push_back(std::move(j));
     }
     printTable(results, options);
-    if (!options.jsonOut.empty()) std::ofstream(options.jsonOut) << all.dump(2) << "\n";
+    if (!options.jsonOut.empty()) writeFileAtomically(options.jsonOut, all.dump(2) + "\n");
     return 0;
 }
 

@@ -23,6 +23,7 @@ nlohmann::json displayFrameJson(const DisplayFrameStats& f) {
             {"smooth_ms", t.smoothMs},
             {"fill_ms", t.fillMs},
             {"hide_ms", t.hideMs},
+            {"shadow_drop_ms", t.shadowDropMs},
             {"request_ms", t.requestMs},
             {"shade_ms", t.shadeMs},
             {"new_samples", f.newSamples},
@@ -36,7 +37,8 @@ nlohmann::json displayFrameJson(const DisplayFrameStats& f) {
             {"simple_pixels", f.simplePixels},
             {"complex_pixels", f.complexPixels},
             {"unsampled_pixels", f.unsampledPixels},
-            {"unfilled_pixels", f.unfilledPixels}};
+            {"unfilled_pixels", f.unfilledPixels},
+            {"dropped_shadowed", f.droppedShadowed}};
 }
 
 }  // namespace penumbra

@@ -994,9 +994,7 @@ Image InteractiveDisplay::renderConvergedReference(const CameraRays& camera,
 
     const int w = camera.width(), h = camera.height();
     const bool epiEdges = options.useEpiEdges && mEpi.width() == w && mEpi.height() == h;
-    auto shown = [](double v) {
-        return std::isfinite(v) ? std::clamp(srgbEncode(v), 0.0, 1.0) : 0.0;
-    };
+    auto shown = [](double v) { return srgbEncodeClipped(v); };
     // Mean of s² samples on a jittered s × s grid over pixel (x, y); with `spread`, the
     // largest spread of the samples' displayed values over the channels.
     auto shadePixel = [&](int x, int y, int s, double* spread) {
@@ -1255,13 +1253,10 @@ double displayRmse(const Image& a, const Image& b) {
         throw std::invalid_argument("displayRmse: sizes differ (" + a.toString() + " vs " +
                                     b.toString() + ")");
     if (a.pixels.empty()) return 0.0;
-    auto shown = [](double v) {
-        return std::isfinite(v) ? std::clamp(srgbEncode(v), 0.0, 1.0) : 0.0;
-    };
     double sum = 0;
     for (std::size_t k = 0; k < a.pixels.size(); ++k)
         for (int c = 0; c < 3; ++c) {
-            const double d = shown(a.pixels[k][c]) - shown(b.pixels[k][c]);
+            const double d = srgbEncodeClipped(a.pixels[k][c]) - srgbEncodeClipped(b.pixels[k][c]);
             sum += d * d;
         }
     return std::sqrt(sum / (3.0 * static_cast<double>(a.pixels.size())));
@@ -1272,7 +1267,7 @@ double relativeDisplayRmse(const Image& a, const Image& reference) {
     double sum = 0;
     for (const Rgb& c : reference.pixels)
         for (int k = 0; k < 3; ++k) {
-            const double v = std::isfinite(c[k]) ? std::clamp(srgbEncode(c[k]), 0.0, 1.0) : 0.0;
+            const double v = srgbEncodeClipped(c[k]);
             sum += v * v;
         }
     const double rms =

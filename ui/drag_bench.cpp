@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "core/durable_file.h"
 #include "edit/edit_session.h"
 #include "edit/lit_scene.h"
 #include "render/camera_rays.h"

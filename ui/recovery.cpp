@@ -5,6 +5,7 @@
 #include <functional>
 #include <sstream>
 
+#include "core/durable_file.h"
 #include "edit/edit_log.h"
 
 namespace penumbra {
@@ -72,15 +73,10 @@ UnsavedEdits takeUnsavedEdits(const std::string& journal, const std::string& sce
         if (std::holds_alternative<UnselectCommand>(c.op)) selected = 0;
     }
     if (selected) out.edits.push_back(UnselectCommand{});
-    // Set aside as one log (each line synced, written to a temporary name and renamed), then
-    // the journal goes.
-    const fs::path temporary = journal + ".unsaved.tmp";
-    fs::remove(temporary, ignored);
-    {
-        EditLogWriter file(temporary.string());
-        for (const EditCommand& c : out.edits) file.append(c);
-    }
-    fs::rename(temporary, aside);
+    // Set aside as one log (written whole, durably: core/durable_file.h), then the journal goes.
+    std::string text;
+    for (const EditCommand& c : out.edits) text += formatEditCommand(c) + "\n";
+    writeFileAtomically(aside.string(), text);
     fs::remove(journal, ignored);
     out.file = aside.string();
     return out;

@@ -102,10 +102,11 @@ TEST_F(RenderModesCli, FramesOverlayAndReport) {
              {"frame", "total_ms", "reconstruct_ms", "new_sample_fraction", "find_edges_ms",
               "silhouette_ms", "shadow_ms", "project_ms", "rasterize_ms", "points_ms",
               "reachability_ms", "interpolate_ms", "anti_alias_ms", "complex_filter_ms",
-              "smooth_ms", "fill_ms", "hide_ms", "request_ms", "shade_ms", "new_samples",
+              "smooth_ms", "fill_ms", "hide_ms", "shadow_drop_ms", "request_ms", "shade_ms",
+              "new_samples",
               "requested_samples", "visible_points", "silhouette_edges", "sharp_edges",
               "shadow_edges", "screen_edges", "empty_pixels", "simple_pixels", "complex_pixels",
-              "unsampled_pixels", "unfilled_pixels"}) {
+              "unsampled_pixels", "unfilled_pixels", "dropped_shadowed"}) {
             ASSERT_TRUE(f.contains(key)) << key << " missing in " << f.dump();
             EXPECT_GE(f[key].get<double>(), 0.0) << key;
         }
