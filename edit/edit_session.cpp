@@ -29,10 +29,6 @@ MaterialCommand fullMaterial(const std::string& id, const Material& m) {
     return c;
 }
 
-bool sameTransform(const Transform& a, const Transform& b) {
-    return a.translate == b.translate && a.rotateDeg == b.rotateDeg && a.scale == b.scale;
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -364,7 +360,7 @@ EditSession::Plan EditSession::planUnselect(const EditSource& source) {
     const int index = requireObject(mSelected, source);
     const SceneObject& object = scene().objects[index];
     Plan p;
-    if (!sameTransform(object.transform, mSelectedFrom))
+    if (object.transform != mSelectedFrom)
         p.record = UndoRecord{fullTransformCommand(object.id, object.transform),
                               fullTransformCommand(object.id, mSelectedFrom), -1, -1};
     p.perform = [this] {

@@ -27,6 +27,8 @@ struct Transform {
     Vec3 scale{1.0};
     Mat4 worldFromObject() const;
     std::string toString() const;
+    /// The same translation, rotation and scale, exactly.
+    bool operator==(const Transform&) const = default;
 };
 
 /// A triangle mesh in object space, as read from a mesh file.

@@ -46,29 +46,11 @@ DisplayProducer::~DisplayProducer() {
 }
 
 void DisplayProducer::start() {
-    if (mThread.joinable()) return;
-    mThread = std::thread([this] { run(); });
+    mThread.start("render", mOptions.renderNice, std::chrono::milliseconds(10),
+                  [this] { return iterate(); });
 }
 
-void DisplayProducer::stop() {
-    {
-        std::lock_guard<std::mutex> lock(mViewMutex);
-        mStop = true;
-    }
-    mWake.notify_all();
-    if (mThread.joinable()) mThread.join();
-}
-
-void DisplayProducer::run() {
-    nameThisThread("render");
-    lowerThreadPriority(mOptions.renderNice);
-    for (;;) {
-        const bool rendered = iterate();
-        std::unique_lock<std::mutex> lock(mViewMutex);
-        if (mStop) return;
-        if (!rendered) mWake.wait_for(lock, std::chrono::milliseconds(10));
-    }
-}
+void DisplayProducer::stop() { mThread.stop(); }
 
 void DisplayProducer::setView(const ViewRequest& request) {
     {
@@ -77,7 +59,7 @@ void DisplayProducer::setView(const ViewRequest& request) {
         mView = request;
         mView.serial = ++mViewSerial;
     }
-    mWake.notify_all();
+    mThread.wake();
 }
 
 ViewRequest DisplayProducer::view() const {

@@ -36,6 +36,7 @@
 #include "ui/holodeck_service.h"
 #include "ui/interpolant_service.h"
 #include "ui/runner_board.h"
+#include "ui/service_thread.h"
 #include "ui/shared_session.h"
 
 namespace penumbra {
@@ -77,7 +78,7 @@ public:
     void editsBegin() override;
     void edited(const EditEvent& event) override;
     void editsEnd() override;
-    void published() override { mWake.notify_all(); }
+    void published() override { mThread.wake(); }
 
 private:
     /// A RayTracer subset admitting one object version alone.
@@ -101,7 +102,6 @@ private:
         std::uint64_t edits = 0;  ///< mEditBatches when it was built
         int viewWidth = 0, viewHeight = 0;
     };
-    void run();
     // The ray-traced modes.
     bool renderTracedView(const ViewRequest& view, const PublishedLight& light,
                           const std::shared_ptr<const ViewportImage>& last, int highlight,
@@ -148,12 +148,10 @@ private:
     InterpolantService& mHifi;
     HolodeckService& mHolodeck;
 
-    mutable std::mutex mViewMutex;  ///< the view request and the stop flag
-    std::condition_variable mWake;
+    mutable std::mutex mViewMutex;  ///< the view request
     ViewRequest mView;
     std::uint64_t mViewSerial = 0;
-    bool mStop = false;
-    std::thread mThread;
+    ServiceThread mThread;
 
     // The render thread's.
     double mMsPerPixel = 0;        ///< running estimate of the traced render cost

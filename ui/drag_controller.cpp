@@ -4,14 +4,6 @@
 
 namespace penumbra {
 
-namespace {
-
-bool sameTransform(const Transform& a, const Transform& b) {
-    return a.translate == b.translate && a.rotateDeg == b.rotateDeg && a.scale == b.scale;
-}
-
-}  // namespace
-
 std::vector<EditCommand> DragController::begin(const std::string& id, const Transform& start) {
     if (mActive) throw std::logic_error("DragController::begin: '" + mId + "' is being dragged");
     mActive = true;
@@ -22,7 +14,7 @@ std::vector<EditCommand> DragController::begin(const std::string& id, const Tran
 }
 
 std::optional<EditCommand> DragController::update(const Transform& transform) {
-    if (!mActive || sameTransform(transform, mCurrent)) return std::nullopt;
+    if (!mActive || transform == mCurrent) return std::nullopt;
     mCurrent = transform;
     ++mUpdates;
     return EditCommand(fullTransformCommand(mId, transform));
@@ -37,7 +29,7 @@ std::vector<EditCommand> DragController::end() {
 std::vector<EditCommand> DragController::cancel() {
     if (!mActive) return {};
     std::vector<EditCommand> out;
-    if (!sameTransform(mCurrent, mStart)) out.push_back(fullTransformCommand(mId, mStart));
+    if (mCurrent != mStart) out.push_back(fullTransformCommand(mId, mStart));
     out.push_back(UnselectCommand{});
     mActive = false;
     mCurrent = mStart;

@@ -3,7 +3,6 @@
 #include <algorithm>
 
 #include "core/log.h"
-#include "core/thread_priority.h"
 #include "core/timing.h"
 #include "render/camera_rays.h"
 #include "render/holodeck/holo_view.h"
@@ -37,29 +36,12 @@ HolodeckService::~HolodeckService() {
 }
 
 void HolodeckService::start() {
-    if (!enabled() || mThread.joinable()) return;
-    mThread = std::thread([this] { run(); });
+    if (!enabled()) return;
+    mThread.start("holodeck", mOptions.backgroundNice, std::chrono::milliseconds(50),
+                  [this] { return iterate(); });
 }
 
-void HolodeckService::stop() {
-    {
-        std::lock_guard<std::mutex> lock(mMutex);
-        mStop = true;
-    }
-    mWake.notify_all();
-    if (mThread.joinable()) mThread.join();
-}
-
-void HolodeckService::run() {
-    nameThisThread("holodeck");
-    lowerThreadPriority(mOptions.backgroundNice);
-    for (;;) {
-        const bool worked = iterate();
-        std::unique_lock<std::mutex> lock(mMutex);
-        if (mStop) return;
-        if (!worked) mWake.wait_for(lock, std::chrono::milliseconds(50));
-    }
-}
+void HolodeckService::stop() { mThread.stop(); }
 
 void HolodeckService::report(const std::string& message) { mBoard.report("holodeck: " + message); }
 
@@ -76,7 +58,7 @@ std::uint64_t HolodeckService::requestView(const Camera& camera, int width, int 
         id = ++mReadIds;
         mRead = Read{id, camera, width, height};
     }
-    mWake.notify_all();
+    mThread.wake();
     return id;
 }
 
@@ -95,7 +77,7 @@ void HolodeckService::store(std::vector<CachePoint> points, const Vec3& eye,
         std::lock_guard<std::mutex> lock(mMutex);
         mStores.push_back({std::move(points), eye, lightSerial});
     }
-    mWake.notify_all();
+    mThread.wake();
 }
 
 void HolodeckService::edited(const EditEvent& event) {

@@ -22,6 +22,7 @@
 #include "render/holodeck/holo_server.h"
 #include "render/render_cache.h"
 #include "ui/runner_board.h"
+#include "ui/service_thread.h"
 #include "ui/shared_session.h"
 
 namespace penumbra {
@@ -69,7 +70,7 @@ public:
 
     void edited(const EditEvent& event) override;
     void savedHolodeckScene() override;
-    void published() override { mWake.notify_all(); }
+    void published() override { mThread.wake(); }
 
 private:
     struct Read {
@@ -86,7 +87,6 @@ private:
         Vec3 eye{0.0};
         std::uint64_t lightSerial = 0;
     };
-    void run();
     void open();
     /// Forgets what the edits since the last invalidation changed: the elements whose light
     /// moved beyond the threshold against `now`, or every element's.
@@ -101,7 +101,6 @@ private:
     HolodeckServiceOptions mOptions;
 
     mutable std::mutex mMutex;  ///< requests, answers, stores and the edit notes
-    std::condition_variable mWake;
     std::optional<Read> mRead;
     std::optional<Answer> mAnswer;
     std::vector<Store> mStores;
@@ -114,8 +113,7 @@ private:
     /// file again only when it forgets them with nothing edited since the save (otherwise it
     /// forgets every element's light).
     bool mBehindFile = false;
-    bool mStop = false;
-    std::thread mThread;
+    ServiceThread mThread;
 
     // The service's own (its thread's, or the destructor's once it joined).
     std::optional<HoloFile> mFile;

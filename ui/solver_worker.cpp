@@ -5,7 +5,6 @@
 #include <stdexcept>
 
 #include "core/log.h"
-#include "core/thread_priority.h"
 #include "core/timing.h"
 #include "solver/discretization.h"
 
@@ -36,30 +35,11 @@ SolverWorker::SolverWorker(SharedSession& shared, RunnerBoard& board, SolverWork
 SolverWorker::~SolverWorker() { stop(); }
 
 void SolverWorker::start() {
-    if (mThread.joinable()) return;
-    mThread = std::thread([this] { run(); });
+    mThread.start("solver", mOptions.backgroundNice, std::chrono::milliseconds(50),
+                  [this] { return iterate(); });
 }
 
-void SolverWorker::stop() {
-    {
-        std::lock_guard<std::mutex> lock(mMutex);
-        mStop = true;
-    }
-    mWake.notify_all();
-    if (mThread.joinable()) mThread.join();
-}
-
-void SolverWorker::run() {
-    nameThisThread("solver");
-    lowerThreadPriority(mOptions.backgroundNice);
-    for (;;) {
-        const bool worked = iterate();
-        std::unique_lock<std::mutex> lock(mMutex);
-        if (mStop) return;
-        // Sleep when there is nothing to do, until an edit or a setting wakes us.
-        if (!worked) mWake.wait_for(lock, std::chrono::milliseconds(50));
-    }
-}
+void SolverWorker::stop() { mThread.stop(); }
 
 // ---------------------------------------------------------------------------------------------
 // Queue and settings.
@@ -69,7 +49,7 @@ void SolverWorker::push(Queued queued) {
         std::lock_guard<std::mutex> lock(mMutex);
         mQueue.push_back(std::move(queued));
     }
-    mWake.notify_all();
+    mThread.wake();
 }
 
 void SolverWorker::submit(const EditCommand& command, const EditSource& source) {
@@ -88,7 +68,7 @@ void SolverWorker::submitCoalescing(const EditCommand& command) {
         else
             mQueue.push_back({command, EditSource{}, {}, {}});
     }
-    mWake.notify_all();
+    mThread.wake();
 }
 
 void SolverWorker::submitMade(std::function<EditCommand(EditSession&)> make) {
@@ -104,7 +84,7 @@ void SolverWorker::setPaused(bool paused) {
         std::lock_guard<std::mutex> lock(mMutex);
         mPaused = paused;
     }
-    mWake.notify_all();
+    mThread.wake();
 }
 
 bool SolverWorker::paused() const {
@@ -117,7 +97,7 @@ void SolverWorker::setAutoSolve(bool on) {
         std::lock_guard<std::mutex> lock(mMutex);
         mAutoSolve = on;
     }
-    mWake.notify_all();
+    mThread.wake();
 }
 
 void SolverWorker::setConvergeEps(double eps) {
@@ -125,7 +105,7 @@ void SolverWorker::setConvergeEps(double eps) {
         std::lock_guard<std::mutex> lock(mMutex);
         if (eps > 0 && eps < 1) mEps = eps;
     }
-    mWake.notify_all();
+    mThread.wake();
 }
 
 void SolverWorker::setStrategy(RedistributionStrategy strategy, double threshold) {
@@ -137,7 +117,7 @@ void SolverWorker::setStrategy(RedistributionStrategy strategy, double threshold
         mThreshold = threshold;
         mStrategyChanged = true;
     }
-    mWake.notify_all();
+    mThread.wake();
 }
 
 RedistributionStrategy SolverWorker::strategy() const {

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "ui/runner_board.h"
+#include "ui/service_thread.h"
 #include "ui/shared_session.h"
 
 namespace penumbra {
@@ -80,7 +81,6 @@ private:
         std::function<EditCommand(EditSession&)> make;
         bool savesHolodeckScene = false;
     };
-    void run();
     void push(Queued queued);
     /// Applies a batch with the structure exclusive, telling the listeners; then publishes.
     void applyCommands(std::deque<Queued>& commands);
@@ -99,7 +99,6 @@ private:
     std::vector<EditListener*> mListeners;
 
     mutable std::mutex mMutex;  ///< the queue and the settings
-    std::condition_variable mWake;
     std::deque<Queued> mQueue;
     bool mPaused = false;
     bool mAutoSolve = true;
@@ -108,8 +107,7 @@ private:
     double mThreshold = 0;
     bool mStrategyChanged = false;  ///< the worker has not applied mStrategy yet
     bool mApplying = false;
-    bool mStop = false;
-    std::thread mThread;
+    ServiceThread mThread;
 
     // The worker's own state.
     std::uint64_t mDocumentSerial = 0;

@@ -1,0 +1,47 @@
+#include "ui/service_thread.h"
+
+#include "core/thread_priority.h"
+
+namespace penumbra {
+
+ServiceThread::~ServiceThread() { stop(); }
+
+void ServiceThread::start(const char* name, int nice, std::chrono::milliseconds idle,
+                          std::function<bool()> iterate) {
+    if (mThread.joinable()) return;
+    {
+        std::lock_guard<std::mutex> lock(mMutex);
+        mStop = false;
+    }
+    mThread = std::thread([this, name, nice, idle, iterate = std::move(iterate)] {
+        nameThisThread(name);
+        lowerThreadPriority(nice);
+        for (;;) {
+            const bool worked = iterate();
+            std::unique_lock<std::mutex> lock(mMutex);
+            if (mStop) return;
+            if (!worked) mWake.wait_for(lock, idle, [&] { return mStop || mWoken; });
+            mWoken = false;
+            if (mStop) return;
+        }
+    });
+}
+
+void ServiceThread::stop() {
+    {
+        std::lock_guard<std::mutex> lock(mMutex);
+        mStop = true;
+    }
+    mWake.notify_all();
+    if (mThread.joinable()) mThread.join();
+}
+
+void ServiceThread::wake() {
+    {
+        std::lock_guard<std::mutex> lock(mMutex);
+        mWoken = true;
+    }
+    mWake.notify_all();
+}
+
+}  // namespace penumbra
