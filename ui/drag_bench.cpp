@@ -58,13 +58,11 @@ std::string transformLine(const std::string& id, const Transform& t) {
     return formatEditCommand(EditCommand(c));
 }
 
-/// The errors of `image` over the dragged object's own pixels (where the reference's primary
-/// ray meets object `version`): solid and in the right place, or not. Sets objectError,
-/// objectPixels and objectWrong, the share of those pixels that show something else (the
-/// background through a hole, the object elsewhere): a channel off by more than a fifth of
-/// the range, far beyond what a lagging light gives.
-void compareObjectPixels(EditSession& session, const CameraRays& rays, int version,
-                         const std::vector<std::uint8_t>& referenceBytes, DragBenchImage& e) {
+/// The displayed bytes of `e` and of its reference over the pixels where the reference's
+/// primary ray meets object `version`, in the same order.
+std::pair<std::vector<std::uint8_t>, std::vector<std::uint8_t>> objectBytes(
+    EditSession& session, const CameraRays& rays, int version,
+    const std::vector<std::uint8_t>& referenceBytes, const DragBenchImage& e) {
     std::vector<std::uint8_t> a, b;
     for (int y = 0; y < e.height; ++y)
         for (int x = 0; x < e.width; ++x) {
@@ -77,6 +75,17 @@ void compareObjectPixels(EditSession& session, const CameraRays& rays, int versi
                 b.push_back(referenceBytes[k + c]);
             }
         }
+    return {std::move(a), std::move(b)};
+}
+
+/// The errors of `image` over the dragged object's own pixels (where the reference's primary
+/// ray meets object `version`): solid and in the right place, or not. Sets objectError,
+/// objectPixels and objectWrong, the share of those pixels that show something else (the
+/// background through a hole, the object elsewhere): a channel off by more than a fifth of
+/// the range, far beyond what a lagging light gives.
+void compareObjectPixels(EditSession& session, const CameraRays& rays, int version,
+                         const std::vector<std::uint8_t>& referenceBytes, DragBenchImage& e) {
+    const auto [a, b] = objectBytes(session, rays, version, referenceBytes, e);
     e.objectError = relativeError(a, b);
     e.objectPixels = a.size() / 3;
     std::size_t wrong = 0;
@@ -95,18 +104,7 @@ void compareFloorPixels(EditSession& session, const CameraRays& rays,
                         const std::vector<std::uint8_t>& referenceBytes, DragBenchImage& e) {
     const int floor = session.objectVersion("floor");
     if (floor < 0) return;
-    std::vector<std::uint8_t> a, b;
-    for (int y = 0; y < e.height; ++y)
-        for (int x = 0; x < e.width; ++x) {
-            const RayHit hit =
-                session.tracer().intersect(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
-            if (hit.object != floor) continue;
-            const std::size_t k = 3 * (static_cast<std::size_t>(y) * e.width + x);
-            for (int c = 0; c < 3; ++c) {
-                a.push_back((*e.shown)[k + c]);
-                b.push_back(referenceBytes[k + c]);
-            }
-        }
+    const auto [a, b] = objectBytes(session, rays, floor, referenceBytes, e);
     e.floorError = relativeError(a, b);
 }
 
