@@ -408,18 +408,36 @@ void formFactorsToPatch(const Discretization& disc, const RayTracer& tracer, int
 PointToPatch formFactorChange(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
                               const Vec3& n, int patch, std::uint64_t receiverKey,
                               std::uint64_t seed, int maxRays, const Visibility& before,
-                              const Visibility& after, const Visibility& changed) {
+                              const Visibility& after, const Visibility& changed,
+                              ChangedObjectsIn where) {
     return estimatePointToPatch(
         disc, tracer, x, n, patch, receiverKey, seed, maxRays, nullptr,
         [&](const Vec3& from, const Vec3* to, int count, int* visible, int& rays) {
-            for (int i = 0; i < count; ++i) {
+            for (int i = 0; i < count; i += 16) {
+                const int m = std::min(16, count - i);
                 // A sample that misses every changed object has the same visibility in both
                 // worlds: its terms cancel exactly.
-                ++rays;
-                if (!tracer.occluded(from, to[i], changed)) continue;
-                rays += 2;
-                visible[i] = (tracer.occluded(from, to[i], after) ? 0 : 1) -
-                             (tracer.occluded(from, to[i], before) ? 0 : 1);
+                bool meets[16];
+                tracer.occludedPacket(from, to + i, m, meets, changed);
+                rays += m;
+                Vec3 met[16];
+                int which[16], k = 0;
+                for (int s = 0; s < m; ++s)
+                    if (meets[s]) met[k] = to[i + s], which[k++] = i + s;
+                if (k == 0) continue;
+                // The world holding every changed object blocks these samples; the other
+                // world decides.
+                bool blockedBefore[16], blockedAfter[16];
+                if (where == ChangedObjectsIn::Before)
+                    std::fill_n(blockedBefore, k, true);
+                else
+                    tracer.occludedPacket(from, met, k, blockedBefore, before), rays += k;
+                if (where == ChangedObjectsIn::After)
+                    std::fill_n(blockedAfter, k, true);
+                else
+                    tracer.occludedPacket(from, met, k, blockedAfter, after), rays += k;
+                for (int s = 0; s < k; ++s)
+                    visible[which[s]] = (blockedAfter[s] ? 0 : 1) - (blockedBefore[s] ? 0 : 1);
             }
         });
 }

@@ -54,15 +54,25 @@ void formFactorsToPatch(const Discretization& disc, const RayTracer& tracer, int
                         const Receiver* receivers, int count, std::uint64_t seed, int maxRays,
                         const Visibility& visibility, PointToPatch* out);
 
+/// Which of the two worlds of formFactorChange hold the changed objects.
+enum class ChangedObjectsIn {
+    Either,  ///< some in each (a move), or not known
+    After,   ///< all of them after, none before (an addition)
+    Before,  ///< all of them before, none after (a removal)
+};
+
 /// F(after) − F(before) for the same pair and the same pair-seeded samples as
 /// formFactorToPatch, where the two worlds differ only by the objects that `changed` admits
-/// (a Visibility::subset of the added and removed objects). Each sample is first traced
-/// against the changed objects alone; only samples that meet one are traced in `before` and
-/// `after`, so unchanged visibility cancels exactly and costs one cheap ray. `visible` holds
-/// the difference, `rays` every ray traced.
+/// (a Visibility::subset of the added and removed objects). The samples are first traced
+/// against the changed objects alone (packets of up to 16); only samples that meet one are
+/// traced in `before` and `after`, so unchanged visibility cancels exactly and costs one cheap
+/// ray. When `where` says one world holds every changed object, a sample meeting one is
+/// blocked in that world (the same instances give the same hits), so only the other world is
+/// traced. `visible` holds the difference, `rays` every ray traced.
 PointToPatch formFactorChange(const Discretization& disc, const RayTracer& tracer, const Vec3& x,
                               const Vec3& n, int patch, std::uint64_t receiverKey,
                               std::uint64_t seed, int maxRays, const Visibility& before,
-                              const Visibility& after, const Visibility& changed);
+                              const Visibility& after, const Visibility& changed,
+                              ChangedObjectsIn where = ChangedObjectsIn::Either);
 
 }  // namespace penumbra

@@ -33,6 +33,7 @@ SolverOptions interactiveSolverOptions() {
     o.gatherRays = 256;
     o.gatherRayBudget = 1e5;
     o.gatherBelow = 1.0;
+    o.gatherCoarseBlock = 2;
     return o;
 }
 
@@ -64,6 +65,8 @@ void ProgressiveSolver::initialize() {
         mEmittedEnergy += (e.x + e.y + e.z) * patches[p].area;
         mImpl->queue.update(static_cast<int>(p), energyKey(e, patches[p].area));
     }
+    // Redistribution's receiver bounds, ahead of the first edit.
+    mImpl->receiverBounds.update(mDisc);
 }
 
 void ProgressiveSolver::setStrategy(RedistributionStrategy strategy,
@@ -111,7 +114,8 @@ int ProgressiveSolver::step(int maxShots) {
             redistribute = redistribution >= propagation;
         }
         if (redistribute) {
-            shootRedistribution();
+            // Only a gather's second pass ran: no shot yet, choose again.
+            if (!shootRedistribution()) --done;
         } else if (shootsStochastically(propagation)) {
             shootStochasticBatch();
         } else {
@@ -148,9 +152,11 @@ std::uint64_t ProgressiveSolver::converge(double eps, std::uint64_t maxShots,
         // estimated importance (George et al.'s error elimination).
         if (unshotFraction() <= eps) {
             auto start = std::chrono::steady_clock::now();
+            const std::uint64_t refinements = mImpl->gatherRefinements;
             bool shot = shootRedistribution();
             mStats.seconds +=
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            if (!shot && mImpl->gatherRefinements != refinements) continue;  // not a shot
             if (!shot) break;
         } else if (step(1) == 0) {
             break;
@@ -361,7 +367,8 @@ Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
 }
 
 Rgb ProgressiveSolver::irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,
-                                        const Visibility& after, const Visibility& changed) const {
+                                        const Visibility& after, const Visibility& changed,
+                                        ChangedObjectsIn where) const {
     const Patch& P = mDisc.patches()[shooter];
     const Element& el = mDisc.elements()[e];
     if (el.patch == shooter) return Rgb(0.0);
@@ -371,7 +378,7 @@ Rgb ProgressiveSolver::irradianceChange(int shooter, int e, const Rgb& dB, const
     if (glm::dot(-toReceiver, el.normal) < -P.radius) return Rgb(0.0);
     PointToPatch ff = formFactorChange(mDisc, mTracer, el.receiver, el.normal, shooter,
                                        static_cast<std::uint64_t>(e), mOptions.seed,
-                                       mOptions.maxRaysPerPair, before, after, changed);
+                                       mOptions.maxRaysPerPair, before, after, changed, where);
     return dB * ff.visible;
 }
 

@@ -17,6 +17,7 @@
 namespace penumbra {
 
 struct ChangeEntry;
+enum class ChangedObjectsIn;  // solver/form_factor.h
 
 /// George et al.'s interleaving strategies.
 enum class RedistributionStrategy {
@@ -72,6 +73,12 @@ struct SolverOptions {
     /// The gather starts once the edit's strongest pending shooter carries less than this
     /// fraction of the emitted power; 0 uses stochasticBelow.
     double gatherBelow = 0;
+    /// > 1: the gather goes in two passes. The first traces one stratum, picked at random, of
+    /// each block of gatherCoarseBlock × gatherCoarseBlock strata (an unbiased, coarser
+    /// estimate at a fraction of the rays), so the added object has its light quickly; the
+    /// second, once the edit's strong shooters have shot, traces the other strata and
+    /// corrects each element to exactly the one-pass gather. 1: one pass.
+    int gatherCoarseBlock = 1;
     RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
     /// Strategy one redistributes first while the most important pending redistribution
     /// carries more than this fraction of the emitted power (0: all of it first).
@@ -213,10 +220,12 @@ private:
     /// False for pairs that cannot exchange light under `visibility` (irradianceFrom's culls:
     /// the shooter's own elements, receivers absent, either side behind the other).
     bool mayReceive(int shooter, int e, const Visibility& visibility) const;
-    /// dB · (F(after) − F(before)) for element e and `shooter`, tracing both worlds only for
-    /// samples that meet an object `changed` admits (formFactorChange).
+    /// dB · (F(after) − F(before)) for element e and `shooter`, tracing the worlds only for
+    /// samples that meet an object `changed` admits (formFactorChange; `where` says which
+    /// world holds the changed objects).
     Rgb irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,
-                         const Visibility& after, const Visibility& changed) const;
+                         const Visibility& after, const Visibility& changed,
+                         ChangedObjectsIn where) const;
     /// Adds irradiance dH to element e (B += ρ dH) and its share to its patch's unshot;
     /// `emissionShare` (per channel) of dH came straight from emission.
     void receive(int e, const Rgb& dH, const Rgb& emissionShare = Rgb(0.0));
@@ -246,7 +255,8 @@ private:
     void ensureSizes();
     void recomputeEmitted();
     /// One redistribution shot from the most important pending shooter of the most
-    /// important pending edit. Returns false when nothing is pending.
+    /// important pending edit, or the second pass of its gather when that goes next. Returns
+    /// false when it shot nothing: nothing is pending, or only a gather's second pass ran.
     bool shootRedistribution();
     /// All of entry k's remaining (weak) redistribution at once, on rays.
     void shootRedistributionBatch(int k);
@@ -266,6 +276,13 @@ private:
     void gatherToAdded(ChangeEntry& c, bool preview, std::vector<Rgb>& delta);
     /// Whether entry c, whose strongest pending shooter carries `best` W, gathers next.
     bool shouldGather(const ChangeEntry& c, double best) const;
+    /// Whether entry c's gather has a second pass pending that goes next (its strongest
+    /// pending shooter carries `best` W: weak enough for the stochastic tail, or none left).
+    bool shouldRefineGather(const ChangeEntry& c, double best) const;
+    /// The second pass of entry c's gather (SolverOptions::gatherCoarseBlock): the strata the
+    /// first pass left, and per element the correction from the first pass's estimate to the
+    /// whole gather's. Writes irradiance per element.
+    void refineGather(ChangeEntry& c, bool preview, std::vector<Rgb>& delta);
     /// Best pending redistribution importance (W), and which edit holds it.
     double bestRedistribution(int* entry) const;
     void subdivideSteepElements();

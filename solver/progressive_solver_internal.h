@@ -4,10 +4,12 @@
 // adaptive subdivision, queries) and redistribution.cpp (George et al. 1990's change log,
 // redistribution shots and the drag preview's temporary buffer).
 //
-// Index: sampling helpers · ChangeEntry · ProgressiveSolver::Impl
+// Index: sampling helpers · receiver bounds · ChangeEntry · ProgressiveSolver::Impl
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -161,6 +163,107 @@ private:
     std::vector<double> mCumulative;  ///< doubled area of the patch's triangles up to each
 };
 
+/// Balls holding the receiving points (Element::receiver) of every patch, and per object a
+/// binary tree of balls over its patches (leaves of a few patches): redistribution's shaft
+/// test rejects whole groups of patches before testing patches and elements. Objects appended
+/// since the last update get their trees on the next update; a changed element count of the
+/// objects already there (subdivision) rebuilds everything.
+struct ReceiverBounds {
+    struct Ball {
+        Vec3 centre{0};
+        double radius = -1;  ///< -1: holds no receiver
+    };
+    struct Node {
+        Ball ball;
+        int first = 0, count = 0;   ///< its patches: order[first, first + count)
+        int left = -1, right = -1;  ///< children (-1 for a leaf)
+    };
+    static constexpr int kLeafPatches = 8;
+    std::vector<Ball> patches;     ///< per patch
+    std::vector<Node> nodes;       ///< every object's tree
+    std::vector<int> roots;        ///< per object: its root node, -1 without receivers
+    std::vector<int> order;        ///< patch indices, each node's contiguous
+    std::size_t elementCount = 0;  ///< elements of the objects already built
+
+    void update(const Discretization& disc) {
+        const std::size_t nObjects = disc.objects().size();
+        std::size_t built = roots.size(), expected = elementCount;
+        for (std::size_t o = built; o < nObjects; ++o)
+            expected += static_cast<std::size_t>(disc.elementRange(static_cast<int>(o)).second);
+        if (built == nObjects && expected == disc.elements().size()) return;
+        if (expected != disc.elements().size()) {
+            // Elements of existing objects changed: start again.
+            patches.clear();
+            nodes.clear();
+            roots.clear();
+            order.clear();
+            built = 0;
+        }
+        const std::size_t oldPatches = patches.size();
+        patches.resize(disc.patches().size());
+        std::vector<std::vector<int>> byObject(nObjects);
+        for (std::size_t p = oldPatches; p < disc.patches().size(); ++p) {
+            const Patch& P = disc.patches()[p];
+            Ball& b = patches[p];
+            b = Ball{P.centroid, -1};
+            for (int e : P.elements)
+                b.radius =
+                    std::max(b.radius, glm::length(disc.elements()[e].receiver - P.centroid));
+            if (b.radius >= 0 && static_cast<std::size_t>(P.object) >= built)
+                byObject[P.object].push_back(static_cast<int>(p));
+        }
+        roots.resize(nObjects, -1);
+        for (std::size_t o = built; o < nObjects; ++o) {
+            if (byObject[o].empty()) continue;
+            const int first = static_cast<int>(order.size());
+            order.insert(order.end(), byObject[o].begin(), byObject[o].end());
+            roots[o] = build(first, static_cast<int>(order.size()));
+        }
+        elementCount = disc.elements().size();
+    }
+
+private:
+    /// The node over order[begin, end): its ball, then halves split at the median of the
+    /// patch centres along their longest extent.
+    int build(int begin, int end) {
+        Vec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+        Vec3 clo = lo, chi = hi;
+        for (int i = begin; i < end; ++i) {
+            const Ball& b = patches[order[i]];
+            lo = glm::min(lo, b.centre - Vec3(b.radius));
+            hi = glm::max(hi, b.centre + Vec3(b.radius));
+            clo = glm::min(clo, b.centre);
+            chi = glm::max(chi, b.centre);
+        }
+        Node node;
+        node.ball.centre = 0.5 * (lo + hi);
+        node.ball.radius = 0;
+        for (int i = begin; i < end; ++i) {
+            const Ball& b = patches[order[i]];
+            node.ball.radius =
+                std::max(node.ball.radius, glm::length(b.centre - node.ball.centre) + b.radius);
+        }
+        node.first = begin;
+        node.count = end - begin;
+        const int index = static_cast<int>(nodes.size());
+        nodes.push_back(node);
+        if (end - begin <= kLeafPatches) return index;
+        const Vec3 extent = chi - clo;
+        const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0
+                         : extent.y >= extent.z                       ? 1
+                                                                      : 2;
+        const int mid = (begin + end) / 2;
+        std::nth_element(
+            order.begin() + begin, order.begin() + mid, order.begin() + end,
+            [&](int a, int b) { return patches[a].centre[axis] < patches[b].centre[axis]; });
+        const int left = build(begin, mid);
+        const int right = build(mid, end);
+        nodes[index].left = left;
+        nodes[index].right = right;
+        return index;
+    }
+};
+
 }  // namespace solver_detail
 
 /// One edit's pending redistribution (George et al.: "each log entry records a single
@@ -199,6 +302,25 @@ struct ChangeEntry {
     bool isGathered(int j) const {
         return j >= 0 && static_cast<std::size_t>(j) < gathered.size() && gathered[j];
     }
+    /// A coarse gather's second pass, pending (SolverOptions::gatherCoarseBlock).
+    struct GatherRefinement {
+        std::vector<int> receivers;      ///< the added objects' elements, ascending
+        std::vector<Rgb> firstEstimate;  ///< per receiver: irradiance the first pass gave
+        /// Per receiver and block: the pending patch whose shot radiosity the block's traced
+        /// stratum returned, -1 for none.
+        std::vector<int> blockHit;
+        int nx = 0, ny = 0;      ///< strata over (φ, sin²θ)
+        std::uint64_t seed = 0;  ///< the gather's ray seed
+        double importance = 0;   ///< W: the gathered shooters' share still to trace
+    } refinement;
+    bool refinementPending() const { return !refinement.receivers.empty(); }
+    /// The entry's standing: its strongest pending shooter's importance, or while only a
+    /// gather's second pass is left, that pass's importance; 0 when nothing is left.
+    double bestPending() const {
+        const int top = pending.top();
+        if (top >= 0 && pending.key(top) > 0) return pending.key(top);
+        return refinementPending() ? std::max(refinement.importance, 1e-300) : 0.0;
+    }
 };
 
 struct ProgressiveSolver::Impl {
@@ -226,6 +348,12 @@ struct ProgressiveSolver::Impl {
     // Patches whose unshot energy changed in the current shot: one heap update each.
     std::vector<std::uint8_t> touched;
     std::vector<int> touchedList;
+    solver_detail::ReceiverBounds receiverBounds;  ///< redistribution's shaft culling
+    /// redistributionDelta's scratch: the receiver-tree nodes to walk in parallel, each with
+    /// the changed objects' balls its receivers may meet (0: every element receives), and
+    /// the serial walk's stack.
+    std::vector<std::pair<int, std::uint64_t>> shaftWork, shaftStack;
+    std::uint64_t gatherRefinements = 0;  ///< gathers' second passes so far
     // Deterministic propagation shots so far and their rays (shootsStochastically).
     std::uint64_t deterministicShots = 0, deterministicRays = 0;
 };

@@ -43,9 +43,34 @@ bool sphereMeetsCone(const Vec3& x, const Vec3& p, double pr, const Vec3& c, dou
     const double k = glm::dot(w, d);
     const double t0 = -k / l2;                                     // closest point on the line
     const double q2 = std::max(0.0, glm::dot(w, w) - k * k / l2);  // squared line distance
+    // g(t) ≥ √q2 − max(pr, 0): far enough from the line, no square root needed.
+    const double reach = r + std::max(pr, 0.0);
+    if (reach < 0 || q2 >= reach * reach) return false;
     const double s = pr * std::sqrt(q2) / (std::sqrt(l2) * std::sqrt(l2 - pr * pr));
     const double t = std::clamp(t0 + s, 0.0, 1.0);
     return std::sqrt(l2 * (t - t0) * (t - t0) + q2) - pr * t < r;
+}
+
+/// Whether the sphere (c, r) can meet a segment from x to a point of the convex polygon `poly`
+/// (front side toward unit `pn`): it is not wholly beyond the polygon's plane, seen from x, nor
+/// wholly outside one of the planes through x and an edge. (Spheres near the pyramid's edges
+/// may pass without meeting it; none that meets it fails.)
+bool sphereMeetsPyramid(const Vec3& x, const std::vector<Vec3>& poly, const Vec3& pn, const Vec3& c,
+                        double r) {
+    const double hx = glm::dot(x - poly[0], pn), hc = glm::dot(c - poly[0], pn);
+    if ((hx > 0 && hc < -r) || (hx < 0 && hc > r)) return false;
+    Vec3 inside(0.0);
+    for (const Vec3& v : poly) inside += v;
+    inside /= static_cast<double>(poly.size());
+    const Vec3 toInside = inside - x, toCentre = c - x;
+    for (std::size_t i = 0; i < poly.size(); ++i) {
+        const Vec3 m = glm::cross(poly[i] - x, poly[i + 1 < poly.size() ? i + 1 : 0] - x);
+        const double side = glm::dot(toInside, m);
+        if (side == 0) continue;  // x in the polygon's plane: no side plane here
+        const double d = glm::dot(toCentre, m);
+        if ((side > 0 ? d : -d) < -r * glm::length(m)) return false;
+    }
+    return true;
 }
 
 }  // namespace
@@ -104,21 +129,23 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
     entry.shot.assign(patches.size(), Rgb(0.0));
     entry.shotEmissionShare.assign(patches.size(), Rgb(0.0));
     entry.pending.reset(patches.size());
-    for (std::size_t j = 0; j < patches.size(); ++j) {
-        const Patch& P = patches[j];
-        if (!entry.before[P.object] ||
-            entry.added.end() != std::find(entry.added.begin(), entry.added.end(), P.object))
-            continue;
-        Rgb shot = patchRadiosity(static_cast<int>(j)) - mPatchUnshot[j];
-        if (isZero(shot)) continue;
-        entry.shot[j] = shot;
-        entry.shotEmissionShare[j] = shareOf(
-            mDisc.patchMaterial(static_cast<int>(j)).emission - mPatchUnshotEmission[j], shot);
-        double power = energyKey(shot, P.area);
-        double importance;
-        if (changed[P.object]) {
-            importance = power;  // a removed shooter: all it shot is cancelled
-        } else {
+    // Per patch in parallel (each writes its own slots); the heap and the sum in patch order.
+    std::vector<char> added(nObjects, 0);
+    for (int o : entry.added) added[o] = 1;
+    std::vector<double> importance(patches.size(), 0.0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, patches.size(), 256), [&](const auto& r) {
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            const Patch& P = patches[j];
+            if (!entry.before[P.object] || added[P.object]) continue;
+            Rgb shot = patchRadiosity(static_cast<int>(j)) - mPatchUnshot[j];
+            if (isZero(shot)) continue;
+            entry.shot[j] = shot;
+            entry.shotEmissionShare[j] = shareOf(
+                mDisc.patchMaterial(static_cast<int>(j)).emission - mPatchUnshotEmission[j], shot);
+            if (changed[P.object]) {
+                importance[j] = energyKey(shot, P.area);  // a removed shooter: all it shot is
+                continue;                                 // cancelled
+            }
             double f = 0;
             for (const Vec3& sp : samples) {
                 Vec3 d = sp - P.centroid;
@@ -129,10 +156,13 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
             f /= static_cast<double>(samples.size());
             // Power reaching the objects: radiosity × F × (about a quarter of their area
             // faces any one direction); at least a tiny amount so every shooter is visited.
-            importance = std::max(energyKey(shot, 1.0) * f * changedArea / 4, 1e-300);
+            importance[j] = std::max(energyKey(shot, 1.0) * f * changedArea / 4, 1e-300);
         }
-        entry.pending.update(static_cast<int>(j), importance);
-        entry.totalPending += importance;
+    });
+    for (std::size_t j = 0; j < patches.size(); ++j) {
+        if (!(importance[j] > 0)) continue;
+        entry.pending.update(static_cast<int>(j), importance[j]);
+        entry.totalPending += importance[j];
     }
     return entry;
 }
@@ -255,11 +285,10 @@ void ProgressiveSolver::changeMaterial(int object, const Material& material) {
 double ProgressiveSolver::bestRedistribution(int* entryIndex) const {
     double best = 0;
     for (std::size_t k = 0; k < mImpl->changes.size(); ++k) {
-        const ChangeEntry& c = mImpl->changes[k];
-        int top = c.pending.top();
-        if (top < 0 || c.pending.key(top) <= 0) continue;
-        if (c.pending.key(top) > best) {
-            best = c.pending.key(top);
+        const double key = mImpl->changes[k].bestPending();
+        if (key <= 0) continue;
+        if (key > best) {
+            best = key;
             if (entryIndex) *entryIndex = static_cast<int>(k);
         }
     }
@@ -299,41 +328,127 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
     // The world after the edit is usually the current scene: trace it without a filter.
     if (afterIsCurrentScene(c, preview)) after = Visibility{};
     const Visibility changed = c.changed.visibility();
+    const ChangedObjectsIn where = c.removed.empty() ? ChangedObjectsIn::After
+                                   : c.added.empty() ? ChangedObjectsIn::Before
+                                                     : ChangedObjectsIn::Either;
     const double margin = 4 * mTracer.epsilon();
     const bool gathered = c.isGathered(j);
 
-    const auto& elements = mDisc.elements();
-    const std::size_t n = elements.size();
-    delta.assign(n, Rgb(0.0));
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
-        for (std::size_t e = range.begin(); e != range.end(); ++e) {
-            const Element& el = elements[e];
-            if (el.object >= static_cast<int>(c.after.size()) || !c.after[el.object]) continue;
-            if (!mDisc.objects()[el.object].alive &&
-                !(preview && el.object == mImpl->previewObject))
+    // Haines–Wallace style shaft: which changed objects (bits of `mask`, those past the 64th
+    // sharing the last) can meet a segment from a receiver within the ball (x, a) to the
+    // shooter patch? Segments from B(x, a) to B(p, b) lie in the union of the balls
+    // B(x + t(p − x), a + t(b − a)), so the test for the ball is the point test with the patch
+    // radius b − a and each sphere widened by a (and the margin again, so the ball's test
+    // passes wherever one of its receivers' tests would). A ball inside another passes only
+    // for spheres the outer one passes for, so the tests narrow the mask going down.
+    auto bitOf = [](std::size_t k) { return std::uint64_t(1) << std::min<std::size_t>(k, 63); };
+    auto shaftMask = [&](const Vec3& x, double a, std::uint64_t mask) {
+        if (a > 0) a += margin;
+        std::uint64_t out = 0;
+        for (std::size_t k = 0; k < c.spheres.size(); ++k) {
+            const std::uint64_t bit = bitOf(k);
+            if (!(mask & bit) || (out & bit)) continue;
+            const auto& [centre, radius] = c.spheres[k];
+            if (sphereMeetsCone(x, P.centroid, P.radius + margin - a, centre, radius + margin + a))
+                out |= bit;
+        }
+        return out;
+    };
+    // A planar shooter's segments from x end on its outline: the pyramid with apex x over
+    // the outline holds them, tighter than the cone to the patch's bounding ball.
+    auto inPyramid = [&](const Vec3& x, std::uint64_t mask) {
+        if (P.outline.size() < 3) return true;
+        for (std::size_t k = 0; k < c.spheres.size(); ++k)
+            if ((mask & bitOf(k)) && sphereMeetsPyramid(x, P.outline, P.normal, c.spheres[k].first,
+                                                        c.spheres[k].second + margin))
+                return true;
+        return false;
+    };
+    constexpr std::uint64_t kAll = ~std::uint64_t(0);
+    mImpl->receiverBounds.update(mDisc);
+    const ReceiverBounds& bounds = mImpl->receiverBounds;
+
+    // The work: subtrees of the receivers' trees, each with the changed objects its receivers
+    // may meet (0: every element of every patch receives: added receivers, or the
+    // cancellation of a removed shooter). Large subtrees are opened here, so the parallel
+    // walk below has pieces of a few dozen patches.
+    constexpr int kWorkPatches = 64;
+    const auto& objects = mDisc.objects();
+    auto& work = mImpl->shaftWork;
+    work.clear();
+    std::vector<std::pair<int, std::uint64_t>>& stack = mImpl->shaftStack;
+    for (std::size_t o = 0; o < objects.size() && o < c.after.size(); ++o) {
+        if (!c.after[o] ||
+            (!objects[o].alive && !(preview && static_cast<int>(o) == mImpl->previewObject)))
+            continue;
+        const int root = o < bounds.roots.size() ? bounds.roots[o] : -1;
+        if (root < 0) continue;
+        const bool receiverAdded = !c.before[o];
+        if (shooterRemoved || receiverAdded) {
+            // Cancel what a removed patch shot: −F(t−1) (George et al.: "energy that was
+            // distributed by patches on the dynamic object is canceled"). A gathered
+            // shooter's light on added receivers came with gatherToAdded.
+            if (shooterRemoved ? !receiverAdded : !gathered) work.push_back({root, 0});
+            continue;
+        }
+        stack.assign(1, {root, kAll});
+        while (!stack.empty()) {
+            const auto [index, inherited] = stack.back();
+            stack.pop_back();
+            const ReceiverBounds::Node& n = bounds.nodes[index];
+            if (n.count <= kWorkPatches) {
+                work.push_back({index, inherited});
                 continue;
-            const bool receiverAdded = !c.before[el.object];
-            const int ie = static_cast<int>(e);
-            if (shooterRemoved) {
-                // Cancel what the removed patch shot: −F(t−1) (George et al.: "energy that
-                // was distributed by patches on the dynamic object is canceled").
-                if (receiverAdded) continue;
-                delta[e] = -irradianceFrom(j, ie, shot, before);
-            } else if (receiverAdded) {
-                if (gathered) continue;  // gatherToAdded delivered it
-                delta[e] = irradianceFrom(j, ie, shot, after);
-            } else {
-                // Haines–Wallace style shaft: can any changed object meet a segment from
-                // the receiver to the shooter patch?
-                bool inShaft = false;
-                for (const auto& [centre, radius] : c.spheres)
-                    if (sphereMeetsCone(el.receiver, P.centroid, P.radius + margin, centre,
-                                        radius + margin)) {
-                        inShaft = true;
-                        break;
-                    }
-                if (!inShaft) continue;
-                delta[e] = irradianceChange(j, ie, shot, before, after, changed);
+            }
+            const std::uint64_t mask = shaftMask(n.ball.centre, n.ball.radius, inherited);
+            if (!mask) continue;
+            stack.push_back({n.right, mask});
+            stack.push_back({n.left, mask});
+        }
+    }
+
+    // Each piece in parallel: its subtree's balls, patches and elements (a patch's elements
+    // belong to no other piece).
+    const auto& patches = mDisc.patches();
+    const auto& elements = mDisc.elements();
+    delta.assign(elements.size(), Rgb(0.0));
+    auto receivePatch = [&](int q, std::uint64_t mask) {
+        for (int e : patches[q].elements) {
+            if (mask == 0) {
+                delta[e] = shooterRemoved ? -irradianceFrom(j, e, shot, before)
+                                          : irradianceFrom(j, e, shot, after);
+                continue;
+            }
+            const Vec3& x = elements[e].receiver;
+            const std::uint64_t m = shaftMask(x, 0, mask);
+            if (m && inPyramid(x, m))
+                delta[e] = irradianceChange(j, e, shot, before, after, changed, where);
+        }
+    };
+    tbb::parallel_for(std::size_t(0), work.size(), [&](std::size_t w) {
+        const auto [root, rootMask] = work[w];
+        if (rootMask == 0) {
+            const ReceiverBounds::Node& n = bounds.nodes[root];
+            for (int i = n.first; i < n.first + n.count; ++i) receivePatch(bounds.order[i], 0);
+            return;
+        }
+        std::pair<int, std::uint64_t> local[64];
+        int depth = 0;
+        local[depth++] = {root, rootMask};
+        while (depth > 0) {
+            const auto [index, inherited] = local[--depth];
+            const ReceiverBounds::Node& n = bounds.nodes[index];
+            const std::uint64_t mask = shaftMask(n.ball.centre, n.ball.radius, inherited);
+            if (!mask) continue;
+            if (n.left >= 0) {
+                local[depth++] = {n.right, mask};
+                local[depth++] = {n.left, mask};
+                continue;
+            }
+            for (int i = n.first; i < n.first + n.count; ++i) {
+                const int q = bounds.order[i];
+                const ReceiverBounds::Ball& b = bounds.patches[q];
+                if (const std::uint64_t m = shaftMask(b.centre, b.radius, mask)) receivePatch(q, m);
             }
         }
     });
@@ -345,6 +460,56 @@ bool ProgressiveSolver::shouldGather(const ChangeEntry& c, double best) const {
            best < below * mEmittedEnergy;
 }
 
+bool ProgressiveSolver::shouldRefineGather(const ChangeEntry& c, double best) const {
+    return c.refinementPending() && (best <= 0 || best < mOptions.stochasticBelow * mEmittedEnergy);
+}
+
+namespace {
+
+/// The strata of a gather: nx × ny over (φ, sin²θ), grouped in blocks of `block` × `block`
+/// (smaller along the far edges) for a coarse first pass.
+struct GatherStrata {
+    int nx = 1, ny = 1, block = 1;
+    int bx = 1, by = 1;         ///< blocks along each direction
+    std::vector<int> blockOf;   ///< per stratum: its block
+    std::vector<double> share;  ///< per block: its share of the strata
+    GatherStrata(int nx_, int ny_, int block_) : nx(nx_), ny(ny_), block(std::max(1, block_)) {
+        bx = (nx + block - 1) / block;
+        by = (ny + block - 1) / block;
+        blockOf.resize(static_cast<std::size_t>(count()));
+        share.assign(static_cast<std::size_t>(blocks()), 0.0);
+        for (int k = 0; k < count(); ++k) {
+            blockOf[k] = (k % nx) / block + bx * ((k / nx) / block);
+            share[blockOf[k]] += 1.0 / count();
+        }
+    }
+    int count() const { return nx * ny; }
+    int blocks() const { return bx * by; }
+    /// Per block, the stratum the first pass traces for element e: uniform over the block's.
+    void choose(std::uint64_t seed, int e, int* chosen) const {
+        const std::uint64_t h = hashPair(seed, static_cast<std::uint64_t>(e)) ^ 0xb10cull;
+        for (int b = 0; b < blocks(); ++b) {
+            const int x = b % bx, y = b / bx;
+            const int w = std::min(nx, (x + 1) * block) - x * block;
+            const int size = w * (std::min(ny, (y + 1) * block) - y * block);
+            const int pick = static_cast<int>(hashPair(h, static_cast<std::uint64_t>(b)) %
+                                              static_cast<std::uint64_t>(size));
+            chosen[b] = (x * block + pick % w) + nx * (y * block + pick / w);
+        }
+    }
+};
+
+/// A gather's ray for stratum k of nx × ny over (φ, sin²θ) about the frame (tx, ty, n), with
+/// its two numbers (ru, rv) within the stratum: a cosine-distributed direction.
+Vec3 gatherDirection(int k, int nx, int ny, double ru, double rv, const Vec3& tx, const Vec3& ty,
+                     const Vec3& n) {
+    const double u = (k % nx + ru) / nx, v = (k / nx + rv) / ny;
+    const double phi = 2 * M_PI * u, rr = std::sqrt(v);
+    return rr * std::cos(phi) * tx + rr * std::sin(phi) * ty + std::sqrt(std::max(0.0, 1 - v)) * n;
+}
+
+}  // namespace
+
 void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<Rgb>& delta) {
     const auto& patches = mDisc.patches();
     const auto& elements = mDisc.elements();
@@ -352,10 +517,13 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
     const std::size_t np = c.shot.size();
     c.gathered.assign(np, 0);
     // Emitters keep their shots: a gather would see a small bright light with few rays.
+    double gatheredImportance = 0;
     for (std::size_t j = 0; j < np; ++j)
         if (c.pending.key(static_cast<int>(j)) > 0 &&
-            !mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
+            !mDisc.patchMaterial(static_cast<int>(j)).isEmitter()) {
             c.gathered[j] = 1;
+            gatheredImportance += c.pending.key(static_cast<int>(j));
+        }
     // Receivers: the elements of the added objects (the previewed one in a preview).
     std::vector<int> receivers;
     for (int o : c.added) {
@@ -374,11 +542,25 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
         n = std::clamp(
             static_cast<int>(mOptions.gatherRayBudget / static_cast<double>(receivers.size())),
             std::min(n, std::max(1, mOptions.minGatherRays)), n);
-    int nx = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n))));
-    const int ny = (n + nx - 1) / nx;
+    const int nx = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n))));
+    const GatherStrata strata(nx, (n + nx - 1) / nx, mOptions.gatherCoarseBlock);
+    const bool coarse = strata.blocks() < strata.count();
+    const int rays = strata.count(), blocks = strata.blocks();
     const double eps = mTracer.epsilon();
     const std::uint64_t seed = hashPair(hashPair(mOptions.seed, 0x6a7e5ull), mStats.shots);
+    ChangeEntry::GatherRefinement& refinement = c.refinement;
+    if (coarse) {
+        refinement.receivers = receivers;
+        refinement.firstEstimate.assign(receivers.size(), Rgb(0.0));
+        refinement.blockHit.assign(receivers.size() * static_cast<std::size_t>(blocks), -1);
+        refinement.nx = strata.nx;
+        refinement.ny = strata.ny;
+        refinement.seed = seed;
+        refinement.importance = gatheredImportance * (1 - static_cast<double>(blocks) / rays);
+    }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, receivers.size(), 16), [&](const auto& r) {
+        thread_local std::vector<int> chosen;
+        chosen.resize(static_cast<std::size_t>(blocks));
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const int e = receivers[i];
             const Element& el = elements[e];
@@ -386,21 +568,90 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
             Vec3 tx, ty;
             frameAround(el.normal, tx, ty);
             const Vec3 origin = el.receiver + el.normal * eps;
-            Rgb sum(0.0);
-            for (int k = 0; k < nx * ny; ++k) {
-                const double u = (k % nx + rng.next()) / nx, v = (k / nx + rng.next()) / ny;
-                const double phi = 2 * M_PI * u, rr = std::sqrt(v);
-                const Vec3 dir = rr * std::cos(phi) * tx + rr * std::sin(phi) * ty +
-                                 std::sqrt(std::max(0.0, 1 - v)) * el.normal;
-                const RayTracer::FirstHit h = mTracer.firstHit(origin, dir, after);
-                if (h.element < 0 || h.backFace) continue;
-                const int j = elements[h.element].patch;
-                if (j == el.patch || !c.isGathered(j)) continue;
-                sum += c.shot[j];
+            // The pending patch whose shot radiosity stratum k's ray returns, -1 for none.
+            auto trace = [&](int k, double ru, double rv) {
+                const RayTracer::FirstHit h = mTracer.firstHit(
+                    origin, gatherDirection(k, strata.nx, strata.ny, ru, rv, tx, ty, el.normal),
+                    after);
+                if (h.element < 0 || h.backFace) return -1;
+                return h.patch == el.patch || !c.isGathered(h.patch) ? -1 : h.patch;
+            };
+            if (!coarse) {
+                Rgb sum(0.0);
+                for (int k = 0; k < rays; ++k) {
+                    const double ru = rng.next(), rv = rng.next();
+                    const int j = trace(k, ru, rv);
+                    if (j >= 0) sum += c.shot[j];
+                }
+                delta[e] = sum / static_cast<double>(rays);
+                continue;
             }
-            delta[e] = sum / static_cast<double>(nx * ny);
+            // First pass: one stratum per block, weighted by the block's share of the strata.
+            // Every stratum draws its numbers, so the second pass meets the same ones.
+            strata.choose(seed, e, chosen.data());
+            int* hitOf = &refinement.blockHit[i * static_cast<std::size_t>(blocks)];
+            Rgb estimate(0.0);
+            for (int k = 0; k < rays; ++k) {
+                const double ru = rng.next(), rv = rng.next();
+                const int b = strata.blockOf[k];
+                if (chosen[b] != k) continue;
+                const int j = trace(k, ru, rv);
+                hitOf[b] = j;
+                if (j >= 0) estimate += c.shot[j] * strata.share[b];
+            }
+            refinement.firstEstimate[i] = delta[e] = estimate;
         }
     });
+}
+
+void ProgressiveSolver::refineGather(ChangeEntry& c, bool preview, std::vector<Rgb>& delta) {
+    const auto& elements = mDisc.elements();
+    ChangeEntry::GatherRefinement& refinement = c.refinement;
+    delta.assign(elements.size(), Rgb(0.0));
+    Visibility after = c.afterWorld();
+    if (afterIsCurrentScene(c, preview)) after = Visibility{};
+    const GatherStrata strata(refinement.nx, refinement.ny, mOptions.gatherCoarseBlock);
+    const int rays = strata.count(), blocks = strata.blocks();
+    const double eps = mTracer.epsilon();
+    const std::uint64_t seed = refinement.seed;
+    const auto& receivers = refinement.receivers;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, receivers.size(), 16), [&](const auto& r) {
+        thread_local std::vector<int> chosen;
+        chosen.resize(static_cast<std::size_t>(blocks));
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const int e = receivers[i];
+            const Element& el = elements[e];
+            // Receivers removed since the first pass receive nothing more.
+            if (!mDisc.objects()[el.object].alive &&
+                !(preview && el.object == mImpl->previewObject))
+                continue;
+            // The same rays in the same order as the one-pass gather: strata the first pass
+            // traced return what they returned then.
+            RayRandom rng{hashPair(seed, static_cast<std::uint64_t>(e))};
+            Vec3 tx, ty;
+            frameAround(el.normal, tx, ty);
+            const Vec3 origin = el.receiver + el.normal * eps;
+            strata.choose(seed, e, chosen.data());
+            const int* hitOf = &refinement.blockHit[i * static_cast<std::size_t>(blocks)];
+            Rgb sum(0.0);
+            for (int k = 0; k < rays; ++k) {
+                const double ru = rng.next(), rv = rng.next();
+                const int b = strata.blockOf[k];
+                int j = hitOf[b];
+                if (chosen[b] != k) {
+                    const RayTracer::FirstHit h = mTracer.firstHit(
+                        origin, gatherDirection(k, strata.nx, strata.ny, ru, rv, tx, ty, el.normal),
+                        after);
+                    j = h.element < 0 || h.backFace || h.patch == el.patch || !c.isGathered(h.patch)
+                            ? -1
+                            : h.patch;
+                }
+                if (j >= 0) sum += c.shot[j];
+            }
+            delta[e] = sum / static_cast<double>(rays) - refinement.firstEstimate[i];
+        }
+    });
+    refinement = ChangeEntry::GatherRefinement{};
 }
 
 bool ProgressiveSolver::shootRedistribution() {
@@ -408,8 +659,11 @@ bool ProgressiveSolver::shootRedistribution() {
     double best = bestRedistribution(&k);
     if (best <= 0 || k < 0) return false;
     ChangeEntry& c = mImpl->changes[k];
-    const bool gather = shouldGather(c, best);
-    if (!gather && mOptions.stochasticBelow > 0 &&
+    const int top = c.pending.top();
+    const double strongest = top >= 0 ? std::max(0.0, c.pending.key(top)) : 0.0;
+    const bool gather = shouldGather(c, strongest);
+    const bool refine = !gather && shouldRefineGather(c, strongest);
+    if (!gather && !refine && mOptions.stochasticBelow > 0 &&
         best < mOptions.stochasticBelow * mEmittedEnergy) {
         shootRedistributionBatch(k);
         return true;
@@ -421,6 +675,9 @@ bool ProgressiveSolver::shootRedistribution() {
         // The added objects' elements gather what the weak shooters would send them: far
         // less noise than the same rays shot, and the edit's most changed elements.
         gatherToAdded(c, false, delta);
+    } else if (refine) {
+        // The coarse gather's other strata: the added objects' light to its full precision.
+        refineGather(c, false, delta);
     } else {
         const int j = c.pending.top();
         c.totalPending -= c.pending.key(j);
@@ -435,10 +692,17 @@ bool ProgressiveSolver::shootRedistribution() {
         }
     updateTouchedPriorities();
 
-    if (c.pending.key(c.pending.top()) <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
+    if (c.bestPending() <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
+    mStats.rays += mTracer.rayCount() - raysBefore;
+    // A gather's second pass completes the gather's shot: not a shot of its own, so the shot
+    // counts (the seeds of later gathers and batches, what step and converge report) are
+    // those of a one-pass gather.
+    if (refine) {
+        ++mImpl->gatherRefinements;
+        return false;
+    }
     ++mStats.shots;
     ++mStats.redistributionShots;
-    mStats.rays += mTracer.rayCount() - raysBefore;
     return true;
 }
 
@@ -622,8 +886,7 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
     });
     // Apply in ray order: independent of the thread count.
     receiveAll(out, c.shotEmissionShare);
-    if (c.pending.top() < 0 || c.pending.key(c.pending.top()) <= 0)
-        mImpl->changes.erase(mImpl->changes.begin() + k);
+    if (c.bestPending() <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
     ++mStats.shots;
     ++mStats.redistributionShots;
     ++mStats.stochasticBatches;
@@ -676,12 +939,16 @@ int ProgressiveSolver::stepPreview(int maxShots) {
             });
             share = Rgb(1.0);
         } else {
-            int j = c.pending.top();
-            if (j < 0 || c.pending.key(j) <= 0) break;
-            if (shouldGather(c, c.pending.key(j))) {
+            const int j = c.pending.top();
+            const double strongest = j >= 0 ? std::max(0.0, c.pending.key(j)) : 0.0;
+            if (strongest <= 0 && !c.refinementPending()) break;
+            if (shouldGather(c, strongest)) {
                 // The weak shooters reach the dragged object in one gather (as in
                 // shootRedistribution); their shots that follow only correct the shadows.
                 gatherToAdded(c, true, delta);
+            } else if (shouldRefineGather(c, strongest)) {
+                refineGather(c, true, delta);
+                --done;  // completes the gather's shot (as in shootRedistribution)
             } else {
                 c.pending.update(j, 0.0);
                 redistributionDelta(c, j, true, delta);

@@ -524,6 +524,46 @@ TEST(FormFactor, ChangeEqualsTheDifferenceOfTheTwoWorldsSampleForSample) {
     EXPECT_GT(nonzero, 24) << "the moved blocker changes most of these pairs";
 }
 
+TEST(FormFactor, ChangeWithTheChangedObjectsInOneWorldTracesOnlyTheOther) {
+    // An addition (every changed object after the edit, none before) and a removal (the
+    // reverse): a sample meeting a changed object is blocked in the world holding it, so only
+    // the other world is traced. The change must equal the evaluation that traces both worlds
+    // bit for bit, and F(after) − F(before) evaluated separately, with one ray fewer per
+    // sample that meets the changed object.
+    OcclusionScene s({halfBlocker(), test::makeQuad("box", 0.3, 0.3, "black", {0.1, 0.2, -0.1})});
+    const std::vector<std::uint8_t> without{1, 1, 0}, with{1, 1, 1};
+    RayTracer::SubsetHandle changed(*s.tracer, {2});
+    int meeting = 0;
+    for (const bool added : {true, false}) {
+        Visibility vb, va;
+        vb.world = added ? &without : &with;
+        va.world = added ? &with : &without;
+        const ChangedObjectsIn where = added ? ChangedObjectsIn::After : ChangedObjectsIn::Before;
+        for (std::uint64_t key = 0; key < 48; ++key) {
+            const Vec3 x(0.02 * double(key % 7) - 0.06, 0.0, 0.015 * double(key % 5) - 0.03);
+            const Vec3 n(0, 1, 0);
+            const PointToPatch b =
+                formFactorToPatch(*s.disc, *s.tracer, x, n, s.lampPatch, key, 1, 100, vb);
+            const PointToPatch a =
+                formFactorToPatch(*s.disc, *s.tracer, x, n, s.lampPatch, key, 1, 100, va);
+            const PointToPatch both = formFactorChange(*s.disc, *s.tracer, x, n, s.lampPatch, key,
+                                                       1, 100, vb, va, changed.visibility());
+            const PointToPatch one = formFactorChange(*s.disc, *s.tracer, x, n, s.lampPatch, key, 1,
+                                                      100, vb, va, changed.visibility(), where);
+            EXPECT_TRUE(sameBits(one.visible, both.visible))
+                << (added ? "addition" : "removal") << ", key " << key << ": one world "
+                << one.visible << ", both worlds " << both.visible;
+            EXPECT_NEAR(one.visible, a.visible - b.visible, 1e-12)
+                << "key " << key << ": F(after) " << a.visible << " − F(before) " << b.visible;
+            // Both: 1 + 2 rays per meeting sample; one world: 1 + 1.
+            const int met = (both.rays - a.rays) / 2;
+            EXPECT_EQ(one.rays, a.rays + met) << "key " << key;
+            meeting += met > 0 ? 1 : 0;
+        }
+    }
+    EXPECT_GT(meeting, 48) << "the box should meet samples of most pairs";
+}
+
 TEST(FormFactor, ChangeOutsideTheConeCostsOneCheapRayPerSampleAndIsZero) {
     OcclusionScene s({halfBlocker(), test::makeQuad("far", 0.3, 0.3, "black", {3, 0.3, 3})});
     std::vector<std::uint8_t> before{1, 1, 0}, after{1, 1, 1};
