@@ -142,9 +142,9 @@ HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
     const HifiStats& st = mesh.stats();
     spdlog::debug(
         "interpolants: {} elements ({} meshed), {} triangles, {} samples, {} centre "
-        "tests, {} covered, built in {:.2f} s",
+        "tests, {} covered, {} buried elements, {} capped, built in {:.2f} s",
         st.elements, st.meshedElements, st.triangles, st.samples, st.centreSamples,
-        st.coveredTriangles, st.seconds);
+        st.coveredTriangles, st.buriedElements, st.cappedElements, st.seconds);
     return mesh;
 }
 
@@ -158,6 +158,8 @@ nlohmann::json hifiReport(const HifiMesh& mesh) {
             {"samples", st.samples},
             {"centre_samples", st.centreSamples},
             {"covered_triangles", st.coveredTriangles},
+            {"buried_elements", st.buriedElements},
+            {"capped_elements", st.cappedElements},
             {"build_seconds", st.seconds}};
 }
 
@@ -1119,7 +1121,9 @@ void addBenchCommands(CLI::App& app, Commands& c) {
     HifiBenchOptions& hifi = c.hifi;
     CLI::App* benchHifi = c.benchHifi = benchCmd->add_subcommand(
         "hifi", "Hardt & Teller: interpolant build, evaluation fps, error against reference");
-    benchHifi->add_option("--cases", hifi.cases, "scenes by name (default: cornell-box cube-room)");
+    benchHifi->add_option("--cases", hifi.cases,
+                          "scenes by name: SCENE-DIR/NAME.json, else SCENE-DIR/gltf/NAME.glb "
+                          "(default: cornell-box cube-room)");
     benchHifi->add_option("--scene-dir", hifi.sceneDir, "folder with the scenes");
     benchHifi->add_option("--width", hifi.width)->check(CLI::Range(8, 8192));
     benchHifi->add_option("--height", hifi.height)->check(CLI::Range(8, 8192));

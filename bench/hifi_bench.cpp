@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -94,7 +95,11 @@ HifiCase runCase(const HifiBenchOptions& o, const std::string& name, nlohmann::j
                  OffscreenContext& context) {
     HifiCase c;
     c.name = name;
-    const std::string path = o.sceneDir + "/" + name + ".json";
+    // A bundled scene file, else a glTF scene of that name (the furnished room from Blender).
+    std::string path = o.sceneDir + "/" + name + ".json";
+    if (!std::filesystem::exists(path) &&
+        std::filesystem::exists(o.sceneDir + "/gltf/" + name + ".glb"))
+        path = o.sceneDir + "/gltf/" + name + ".glb";
     SolverOptions options = interactiveSolverOptions();
     auto session = EditSession::open(path, options);
     session->converge(o.converge, 100000000);

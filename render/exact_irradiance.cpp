@@ -150,6 +150,62 @@ ExactIrradiance::ExactIrradiance(const Discretization& disc, ExactIrradianceOpti
     rebuild();
 }
 
+namespace {
+
+/// The convex hull of 2D points, counter-clockwise (Andrew's monotone chain).
+std::vector<Vec2> convexHull(std::vector<Vec2> points) {
+    std::sort(points.begin(), points.end(),
+              [](const Vec2& a, const Vec2& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+    if (points.size() < 3) return points;
+    std::vector<Vec2> hull(2 * points.size());
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        while (k >= 2 && cross2(hull[k - 1] - hull[k - 2], points[i] - hull[k - 2]) <= 0) --k;
+        hull[k++] = points[i];
+    }
+    for (std::size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {
+        while (k >= lower && cross2(hull[k - 1] - hull[k - 2], points[i] - hull[k - 2]) <= 0) --k;
+        hull[k++] = points[i];
+    }
+    hull.resize(k - 1);
+    return hull;
+}
+
+}  // namespace
+
+void ExactIrradiance::mergeCoplanarEmitters(std::vector<Source>& sources) {
+    if (sources.size() < 2) return;
+    // One plane and one emission: every piece's normal and plane offset agree with the first.
+    const PlaneFrame frame(sources.front().polygon);
+    double area = 0, extent = 0;
+    for (const Source& s : sources) {
+        if (s.radiosity != sources.front().radiosity) return;
+        const PlaneFrame f(s.polygon);
+        if (glm::dot(f.n, frame.n) < 1 - 1e-9) return;
+        for (const Vec3& p : s.polygon) {
+            extent = std::max(extent, glm::length(p - frame.origin));
+            if (std::abs(glm::dot(p - frame.origin, frame.n)) > 1e-9 * (1 + extent)) return;
+        }
+        Vec3 newell(0.0);
+        for (std::size_t i = 0, n = s.polygon.size(); i < n; ++i)
+            newell += glm::cross(s.polygon[i], s.polygon[(i + 1) % n]);
+        area += 0.5 * glm::length(newell);
+    }
+    // The pieces tile their convex hull (no gap, no overlap) when their areas add up to it.
+    std::vector<Vec2> points;
+    for (const Source& s : sources)
+        for (const Vec3& p : s.polygon) points.push_back(frame.to2(p));
+    const std::vector<Vec2> hull = convexHull(std::move(points));
+    if (hull.size() < 3) return;
+    const double hullArea = 0.5 * signedArea2(hull);
+    if (std::abs(hullArea - area) > 1e-9 * area) return;
+    Source merged = sources.front();
+    merged.polygon.clear();
+    // Counter-clockwise seen from the front, as the pieces are.
+    for (const Vec2& p : hull) merged.polygon.push_back(frame.to3(p));
+    sources.assign(1, std::move(merged));
+}
+
 void ExactIrradiance::rebuild() {
     mBlockers.clear();
     mObjects.clear();
@@ -186,6 +242,7 @@ void ExactIrradiance::rebuild() {
             b.object = static_cast<int>(o);
             mBlockers.push_back(std::move(b));
         };
+        std::vector<Source> objectEmitters;
         for (int p : patchesOf[o]) {
             const Patch& P = patches[p];
             const bool back =
@@ -201,10 +258,10 @@ void ExactIrradiance::rebuild() {
             const Material& m = mDisc.patchMaterial(p);
             if (m.isEmitter() && !back) {
                 if (convex) {
-                    mEmitters.push_back({P.outline, m.emission, static_cast<int>(o)});
+                    objectEmitters.push_back({P.outline, m.emission, static_cast<int>(o)});
                 } else {
                     for (int e : P.elements)
-                        mEmitters.push_back(
+                        objectEmitters.push_back(
                             {mDisc.elementPolygon(e), m.emission, static_cast<int>(o)});
                 }
             }
@@ -215,6 +272,8 @@ void ExactIrradiance::rebuild() {
                 for (int e : P.elements) add(mDisc.elementPolygon(e));
             }
         }
+        mergeCoplanarEmitters(objectEmitters);
+        for (Source& source : objectEmitters) mEmitters.push_back(std::move(source));
         ob.count = static_cast<int>(mBlockers.size()) - ob.first;
         if (ob.count > 0) {
             std::vector<Box3> boxes(ob.count);
@@ -239,12 +298,16 @@ void ExactIrradiance::rebuild() {
             mObjects.push_back(std::move(ob));
         }
     }
+    // An element's near radius: its bounding radius about the centroid, but no more than
+    // 1.5 √area, so that a sliver (a thin pole's side split along its length) reaches as far
+    // as the solid angle it subtends, not as far as its length.
     mElementRadius.assign(elements.size(), 0.0);
-    for (std::size_t e = 0; e < elements.size(); ++e)
-        if (mDisc.elementAlive(static_cast<int>(e)))
-            for (const Vec3& p : mDisc.elementPolygon(static_cast<int>(e)))
-                mElementRadius[e] =
-                    std::max(mElementRadius[e], glm::length(p - elements[e].centroid));
+    for (std::size_t e = 0; e < elements.size(); ++e) {
+        if (!mDisc.elementAlive(static_cast<int>(e))) continue;
+        for (const Vec3& p : mDisc.elementPolygon(static_cast<int>(e)))
+            mElementRadius[e] = std::max(mElementRadius[e], glm::length(p - elements[e].centroid));
+        mElementRadius[e] = std::min(mElementRadius[e], 1.5 * std::sqrt(elements[e].area));
+    }
     // The near-patch grid.
     mCellSize = 0;
     for (const SourcePatch& sp : mPatches)
@@ -369,6 +432,7 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
     const double lift = 1e3 * mEpsilon;
     std::vector<Vec3> clipA, clipB;
     std::vector<Vec2> shadow;
+    std::vector<std::vector<Vec2>> shadows;
     std::vector<int> candidates;
     for (const ObjectBlockers& ob : mObjects) {
         if (ob.object == ignoreObject || !boxOverlaps(ob.lo, ob.hi)) continue;
@@ -404,8 +468,17 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
                 const Vec3 q = x + (p - x) * (hx / (hx - hp));
                 shadow.push_back(frame.to2(q));
             }
-            visible.subtract(shadow);
+            // With a limit, the shadows are subtracted once all are known to be within it:
+            // a source given up on costs no subtraction.
+            if (maxBlockers > 0)
+                shadows.push_back(shadow);
+            else
+                visible.subtract(shadow);
         }
+    }
+    for (const std::vector<Vec2>& s : shadows) {
+        if (visible.empty()) break;
+        visible.subtract(s);
     }
     out.reserve(visible.pieces().size());
     for (const auto& piece : visible.pieces()) {

@@ -56,7 +56,8 @@ struct ExactIrradianceOptions {
     /// cost that does not grow with the number of patches.
     int farRays = 0;
     /// With farRays: an element is gathered exactly when the point is within this many of
-    /// its own bounding radii (0: every element of a patch within nearRadii). Element by
+    /// its own near radii — its bounding radius, at most 1.5 √area, so a sliver's reach
+    /// follows its solid angle (0: every element of a patch within nearRadii). Element by
     /// element, the exact part stays a few sources per point however finely a mesh is
     /// tessellated; a patch-wide near field on a tessellated mesh holds hundreds.
     double nearElementRadii = 2;
@@ -153,6 +154,11 @@ private:
         double radius = 0;
         bool convexOutline = false;
     };
+    /// Replaces an object's emitter pieces by their union when they lie in one plane with one
+    /// emission and tile a convex polygon (a panel lamp's patches): the visible part of one
+    /// polygon is the same light as that of its pieces, for one pyramid's blockers instead of
+    /// one per piece.
+    static void mergeCoplanarEmitters(std::vector<Source>& sources);
     /// The polygons patch `sp` lights x with: its outline when far and convex, else its
     /// elements.
     void addSourcesOfPatch(const SourcePatch& sp, const Vec3& x, std::vector<Source>& out) const;
@@ -202,7 +208,9 @@ private:
     double mCellSize = 1;
     std::uint64_t cellKey(long long i, long long j, long long k) const;
     std::vector<Rgb> mReflected;         ///< per element
-    std::vector<double> mElementRadius;  ///< bounding radius about the centroid, per element
+    /// Per element: its bounding radius about the centroid, at most 1.5 √area (the near
+    /// field's scale: a sliver's reach follows its solid angle, not its length).
+    std::vector<double> mElementRadius;
     /// With farRays and nearElementRadii: the source elements by the grid cells their near
     /// balls (nearElementRadii × the element's radius about its centroid) overlap, so a
     /// point's near elements are all in its own cell (cells of mElementCellSize).

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -130,12 +131,39 @@ std::vector<LightOutline> lightOutlines(const Discretization& disc) {
     return out;
 }
 
+/// Per object: whether its front sheet bounds a solid (EdgeMesh::sealed), so that what lies
+/// inside it is hidden and unlit.
+std::vector<std::uint8_t> sealedObjects(const Discretization& disc) {
+    std::vector<std::uint8_t> sealed(disc.objects().size(), 0);
+    for (std::size_t o = 0; o < sealed.size(); ++o) {
+        const ObjectSurface& surface = disc.objects()[o];
+        if (!surface.alive || surface.mesh.n_faces() == 0) continue;
+        const int front = std::min(surface.firstBackFace, static_cast<int>(surface.mesh.n_faces()));
+        sealed[o] = EdgeMesh::fromElementMesh(surface.mesh, 85.0, front).sealed() ? 1 : 0;
+    }
+    return sealed;
+}
+
+/// Whether x lies inside an object other than `self` that bounds a solid: the first surface
+/// along `dir`, passing through `self` (a back sheet looks into its own object), is such an
+/// object seen from inside — from behind, or its back sheet (a two-sided object's inside).
+bool insideSolid(const Discretization& disc, const RayTracer& tracer,
+                 const std::vector<std::uint8_t>& sealed, const Vec3& x, const Vec3& dir,
+                 int self) {
+    const RayTracer::FirstHit hit = tracer.firstHit(x, dir, Visibility(self));
+    if (hit.element < 0) return false;
+    const Element& el = disc.elements()[hit.element];
+    if (el.object == self || !sealed[std::size_t(el.object)]) return false;
+    return hit.backFace || disc.objects()[el.object].isBackFace(el.face);
+}
+
 /// Every VE/EV event of every light outline with every other object (blockers through their
 /// welded element meshes: silhouette edges from a light corner, vertices whose one ring a
 /// light edge's plane supports); with `blockers`, only those objects block, alive or not (the
-/// versions an edit removed cast the events that went).
-std::vector<Wedge> allWedges(const Discretization& disc,
-                             const std::vector<int>* blockers = nullptr) {
+/// versions an edit removed cast the events that went). With `tracer`, a blocker edge or
+/// vertex buried inside another solid casts nothing (the solid around it casts the shadow).
+std::vector<Wedge> allWedges(const Discretization& disc, const std::vector<int>* blockers = nullptr,
+                             const RayTracer* tracer = nullptr) {
     std::vector<Wedge> wedges;
     const std::vector<LightOutline> lights = lightOutlines(disc);
     if (lights.empty()) return wedges;
@@ -204,6 +232,21 @@ std::vector<Wedge> allWedges(const Discretization& disc,
                 }
             }
         }
+    }
+    if (tracer) {
+        // Buried: both ends and the middle of the blocker edge (or the vertex) inside a solid,
+        // looking away from the light.
+        const std::vector<std::uint8_t> sealed = sealedObjects(disc);
+        auto buried = [&](const Wedge& w) {
+            for (const Vec3& p : {w.b[0], w.b[1], 0.5 * (w.b[0] + w.b[1])}) {
+                const Vec3 d = p - 0.5 * (w.a[0] + w.a[1]);
+                if (!(glm::length(d) > 0) ||
+                    !insideSolid(disc, *tracer, sealed, p, glm::normalize(d), w.blockerObject))
+                    return false;
+            }
+            return true;
+        };
+        wedges.erase(std::remove_if(wedges.begin(), wedges.end(), buried), wedges.end());
     }
     return wedges;
 }
@@ -408,17 +451,28 @@ std::vector<Discontinuity> contactsOn(
             if (unclipped) unclipped->emplace_back(a, b);
             if (clipSegment(g.poly2, a, b)) out.push_back({g.frame.to3(a), g.frame.to3(b), inf});
         };
-        // Where a polygon crosses the plane (an object standing through it).
+        // Where a polygon crosses the plane (an object standing through it): it has corners
+        // on both sides, and the crossing runs between the points where its edges pass from
+        // one side to the other and its corners on the plane.
         for (const auto& q : obj.polygons) {
             std::vector<Vec3> crossing;
+            bool above = false, below = false;
             for (std::size_t i = 0, n = q.size(); i < n; ++i) {
                 const Vec3& p0 = q[i];
                 const Vec3& p1 = q[(i + 1) % n];
                 const double h0 = height(p0), h1 = height(p1);
-                if ((h0 > delta && h1 < -delta) || (h0 < -delta && h1 > delta))
+                above = above || h0 > delta;
+                below = below || h0 < -delta;
+                if (std::abs(h0) <= delta)
+                    crossing.push_back(p0);
+                else if ((h0 > delta && h1 < -delta) || (h0 < -delta && h1 > delta))
                     crossing.push_back(p0 + (h0 / (h0 - h1)) * (p1 - p0));
             }
-            if (crossing.size() == 2) keep(crossing[0], crossing[1]);
+            if (above && below && crossing.size() == 2) keep(crossing[0], crossing[1]);
+            // An edge on the plane of a polygon behind it: the other object's surface passes
+            // through the plane along that edge (taken from the side behind, so once; a
+            // surface resting on the element from the front leaves its sharp edges below).
+            if (below && !above && crossing.size() == 2) keep(crossing[0], crossing[1]);
         }
         // The parts of sharp edges within δ of the plane (resting on it, or nearly).
         for (const auto& [p0, p1] : obj.sharpEdges) {
@@ -498,11 +552,14 @@ struct HifiBuild {
         : disc(d),
           exact(x),
           options(o),
-          wedges(allWedges(d)),
+          wedges(allWedges(d, nullptr, x.tracer())),
           wedgeIndex(wedges, d),
           contacts(d),
           perElement(d.elements().size()),
-          tracer(x.tracer()) {}
+          tracer(x.tracer()) {
+        for (const ContactIndex::Object& object : contacts.objects)
+            sealed.push_back(object.sealed ? 1 : 0);
+    }
     const Discretization& disc;
     const ExactIrradiance& exact;
     const HifiOptions& options;
@@ -511,13 +568,23 @@ struct HifiBuild {
     const ContactIndex contacts;
     std::vector<std::vector<HifiTriangle>> perElement;
     const RayTracer* tracer;       ///< finds covered triangles (null: none is dropped)
+    std::vector<std::uint8_t> sealed;  ///< per object: bounds a solid (ContactIndex)
     double absoluteTolerance = 0;  ///< refinementFloor
     double grid = 0;               ///< sampleGrid
+    double minRefineArea = 0;      ///< smallestRefinedArea
     SampleCache cache;
     std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
         centreSamples{0};
     std::atomic<bool> cancelled{false};
-    std::atomic<int> covered{0};
+    std::atomic<int> covered{0}, buried{0}, cappedElements{0};
+
+    /// Whether the point x of element `el`'s plane lies inside another object that bounds a
+    /// solid (the first surface along the normal is such an object seen from inside); false
+    /// without a tracer.
+    bool buriedPoint(const Element& el, const Vec3& x) const {
+        return tracer && insideSolid(disc, *tracer, sealed, x + tracer->epsilon() * el.normal,
+                                     el.normal, el.object);
+    }
 };
 
 /// The refinement test's absolute tolerance: differences below this fraction of the
@@ -527,6 +594,18 @@ double refinementFloor(const Discretization& disc) {
     for (const Material& m : disc.materials())
         brightest = std::max(brightest, luminance(m.emission));
     return 1e-4 * brightest;
+}
+
+/// Triangles smaller than this (m²) are not refined: 4^-maxRefineDepth of the median element's
+/// area, as small as refinement makes a typical element's triangles. A sliver (the side of a
+/// thin pole split along its length) is far smaller than that already.
+double smallestRefinedArea(const Discretization& disc, int maxRefineDepth) {
+    std::vector<double> areas;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e)
+        if (disc.elementAlive(static_cast<int>(e))) areas.push_back(disc.elements()[e].area);
+    if (areas.empty()) return 0;
+    std::nth_element(areas.begin(), areas.begin() + areas.size() / 2, areas.end());
+    return areas[areas.size() / 2] * std::pow(0.25, std::max(0, maxRefineDepth));
 }
 
 /// The grid sample positions are shared on (metres): far finer than any element.
@@ -545,10 +624,13 @@ struct ElementSegments {
     std::vector<std::pair<glm::dvec2, glm::dvec2>> contact;  ///< every contact line, clipped
     /// Every contact line before clipping: points on them sample their own side.
     std::vector<std::pair<glm::dvec2, glm::dvec2>> allContacts;
+    bool capped = false;  ///< segments were dropped for HifiOptions' caps
 };
 
-/// Discontinuities on element e: the k strongest shadow events above w_min, every contact
-/// line; counted in the build's stats.
+/// Discontinuities on element e: the contact lines, longest first, then the k strongest shadow
+/// events above w_min, at most HifiOptions::maxSegments together; a shadow segment inside
+/// another solid (on a part of the element buried in it) is dropped. Counted in the build's
+/// stats.
 ElementSegments discontinuitiesOn(HifiBuild& b, int e, const ElementGeometry& g, double size) {
     ElementSegments s;
     int kept = 0;
@@ -563,6 +645,26 @@ ElementSegments discontinuitiesOn(HifiBuild& b, int e, const ElementGeometry& g,
     // Points on a contact line (unclipped: those on the boundary included) sample their side.
     dropBoundarySegments(g.poly2, s.shadow, 1e-6 * size);
     dropBoundarySegments(g.poly2, s.contact, 1e-6 * size);
+    // Only an element another surface crosses can be partly inside a solid.
+    if (!s.contact.empty() && !s.shadow.empty()) {
+        const Element& el = b.disc.elements()[e];
+        auto buried = [&](const std::pair<glm::dvec2, glm::dvec2>& seg) {
+            for (const glm::dvec2& q : {seg.first, seg.second, 0.5 * (seg.first + seg.second)})
+                if (!b.buriedPoint(el, g.frame.to3(q))) return false;
+            return true;
+        };
+        s.shadow.erase(std::remove_if(s.shadow.begin(), s.shadow.end(), buried), s.shadow.end());
+    }
+    // The cap: contact lines first (irradiance jumps across them), the longest first.
+    std::stable_sort(s.contact.begin(), s.contact.end(), [](const auto& x, const auto& y) {
+        return glm::length(x.second - x.first) > glm::length(y.second - y.first);
+    });
+    const std::size_t cap = static_cast<std::size_t>(std::max(0, b.options.maxSegments));
+    if (s.contact.size() + s.shadow.size() > cap) {
+        if (s.contact.size() > cap) s.contact.resize(cap);
+        s.shadow.resize(std::min(s.shadow.size(), cap - s.contact.size()));
+        s.capped = true;
+    }
     b.shadowSegs.fetch_add(static_cast<int>(s.shadow.size()), std::memory_order_relaxed);
     b.contactSegs.fetch_add(static_cast<int>(s.contact.size()), std::memory_order_relaxed);
     return s;
@@ -570,18 +672,30 @@ ElementSegments discontinuitiesOn(HifiBuild& b, int e, const ElementGeometry& g,
 
 /// The element's triangles in its plane's frame: the element as it is (a fan) when nothing
 /// crosses it, else the constrained Delaunay triangulation of its outline with the shadow
-/// segments and then the contact lines (appended to `s.shadow`).
+/// segments and the contact lines. Past HifiOptions::maxTriangles the weaker half of the
+/// shadow segments goes (then the shorter half of the contact lines) until it fits.
 Triangulation2 triangulateElement(HifiBuild& b, const ElementGeometry& g, ElementSegments& s) {
     Triangulation2 tri;
     if (s.shadow.empty() && s.contact.empty()) {
         tri.points = g.poly2;
         for (std::size_t k = 1; k + 1 < g.poly2.size(); ++k)
             tri.triangles.push_back({0, static_cast<int>(k), static_cast<int>(k + 1)});
-    } else {
-        s.shadow.insert(s.shadow.end(), s.contact.begin(), s.contact.end());
-        tri = triangulateConstrained(g.poly2, s.shadow);
-        b.meshed.fetch_add(1, std::memory_order_relaxed);
+        return tri;
     }
+    const std::size_t cap = static_cast<std::size_t>(std::max(1, b.options.maxTriangles));
+    for (;;) {
+        std::vector<std::pair<glm::dvec2, glm::dvec2>> constraints = s.contact;
+        constraints.insert(constraints.end(), s.shadow.begin(), s.shadow.end());
+        tri = triangulateConstrained(g.poly2, constraints);
+        const bool fits = tri.triangles.size() <= cap;
+        if (fits || (s.shadow.empty() && s.contact.size() <= 1)) break;
+        s.capped = true;
+        if (!s.shadow.empty())
+            s.shadow.resize(s.shadow.size() / 2);
+        else
+            s.contact.resize(s.contact.size() / 2);  // longest first
+    }
+    b.meshed.fetch_add(1, std::memory_order_relaxed);
     return tri;
 }
 
@@ -604,7 +718,10 @@ public:
           mSheet(b.disc.objects()[mEl.object].isBackFace(mEl.face) ? 1 : 0) {}
 
     /// Samples (and refines) every non-degenerate triangle of `tri` that is not covered.
+    /// Refinement goes level by level over the element, so that HifiOptions::maxTriangles,
+    /// when it stops it, leaves the element evenly refined.
     void sampleTriangles(const Triangulation2& tri) {
+        std::deque<Pending> queue;
         for (const auto& t : tri.triangles) {
             glm::dvec2 p[3] = {tri.points[t[0]], tri.points[t[1]], tri.points[t[2]]};
             const double cross =
@@ -612,33 +729,42 @@ public:
             if (std::abs(cross) <= 1e-14 * mSize * mSize) continue;  // degenerate
             if (cross < 0) std::swap(p[1], p[2]);
             const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
-            if (coveredBySolid(centre)) {
+            // Inside another solid (the floor under a box resting on it): never seen, and
+            // dropped it cannot win a depth tie along the contact line either. Behind an open
+            // surface (a panel hung under a ceiling) it may be seen from the side, and stays.
+            if (mB.buriedPoint(mEl, mG.frame.to3(centre))) {
                 mB.covered.fetch_add(1, std::memory_order_relaxed);
                 continue;
             }
-            const std::array<ExactIrradiance::Parts, 6> r = {
-                sampleAt(p[0], centre), sampleAt(0.5 * (p[0] + p[1]), centre),
-                sampleAt(p[1], centre), sampleAt(0.5 * (p[1] + p[2]), centre),
-                sampleAt(p[2], centre), sampleAt(0.5 * (p[0] + p[2]), centre)};
-            emit(p, r, 0);
+            queue.push_back({{p[0], p[1], p[2]},
+                             {sampleAt(p[0], centre), sampleAt(0.5 * (p[0] + p[1]), centre),
+                              sampleAt(p[1], centre), sampleAt(0.5 * (p[1] + p[2]), centre),
+                              sampleAt(p[2], centre), sampleAt(0.5 * (p[0] + p[2]), centre)},
+                             0});
+        }
+        // Each split adds three triangles to the element's count.
+        int count = static_cast<int>(queue.size());
+        const int cap = std::max(mB.options.maxTriangles, count);
+        while (!queue.empty()) {
+            const Pending t = std::move(queue.front());
+            queue.pop_front();
+            if (count + 3 <= cap && needsSplit(t)) {
+                split(t, queue);
+                count += 3;
+            } else {
+                emit(t);
+            }
         }
     }
 
 private:
-    /// Whether the triangle with this centre lies inside another object that bounds a solid
-    /// (the floor under a box resting on it: the first surface above it is the box, seen
-    /// from behind). Such a triangle is never visible; dropped, it cannot win a depth tie
-    /// along the contact line either. Behind an open surface (a one-sided panel hung under a
-    /// ceiling) it may be seen from the side, and stays.
-    bool coveredBySolid(const glm::dvec2& centre) const {
-        const RayTracer* tracer = mB.tracer;
-        if (!tracer) return false;
-        const RayTracer::FirstHit above =
-            tracer->firstHit(mG.frame.to3(centre) + tracer->epsilon() * mEl.normal, mEl.normal);
-        const int blocker = above.element >= 0 ? mB.disc.elements()[above.element].object : -1;
-        return above.backFace && blocker >= 0 && blocker != mEl.object &&
-               mB.contacts.objects[blocker].sealed;
-    }
+    /// A triangle (counter-clockwise, in the element's frame) with its samples at A, AB, B,
+    /// BC, C, CA and its refinement depth.
+    struct Pending {
+        std::array<glm::dvec2, 3> p;
+        std::array<ExactIrradiance::Parts, 6> r;
+        int depth = 0;
+    };
 
     /// The exact irradiance at q (2D), from the cache when another triangle took it; q moves
     /// towards `centre` when it lies on a contact line.
@@ -679,53 +805,63 @@ private:
         return mB.exact.irradianceParts(mG.frame.to3(q), mEl.normal, false).gathered;
     }
 
-    /// The triangle p with samples r (A, AB, B, BC, C, CA) at refinement depth `depth`. A
-    /// triangle whose interpolant misses an exact sample at its centre by more than the
-    /// tolerance is split into four at its edge midpoints, whose samples it already has.
-    void emit(const glm::dvec2* p, const std::array<ExactIrradiance::Parts, 6>& r, int depth) {
+    /// Whether the triangle's interpolant misses an exact sample at its centre by more than
+    /// the tolerance (§7.2), below maxRefineDepth.
+    bool needsSplit(const Pending& t) {
         const HifiOptions& options = mB.options;
+        if (t.depth >= options.maxRefineDepth || !(options.refineTolerance > 0)) return false;
+        const glm::dvec2 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
+        if (0.5 * std::abs(e1.x * e2.y - e1.y * e2.x) < mB.minRefineArea) return false;
         std::array<Rgb, 6> total, exactPart;
         for (int k = 0; k < 6; ++k) {
-            total[k] = r[k].total();
-            exactPart[k] = r[k].gathered;
+            total[k] = t.r[k].total();
+            exactPart[k] = t.r[k].gathered;
         }
-        const QuadraticInterpolant q = QuadraticInterpolant::fromSamples(total);
+        const glm::dvec2 centre = (t.p[0] + t.p[1] + t.p[2]) / 3.0;
+        const double truth = luminance(centreSample(centre));
+        // The fit of the exact part: the far field's ray noise would split triangles for
+        // nothing, and the far field is smooth.
+        const double fitted =
+            luminance(QuadraticInterpolant::fromSamples(exactPart)(1.0 / 3.0, 1.0 / 3.0));
+        // Relative to the whole irradiance there (what the pixel shows).
+        const double seen =
+            luminance(QuadraticInterpolant::fromSamples(total)(1.0 / 3.0, 1.0 / 3.0));
+        return std::abs(fitted - truth) >
+               options.refineTolerance * std::abs(seen) + mB.absoluteTolerance;
+    }
+
+    /// Splits t into four at its edge midpoints, whose samples it already has.
+    void split(const Pending& t, std::deque<Pending>& queue) {
+        const auto& p = t.p;
+        const auto& r = t.r;
         const glm::dvec2 mid[3] = {0.5 * (p[0] + p[1]), 0.5 * (p[1] + p[2]), 0.5 * (p[2] + p[0])};
-        if (depth < options.maxRefineDepth && options.refineTolerance > 0) {
-            const glm::dvec2 centre = (p[0] + p[1] + p[2]) / 3.0;
-            const double truth = luminance(centreSample(centre));
-            // The fit of the exact part: the far field's ray noise would split
-            // triangles for nothing, and the far field is smooth.
-            const double fitted =
-                luminance(QuadraticInterpolant::fromSamples(exactPart)(1.0 / 3.0, 1.0 / 3.0));
-            // Relative to the whole irradiance there (what the pixel shows).
-            const double seen = luminance(q(1.0 / 3.0, 1.0 / 3.0));
-            if (std::abs(fitted - truth) >
-                options.refineTolerance * std::abs(seen) + mB.absoluteTolerance) {
-                // Children: corner triangles and the middle one, counter-clockwise.
-                const glm::dvec2 corners[4][3] = {{p[0], mid[0], mid[2]},
-                                                  {mid[0], p[1], mid[1]},
-                                                  {mid[2], mid[1], p[2]},
-                                                  {mid[0], mid[1], mid[2]}};
-                // Their vertex samples in the parent's order (A, AB, B, BC, C, CA).
-                const ExactIrradiance::Parts vertex[4][3] = {
-                    {r[0], r[1], r[5]}, {r[1], r[2], r[3]}, {r[5], r[3], r[4]}, {r[1], r[3], r[5]}};
-                for (int c = 0; c < 4; ++c) {
-                    const glm::dvec2* cp = corners[c];
-                    const glm::dvec2 cc = (cp[0] + cp[1] + cp[2]) / 3.0;
-                    const std::array<ExactIrradiance::Parts, 6> cr = {
-                        vertex[c][0], sampleAt(0.5 * (cp[0] + cp[1]), cc),
-                        vertex[c][1], sampleAt(0.5 * (cp[1] + cp[2]), cc),
-                        vertex[c][2], sampleAt(0.5 * (cp[2] + cp[0]), cc)};
-                    emit(cp, cr, depth + 1);
-                }
-                return;
-            }
+        // Children: corner triangles and the middle one, counter-clockwise.
+        const glm::dvec2 corners[4][3] = {{p[0], mid[0], mid[2]},
+                                          {mid[0], p[1], mid[1]},
+                                          {mid[2], mid[1], p[2]},
+                                          {mid[0], mid[1], mid[2]}};
+        // Their vertex samples in the parent's order (A, AB, B, BC, C, CA).
+        const ExactIrradiance::Parts vertex[4][3] = {
+            {r[0], r[1], r[5]}, {r[1], r[2], r[3]}, {r[5], r[3], r[4]}, {r[1], r[3], r[5]}};
+        for (int c = 0; c < 4; ++c) {
+            const glm::dvec2* cp = corners[c];
+            const glm::dvec2 cc = (cp[0] + cp[1] + cp[2]) / 3.0;
+            queue.push_back({{cp[0], cp[1], cp[2]},
+                             {vertex[c][0], sampleAt(0.5 * (cp[0] + cp[1]), cc), vertex[c][1],
+                              sampleAt(0.5 * (cp[1] + cp[2]), cc), vertex[c][2],
+                              sampleAt(0.5 * (cp[2] + cp[0]), cc)},
+                             t.depth + 1});
         }
+    }
+
+    /// The triangle as it is, with the interpolant through its six samples.
+    void emit(const Pending& t) {
+        std::array<Rgb, 6> total;
+        for (int k = 0; k < 6; ++k) total[k] = t.r[k].total();
         HifiTriangle ht;
         ht.element = mE;
-        for (int k = 0; k < 3; ++k) ht.p[k] = mG.frame.to3(p[k]);
-        ht.irradiance = q;
+        for (int k = 0; k < 3; ++k) ht.p[k] = mG.frame.to3(t.p[k]);
+        ht.irradiance = QuadraticInterpolant::fromSamples(total);
         mOut.push_back(ht);
     }
 
@@ -738,6 +874,15 @@ private:
     std::vector<HifiTriangle>& mOut;
     const int mSheet;  ///< 1 on a back face's element, else 0 (part of the sample key)
 };
+
+/// Whether the whole element lies inside another solid (a sofa seat's end inside its arm): its
+/// centroid and points next to each corner are.
+bool buriedElement(const HifiBuild& b, const Element& el, const ElementGeometry& g) {
+    if (!b.buriedPoint(el, el.centroid)) return false;
+    for (const Vec3& corner : g.poly)
+        if (!b.buriedPoint(el, corner + 1e-3 * (el.centroid - corner))) return false;
+    return true;
+}
 
 /// Meshes and samples element e into the build's list for it; nothing once the build is
 /// cancelled (HifiOptions::cancelled, polled here) or for a dead element.
@@ -752,12 +897,17 @@ void meshElement(HifiBuild& b, int e) {
     const Element& el = b.disc.elements()[e];
     const ElementGeometry g = geometryOf(b.disc, e);
     const double size = std::sqrt(el.area);
+    if (buriedElement(b, el, g)) {
+        b.buried.fetch_add(1, std::memory_order_relaxed);
+        return;
+    }
     // Discontinuities: the k strongest shadow events above w_min, every contact line.
     ElementSegments segs = discontinuitiesOn(b, e, g, size);
     // Triangulate (the element as it is when nothing crosses it).
     const Triangulation2 tri = triangulateElement(b, g, segs);
     // Six exact samples per triangle, refined where the interpolant misses.
     ElementSampler(b, e, g, size, segs.allContacts).sampleTriangles(tri);
+    if (segs.capped) b.cappedElements.fetch_add(1, std::memory_order_relaxed);
 }
 
 /// Runs `work`; with `progress`, on a thread of its own while this one reports done / count
@@ -826,6 +976,7 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     HifiBuild b(disc, exact, options);
     b.absoluteTolerance = refinementFloor(disc);
     b.grid = sampleGrid(disc);
+    b.minRefineArea = smallestRefinedArea(disc, options.maxRefineDepth);
     const int count = static_cast<int>(todo.size());
     auto work = [&] { tbb::parallel_for(0, count, [&](int k) { meshElement(b, todo[k]); }); };
     runReportingProgress(work, b.done, count, progress);
@@ -852,6 +1003,8 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     mStats.contactSegments = b.contactSegs.load();
     mStats.cancelled = b.cancelled.load();
     mStats.coveredTriangles = b.covered.load();
+    mStats.buriedElements = b.buried.load();
+    mStats.cappedElements = b.cappedElements.load();
     mStats.samples = b.samples.load();
     mStats.centreSamples = b.centreSamples.load();
     mStats.seconds =

@@ -45,6 +45,14 @@ struct QuadraticInterpolant {
 struct HifiOptions {
     /// k: the strongest shadow discontinuities kept per element (the paper's setting: 10).
     int maxDiscontinuities = 10;
+    /// At most this many segments per element, contact lines (longest first) and shadow
+    /// segments (strongest first) together: where many objects meet or cross an element, the
+    /// constrained triangulation stays small.
+    int maxSegments = 24;
+    /// At most this many triangles per element: refinement (level by level over the element)
+    /// stops there, and a constrained triangulation with more drops its weaker half of shadow
+    /// segments (then the shorter half of the contact lines) until it fits.
+    int maxTriangles = 32;
     /// w_min (W/m²): weaker discontinuities are not meshed.
     double minWeight = 1.0;
     /// A surface within this fraction of an element's size (√area) of its plane, in front
@@ -81,6 +89,11 @@ struct HifiStats {
     bool cancelled = false;  ///< HifiOptions::cancelled stopped the build
     /// Triangles dropped inside other objects (with ExactIrradiance's ray tracer).
     int coveredTriangles = 0;
+    /// Elements wholly inside another object that bounds a solid (with the ray tracer): no
+    /// segments, no triangles, no samples.
+    int buriedElements = 0;
+    /// Elements whose segments or triangles HifiOptions::maxSegments / maxTriangles cut.
+    int cappedElements = 0;
 };
 
 /// Built once for a scene state; rebuild after an edit.

@@ -125,6 +125,51 @@ TEST(ExactIrradiance, HalfPlaneBlockerMatchesTheClosedFormEverywhere) {
     EXPECT_GT(penumbra, 20);  // the sweep crosses the penumbra, not just umbra and full light
 }
 
+TEST(ExactIrradiance, ALampOfManyPatchesIsOneSourceWithTheSameLight) {
+    // The 1 × 1 lamp split into 4 × 4 patches, over the half-plane blocker: one convex
+    // emitter, whose light matches the closed form as the one-patch lamp's does.
+    HalfPlaneScene s(0.5, 0.0);
+    Scene split = s.scene;
+    split.settings.patchSize = 0.25;
+    split.settings.elementSize = 0.25;
+    Discretization disc(split);
+    int lampPatches = 0;
+    for (const Patch& p : disc.patches()) lampPatches += p.object == 0;
+    ASSERT_EQ(lampPatches, 16);
+    ExactIrradiance exact(disc);
+    EXPECT_EQ(exact.emitterCount(), 1u);
+    for (double px : {-0.8, -0.3, 0.0, 0.25, 0.6})
+        for (double pz : {0.0, 0.35}) {
+            const double truth =
+                rectangleFormFactor(-0.5 - px, std::min(0.5, -px) - px, -0.5 - pz, 0.5 - pz, 1.0);
+            EXPECT_NEAR(exact.direct(Vec3(px, 0, pz), Vec3(0, 1, 0)).x, truth, 1e-9)
+                << px << " " << pz;
+        }
+}
+
+TEST(ExactIrradiance, ALampBoxStaysInPiecesWithTheSameLight) {
+    // An emitting 1 m cube over the origin: its faces are not in one plane, so they stay
+    // separate sources; from right below, only its bottom face (at height 1) is seen.
+    Scene scene;
+    test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(1.0));
+    SceneObject cube;
+    cube.id = "cube";
+    cube.shape.type = ShapeType::Box;
+    cube.shape.size = Vec3(1.0);
+    cube.material = "lamp";
+    cube.transform.translate = Vec3(0, 1.5, 0);
+    scene.objects.push_back(cube);
+    scene.settings.patchSize = 50;
+    scene.settings.elementSize = 50;
+    Discretization disc(scene);
+    ExactIrradiance exact(disc);
+    EXPECT_GE(exact.emitterCount(), 6u);
+    for (double px : {-0.3, 0.0, 0.2}) {
+        const double truth = rectangleFormFactor(-0.5 - px, 0.5 - px, -0.5, 0.5, 1.0);
+        EXPECT_NEAR(exact.direct(Vec3(px, 0, 0), Vec3(0, 1, 0)).x, truth, 1e-9 * truth);
+    }
+}
+
 TEST(ExactIrradiance, TiltedPointAndTiltedBlockerAgreeWithAFinelyGriddedSource) {
     // No closed form: the same visible part integrated as many small unblocked squares whose
     // centre's visibility is known by a ray-free test (the blocker is one half-plane, so a

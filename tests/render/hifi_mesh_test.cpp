@@ -8,6 +8,7 @@
 #include "render/hifi_mesh.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <atomic>
 #include <cmath>
@@ -316,6 +317,160 @@ TEST(HifiMesh, TrianglesInsideAnotherObjectAreDropped) {
     EXPECT_EQ(floorTrianglesUnderTheBox(culled), 0);
     EXPECT_GT(culled.stats().coveredTriangles, 0);
     EXPECT_EQ(culled.triangles().size() + floorTrianglesUnderTheBox(all), all.triangles().size());
+}
+
+/// A 2 m floor under a square lamp, with a 0.6 m box of a two-sided material floating 0.1 m
+/// above the floor (a closed solid, as Blender's exporter writes every box); with `buried`, a
+/// 0.2 m box turned 20° about y inside it, touching nothing.
+Scene boxInsideABox(bool buried) {
+    Scene scene;
+    test::addMaterial(scene, "grey", Rgb(0.5));
+    test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(10.0));
+    test::addMaterial(scene, "painted", Rgb(0.6));
+    scene.materials.back().material.twoSided = true;
+    scene.objects.push_back(test::makeQuad("floor", 2, 2, "grey", {0, 0, 0}));
+    scene.objects.push_back(
+        test::makeQuad("lamp", 0.5, 0.5, "lamp", {-0.3, 1.5, 0.1}, {180, 0, 0}));
+    auto box = [](const std::string& id, double size, Vec3 at, double turnDeg) {
+        SceneObject o;
+        o.id = id;
+        o.shape.type = ShapeType::Box;
+        o.shape.size = Vec3(size);
+        o.material = "painted";
+        o.transform.translate = at;
+        o.transform.rotateDeg = Vec3(0, turnDeg, 0);
+        return o;
+    };
+    scene.objects.push_back(box("outer", 0.6, {0.1, 0.4, 0}, 0));
+    if (buried) scene.objects.push_back(box("inner", 0.2, {0.15, 0.45, 0.05}, 20));
+    scene.settings.patchSize = 0.2;
+    scene.settings.elementSize = 0.1;
+    return scene;
+}
+
+TEST(HifiMesh, AnObjectBuriedInsideAClosedOneAddsNoSegmentsTrianglesOrSamples) {
+    // Direct light only, so both builds sample the same function wherever they sample; one
+    // thread, so no sample is taken twice by two threads reaching it at once.
+    const tbb::global_control oneThread(tbb::global_control::max_allowed_parallelism, 1);
+    auto build = [](const Discretization& disc, const RayTracer& tracer) {
+        ExactIrradiance exact(disc, {}, &tracer);
+        HifiMesh mesh;
+        mesh.build(disc, exact);
+        return mesh;
+    };
+    const Scene without = boxInsideABox(false), with = boxInsideABox(true);
+    Discretization discWithout(without), discWith(with);
+    RayTracer tracerWithout(discWithout), tracerWith(discWith);
+    const HifiMesh a = build(discWithout, tracerWithout);
+    const HifiMesh b = build(discWith, tracerWith);
+    // Every element of the inner box is buried: no triangles.
+    const auto [first, count] = discWith.elementRange(3);
+    ASSERT_GT(count, 0);
+    for (int e = first; e < first + count; ++e)
+        EXPECT_EQ(b.first(e + 1) - b.first(e), 0) << "inner element " << e;
+    EXPECT_EQ(b.stats().buriedElements, count) << b.toString();
+    EXPECT_EQ(a.stats().buriedElements, 0) << a.toString();
+    // Its edges cast no shadow events and nothing else changes: the same segments, triangles
+    // and samples as without it.
+    EXPECT_EQ(b.stats().shadowSegments, a.stats().shadowSegments);
+    EXPECT_EQ(b.stats().contactSegments, a.stats().contactSegments);
+    EXPECT_EQ(b.stats().triangles, a.stats().triangles);
+    EXPECT_EQ(b.stats().samples, a.stats().samples);
+    EXPECT_GT(a.stats().shadowSegments, 0) << "the outer box shadows the floor";
+}
+
+TEST(HifiMesh, NoTriangleLiesInsideAnInterpenetratingClosedObject) {
+    // Two boxes of a two-sided material, the second pushed halfway through the first's side.
+    Scene scene;
+    test::addMaterial(scene, "grey", Rgb(0.5));
+    test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(10.0));
+    test::addMaterial(scene, "fabric", Rgb(0.4));
+    scene.materials.back().material.twoSided = true;
+    scene.objects.push_back(test::makeQuad("floor", 2, 2, "grey", {0, 0, 0}));
+    scene.objects.push_back(test::makeQuad("lamp", 0.5, 0.5, "lamp", {0, 1.5, 0}, {180, 0, 0}));
+    SceneObject seat;
+    seat.id = "seat";
+    seat.shape.type = ShapeType::Box;
+    seat.shape.size = Vec3(0.8, 0.3, 0.5);
+    seat.material = "fabric";
+    seat.transform.translate = Vec3(0, 0.25, 0);
+    SceneObject arm = seat;
+    arm.id = "arm";
+    arm.shape.size = Vec3(0.2, 0.5, 0.6);
+    arm.transform.translate = Vec3(0.4, 0.35, 0);
+    scene.objects.push_back(seat);
+    scene.objects.push_back(arm);
+    scene.settings.patchSize = 0.2;
+    scene.settings.elementSize = 0.05;
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ExactIrradiance exact(disc, {}, &tracer);
+    HifiMesh mesh;
+    mesh.build(disc, exact);
+    // Strictly inside a box (centre c, half size h), with a margin.
+    auto inside = [](const Vec3& p, const Vec3& c, const Vec3& h) {
+        const Vec3 d = glm::abs(p - c);
+        return d.x < h.x - 1e-6 && d.y < h.y - 1e-6 && d.z < h.z - 1e-6;
+    };
+    int seatTriangles = 0, armTriangles = 0;
+    for (const HifiTriangle& t : mesh.triangles()) {
+        const Vec3 centre = (t.p[0] + t.p[1] + t.p[2]) / 3.0;
+        const int object = disc.elements()[t.element].object;
+        if (object == 2) {
+            ++seatTriangles;
+            EXPECT_FALSE(inside(centre, arm.transform.translate, 0.5 * arm.shape.size))
+                << "seat triangle inside the arm at " << centre.x << " " << centre.y << " "
+                << centre.z;
+        } else if (object == 3) {
+            ++armTriangles;
+            EXPECT_FALSE(inside(centre, seat.transform.translate, 0.5 * seat.shape.size))
+                << "arm triangle inside the seat at " << centre.x << " " << centre.y << " "
+                << centre.z;
+        }
+    }
+    EXPECT_GT(seatTriangles, 0);
+    EXPECT_GT(armTriangles, 0);
+    // The seat's end inside the arm is whole elements (buried), its border partly inside
+    // (covered triangles).
+    EXPECT_GT(mesh.stats().buriedElements, 0) << mesh.toString();
+    EXPECT_GT(mesh.stats().coveredTriangles, 0) << mesh.toString();
+    // Where they cross, on grid lines of each other's faces too, are contact lines.
+    EXPECT_GT(mesh.stats().contactSegments, 0) << mesh.toString();
+}
+
+TEST(HifiMesh, TheSegmentAndTriangleCapsHoldOnEveryElement) {
+    const Scene scene = boxOnFloor(true);
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ExactIrradiance exact(disc, {}, &tracer);
+    auto mostTriangles = [&](const HifiMesh& mesh) {
+        int most = 0;
+        for (std::size_t e = 0; e < disc.elements().size(); ++e)
+            most = std::max(most,
+                            mesh.first(static_cast<int>(e) + 1) - mesh.first(static_cast<int>(e)));
+        return most;
+    };
+    HifiOptions loose;
+    loose.maxSegments = 1000;
+    loose.maxTriangles = 1000;
+    HifiMesh free;
+    free.build(disc, exact, loose);
+    HifiOptions tight;
+    tight.maxSegments = 2;
+    tight.maxTriangles = 8;
+    HifiMesh capped;
+    capped.build(disc, exact, tight);
+    EXPECT_GT(mostTriangles(free), tight.maxTriangles) << "the caps have work to do";
+    EXPECT_EQ(free.stats().cappedElements, 0);
+    EXPECT_LE(mostTriangles(capped), tight.maxTriangles) << capped.toString();
+    EXPECT_GT(capped.stats().cappedElements, 0);
+    // Segments: at most two per element, so at most twice the meshed elements.
+    EXPECT_LE(capped.stats().shadowSegments + capped.stats().contactSegments,
+              2 * capped.stats().meshedElements);
+    // The default cap holds too.
+    HifiMesh standard;
+    standard.build(disc, exact);
+    EXPECT_LE(mostTriangles(standard), HifiOptions{}.maxTriangles);
 }
 
 TEST(HifiMesh, InterpolantsFollowTheExactIrradianceCloserThanConstantElements) {
