@@ -3,6 +3,7 @@
 //                 [--display-divisor N]
 //                 [--holodeck FILE | --no-holodeck]
 //                 [--bench-drag ID [--frames N] [--record DIR] [--no-references]]
+//                 [--bench-still S [--record DIR]]
 // The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
 // 2 bad input or no display, with one line on stderr.
 
@@ -43,6 +44,10 @@ int main(int argc, char** argv) {
     app.add_option("--record", options.record,
                    "with --bench-drag: write every image shown, its edit line and the "
                    "references into this folder");
+    app.add_option("--bench-still", options.benchStill,
+                   "keep the view still for S seconds, then print how far the viewport was from "
+                   "a reference render at 1, 2, 5, 10 ... s, and Gouraud's error (JSON)")
+        ->check(CLI::PositiveNumber);
     app.add_flag("!--no-references", options.benchReferences,
                  "with --bench-drag: skip the reference renders (errors against references)");
     app.add_flag("--recover", options.recover,
@@ -85,7 +90,7 @@ int main(int argc, char** argv) {
         spdlog::warn("--interactive-divisor is no longer used: the display keeps its resolution");
     options.mode = *penumbra::parseViewMode(mode);
     if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
-    if (!options.benchDrag.empty()) options.journal = false;
+    if (!options.benchDrag.empty() || options.benchStill > 0) options.journal = false;
     try {
         // A holodeck named on the command line is checked like the other inputs (bad: one line,
         // exit 2); the one found beside a scene only warns when it cannot be used.

@@ -205,7 +205,8 @@ std::string ScreenEdge::toString() const {
 std::string ScreenPoint::toString() const {
     std::ostringstream out;
     out << "ScreenPoint{(" << position.x << ", " << position.y << ") depth " << depth << " colour ("
-        << colour.x << ", " << colour.y << ", " << colour.z << ") age " << age << "}";
+        << colour.x << ", " << colour.y << ", " << colour.z << ") age " << age << " trust "
+        << static_cast<int>(trust) << "}";
     return out.str();
 }
 
@@ -225,7 +226,7 @@ std::string EpiOptions::toString() const {
     out << "EpiOptions{cull " << cullOccludedEdges << " slack " << depthSlack << "+" << densitySlack
         << " antiAlias " << antiAlias << " complexFilter " << complexFilter << " shortcut "
         << complexFilterShortcut << " dense " << denseComplexLimit << " radius " << denseRadius
-        << " smooth " << smoothRadius << "}";
+        << " smooth " << smoothRadius << " ownPointPrior " << ownPointPrior << "}";
     return out.str();
 }
 
@@ -241,6 +242,7 @@ EdgePointImage::EdgePointImage(int width, int height, EpiOptions options)
     mSampleColour.assign(n, glm::vec3(0.0f));
     mSampleDepth.assign(n, std::numeric_limits<double>::infinity());
     mSamplePos.assign(n, 0xFF);
+    mSampleTrust.assign(n, 0);
     mUsable.assign(n, 0);
     mBlocksX = (width + 3) / 4;
     mBlocksY = (height + 3) / 4;
@@ -336,6 +338,7 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
         std::fill(mSampleDepth.begin() + lo, mSampleDepth.begin() + hi,
                   std::numeric_limits<double>::infinity());
         std::fill(mSamplePos.begin() + lo, mSamplePos.begin() + hi, 0xFF);
+        std::fill(mSampleTrust.begin() + lo, mSampleTrust.begin() + hi, 0);
         for (size_t n = 0; n < points.size(); ++n) {
             if (n % kChunk == 0) {
                 const auto& range = mChunkBands[n / kChunk];
@@ -353,6 +356,7 @@ void EdgePointImage::placePoints(const std::vector<ScreenPoint>& points) {
             mSampleDepth[i] = p.depth;
             mSampleColour[i] = glm::vec3(p.colour);
             mSamplePos[i] = epiSampleCode(p.position);
+            mSampleTrust[i] = p.trust;
         }
     };
     if (bands == 1) {
@@ -379,6 +383,7 @@ bool EdgePointImage::placeSortedPoints(const std::vector<ScreenPoint>& points) {
         std::fill(mSampleDepth.begin() + lo, mSampleDepth.begin() + hi,
                   std::numeric_limits<double>::infinity());
         std::fill(mSamplePos.begin() + lo, mSamplePos.begin() + hi, 0xFF);
+        std::fill(mSampleTrust.begin() + lo, mSampleTrust.begin() + hi, 0);
     });
     constexpr size_t kChunk = 4096;
     const size_t chunks = (points.size() + kChunk - 1) / kChunk;
@@ -400,6 +405,7 @@ bool EdgePointImage::placeSortedPoints(const std::vector<ScreenPoint>& points) {
             mSampleDepth[i] = p.depth;
             mSampleColour[i] = glm::vec3(p.colour);
             mSamplePos[i] = epiSampleCode(p.position);
+            mSampleTrust[i] = p.trust;
         }
         mChunkRanges[c] = range;
     });
@@ -1581,6 +1587,11 @@ Image EdgePointImage::reconstruct(bool useEdges) {
         smoothEdgeFreeRegions(out);
         mTimes.smoothMs = msSince(start);
     }
+    if (mOptions.ownPointPrior > 0) {
+        start = std::chrono::steady_clock::now();
+        showOwnPoints(out);
+        mTimes.smoothMs += msSince(start);
+    }
     markHoles(true);
     return out;
 }
@@ -1788,6 +1799,23 @@ void EdgePointImage::smoothEdgeFreeRegions(Image& out) {
 }
 
 // ---- Classification image -----------------------------------------------------------------
+
+void EdgePointImage::showOwnPoints(Image& out) const {
+    const double k = mOptions.ownPointPrior;
+    forRows(mOptions.parallel, mHeight, [&](int y) {
+        for (int x = 0; x < mWidth; ++x) {
+            const size_t i = index(x, y);
+            if (mSamplePos[i] == 0xFF || mEdgeCode[i] != kEdgeCodeEmpty) continue;
+            const Rgb own(mSampleColour[i]);
+            if (mSampleTrust[i] == kEpiTrustExact) {
+                out.at(x, y) = own;
+                continue;
+            }
+            const double n = 1.0 + mSampleTrust[i];
+            out.at(x, y) = (own * n + out.at(x, y) * k) / (n + k);
+        }
+    });
+}
 
 Image EdgePointImage::classificationImage() const {
     Image image(mWidth, mHeight);

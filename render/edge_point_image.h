@@ -43,8 +43,21 @@ struct ScreenPoint {
     double depth = 0.0;        ///< camera-space depth; the nearest point per pixel is kept
     Rgb colour{0.0};           ///< radiance, linear
     int age = 0;               ///< frames since shaded (carried for the render cache)
+    /// How far the colour is the point's own value (epiTrust): 0 one noisy sample, n ≥ 1 the
+    /// mean of n + 1 samples of the same pixel (at most kEpiTrustExact − 1), kEpiTrustExact a
+    /// value without sampling noise (ShadedPoint::exact). The reconstruction shows a pixel's own
+    /// point in proportion to it (EpiOptions::ownPointPrior).
+    std::uint8_t trust = 0;
     std::string toString() const;
 };
+
+/// ScreenPoint::trust of an exact point.
+inline constexpr std::uint8_t kEpiTrustExact = 255;
+/// ScreenPoint::trust of a point: exact, or the mean of `samples` (≥ 1) noisy samples.
+inline std::uint8_t epiTrust(bool exact, int samples) {
+    return exact ? kEpiTrustExact
+                 : static_cast<std::uint8_t>(std::clamp(samples - 1, 0, kEpiTrustExact - 1));
+}
 
 /// Whether the EPI keeps a point (§4.3): finite values, inside the width × height raster.
 inline bool epiKeepsPoint(const ScreenPoint& p, int width, int height) {
@@ -66,12 +79,13 @@ inline std::uint8_t epiSampleCode(const glm::dvec2& position) {
 /// The EPI's per-pixel point arrays (row-major, width × height), for a producer that already
 /// holds at most one point per pixel to write in place of build()'s placement (the render
 /// cache, RenderCache::reproject(camera, EpiPointArrays)): per pixel the kept point's depth,
-/// colour and 4-bit position, or +inf, zero and 0xFF without one.
+/// colour, 4-bit position and trust, or +inf, zero, 0xFF and 0 without one.
 struct EpiPointArrays {
     double* depth = nullptr;
     glm::vec3* colour = nullptr;
     std::uint8_t* position = nullptr;
     int width = 0, height = 0;  ///< the raster the arrays span
+    std::uint8_t* trust = nullptr;
 
     /// Pixel k's sample: `p` when the EPI keeps it (epiKeepsPoint), else none (also for
     /// nullptr).
@@ -80,6 +94,7 @@ struct EpiPointArrays {
         depth[k] = kept ? p->depth : std::numeric_limits<double>::infinity();
         colour[k] = kept ? glm::vec3(p->colour) : glm::vec3(0.0f);
         position[k] = kept ? epiSampleCode(p->position) : 0xFF;
+        trust[k] = kept ? p->trust : 0;
     }
 };
 
@@ -93,7 +108,7 @@ struct EpiStageTimes {
     double interpolateMs = 0;    ///< §5.3
     double antiAliasMs = 0;      ///< §5.3 anti-aliasing pass
     double complexFilterMs = 0;  ///< §5.4
-    double smoothMs = 0;         ///< edge-free smoothing (EpiOptions::smoothRadius)
+    double smoothMs = 0;         ///< edge-free smoothing and own points (EpiOptions)
     double buildMs() const { return pointsMs + depthFilterMs + rasterizeMs + classifyMs; }
     /// Reachability + interpolation + anti-aliasing: DESIGN.md's "reconstruct_ms".
     double reconstructMs() const { return reachabilityMs + interpolateMs + antiAliasMs; }
@@ -144,6 +159,15 @@ struct EpiOptions {
     /// respects edges as §5.3 does with about twice its support. Simple and complex pixels
     /// keep §5.3–5.4 unchanged.
     int smoothRadius = 0;
+    /// Own points (last stage; ≤ 0 turns it off, the paper's reconstruction): a pixel no edge
+    /// crosses (class empty) that holds its own point shows that point's colour c in
+    /// proportion to its trust (ScreenPoint::trust): c itself when exact, else
+    /// (n·c + k·r)/(n + k) for the mean c of n samples, the reconstruction r and k this prior.
+    /// The filters above exist for sparse and noisy points; a pixel's own exact value is its
+    /// value, and averaging it with its neighbours blurs what no edge marks (the facets of a
+    /// low-poly mesh, whose creases are below the sharp-edge cutoff). So a still view, whose
+    /// pixels all come to hold their own points, converges to every pixel's own shading.
+    double ownPointPrior = 0;
     /// Build and reconstruct on oneTBB (bands and rows); false runs every stage serially, the
     /// reference the parallel stages must equal bit for bit.
     bool parallel = true;
@@ -171,7 +195,10 @@ public:
     /// The point arrays, for a producer to place the points (see EpiPointArrays); then
     /// build(edges). Valid for the life of the EPI.
     EpiPointArrays pointArrays() {
-        return {mSampleDepth.data(), mSampleColour.data(), mSamplePos.data(), mWidth, mHeight};
+        return {mSampleDepth.data(), mSampleColour.data(), mSamplePos.data(),
+                mWidth,
+                mHeight,
+                mSampleTrust.data()};
     }
     /// build() with the points already written through pointArrays() (every pixel); the
     /// stage times' pointsMs is then 0 (the producer's time).
@@ -283,6 +310,8 @@ private:
     /// EpiOptions::smoothRadius: replaces the interpolation of empty pixels far from every
     /// edge by a wide average of the points.
     void smoothEdgeFreeRegions(Image& out);
+    /// EpiOptions::ownPointPrior: empty pixels with their own point show it by its trust.
+    void showOwnPoints(Image& out) const;
     /// Smoothing: mEdgeDistance, each pixel's Chebyshev distance to the nearest simple or
     /// complex pixel, capped at `cap`.
     void computeEdgeDistance(int cap);
@@ -346,6 +375,7 @@ private:
     std::vector<glm::vec3> mSampleColour;
     std::vector<double> mSampleDepth;  ///< +inf without a point
     std::vector<uint8_t> mSamplePos;   ///< 0..15, 0xFF without a point
+    std::vector<uint8_t> mSampleTrust;  ///< ScreenPoint::trust, 0 without a point
     std::vector<uint8_t> mUsable;      ///< see sampleUsable()
     std::vector<uint8_t> mPointBand;   ///< placePoints() scratch: band of rows per point
     std::vector<std::pair<uint8_t, uint8_t>> mChunkBands;  ///< and per 4096 points their range

@@ -112,19 +112,25 @@ inline PointShaderOptions displayShaderOptions() {
     return o;
 }
 
-/// EpiOptions as the display uses them by default: smoothRadius 6 (against the converged
-/// references: armadillo-field 0.0428 at 8, 0.0415 at 6, 0.0409 at 4; robot-room 0.0087 at
-/// 8, 0.0096 at 6, 0.0190 at 4, where the sparse points of its wide walls need the larger
-/// boxes), denseComplexLimit 3 and denseRadius 3.
+/// EpiOptions as the display uses them by default: edge-free smoothing of radius 6 for the
+/// pixels without a point of their own (the sparse points of wide walls need the larger
+/// boxes), and own points shown through the filters (ownPointPrior 4: exact ones wholly, a
+/// noisy mean by its samples), so a still view converges to every pixel's own shading. The
+/// dense-region mean (denseComplexLimit) stays off: it averaged the pixels of fine meshes'
+/// silhouettes and facets with their neighbours, which own points resolve (docs/display.md
+/// has the figures).
 inline EpiOptions displayEpiOptions() {
     EpiOptions o;
     o.smoothRadius = 6;
-    // Dense regions (3 or more complex pixels in the 3×3) take the mean of the points within
-    // 3 pixels, and the complex filter leaves their complex pixels alone: against the
-    // converged references, with the interpolation feedback, armadillo-field 0.0407 → 0.0373
-    // (limit 5: 0.0381; 2: 0.0373); robot-room 0.0070 → 0.0087.
-    o.denseComplexLimit = 3;
-    o.denseRadius = 3;
+    o.ownPointPrior = 4;
+    return o;
+}
+
+/// RenderCacheOptions as the display uses them by default: a pixel's samples merge into a
+/// mean of up to 32 (RenderCacheOptions::mergeSamples).
+inline RenderCacheOptions displayCacheOptions() {
+    RenderCacheOptions o;
+    o.mergeSamples = 32;
     return o;
 }
 
@@ -188,7 +194,7 @@ struct InteractiveDisplayOptions {
     /// 0 (displayShaderOptions): their noise averages out in the reconstruction, and the
     /// frame is clamped at 0 after it.
     PointShaderOptions shader = displayShaderOptions();
-    RenderCacheOptions cache;
+    RenderCacheOptions cache = displayCacheOptions();
     EdgeFinderOptions edges;
     /// The display's EPI: the paper's, plus edge-free smoothing of radius 6
     /// (EpiOptions::smoothRadius).

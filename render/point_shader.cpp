@@ -1104,13 +1104,19 @@ ShadowSampling shadowSamplingOf(const PointShaderOptions& o) {
             o.shadowDecisionPerAxis};
 }
 
+/// Rays a light's set must have tested for their agreement to count (ShadedPoint::exact): a
+/// 4 × 4 set, the display's largest.
+constexpr int kAgreeingRays = 16;
+
 // Stream tags of the adaptive sampler's extra patterns (independent of the plain pattern).
 constexpr std::uint64_t kDecisionStream = 0xDEC1DE5EEDull;
 constexpr std::uint64_t kRefinedStream = 0x5EF1AEDull;
 
 /// The stratified samples of every light seen from (x, n), Bala et al.'s area lights:
 /// `visit(light, from, to)` for each sample y returns whether the sample counts as blocked;
-/// `done(light, unoccluded F, blocked F)` then gets the light's totals. The estimators below
+/// `done(light, unoccluded F, blocked F, agreed)` then gets the light's totals, and whether
+/// the rays of the set the estimate came from agreed (all blocked or none: no penumbra seen,
+/// so the estimate has no sampling noise). The estimators below
 /// share this pattern, so their samples match (and, with adaptive sampling, so do their
 /// decisions wherever their visits agree).
 ///
@@ -1138,7 +1144,7 @@ void forEachLightSample(const Lights& lights, const Vec3& x, const Vec3& n, int 
         // One stratified set of s² rays from `stream`: the blocked part's estimate, and (when
         // asked) whether its rays agreed. Directions the light faces away from count as
         // unblocked with no weight.
-        auto estimate = [&](int s, std::uint64_t stream, bool* agreed) {
+        auto estimate = [&](int s, std::uint64_t stream, bool* agreed, int* testedRays) {
             const int rays = s * s;
             SampleRandom rng{hashPair(key ^ stream, l)};
             double blocked = 0;
@@ -1158,28 +1164,36 @@ void forEachLightSample(const Lights& lights, const Vec3& x, const Vec3& n, int 
                 }
             }
             if (agreed) *agreed = blockedRays == 0 || blockedRays == tested;
+            if (testedRays) *testedRays = tested;
             return blocked * (L.area / rays);
         };
         if (sampling.refine > 0) {
             bool agreed = true;
-            (void)estimate(std::max(1, sampling.decisionPerAxis), kDecisionStream, &agreed);
+            (void)estimate(std::max(1, sampling.decisionPerAxis), kDecisionStream, &agreed,
+                           nullptr);
             if (!agreed) {
                 // A penumbra: the finer set alone (the decision rays stay out of it).
                 const int fine = std::clamp(perAxis * sampling.refine, perAxis,
                                             std::max(perAxis, sampling.maxRefinedPerAxis));
-                done(L, fUnoccluded, estimate(fine, kRefinedStream, nullptr));
+                done(L, fUnoccluded, estimate(fine, kRefinedStream, nullptr, nullptr), false);
                 continue;
             }
         }
-        done(L, fUnoccluded, estimate(perAxis, 0, nullptr));
+        bool agreed = true;
+        int tested = 0;
+        const double fBlocked = estimate(perAxis, 0, &agreed, &tested);
+        // Agreement of a few rays says little (one ray always agrees): a set that tested
+        // fewer than kAgreeingRays counts as a penumbra.
+        done(L, fUnoccluded, fBlocked, agreed && tested >= kAgreeingRays);
     }
 }
 
 }  // namespace
 
 Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int receiver,
-                            std::uint64_t key) const {
+                            std::uint64_t key, bool* exact) const {
     Rgb total(0.0);
+    if (exact) *exact = true;
     forEachLightSample(
         st.lights, x, n, receiver, key, mTracer.epsilon(), shadowSamplingOf(mOptions),
         [&](const Light& L, const Vec3& from, const Vec3& to) {
@@ -1196,7 +1210,8 @@ Rgb PointShader::directWith(const State& st, const Vec3& x, const Vec3& n, int r
             }
             return true;
         },
-        [&](const Light& L, double fUnoccluded, double fBlocked) {
+        [&](const Light& L, double fUnoccluded, double fBlocked, bool agreed) {
+            if (exact && !agreed) *exact = false;
             double f = fUnoccluded - fBlocked;
             if (f > 0 || !mOptions.clampNegative) total += L.emission * f;
         });
@@ -1215,7 +1230,7 @@ Rgb PointShader::blockedChange(const std::vector<Light>& lights, const Visibilit
         [&](const Light&, const Vec3& from, const Vec3& to) {
             return mTracer.occluded(from, to, blocker) && !mTracer.occluded(from, to, scene);
         },
-        [&](const Light& L, double fUnoccluded, double fBlocked) {
+        [&](const Light& L, double fUnoccluded, double fBlocked, bool) {
             change -= L.emission * std::min(fBlocked, fUnoccluded);
         });
     return change;
@@ -1232,7 +1247,7 @@ Rgb PointShader::emittedBy(const std::vector<Light>& lights, const Visibility& e
             return mTracer.occluded(from, to, scene) ||
                    (blocks && mTracer.occluded(from, to, extra));
         },
-        [&](const Light& L, double fUnoccluded, double fBlocked) {
+        [&](const Light& L, double fUnoccluded, double fBlocked, bool) {
             const double f = fUnoccluded - fBlocked;
             if (f > 0) total += L.emission * f;
         });
@@ -1262,6 +1277,7 @@ ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request)
     out.pixel = request.pixel;
     out.frame = request.frame;
     out.shading = st.serial;
+    out.exact = true;
     const RayHit hit = traceWith(st, request.origin, request.direction);
     if (hit.object < 0 || hit.element < 0) {
         out.position = request.origin + request.direction * kMissDistance;
@@ -1280,7 +1296,7 @@ ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request)
     const std::uint64_t key = hashPair(
         hashPair(hashPair(mOptions.seed, bitsOf(request.pixel.x)), bitsOf(request.pixel.y)),
         request.frame);
-    Rgb h = directWith(st, hit.position, el.normal, el.object, key);
+    Rgb h = directWith(st, hit.position, el.normal, el.object, key, &out.exact);
     // H_indirect blended from per-vertex values with the hit's barycentric weights.
     if (el.object < static_cast<int>(st.vertexIndirect.size()) &&
         !st.vertexIndirect[el.object].empty() && hit.weights.size() == el.vertices.size()) {

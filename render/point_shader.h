@@ -71,6 +71,14 @@ struct ShadedPoint {
     /// its element since takes it as stale (the change is not in its colour).
     std::uint64_t shading = 0;
     bool stale = false;  ///< RenderCache::insert marks it stale (re-shaded first)
+    /// No sampling noise in its value: a miss, a black back face, or a hit where every
+    /// light's shadow rays agreed (all blocked or none), so its direct light is the exact
+    /// unoccluded part or (up to the small noise of the sampled blocked part against the
+    /// analytic unoccluded one) zero, and its indirect light the solution's smooth blend.
+    /// Another sample of the same point gives the same value; a noisy one (in a penumbra)
+    /// needs averaging (RenderCache::insert merges a pixel's samples). A light's rays count as
+    /// agreeing only from 16 tested rays on (a 4 × 4 set).
+    bool exact = false;
     bool hit() const { return object >= 0; }
     std::string toString() const;
 };
@@ -343,8 +351,10 @@ private:
     RayHit traceWith(const State& state, const Vec3& origin, const Vec3& direction) const;
     /// Whether the preview object blocks the segment (false without a preview).
     bool previewBlocks(const State& state, const Vec3& from, const Vec3& to) const;
+    /// H_direct at x from every light (stratified shadow rays); `exact` (optional) is set to
+    /// whether every light's rays agreed, all blocked or none (ShadedPoint::exact).
     Rgb directWith(const State& state, const Vec3& x, const Vec3& n, int receiver,
-                   std::uint64_t key) const;
+                   std::uint64_t key, bool* exact = nullptr) const;
     /// The change of the direct estimate over `lights` that the objects `blocker` admits make
     /// (≤ 0: only rays they block and the scene, less `ignore`, does not count).
     Rgb blockedChange(const std::vector<Light>& lights, const Visibility& blocker, int ignore,

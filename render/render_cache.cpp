@@ -178,7 +178,59 @@ std::vector<int> RenderCache::evictionSlots(std::size_t count) const {
     return slots;
 }
 
-void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
+std::vector<std::uint8_t> RenderCache::mergeIntoPixels(const std::vector<ShadedPoint>& batch,
+                                                        std::size_t first) {
+    std::vector<std::uint8_t> merged(batch.size(), 0);
+    if (mOptions.mergeSamples <= 0 || !mLastCamera) return merged;
+    const CameraRays& camera = *mLastCamera;
+    const int cap = mOptions.mergeSamples;
+    bool built = !mScreenPending;
+    for (std::size_t b = first; b < batch.size(); ++b) {
+        const ShadedPoint& s = batch[b];
+        if (s.stale || !s.hit()) continue;
+        // mPixelPoint is the last reprojection's until an insert or a drop clears it.
+        const auto p = camera.projectToPixel(s.position);
+        if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
+        const int x = std::min(static_cast<int>(p->x), mWidth - 1);
+        const int y = std::min(static_cast<int>(p->y), mHeight - 1);
+        const int i = mPixelPoint[static_cast<std::size_t>(y) * mWidth + x];
+        if (i < 0 || mFlags[i] != 0) continue;
+        CachePoint& q = mPoints[i];
+        if (q.element != s.element || q.frame > s.frame) continue;
+        const Vec3& o = camera.origin();
+        const double dq = glm::dot(q.position - o, camera.forward());
+        const double ds = glm::dot(s.position - o, camera.forward());
+        if (!(std::abs(ds - dq) <= dq * kSameSurface)) continue;
+        // A pending screen point list reads the visible points' colours: build it first.
+        if (!built) {
+            buildScreenPoints();
+            built = true;
+        }
+        if (q.shading != s.shading) {
+            // Shaded under other lighting (a solution update, a drag step): the new sample
+            // replaces the mean, which would otherwise lag behind the change.
+            q.position = s.position;
+            mPosition[i] = s.position;
+            q.colour = s.radiance;
+            q.samples = 1;
+            q.exact = s.exact;
+            q.shading = s.shading;
+        } else {
+            // The mean over the pixel's footprint: exact samples differ where the pixel holds
+            // detail finer than itself (a fine mesh's facets), noisy ones also by their noise.
+            const int n = std::min(q.samples, cap - 1);
+            q.colour = (q.colour * static_cast<double>(n) + s.radiance) / (n + 1.0);
+            q.samples = n + 1;
+            q.exact = q.exact && s.exact;
+        }
+        q.frame = s.frame;
+        mBorn[i] = mFrame;  // age 0 in the next reprojection
+        merged[b] = 1;
+    }
+    return merged;
+}
+
+void RenderCache::insert(const std::vector<ShadedPoint>& all) {
     auto toCache = [](const ShadedPoint& s) {
         CachePoint p;
         p.position = s.position;
@@ -186,12 +238,26 @@ void RenderCache::insert(const std::vector<ShadedPoint>& batch) {
         p.object = s.object;
         p.element = s.element;
         p.frame = s.frame;
+        p.exact = s.exact;
+        p.shading = s.shading;
         return p;
     };
     // Of a batch larger than the cache only its last capacity() points stay.
-    std::size_t first = batch.size() > mCapacity ? batch.size() - mCapacity : 0;
+    const std::size_t firstOfAll = all.size() > mCapacity ? all.size() - mCapacity : 0;
+    const std::vector<std::uint8_t> merged = mergeIntoPixels(all, firstOfAll);
+    std::vector<ShadedPoint> unmerged;
+    const bool anyMerged = std::find(merged.begin(), merged.end(), 1) != merged.end();
+    if (anyMerged) {
+        for (std::size_t b = firstOfAll; b < all.size(); ++b)
+            if (!merged[b]) unmerged.push_back(all[b]);
+    }
+    const std::vector<ShadedPoint>& batch = anyMerged ? unmerged : all;
+    std::size_t first = anyMerged ? 0 : firstOfAll;
     std::size_t count = batch.size() - first;
-    if (count == 0) return;
+    if (count == 0) {
+        if (anyMerged) std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
+        return;
+    }
     const std::size_t existing = mPoints.size();
     const std::size_t free = mCapacity - existing;
     std::size_t victims = count > free ? count - free : 0;
@@ -344,12 +410,14 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
     mLuminance.assign(mPixelPoint.size(), 1e300);
     mLuminanceHi.assign(mPixelPoint.size(), -1e300);
     mPixelAge.resize(mPixelPoint.size());
+    mLastCamera = camera;
     for (std::size_t k = 0; k < mPixelPoint.size(); ++k) {
         const int i = mPixelPoint[k];
         if (i < 0) continue;
         mVisible[i] = 1;
         mScreenOfPixel[k] = static_cast<int>(mScreen.size());
-        mScreen.push_back({position[i], depth[i], mPoints[i].colour, pointAge(i)});
+        const std::uint8_t trust = epiTrust(mPoints[i].exact, mPoints[i].samples);
+        mScreen.push_back({position[i], depth[i], mPoints[i].colour, pointAge(i), trust});
         mLuminance[k] = mLuminanceHi[k] = luminance(mPoints[i].colour);
         mPixelAge[k] = pointAge(i);
     }
@@ -366,6 +434,7 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
     mProj.resize(n);
     mPixelDepth.resize(pixels);
     mPixelAge.resize(pixels);
+    mLastCamera = camera;
     mLuminance.resize(pixels);
     mLuminanceHi.resize(pixels);
     mRowCount.resize(static_cast<std::size_t>(mHeight) + 1);
@@ -590,7 +659,7 @@ void RenderCache::writeVisiblePixels(const CameraRays& camera, const EpiPointArr
             // record, on the line its colour is read from, with the z-buffer's depth: the
             // projection pass's value bit for bit, without writing and reading it per point.
             const ScreenPoint p{camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k],
-                                pt.colour, mPixelAge[k]};
+                                pt.colour, mPixelAge[k], epiTrust(pt.exact, pt.samples)};
             if (epi) {
                 // What EdgePointImage::build would place from the list (a NaN colour is not).
                 mScreenOfPixel[k] = i;
@@ -617,7 +686,8 @@ void RenderCache::buildScreenPoints() const {
             const int i = mScreenOfPixel[k];
             if (i < 0) continue;
             mScreen[s] = {mScreenCamera->projectAtDepth(mPoints[i].position, mPixelDepth[k]),
-                          mPixelDepth[k], mPoints[i].colour, mPixelAge[k]};
+                          mPixelDepth[k], mPoints[i].colour, mPixelAge[k],
+                          epiTrust(mPoints[i].exact, mPoints[i].samples)};
             mScreenOfPixel[k] = s++;
         }
     });
@@ -1108,7 +1178,8 @@ std::string CachePoint::toString() const {
     std::ostringstream s;
     s << "CachePoint{position (" << position.x << ", " << position.y << ", " << position.z
       << "), colour (" << colour.x << ", " << colour.y << ", " << colour.z << "), object " << object
-      << ", element " << element << ", frame " << frame << "}";
+      << ", element " << element << ", frame " << frame << ", exact " << exact << ", samples "
+      << samples << "}";
     return s.str();
 }
 

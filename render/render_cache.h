@@ -42,6 +42,9 @@ struct CachePoint {
     int object = -1;     ///< Discretization object index, −1 for a miss
     int element = -1;
     std::uint64_t frame = 0;  ///< frame the point was requested in
+    bool exact = false;       ///< ShadedPoint::exact (of every sample merged into it)
+    int samples = 1;          ///< samples of its pixel merged into the colour (their mean)
+    std::uint64_t shading = 0;  ///< ShadedPoint::shading: the shader state of its samples
     std::string toString() const;
 };
 
@@ -71,6 +74,16 @@ struct RenderCacheOptions {
     /// A pixel requested in one of the last holdFrames frames is not requested again (its
     /// sample may still be in the shader's queue).
     int holdFrames = 2;
+    /// Samples of one pixel accumulate (0 turns it off: each new point is a point of its own,
+    /// and the pixel shows the youngest). A new point on the element of the point its pixel
+    /// showed in the last reprojection, at the same depth (within 1%), is merged into that
+    /// point instead of added: the colour becomes the mean of up to mergeSamples samples (a
+    /// running mean, then an exponential one of that weight) shaded under the same shader
+    /// state (ShadedPoint::shading; a sample of another state starts the mean again), exact
+    /// while every sample was (ShadedPoint::exact). A still view's pixels thus converge to their own mean over their
+    /// footprint (noise in penumbrae, detail finer than a pixel) instead of showing the last
+    /// sample.
+    int mergeSamples = 0;
     std::uint64_t seed = 1;
     /// reproject() on oneTBB over pixel bands (z-buffer) and rows (culling, output, priority),
     /// requestSamples() over tiles; false runs the plain serial references. Both give
@@ -91,6 +104,9 @@ public:
     /// Adds shaded points with age 0. When the cache is full, the points replaced are those
     /// not visible in the last frame first, then the oldest (largest age). Never exceeds
     /// capacity(); of a batch larger than the capacity only the last capacity() points stay.
+    /// With RenderCacheOptions::mergeSamples, a point of the same pixel, element and depth as
+    /// a visible point of the last reprojection is merged into it (age 0) instead; shaded
+    /// under another shader state (ShadedPoint::shading), it replaces that point's value.
     void insert(const std::vector<ShadedPoint>& points);
     void insert(const ShadedPoint& point) { insert(std::vector<ShadedPoint>{point}); }
 
@@ -302,6 +318,12 @@ private:
     // Per pixel, from the last reprojection: what the priority reads, and with mRowCount what
     // a pending screen point list is built from (not scratch: both paths fill them).
     std::vector<int> mPixelAge;       ///< age of its z-buffer point (meaningful where one survived)
+    /// The last reprojection's camera (insert() finds a new point's pixel with it).
+    std::optional<CameraRays> mLastCamera;
+    /// insert(): merges the points of `batch` from `first` on that fall on a visible point of
+    /// their pixel (mergeSamples); returns, per batch point, whether it was merged.
+    std::vector<std::uint8_t> mergeIntoPixels(const std::vector<ShadedPoint>& batch,
+                                              std::size_t first);
     std::vector<double> mPixelDepth;  ///< depth of its z-buffer point (parallel path)
     std::vector<double> mLuminance;   ///< luminance of its point, 1e300 without
     std::vector<double> mLuminanceHi;  ///< the same, −1e300 without

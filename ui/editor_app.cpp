@@ -321,8 +321,34 @@ bool EditorApp::needsFrame() {
     return now - mLastDrawn > (mRunner->quiescent() ? kIdleRedrawSeconds : kBusyRedrawSeconds);
 }
 
+void EditorApp::stepStillBench() {
+    if (!mStillBench) return;
+    const double now = glfwGetTime();
+    if (!mStillBench->begun()) {
+        // From the moment the lighting settled (at most 120 s after the start), as a user
+        // who waits for the scene to light up and then looks.
+        const bool settled = mRunner && mRunner->quiescent();
+        if (!settled && now - mStillStart < 120) return;
+        if (!settled) std::cerr << "penumbra-editor: --bench-still: not settled after 120 s\n";
+        if (!mOptions.quiet)
+            std::cerr << "penumbra-editor: --bench-still: settled after " << now - mStillStart
+                      << " s\n";
+        mStillBench->begin(now);
+    }
+    mStillBench->shown(mShown, now);
+    if (mStillBench->done(now)) mQuit = true;
+}
+
 int EditorApp::run() {
     int status = 0;
+    if (mOptions.benchStill > 0) {
+        StillBenchOptions still;
+        still.scene = mScenePath;
+        still.seconds = mOptions.benchStill;
+        still.recordDir = mOptions.record;
+        mStillBench = std::make_unique<StillBench>(still);
+        mStillStart = glfwGetTime();
+    }
     while (!mQuit && !glfwWindowShouldClose(mWindow)) {
         // A frame only when something on screen can change: input, a new viewport image, a
         // message or the solver's progress. Redrawing an unchanged window costs a software
@@ -334,6 +360,7 @@ int EditorApp::run() {
             mDrawnLast = false;
             mStats.tick(glfwGetTime());
             if (mBenchFrame >= 0) stepBenchmark();
+            stepStillBench();
             if (mBenchPhase == 4) break;
             if (mOptions.screenshot.empty() && mOptions.benchDrag.empty() && mOptions.frames > 0 &&
                 mFrame >= mOptions.frames)
@@ -380,6 +407,7 @@ int EditorApp::run() {
             mFrame >= mOptions.frames)
             break;
     }
+    if (mStillBench) std::cout << mStillBench->analyse().dump() << std::endl;
     if (!mOptions.benchDrag.empty() && mBench) {
         // Frame-time figures from the select to the end of the window after the drop, then
         // what the images showed.
@@ -449,6 +477,7 @@ bool EditorApp::frame() {
     if (mBenchFrame >= 0) stepBenchmark();
 
     uploadImage();
+    stepStillBench();
     drawMenu();
     drawViewport();
     drawPanels();

@@ -26,6 +26,7 @@
 #include "ui/mesh_library.h"
 #include "ui/recovery.h"
 #include "ui/session_runner.h"
+#include "ui/still_bench.h"
 #include "ui/view_camera.h"
 
 struct GLFWwindow;
@@ -50,6 +51,9 @@ struct EditorOptions {
     std::string record;
     /// --bench-drag: reference renders of a few images' states (seconds each); off: none.
     bool benchReferences = true;
+    /// Seconds: keep the camera and the scene still, then compare what the viewport showed at
+    /// 1, 2, 5, 10 … s with a reference render and with Gouraud (ui/still_bench.h); 0: none.
+    double benchStill = 0;
     bool quiet = false;
     /// The viewport's initial display mode (View ▸ Mode). Edge-and-point by default; the
     /// viewport shows Gouraud until the display has been built (seconds in large scenes).
@@ -282,6 +286,11 @@ private:
     FrameStats mBenchWindowStats;  ///< frame figures from the select to the window's end
     int mBenchOrigin = -1;         ///< the dragged object's version at the select
     double mBenchStart = 0;        ///< glfwGetTime() at the select
+    /// --bench-still: the bench, and glfwGetTime() when the frame loop started.
+    std::unique_ptr<StillBench> mStillBench;
+    double mStillStart = 0;
+    /// --bench-still: hands the shown image to the bench; quits when its time is over.
+    void stepStillBench();
 };
 
 }  // namespace penumbra
