@@ -343,7 +343,9 @@ int EditorApp::run() {
     int status = 0;
     if (mOptions.benchStill > 0) {
         StillBenchOptions still;
-        still.scene = mScenePath;
+        // The file as opened (an imported scene's Penumbra path exists only once saved).
+        still.scene = mOptions.scene;
+        still.import = mOptions.import;
         still.seconds = mOptions.benchStill;
         still.recordDir = mOptions.record;
         mStillBench = std::make_unique<StillBench>(still);

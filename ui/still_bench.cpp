@@ -47,7 +47,7 @@ nlohmann::json StillBench::analyse() {
     std::cerr << "penumbra-editor: --bench-still: reference and Gouraud renders (" << w << "x" << h
               << ")\n";
     const SolverOptions solverOptions = interactiveSolverOptions();
-    auto session = EditSession::open(mOptions.scene, solverOptions);
+    auto session = EditSession::open(mOptions.scene, solverOptions, mOptions.import);
     session->converge(1e-3);
     PointShaderOptions so = displayShaderOptions();
     so.threads = 0;

@@ -14,12 +14,14 @@
 #include <string>
 #include <vector>
 
+#include "edit/scene_import.h"
 #include "ui/runner_board.h"
 
 namespace penumbra {
 
 struct StillBenchOptions {
     std::string scene;  ///< the scene file the editor opened (for the references)
+    ImportOptions import;  ///< how it was imported when it is a glTF or OBJ file
     double seconds = 10;
     int referenceSamplesPerAxis = 2;
     std::string recordDir;  ///< "" for none: else the images, the reference and Gouraud
