@@ -322,8 +322,18 @@ bool EditorApp::needsFrame() {
 }
 
 void EditorApp::stepStillBench() {
-    if (!mStillBench) return;
+    if (mOptions.benchStill <= 0 || mStillDone) return;
     const double now = glfwGetTime();
+    if (!mStillBench) {
+        StillBenchOptions still;
+        // The file as opened (an imported scene's Penumbra path exists only once saved).
+        still.scene = mOptions.scene;
+        still.import = mOptions.import;
+        still.seconds = mOptions.benchStill;
+        still.recordDir = mOptions.record;
+        mStillBench = std::make_unique<StillBench>(still);
+        mStillStart = now;
+    }
     if (!mStillBench->begun()) {
         // From the moment the lighting settled (at most 120 s after the start), as a user
         // who waits for the scene to light up and then looks.
@@ -336,21 +346,14 @@ void EditorApp::stepStillBench() {
         mStillBench->begin(now);
     }
     mStillBench->shown(mShown, now);
-    if (mStillBench->done(now)) mQuit = true;
+    if (mStillBench->done(now)) {
+        mStillDone = true;
+        mQuit = true;
+    }
 }
 
 int EditorApp::run() {
     int status = 0;
-    if (mOptions.benchStill > 0) {
-        StillBenchOptions still;
-        // The file as opened (an imported scene's Penumbra path exists only once saved).
-        still.scene = mOptions.scene;
-        still.import = mOptions.import;
-        still.seconds = mOptions.benchStill;
-        still.recordDir = mOptions.record;
-        mStillBench = std::make_unique<StillBench>(still);
-        mStillStart = glfwGetTime();
-    }
     while (!mQuit && !glfwWindowShouldClose(mWindow)) {
         // A frame only when something on screen can change: input, a new viewport image, a
         // message or the solver's progress. Redrawing an unchanged window costs a software

@@ -161,6 +161,10 @@ public:
     /// benchmark has its settled image (run() then prints DragBench::analyse()).
     DragBench* dragBench() { return mBench.get(); }
     bool dragBenchDone() const { return mBenchPhase == 4; }
+    /// --bench-still: the bench (nullptr before the first frame or without it), and whether its
+    /// time is over.
+    StillBench* stillBench() { return mStillBench.get(); }
+    bool stillBenchDone() const { return mStillDone; }
     ViewMode viewMode() const { return mMode; }
     /// Switches the viewport's display mode (View ▸ Mode); difference mode asks for a reference.
     void setViewMode(ViewMode mode);
@@ -289,6 +293,7 @@ private:
     /// --bench-still: the bench, and glfwGetTime() when the frame loop started.
     std::unique_ptr<StillBench> mStillBench;
     double mStillStart = 0;
+    bool mStillDone = false;
     /// --bench-still: hands the shown image to the bench; quits when its time is over.
     void stepStillBench();
 };

@@ -17,6 +17,7 @@
 #include "ui/drag_bench.h"
 #include "ui/editor_app.h"
 #include "ui/session_runner.h"
+#include "ui/still_bench.h"
 #include "ui/view_mode.h"
 
 namespace penumbra {
@@ -169,6 +170,41 @@ TEST(EditorDragDisplay, OrbitingTheCameraKeepsEveryPixelAtFullResolution) {
         120);
     EXPECT_GT(images, 1) << "images shown while orbiting";
     std::printf("orbit: %d images\n", images);
+}
+
+TEST(EditorStillView, TheViewportAtRestIsComparedWithAReferenceAndGouraud) {
+    // --bench-still's path: once the lighting settles, the image shown after a second and two is
+    // compared with a point-shader reference of the same view. Not under the sanitizers (the
+    // reference takes minutes there; still_view_test checks the convergence itself).
+    if (kSanitized) GTEST_SKIP() << "the reference render is left to the Release run";
+    EditorOptions options;
+    options.scene = kSource + "/scenes/cube-room.json";
+    options.quiet = true;
+    options.journal = false;
+    options.benchStill = 2;
+    EditorApp app(options);
+    ASSERT_TRUE(test::runUntil(
+        app, [&] { return app.stillBenchDone(); }, 240, 40))
+        << "the lighting did not settle";
+    ASSERT_NE(app.stillBench(), nullptr);
+    const nlohmann::json report = app.stillBench()->analyse();
+    ASSERT_TRUE(report.contains("checkpoints")) << report.dump();
+    const double gouraud = report["gouraud_error"].get<double>();
+    EXPECT_GT(gouraud, 0.0);
+    int compared = 0;
+    for (const auto& c : report["checkpoints"]) {
+        const double error = c["error"].get<double>();
+        std::printf("cube-room still, %.0f s after settling: error %.4f (without lamps %.4f); "
+                    "Gouraud %.4f\n",
+                    c["s"].get<double>(), error, c["error_without_lamps"].get<double>(), gouraud);
+        if (error < 0) continue;  // an image of another size (the window still settling)
+        ++compared;
+        // The display of a settled scene, against a reference of the same view and lighting:
+        // no worse than a few times Gouraud's error (a wrong view, lighting or black pixels
+        // give many times it).
+        EXPECT_LT(error, 3 * gouraud + 0.01);
+    }
+    EXPECT_GT(compared, 0);
 }
 
 }  // namespace
