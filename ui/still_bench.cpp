@@ -2,9 +2,9 @@
 
 #include "ui/still_bench.h"
 
-#include <algorithm>
 #include <filesystem>
 #include <iostream>
+#include <utility>
 
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
@@ -13,7 +13,7 @@
 #include "render/interactive_display.h"
 #include "render/path_tracer.h"
 #include "render/point_shader.h"
-#include "ui/session_runner.h"
+#include "solver/progressive_solver.h"
 
 namespace penumbra {
 
