@@ -57,6 +57,8 @@ public:
     const Vec3& right() const { return mRight; }      ///< unit, image +x
     const Vec3& up() const { return mUp; }            ///< unit, image −y
     std::string toString() const;
+    /// The same view: eye, orientation, field of view and raster, bit for bit.
+    bool operator==(const CameraRays&) const = default;
 
 private:
     Vec3 mOrigin{0.0};

@@ -1805,13 +1805,14 @@ void EdgePointImage::showOwnPoints(Image& out) const {
     forRows(mOptions.parallel, mHeight, [&](int y) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
-            if (mSamplePos[i] == 0xFF || mEdgeCode[i] != kEdgeCodeEmpty) continue;
+            if (mSamplePos[i] == 0xFF || mEdgeCode[i] != kEdgeCodeEmpty || mSampleTrust[i] == 0)
+                continue;
             const Rgb own(mSampleColour[i]);
             if (mSampleTrust[i] == kEpiTrustExact) {
                 out.at(x, y) = own;
                 continue;
             }
-            const double n = 1.0 + mSampleTrust[i];
+            const double n = mSampleTrust[i];
             out.at(x, y) = (own * n + out.at(x, y) * k) / (n + k);
         }
     });

@@ -43,20 +43,22 @@ struct ScreenPoint {
     double depth = 0.0;        ///< camera-space depth; the nearest point per pixel is kept
     Rgb colour{0.0};           ///< radiance, linear
     int age = 0;               ///< frames since shaded (carried for the render cache)
-    /// How far the colour is the point's own value (epiTrust): 0 one noisy sample, n ≥ 1 the
-    /// mean of n + 1 samples of the same pixel (at most kEpiTrustExact − 1), kEpiTrustExact a
-    /// value without sampling noise (ShadedPoint::exact). The reconstruction shows a pixel's own
-    /// point in proportion to it (EpiOptions::ownPointPrior).
+    /// How far the colour is the pixel's own value (epiTrust): 0 not known to be (a point
+    /// shaded for another view, reprojected: it may be hidden in this one), n in 1…254 the mean
+    /// of n samples of the same pixel, kEpiTrustExact a value without sampling noise
+    /// (ShadedPoint::exact). The reconstruction shows a pixel's own point in proportion to it
+    /// (EpiOptions::ownPointPrior).
     std::uint8_t trust = 0;
     std::string toString() const;
 };
 
 /// ScreenPoint::trust of an exact point.
 inline constexpr std::uint8_t kEpiTrustExact = 255;
-/// ScreenPoint::trust of a point: exact, or the mean of `samples` (≥ 1) noisy samples.
+/// ScreenPoint::trust of a point shaded for the current view: exact, or the mean of `samples`
+/// (≥ 1) noisy samples.
 inline std::uint8_t epiTrust(bool exact, int samples) {
     return exact ? kEpiTrustExact
-                 : static_cast<std::uint8_t>(std::clamp(samples - 1, 0, kEpiTrustExact - 1));
+                 : static_cast<std::uint8_t>(std::clamp(samples, 1, kEpiTrustExact - 1));
 }
 
 /// Whether the EPI keeps a point (§4.3): finite values, inside the width × height raster.
@@ -162,8 +164,8 @@ struct EpiOptions {
     /// Own points (last stage; ≤ 0 turns it off, the paper's reconstruction): a pixel no edge
     /// crosses (class empty) that holds its own point shows that point's colour c in
     /// proportion to its trust (ScreenPoint::trust): c itself when exact, else
-    /// (n·c + k·r)/(n + k) for the mean c of n samples, the reconstruction r and k this prior.
-    /// The filters above exist for sparse and noisy points; a pixel's own exact value is its
+    /// (n·c + k·r)/(n + k) for the mean c of n samples, the reconstruction r and k this prior;
+    /// a point of trust 0 (shaded for another view) is not shown. The filters above exist for sparse and noisy points; a pixel's own exact value is its
     /// value, and averaging it with its neighbours blurs what no edge marks (the facets of a
     /// low-poly mesh, whose creases are below the sharp-edge cutoff). So a still view, whose
     /// pixels all come to hold their own points, converges to every pixel's own shading.

@@ -410,14 +410,14 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
     mLuminance.assign(mPixelPoint.size(), 1e300);
     mLuminanceHi.assign(mPixelPoint.size(), -1e300);
     mPixelAge.resize(mPixelPoint.size());
-    mLastCamera = camera;
+    noteView(camera);
     for (std::size_t k = 0; k < mPixelPoint.size(); ++k) {
         const int i = mPixelPoint[k];
         if (i < 0) continue;
         mVisible[i] = 1;
         mScreenOfPixel[k] = static_cast<int>(mScreen.size());
-        const std::uint8_t trust = epiTrust(mPoints[i].exact, mPoints[i].samples);
-        mScreen.push_back({position[i], depth[i], mPoints[i].colour, pointAge(i), trust});
+        mScreen.push_back(
+            {position[i], depth[i], mPoints[i].colour, pointAge(i), trustOf(mPoints[i])});
         mLuminance[k] = mLuminanceHi[k] = luminance(mPoints[i].colour);
         mPixelAge[k] = pointAge(i);
     }
@@ -434,7 +434,7 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
     mProj.resize(n);
     mPixelDepth.resize(pixels);
     mPixelAge.resize(pixels);
-    mLastCamera = camera;
+    noteView(camera);
     mLuminance.resize(pixels);
     mLuminanceHi.resize(pixels);
     mRowCount.resize(static_cast<std::size_t>(mHeight) + 1);
@@ -659,7 +659,7 @@ void RenderCache::writeVisiblePixels(const CameraRays& camera, const EpiPointArr
             // record, on the line its colour is read from, with the z-buffer's depth: the
             // projection pass's value bit for bit, without writing and reading it per point.
             const ScreenPoint p{camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k],
-                                pt.colour, mPixelAge[k], epiTrust(pt.exact, pt.samples)};
+                                pt.colour, mPixelAge[k], trustOf(pt)};
             if (epi) {
                 // What EdgePointImage::build would place from the list (a NaN colour is not).
                 mScreenOfPixel[k] = i;
@@ -686,8 +686,7 @@ void RenderCache::buildScreenPoints() const {
             const int i = mScreenOfPixel[k];
             if (i < 0) continue;
             mScreen[s] = {mScreenCamera->projectAtDepth(mPoints[i].position, mPixelDepth[k]),
-                          mPixelDepth[k], mPoints[i].colour, mPixelAge[k],
-                          epiTrust(mPoints[i].exact, mPoints[i].samples)};
+                          mPixelDepth[k], mPoints[i].colour, mPixelAge[k], trustOf(mPoints[i])};
             mScreenOfPixel[k] = s++;
         }
     });

@@ -303,6 +303,19 @@ private:
     static constexpr std::uint8_t kStaleFlag = 1, kHiddenFlag = 2, kCarriedFlag = 4;
     std::vector<std::uint8_t> mFlags;  ///< per point: kStaleFlag, kHiddenFlag, kCarriedFlag
     std::uint64_t mFrame = 0;
+    /// The first frame of the current view (the camera of every reprojection since): points
+    /// requested before it were shaded for another view, so their pixel's own value is not
+    /// known (ScreenPoint::trust 0) until a sample of this view merges into them.
+    std::uint64_t mViewFrame = 0;
+    /// ScreenPoint::trust of point p in the current view.
+    std::uint8_t trustOf(const CachePoint& p) const {
+        return p.frame >= mViewFrame ? epiTrust(p.exact, p.samples) : 0;
+    }
+    /// Before a reprojection to `camera`: starts a new view when the camera moved.
+    void noteView(const CameraRays& camera) {
+        if (!mLastCamera || !(*mLastCamera == camera)) mViewFrame = mFrame;
+        mLastCamera = camera;
+    }
 
     std::vector<int> mPixelPoint;  ///< per pixel, −1 when empty
     /// Visible points, row-major; built on demand while mScreenPending.

@@ -184,6 +184,42 @@ TEST(StillView, TheMeanIsCappedAtMergeSamples) {
     EXPECT_DOUBLE_EQ(f.cache->points()[0].colour.x, 2.0);
 }
 
+TEST(StillView, APointShadedForAnotherViewIsNotThePixelsOwnUntilASampleOfThisViewMerges) {
+    for (bool parallel : {true, false}) {
+        SCOPED_TRACE(parallel ? "parallel" : "serial");
+        MergeFixture f(32);
+        RenderCacheOptions o;
+        o.mergeSamples = 32;
+        o.parallel = parallel;
+        f.cache = std::make_unique<RenderCache>(32, 32, 64, o);
+        f.cache->insert(f.sample(10.3, 10.6, Rgb(1.0), 1));
+        ASSERT_EQ(f.cache->reproject(f.rays).size(), 1u);
+        EXPECT_EQ(f.cache->reproject(f.rays)[0].trust, epiTrust(false, 1));  // still this view
+
+        // The camera turns a little: the point still lands in the raster, but was shaded
+        // for the other view (it could be hidden in this one).
+        Camera turned = wallCamera();
+        turned.lookAt = Vec3(0.05, 0, 0);
+        const CameraRays moved(turned, 32, 32);
+        const auto& screen = f.cache->reproject(moved);
+        ASSERT_EQ(screen.size(), 1u);
+        EXPECT_EQ(screen[0].trust, 0);
+
+        // A sample requested in this view (frame ≥ the view's first) merges and makes it own.
+        const auto p = moved.projectToPixel(f.cache->points()[0].position);
+        ASSERT_TRUE(p);
+        ShadedPoint s = f.sample(10.5, 10.5, Rgb(1.0), 1);
+        s.position = moved.origin() + 5.0 * moved.rayDirection(p->x, p->y) /
+                                          std::abs(moved.rayDirection(p->x, p->y).z);
+        s.frame = f.cache->frame();
+        f.cache->insert(s);
+        ASSERT_EQ(f.cache->size(), 1u);
+        const auto& again = f.cache->reproject(moved);
+        ASSERT_EQ(again.size(), 1u);
+        EXPECT_EQ(again[0].trust, epiTrust(false, 2));
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Own points
 
@@ -200,6 +236,19 @@ std::vector<ScreenPoint> checkerPoints(std::uint8_t trust) {
             points.push_back(p);
         }
     return points;
+}
+
+TEST(StillView, APointOfTrustZeroIsNotShownAsItsPixelsValue) {
+    EdgePointImage plain(24, 24, displayEpiOptions());
+    plain.build({}, checkerPoints(0));
+    const Image unknown = plain.reconstruct(true);
+    EpiOptions paper = displayEpiOptions();
+    paper.ownPointPrior = 0;
+    EdgePointImage filtered(24, 24, paper);
+    filtered.build({}, checkerPoints(0));
+    const Image reference = filtered.reconstruct(true);
+    for (int y = 0; y < 24; ++y)
+        for (int x = 0; x < 24; ++x) EXPECT_EQ(unknown.at(x, y).x, reference.at(x, y).x);
 }
 
 TEST(StillView, AnExactOwnPointIsThePixelsValueAndANoisyOneIsWeighedByItsSamples) {
