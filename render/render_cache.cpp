@@ -184,7 +184,7 @@ std::vector<std::uint8_t> RenderCache::mergeIntoPixels(const std::vector<ShadedP
     if (mOptions.mergeSamples <= 0 || !mLastCamera) return merged;
     const CameraRays& camera = *mLastCamera;
     const int cap = mOptions.mergeSamples;
-    bool built = !mScreenPending;
+    const bool built = !mScreenPending;
     for (std::size_t b = first; b < batch.size(); ++b) {
         const ShadedPoint& s = batch[b];
         if (s.stale || !s.hit()) continue;
@@ -201,11 +201,11 @@ std::vector<std::uint8_t> RenderCache::mergeIntoPixels(const std::vector<ShadedP
         const double dq = glm::dot(q.position - o, camera.forward());
         const double ds = glm::dot(s.position - o, camera.forward());
         if (!(std::abs(ds - dq) <= dq * kSameSurface)) continue;
-        // A pending screen point list reads the visible points' colours: build it first.
-        if (!built) {
-            buildScreenPoints();
-            built = true;
-        }
+        // A pending screen point list reads the visible points' records: it keeps the
+        // reprojection's (the first change of a point is the one recorded).
+        if (!built)
+            mPendingOriginals.push_back(
+                {static_cast<std::size_t>(y) * mWidth + x, q.colour, q.position, trustOf(q)});
         if (q.shading != s.shading) {
             // Shaded under other lighting (a solution update, a drag step): the new sample
             // replaces the mean, which would otherwise lag behind the change.
@@ -406,6 +406,7 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
     std::fill(mVisible.begin(), mVisible.end(), 0);
     mScreen.clear();
     mScreenPending = false;
+    mPendingOriginals.clear();
     std::fill(mScreenOfPixel.begin(), mScreenOfPixel.end(), -1);
     mLuminance.assign(mPixelPoint.size(), 1e300);
     mLuminanceHi.assign(mPixelPoint.size(), -1e300);
@@ -632,6 +633,7 @@ void RenderCache::writeVisiblePixels(const CameraRays& camera, const EpiPointArr
     for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] += mRowCount[y];
     mVisibleCount = static_cast<std::size_t>(mRowCount[mHeight]);
     mScreenPending = epi != nullptr;
+    mPendingOriginals.clear();
     if (epi)
         mScreenCamera = camera;
     else
@@ -690,6 +692,15 @@ void RenderCache::buildScreenPoints() const {
             mScreenOfPixel[k] = s++;
         }
     });
+    // Points merged into since the reprojection, as it showed them (the earliest record last,
+    // so it wins).
+    for (auto o = mPendingOriginals.rbegin(); o != mPendingOriginals.rend(); ++o) {
+        ScreenPoint& p = mScreen[mScreenOfPixel[o->pixel]];
+        p.position = mScreenCamera->projectAtDepth(o->position, mPixelDepth[o->pixel]);
+        p.colour = o->colour;
+        p.trust = o->trust;
+    }
+    mPendingOriginals.clear();
     mScreenPending = false;
 }
 

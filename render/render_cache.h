@@ -324,6 +324,16 @@ private:
     mutable std::vector<int> mScreenOfPixel;
     mutable bool mScreenPending = false;
     std::optional<CameraRays> mScreenCamera;  ///< the pending list's camera
+    /// While the list is pending: the records of points a merge changed since the
+    /// reprojection, as the list must show them (pixel, colour, position, trust), so that a
+    /// merge need not build the whole list first.
+    struct PendingOriginal {
+        std::size_t pixel;
+        Rgb colour;
+        Vec3 position;
+        std::uint8_t trust;
+    };
+    mutable std::vector<PendingOriginal> mPendingOriginals;
     std::size_t mVisibleCount = 0;
     std::vector<double> mPriority;          ///< per pixel
     std::vector<std::uint64_t> mRequested;  ///< per pixel, frame + 1 of the last request

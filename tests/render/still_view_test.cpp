@@ -166,6 +166,31 @@ TEST(StillView, ASampleOfAnotherStateReplacesTheMeanAndOtherElementsOrPixelsAreN
     EXPECT_EQ(f.cache->size(), 3u);
 }
 
+TEST(StillView, AMergeKeepsTheReprojectionsPendingScreenPointsAsTheyWere) {
+    // Reprojected into EPI arrays, the screen point list is built only when asked: it shows
+    // the points as reprojected, also after a sample merged into one.
+    MergeFixture f(32);
+    std::vector<double> depth(32 * 32);
+    std::vector<glm::vec3> colour(32 * 32);
+    std::vector<std::uint8_t> position(32 * 32), trust(32 * 32);
+    const EpiPointArrays arrays{depth.data(), colour.data(), position.data(), 32, 32,
+                                trust.data()};
+    f.cache->reproject(f.rays, arrays);
+    const std::size_t k = 10 * 32 + 10;
+    EXPECT_EQ(colour[k].x, 1.0f);
+    f.cache->insert(f.sample(10.8, 10.2, Rgb(3.0), 1));
+    ASSERT_EQ(f.cache->size(), 1u);
+    EXPECT_DOUBLE_EQ(f.cache->points()[0].colour.x, 2.0);
+    const auto& screen = f.cache->screenPoints();
+    ASSERT_EQ(screen.size(), 1u);
+    EXPECT_DOUBLE_EQ(screen[0].colour.x, 1.0);
+    EXPECT_EQ(screen[0].trust, trust[k]);
+    EXPECT_EQ(static_cast<int>(screen[0].position.x), 10);
+    EXPECT_EQ(static_cast<int>(screen[0].position.y), 10);
+    // The next reprojection shows the mean.
+    EXPECT_DOUBLE_EQ(f.cache->reproject(f.rays)[0].colour.x, 2.0);
+}
+
 TEST(StillView, WithoutMergingEverySampleIsAPointOfItsOwn) {
     MergeFixture f(0);
     f.cache->insert(f.sample(10.8, 10.2, Rgb(3.0), 1));
