@@ -73,11 +73,13 @@ struct SolverOptions {
     /// The gather starts once the edit's strongest pending shooter carries less than this
     /// fraction of the emitted power; 0 uses stochasticBelow.
     double gatherBelow = 0;
-    /// > 1: the gather goes in two passes. The first traces one stratum, picked at random, of
-    /// each block of gatherCoarseBlock × gatherCoarseBlock strata (an unbiased, coarser
-    /// estimate at a fraction of the rays), so the added object has its light quickly; the
-    /// second, once the edit's strong shooters have shot, traces the other strata and
-    /// corrects each element to exactly the one-pass gather. 1: one pass.
+    /// > 1: the gather goes in two passes. The first traces, per receiving patch, one stratum
+    /// picked at random of each block of gatherCoarseBlock × gatherCoarseBlock strata, each
+    /// block from one of the patch's elements in turn, and gives every element of the patch
+    /// that estimate (a coarse one, at a fraction of the rays: a patch of many small elements
+    /// costs one element's rays), so the added object has its light quickly; the second, once
+    /// the edit's strong shooters have shot, traces the other strata and corrects each element
+    /// to exactly the one-pass gather. 1: one pass.
     int gatherCoarseBlock = 1;
     RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
     /// Strategy one redistributes first while the most important pending redistribution

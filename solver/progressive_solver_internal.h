@@ -306,8 +306,9 @@ struct ChangeEntry {
     struct GatherRefinement {
         std::vector<int> receivers;      ///< the added objects' elements, ascending
         std::vector<Rgb> firstEstimate;  ///< per receiver: irradiance the first pass gave
-        /// Per receiver and block: the pending patch whose shot radiosity the block's traced
-        /// stratum returned, -1 for none.
+        /// Per receiver and block: the pending patch whose shot radiosity the block's stratum,
+        /// traced from this receiver, returned; -1 for none, -2 when another receiver of its
+        /// patch traced the block (the first pass traces each block once per patch).
         std::vector<int> blockHit;
         int nx = 0, ny = 0;      ///< strata over (φ, sin²θ)
         std::uint64_t seed = 0;  ///< the gather's ray seed

@@ -508,6 +508,98 @@ Vec3 gatherDirection(int k, int nx, int ny, double ru, double rv, const Vec3& tx
     return rr * std::cos(phi) * tx + rr * std::sin(phi) * ty + std::sqrt(std::max(0.0, 1 - v)) * n;
 }
 
+/// GatherRefinement::blockHit of a block the receiver did not trace in the first pass.
+constexpr int kGatherNotTraced = -2;
+
+/// The first pass of a coarse gather, per receiving patch: each block of strata is traced
+/// once for the whole patch, from one of its receivers (that receiver's own ray of the one-pass
+/// gather, so the second pass can keep it), and every receiver of the patch takes the patch's
+/// estimate Σ_b share_b S(hit_b). The receivers that trace are drawn by area, systematically
+/// (block b from the receiver at area fraction (π(b) + u) / blocks, π a random permutation and
+/// u a random offset per patch), so the estimate is unbiased for the patch's area-weighted mean
+/// and spread over it; a patch of many small elements (a sphere's, a mesh's) costs the rays of
+/// one element, not of each. `trace(e, k, ru, rv)` returns the pending patch receiver e's ray
+/// toward stratum k hits (-1 for none); `shot` is the entry's shot radiosity per patch. Fills
+/// `refinement` (receivers, strata and seed already set), writes each receiver's estimate to
+/// `delta` and returns the rays traced.
+template <class Trace>
+std::size_t traceFirstGatherPass(const std::vector<Element>& elements, const GatherStrata& strata,
+                                 const std::vector<Rgb>& shot, const Trace& trace,
+                                 ChangeEntry::GatherRefinement& refinement,
+                                 std::vector<Rgb>& delta) {
+    const auto& receivers = refinement.receivers;
+    const int rays = strata.count(), blocks = strata.blocks();
+    // The receivers grouped by patch, each group in receiver order.
+    std::vector<int> byPatch(receivers.size());
+    for (std::size_t i = 0; i < byPatch.size(); ++i) byPatch[i] = static_cast<int>(i);
+    std::stable_sort(byPatch.begin(), byPatch.end(), [&](int a, int b) {
+        return elements[receivers[a]].patch < elements[receivers[b]].patch;
+    });
+    std::vector<std::size_t> groupStart;
+    for (std::size_t g = 0; g < byPatch.size(); ++g)
+        if (g == 0 ||
+            elements[receivers[byPatch[g]]].patch != elements[receivers[byPatch[g - 1]]].patch)
+            groupStart.push_back(g);
+    groupStart.push_back(byPatch.size());
+    const std::size_t groups = groupStart.size() - 1;
+    refinement.firstEstimate.assign(receivers.size(), Rgb(0.0));
+    refinement.blockHit.assign(receivers.size() * static_cast<std::size_t>(blocks),
+                               kGatherNotTraced);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups, 4), [&](const auto& r) {
+        thread_local std::vector<int> chosen, order, tracerOf;
+        chosen.resize(static_cast<std::size_t>(blocks));
+        order.resize(static_cast<std::size_t>(blocks));
+        tracerOf.resize(static_cast<std::size_t>(blocks));
+        for (std::size_t g = r.begin(); g != r.end(); ++g) {
+            const std::size_t first = groupStart[g], m = groupStart[g + 1] - first;
+            // Which receiver (its place q in the group) traces each block.
+            const int patch = elements[receivers[byPatch[first]]].patch;
+            RayRandom pick{
+                hashPair(refinement.seed ^ 0x9a7c4ull, static_cast<std::uint64_t>(patch))};
+            for (int b = 0; b < blocks; ++b) order[b] = b;
+            for (int b = blocks - 1; b > 0; --b)
+                std::swap(order[b], order[std::min(b, static_cast<int>(pick.next() * (b + 1)))]);
+            double area = 0;
+            for (std::size_t q = 0; q < m; ++q)
+                area += elements[receivers[byPatch[first + q]]].area;
+            const double u = pick.next();
+            std::size_t q = 0;
+            double below = 0;  // area of the receivers before q
+            for (int p = 0; p < blocks; ++p) {
+                const double at = (p + u) / blocks * area;
+                while (q + 1 < m && below + elements[receivers[byPatch[first + q]]].area <= at)
+                    below += elements[receivers[byPatch[first + q++]]].area;
+                tracerOf[order[p]] = static_cast<int>(q);
+            }
+            Rgb estimate(0.0);
+            for (std::size_t t = 0; t < m; ++t) {
+                if (std::find(tracerOf.begin(), tracerOf.end(), static_cast<int>(t)) ==
+                    tracerOf.end())
+                    continue;
+                const int i = byPatch[first + t];
+                const int e = receivers[i];
+                RayRandom rng{hashPair(refinement.seed, static_cast<std::uint64_t>(e))};
+                strata.choose(refinement.seed, e, chosen.data());
+                int* hitOf = &refinement.blockHit[static_cast<std::size_t>(i) * blocks];
+                // Every stratum draws its numbers, so the second pass meets the same ones.
+                for (int k = 0; k < rays; ++k) {
+                    const double ru = rng.next(), rv = rng.next();
+                    const int b = strata.blockOf[k];
+                    if (chosen[b] != k || tracerOf[b] != static_cast<int>(t)) continue;
+                    const int j = trace(e, k, ru, rv);
+                    hitOf[b] = j;
+                    if (j >= 0) estimate += shot[j] * strata.share[b];
+                }
+            }
+            for (std::size_t t = 0; t < m; ++t) {
+                const int i = byPatch[first + t];
+                refinement.firstEstimate[i] = delta[receivers[i]] = estimate;
+            }
+        }
+    });
+    return groups * static_cast<std::size_t>(blocks);
+}
+
 }  // namespace
 
 void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<Rgb>& delta) {
@@ -545,61 +637,45 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
     const int nx = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n))));
     const GatherStrata strata(nx, (n + nx - 1) / nx, mOptions.gatherCoarseBlock);
     const bool coarse = strata.blocks() < strata.count();
-    const int rays = strata.count(), blocks = strata.blocks();
+    const int rays = strata.count();
     const double eps = mTracer.epsilon();
     const std::uint64_t seed = hashPair(hashPair(mOptions.seed, 0x6a7e5ull), mStats.shots);
-    ChangeEntry::GatherRefinement& refinement = c.refinement;
+    // The pending patch whose shot radiosity receiver e's ray toward stratum k returns (its
+    // numbers ru, rv within the stratum), -1 for none.
+    auto trace = [&](int e, int k, double ru, double rv) {
+        const Element& el = elements[e];
+        Vec3 tx, ty;
+        frameAround(el.normal, tx, ty);
+        const RayTracer::FirstHit h = mTracer.firstHit(
+            el.receiver + el.normal * eps,
+            gatherDirection(k, strata.nx, strata.ny, ru, rv, tx, ty, el.normal), after);
+        if (h.element < 0 || h.backFace) return -1;
+        return h.patch == el.patch || !c.isGathered(h.patch) ? -1 : h.patch;
+    };
     if (coarse) {
+        ChangeEntry::GatherRefinement& refinement = c.refinement;
         refinement.receivers = receivers;
-        refinement.firstEstimate.assign(receivers.size(), Rgb(0.0));
-        refinement.blockHit.assign(receivers.size() * static_cast<std::size_t>(blocks), -1);
         refinement.nx = strata.nx;
         refinement.ny = strata.ny;
         refinement.seed = seed;
-        refinement.importance = gatheredImportance * (1 - static_cast<double>(blocks) / rays);
+        const std::size_t traced =
+            traceFirstGatherPass(elements, strata, c.shot, trace, refinement, delta);
+        refinement.importance =
+            gatheredImportance *
+            (1 - static_cast<double>(traced) / (static_cast<double>(rays) * receivers.size()));
+        return;
     }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, receivers.size(), 16), [&](const auto& r) {
-        thread_local std::vector<int> chosen;
-        chosen.resize(static_cast<std::size_t>(blocks));
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const int e = receivers[i];
-            const Element& el = elements[e];
             RayRandom rng{hashPair(seed, static_cast<std::uint64_t>(e))};
-            Vec3 tx, ty;
-            frameAround(el.normal, tx, ty);
-            const Vec3 origin = el.receiver + el.normal * eps;
-            // The pending patch whose shot radiosity stratum k's ray returns, -1 for none.
-            auto trace = [&](int k, double ru, double rv) {
-                const RayTracer::FirstHit h = mTracer.firstHit(
-                    origin, gatherDirection(k, strata.nx, strata.ny, ru, rv, tx, ty, el.normal),
-                    after);
-                if (h.element < 0 || h.backFace) return -1;
-                return h.patch == el.patch || !c.isGathered(h.patch) ? -1 : h.patch;
-            };
-            if (!coarse) {
-                Rgb sum(0.0);
-                for (int k = 0; k < rays; ++k) {
-                    const double ru = rng.next(), rv = rng.next();
-                    const int j = trace(k, ru, rv);
-                    if (j >= 0) sum += c.shot[j];
-                }
-                delta[e] = sum / static_cast<double>(rays);
-                continue;
-            }
-            // First pass: one stratum per block, weighted by the block's share of the strata.
-            // Every stratum draws its numbers, so the second pass meets the same ones.
-            strata.choose(seed, e, chosen.data());
-            int* hitOf = &refinement.blockHit[i * static_cast<std::size_t>(blocks)];
-            Rgb estimate(0.0);
+            Rgb sum(0.0);
             for (int k = 0; k < rays; ++k) {
                 const double ru = rng.next(), rv = rng.next();
-                const int b = strata.blockOf[k];
-                if (chosen[b] != k) continue;
-                const int j = trace(k, ru, rv);
-                hitOf[b] = j;
-                if (j >= 0) estimate += c.shot[j] * strata.share[b];
+                const int j = trace(e, k, ru, rv);
+                if (j >= 0) sum += c.shot[j];
             }
-            refinement.firstEstimate[i] = delta[e] = estimate;
+            delta[e] = sum / static_cast<double>(rays);
         }
     });
 }
@@ -638,7 +714,7 @@ void ProgressiveSolver::refineGather(ChangeEntry& c, bool preview, std::vector<R
                 const double ru = rng.next(), rv = rng.next();
                 const int b = strata.blockOf[k];
                 int j = hitOf[b];
-                if (chosen[b] != k) {
+                if (chosen[b] != k || j == kGatherNotTraced) {
                     const RayTracer::FirstHit h = mTracer.firstHit(
                         origin, gatherDirection(k, strata.nx, strata.ny, ru, rv, tx, ty, el.normal),
                         after);

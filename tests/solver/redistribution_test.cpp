@@ -582,6 +582,79 @@ TEST(Redistribution, TwoPassGatherEqualsTheOnePassGather) {
     }
 }
 
+TEST(Redistribution, TheGathersFirstPassTracesEachBlockOncePerPatch) {
+    // With gatherCoarseBlock the first pass traces one stratum of each block per receiving
+    // patch, from the patch's elements in turn, and gives all of them the patch's estimate: a
+    // ball whose patches hold more elements than there are blocks costs one ray per block and
+    // patch. Its estimate is about what deterministic shots of the same shooters give (to its
+    // noise), and the second pass still brings each element to its own one-pass gather.
+    SolverOptions onePass;
+    onePass.gatherRays = 64;  // 8 × 8 strata: 16 blocks of 2 × 2
+    onePass.gatherBelow = 1.0;
+    SolverOptions twoPass = onePass;
+    twoPass.gatherCoarseBlock = 2;
+    SceneObject ball;
+    ball.id = "ball";
+    ball.shape.type = ShapeType::Sphere;
+    ball.shape.radius = 0.3;
+    ball.shape.segments = 32;
+    ball.material = "white";
+    ball.transform.translate = Vec3(0.1, -0.4, 0.0);
+
+    Lit lit(makeRoom(), twoPass);
+    lit.solver->converge(1e-6, 1000000);
+    const int v = lit.add(ball);
+    std::vector<const Patch*> patches;
+    std::size_t most = 0;
+    for (const Patch& P : lit.disc->patches())
+        if (P.object == v) patches.push_back(&P), most = std::max(most, P.elements.size());
+    ASSERT_GT(most, 16u) << "the test wants patches with more elements than blocks";
+    const std::uint64_t raysBefore = lit.solver->stats().rays;
+    lit.solver->step(1);
+    EXPECT_EQ(lit.solver->stats().rays - raysBefore, patches.size() * 16);
+    const auto& h = lit.solver->irradiance();
+    double first = 0, area = 0;
+    for (const Patch* P : patches)
+        for (int e : P->elements) {
+            EXPECT_EQ(h[e], h[P->elements.front()]) << "element " << e << " of " << P->toString();
+            first += luminance(h[e]) * lit.disc->elements()[e].area;
+            area += lit.disc->elements()[e].area;
+        }
+
+    // Deterministic shots of the same shooters (every one but the lamp, whose light is the
+    // part from emission): the area-weighted mean of the first pass is within its noise of
+    // theirs.
+    Lit shots(makeRoom());
+    shots.solver->converge(1e-6, 1000000);
+    ASSERT_EQ(shots.add(ball), v);
+    irradianceAfterRedistribution(shots, v);
+    double exact = 0;
+    for (const Patch* P : patches)
+        for (int e : P->elements)
+            exact += luminance(shots.solver->irradiance()[e] -
+                               shots.solver->irradianceFromEmission()[e]) *
+                     lit.disc->elements()[e].area;
+    ASSERT_GT(exact, 0.0);
+    EXPECT_NEAR(first / area, exact / area, 0.1 * exact / area);
+
+    Lit reference(makeRoom(), onePass);
+    reference.solver->converge(1e-6, 1000000);
+    ASSERT_EQ(reference.add(ball), v);
+    for (Lit* l : {&lit, &reference}) {
+        l->solver->converge(1.0, 1000000);
+        ASSERT_EQ(l->solver->pendingChanges(), 0u);
+    }
+    const auto& got = lit.solver->irradiance();
+    const auto& expected = reference.solver->irradiance();
+    ASSERT_EQ(got.size(), expected.size());
+    double worst = 0, scale = 0;
+    for (std::size_t e = 0; e < got.size(); ++e) {
+        worst = std::max(worst, std::abs(luminance(got[e]) - luminance(expected[e])));
+        scale = std::max(scale, luminance(expected[e]));
+    }
+    EXPECT_LE(worst, 1e-12 * scale) << "differs from the one-pass gather by " << worst;
+}
+
 TEST(Redistribution, GatherOfAnEarlierEditSeesObjectsAddedAfterIt) {
     // Two adds in a row with the interactive configuration: the first edit's gather runs
     // after the second box exists, so its rays hit patches newer than the entry (they are
