@@ -7,12 +7,14 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -570,11 +572,17 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
     };
     const std::vector<CachePoint>& points = mCache.points();
     std::vector<std::uint8_t> drop(points.size(), 0);
-    std::size_t seen = 0;  // dropped points the last frame showed
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        drop[i] = points[i].object >= 0 && shadowed(points[i].element) ? 1 : 0;
-        seen += drop[i] && mCache.visible(i) && !mCache.hidden(i);
-    }
+    // Dropped points the last frame showed.
+    const std::size_t seen = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, points.size(), 8192), std::size_t{0},
+        [&](const tbb::blocked_range<std::size_t>& r, std::size_t count) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                drop[i] = points[i].object >= 0 && shadowed(points[i].element) ? 1 : 0;
+                count += drop[i] && mCache.visible(i) && !mCache.hidden(i);
+            }
+            return count;
+        },
+        std::plus<>());
     // One pixel per cell of the dropped points' pixels in this view, re-shaded below; the cell
     // grows so that at most shadowReshadeMax are.
     int cell = std::max(0, mOptions.shadowReshadeCell);

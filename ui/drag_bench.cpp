@@ -277,8 +277,112 @@ nlohmann::json DragBench::analyse() {
     for (const DragBenchImage& e : mImages)
         if (!e.afterDrop) maxFloor = std::max(maxFloor, e.floorError);
     out["max_drag_floor_error"] = maxFloor;
+    // Whose shadow the drag images show (0: their own state's).
+    int maxLag = -1;
+    double maxDelay = -1;
+    for (const auto& lag : mShadowLag) {
+        maxLag = std::max(maxLag, lag["lag_images"].get<int>());
+        maxDelay = std::max(maxDelay, lag["delay_ms"].get<double>());
+    }
+    out["shadow_lag"] = mShadowLag;
+    out["max_shadow_lag_images"] = maxLag;
+    out["max_shadow_delay_ms"] = maxDelay;
     out["settled_reference_error"] = mSettled.referenceError;
     return out;
+}
+
+nlohmann::json DragBench::measureShadowLag(EditSession& session,
+                                           const SolverOptions& solverOptions) {
+    nlohmann::json lags = nlohmann::json::array();
+    const int floor = session.objectVersion("floor");
+    if (mOptions.shadowLagStates <= 0 || floor < 0) return lags;
+    for (std::size_t j = 0; j < mImages.size(); ++j) {
+        DragBenchImage& e = mImages[j];
+        if (e.afterDrop || !e.referenceShown || !e.shown) continue;
+        // The earlier images' states, nearest first, each first shown where the walk back
+        // last meets it.
+        struct Candidate {
+            Transform transform;
+            double seconds;  ///< the first image showing it
+            int images;      ///< images back from e to that one
+        };
+        std::vector<Candidate> candidates;
+        std::size_t firstOfOwn = j;
+        while (firstOfOwn > 0 && mImages[firstOfOwn - 1].transform == e.transform &&
+               !mImages[firstOfOwn - 1].afterDrop)
+            --firstOfOwn;
+        for (std::size_t i = firstOfOwn; i-- > 0;) {
+            if (static_cast<int>(candidates.size()) >= mOptions.shadowLagStates) break;
+            const DragBenchImage& c = mImages[i];
+            if (c.transform == e.transform) continue;
+            if (!candidates.empty() && candidates.back().transform == c.transform) {
+                candidates.back().seconds = c.seconds;
+                candidates.back().images = static_cast<int>(j - i);
+                continue;
+            }
+            candidates.push_back({c.transform, c.seconds, static_cast<int>(j - i)});
+        }
+        if (candidates.empty()) continue;
+        // References of the candidate states, the image's own first.
+        std::vector<std::shared_ptr<const std::vector<std::uint8_t>>> refs{e.referenceShown};
+        const CameraRays rays(e.camera, e.width, e.height);
+        for (const Candidate& c : candidates) {
+            TransformCommand move;
+            move.id = mOptions.object;
+            move.translate = c.transform.translate;
+            move.rotateDeg = c.transform.rotateDeg;
+            move.scale = c.transform.scale;
+            session.apply(EditCommand(move));
+            session.converge(1e-3);
+            PointShaderOptions so = displayShaderOptions();
+            so.threads = 0;
+            so.recordTriples = false;
+            PointShader shader(session.discretization(), session.tracer(), solverOptions, so);
+            shader.updateSolution(session.solver());
+            refs.push_back(
+                displayedBytes(renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis)));
+        }
+        // The floor's pixels where some candidate's reference differs from the own one by more
+        // than a tenth of the range in a channel: where the shadows of the states differ.
+        std::vector<std::size_t> mask;
+        for (int y = 0; y < e.height; ++y)
+            for (int x = 0; x < e.width; ++x) {
+                const RayHit hit =
+                    session.tracer().intersect(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
+                if (hit.object != floor) continue;
+                const std::size_t k = 3 * (static_cast<std::size_t>(y) * e.width + x);
+                bool differs = false;
+                for (std::size_t r = 1; r < refs.size() && !differs; ++r)
+                    for (int ch = 0; ch < 3; ++ch)
+                        differs = differs ||
+                                  std::abs(int((*refs[r])[k + ch]) - int((*refs[0])[k + ch])) > 25;
+                if (differs) mask.push_back(k);
+            }
+        nlohmann::json errors = nlohmann::json::array();
+        int best = 0;
+        double bestError = 1e300;
+        for (std::size_t r = 0; r < refs.size(); ++r) {
+            std::vector<std::uint8_t> a, b;
+            for (std::size_t k : mask)
+                for (int ch = 0; ch < 3; ++ch) {
+                    a.push_back((*e.shown)[k + ch]);
+                    b.push_back((*refs[r])[k + ch]);
+                }
+            const double err = relativeError(a, b);
+            errors.push_back(err);
+            if (err >= 0 && err < bestError) bestError = err, best = static_cast<int>(r);
+        }
+        const int lagImages = best == 0 ? 0 : candidates[best - 1].images;
+        const double delayMs = best == 0 ? 0.0 : (e.seconds - candidates[best - 1].seconds) * 1e3;
+        lags.push_back({{"ms", e.seconds * 1e3},
+                        {"mask_pixels", mask.size()},
+                        {"errors", std::move(errors)},
+                        {"shown_state", best},
+                        {"lag_images", lagImages},
+                        {"delay_ms", delayMs},
+                        {"oldest_candidate_images", candidates.back().images}});
+    }
+    return lags;
 }
 
 void DragBench::analyseImages(nlohmann::json& out) const {
@@ -375,6 +479,8 @@ nlohmann::json DragBench::renderReferences(const std::vector<DragBenchImage*>& c
                       << "\n";
             references.push_back(compareWithReference(*session, solverOptions, *e, at));
         }
+        std::cerr << "penumbra-editor: --bench-drag: shadow lag\n";
+        mShadowLag = measureShadowLag(*session, solverOptions);
     }
     return references;
 }
@@ -398,6 +504,7 @@ nlohmann::json DragBench::compareWithReference(EditSession& session,
     const Image reference = renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis);
     const auto referenceBytes = displayedBytes(reference);
     e.referenceError = relativeError(*e.shown, *referenceBytes);
+    e.referenceShown = referenceBytes;
     compareObjectPixels(session, rays, session.objectVersion(mOptions.object), *referenceBytes, e);
     compareFloorPixels(session, rays, *referenceBytes, e);
     nlohmann::json entry = {{"phase", &e == &mSettled ? "settled"

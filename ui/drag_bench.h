@@ -6,7 +6,9 @@
 // resolution, and for a few of them the error against a reference render of the same scene
 // state (the dragged object at the transform the image shows, the lighting converged, every
 // pixel shaded with the point shader). After the drop: how long until the image stays within
-// 1% of the settled one. `--record DIR` writes every image with the edit line that reproduces
+// 1% of the settled one. For the drag images with a reference, whose shadow the floor shows:
+// their own state's or an earlier image's (the shadow lagging the object), in images and
+// milliseconds. `--record DIR` writes every image with the edit line that reproduces
 // its state, so a person can look.
 //
 // Index: DragBenchOptions · DragBenchImage · DragBench
@@ -40,6 +42,10 @@ struct DragBenchOptions {
     int referenceSamplesPerAxis = 2;
     /// "Within" the settled image: relativeDisplayRmse at most this.
     double settledTolerance = 0.01;
+    /// Shadow lag: for each drag image with a reference, the states of this many earlier
+    /// images (distinct transforms) are rendered too, and the floor's shadow is matched
+    /// against each (DragBench::measureShadowLag). 0: not measured.
+    int shadowLagStates = 3;
 };
 
 /// One viewport image the bench saw.
@@ -71,6 +77,8 @@ struct DragBenchImage {
     /// The same as referenceError over the floor's pixels (where the dragged object's shadow
     /// falls), -1 none.
     double floorError = -1;
+    /// The reference's displayed bytes (set with referenceError; kept for the shadow lag).
+    std::shared_ptr<const std::vector<std::uint8_t>> referenceShown;
 };
 
 class DragBench {
@@ -137,6 +145,11 @@ private:
     /// reference and compares (the `at`-th reference: its file name when recording).
     nlohmann::json compareWithReference(EditSession& session, const SolverOptions& solverOptions,
                                         DragBenchImage& image, int at);
+    /// Whose shadow each referenced drag image shows on the floor: its own state's, or that of
+    /// an image before it (the shadow lags the object). Per image: the candidate states'
+    /// errors over the floor pixels where their references differ, the best one's lag in
+    /// images and in milliseconds (from the first image showing that state to this one).
+    nlohmann::json measureShadowLag(EditSession& session, const SolverOptions& solverOptions);
 
     DragBenchOptions mOptions;
     double mStart = 0, mDrop = 0;
@@ -145,6 +158,7 @@ private:
     std::deque<DragBenchImage> mImages;  ///< stable addresses: the thread fills them in
     DragBenchImage mSettled;             ///< width 0: none
     DragBenchImage mSettledAgain;
+    nlohmann::json mShadowLag = nlohmann::json::array();  ///< measureShadowLag's
     int mRecorded = 0;
 
     // The bench's thread: displayed bytes and recorded PNGs, so the frame loop does not wait.

@@ -314,7 +314,7 @@ bool EditorApp::needsFrame() {
     if (ImGui::IsAnyMouseDown()) return true;
     for (bool down : ImGui::GetIO().KeysDown)
         if (down) return true;
-    if (playing() || mBenchPhase == 1 || !mOptions.screenshot.empty() || mCaptureNow) return true;
+    if (playing() || mBenchPhase == 1 || mBenchPhase == 6 || !mOptions.screenshot.empty() || mCaptureNow) return true;
     if (!mRunner) return now - mLastDrawn > kIdleRedrawSeconds;
     if (mRunner->image() != mShown || mRunner->hasMessages()) return true;
     // The status bar's solver figures while the light changes.
@@ -1220,6 +1220,7 @@ void EditorApp::uploadImage() {
     }
     mShown = img;
     ++mStats.imagesShown;
+    if (mBenchPhase == 6) ++mBenchSelectedImages;
     if (mBench && (mBenchPhase == 1 || mBenchPhase == 2))
         // Full resolution: the viewport's, or its --display-divisor share.
         mBench->shown(img, glfwGetTime(), mViewportW / std::max(1, mOptions.displayDivisor),
@@ -1272,6 +1273,15 @@ void EditorApp::stepBenchmark() {
             return;
         }
         mSelection = o->id;
+        mBenchSelectedImages = 0;
+        mBenchSettleStart = now;
+        mBenchPhase = 6;
+        return;
+    }
+    if (mBenchPhase == 6) {
+        // The second image after the select has the outline (the view request naming the
+        // selection reaches the render thread with the first at the latest).
+        if (!o || (mBenchSelectedImages < 2 && now - mBenchSettleStart < 10)) return;
         for (const EditCommand& c : mDrag.begin(o->id, o->transform)) submit(c);
         mStats = FrameStats{};
         mBenchOrigin = o->version;

@@ -282,9 +282,11 @@ private:
     bool mCaptureNow = false;
     double mCaptureWaitStart = -1;
     int mBenchFrame = -1;
-    /// --bench-drag: 0 waits for the scene to settle, 1 drags, 2 the window after the drop,
-    /// 3 waits for the settled image, 5 a second one, 4 done.
+    /// --bench-drag: 0 waits for the scene to settle, 6 has selected the object and waits for
+    /// images showing it selected (as a user clicks, sees the outline, then drags), 1 drags,
+    /// 2 the window after the drop, 3 waits for the settled image, 5 a second one, 4 done.
     int mBenchPhase = 0;
+    int mBenchSelectedImages = 0;  ///< images shown since the select (phase 6)
     double mBenchSettleStart = 0;
     std::unique_ptr<DragBench> mBench;
     FrameStats mBenchWindowStats;  ///< frame figures from the select to the window's end
