@@ -339,8 +339,8 @@ nlohmann::json DragBench::measureShadowLag(EditSession& session,
             so.recordTriples = false;
             PointShader shader(session.discretization(), session.tracer(), solverOptions, so);
             shader.updateSolution(session.solver());
-            refs.push_back(
-                displayedBytes(renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis)));
+            refs.push_back(displayedBytes(
+                renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis)));
         }
         // The floor's pixels where some candidate's reference differs from the own one by more
         // than a tenth of the range in a channel: where the shadows of the states differ.

@@ -314,7 +314,9 @@ bool EditorApp::needsFrame() {
     if (ImGui::IsAnyMouseDown()) return true;
     for (bool down : ImGui::GetIO().KeysDown)
         if (down) return true;
-    if (playing() || mBenchPhase == 1 || mBenchPhase == 6 || !mOptions.screenshot.empty() || mCaptureNow) return true;
+    if (playing() || mBenchPhase == 1 || mBenchPhase == 6 || !mOptions.screenshot.empty() ||
+        mCaptureNow)
+        return true;
     if (!mRunner) return now - mLastDrawn > kIdleRedrawSeconds;
     if (mRunner->image() != mShown || mRunner->hasMessages()) return true;
     // The status bar's solver figures while the light changes.

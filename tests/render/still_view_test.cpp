@@ -173,8 +173,7 @@ TEST(StillView, AMergeKeepsTheReprojectionsPendingScreenPointsAsTheyWere) {
     std::vector<double> depth(32 * 32);
     std::vector<glm::vec3> colour(32 * 32);
     std::vector<std::uint8_t> position(32 * 32), trust(32 * 32);
-    const EpiPointArrays arrays{depth.data(), colour.data(), position.data(), 32, 32,
-                                trust.data()};
+    const EpiPointArrays arrays{depth.data(), colour.data(), position.data(), 32, 32, trust.data()};
     f.cache->reproject(f.rays, arrays);
     const std::size_t k = 10 * 32 + 10;
     EXPECT_EQ(colour[k].x, 1.0f);

@@ -89,11 +89,12 @@ nlohmann::json dragAndCheck(const std::string& scene, const std::string& object,
     // reference of its own state, or of one at most two images before (a frame or two
     // behind), better than those of older states.
     for (const auto& lag : report.value("shadow_lag", nlohmann::json::array())) {
-        std::printf("  shadow at %.0f ms: state %d of %s over %zu floor pixels, %d images, "
-                    "%.0f ms behind\n",
-                    lag["ms"].get<double>(), lag["shown_state"].get<int>(),
-                    lag["errors"].dump().c_str(), lag["mask_pixels"].get<std::size_t>(),
-                    lag["lag_images"].get<int>(), lag["delay_ms"].get<double>());
+        std::printf(
+            "  shadow at %.0f ms: state %d of %s over %zu floor pixels, %d images, "
+            "%.0f ms behind\n",
+            lag["ms"].get<double>(), lag["shown_state"].get<int>(), lag["errors"].dump().c_str(),
+            lag["mask_pixels"].get<std::size_t>(), lag["lag_images"].get<int>(),
+            lag["delay_ms"].get<double>());
         if (lag["mask_pixels"].get<std::size_t>() < 100) continue;  // the states' shadows agree
         EXPECT_LE(lag["lag_images"].get<int>(), 2)
             << "the drag image at " << lag["ms"] << " ms shows an older state's shadow";
