@@ -366,18 +366,17 @@ Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
     return dB * ff.visible;
 }
 
-Rgb ProgressiveSolver::irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,
+Rgb ProgressiveSolver::irradianceChange(int shooter, int receiverPatch, const Receiver& r,
+                                        const Rgb& dB, const Visibility& before,
                                         const Visibility& after, const Visibility& changed,
                                         ChangedObjectsIn where) const {
     const Patch& P = mDisc.patches()[shooter];
-    const Element& el = mDisc.elements()[e];
-    if (el.patch == shooter) return Rgb(0.0);
+    if (receiverPatch == shooter) return Rgb(0.0);
     // The same culls as irradianceFrom: pairs that cannot see each other.
-    Vec3 toReceiver = el.receiver - P.centroid;
+    Vec3 toReceiver = r.x - P.centroid;
     if (glm::dot(toReceiver, P.normal) < -P.radius) return Rgb(0.0);
-    if (glm::dot(-toReceiver, el.normal) < -P.radius) return Rgb(0.0);
-    PointToPatch ff = formFactorChange(mDisc, mTracer, el.receiver, el.normal, shooter,
-                                       static_cast<std::uint64_t>(e), mOptions.seed,
+    if (glm::dot(-toReceiver, r.n) < -P.radius) return Rgb(0.0);
+    PointToPatch ff = formFactorChange(mDisc, mTracer, r.x, r.n, shooter, r.key, mOptions.seed,
                                        mOptions.maxRaysPerPair, before, after, changed, where);
     return dB * ff.visible;
 }

@@ -18,6 +18,7 @@ namespace penumbra {
 
 struct ChangeEntry;
 enum class ChangedObjectsIn;  // solver/form_factor.h
+struct Receiver;              // solver/form_factor.h
 
 /// George et al.'s interleaving strategies.
 enum class RedistributionStrategy {
@@ -222,12 +223,13 @@ private:
     /// False for pairs that cannot exchange light under `visibility` (irradianceFrom's culls:
     /// the shooter's own elements, receivers absent, either side behind the other).
     bool mayReceive(int shooter, int e, const Visibility& visibility) const;
-    /// dB · (F(after) − F(before)) for element e and `shooter`, tracing the worlds only for
+    /// dB · (F(after) − F(before)) for the receiver r (an element of patch `receiverPatch`,
+    /// its receiving point, normal and index as key) and `shooter`, tracing the worlds only for
     /// samples that meet an object `changed` admits (formFactorChange; `where` says which
     /// world holds the changed objects).
-    Rgb irradianceChange(int shooter, int e, const Rgb& dB, const Visibility& before,
-                         const Visibility& after, const Visibility& changed,
-                         ChangedObjectsIn where) const;
+    Rgb irradianceChange(int shooter, int receiverPatch, const Receiver& r, const Rgb& dB,
+                         const Visibility& before, const Visibility& after,
+                         const Visibility& changed, ChangedObjectsIn where) const;
     /// Adds irradiance dH to element e (B += ρ dH) and its share to its patch's unshot;
     /// `emissionShare` (per channel) of dH came straight from emission.
     void receive(int e, const Rgb& dH, const Rgb& emissionShare = Rgb(0.0));

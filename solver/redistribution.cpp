@@ -51,24 +51,29 @@ bool sphereMeetsCone(const Vec3& x, const Vec3& p, double pr, const Vec3& c, dou
     return std::sqrt(l2 * (t - t0) * (t - t0) + q2) - pr * t < r;
 }
 
+/// The mean of a polygon's vertices: a point inside a convex polygon.
+Vec3 polygonMean(const std::vector<Vec3>& poly) {
+    Vec3 inside(0.0);
+    for (const Vec3& v : poly) inside += v;
+    return inside / static_cast<double>(poly.size());
+}
+
 /// Whether the sphere (c, r) can meet a segment from x to a point of the convex polygon `poly`
 /// (front side toward unit `pn`): it is not wholly beyond the polygon's plane, seen from x, nor
 /// wholly outside one of the planes through x and an edge. (Spheres near the pyramid's edges
 /// may pass without meeting it; none that meets it fails.)
-bool sphereMeetsPyramid(const Vec3& x, const std::vector<Vec3>& poly, const Vec3& pn, const Vec3& c,
-                        double r) {
+/// `inside` is the mean of the polygon's vertices (polygonMean).
+bool sphereMeetsPyramid(const Vec3& x, const std::vector<Vec3>& poly, const Vec3& pn,
+                        const Vec3& inside, const Vec3& c, double r) {
     const double hx = glm::dot(x - poly[0], pn), hc = glm::dot(c - poly[0], pn);
     if ((hx > 0 && hc < -r) || (hx < 0 && hc > r)) return false;
-    Vec3 inside(0.0);
-    for (const Vec3& v : poly) inside += v;
-    inside /= static_cast<double>(poly.size());
     const Vec3 toInside = inside - x, toCentre = c - x;
     for (std::size_t i = 0; i < poly.size(); ++i) {
         const Vec3 m = glm::cross(poly[i] - x, poly[i + 1 < poly.size() ? i + 1 : 0] - x);
         const double side = glm::dot(toInside, m);
         if (side == 0) continue;  // x in the polygon's plane: no side plane here
-        const double d = glm::dot(toCentre, m);
-        if ((side > 0 ? d : -d) < -r * glm::length(m)) return false;
+        const double d = side > 0 ? glm::dot(toCentre, m) : -glm::dot(toCentre, m);
+        if (d < 0 && d < -r * glm::length(m)) return false;  // r ≥ 0: only d < 0 can fail
     }
     return true;
 }
@@ -148,9 +153,10 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
             }
             double f = 0;
             for (const Vec3& sp : samples) {
-                Vec3 d = sp - P.centroid;
-                double r2 = glm::dot(d, d);
-                double cosj = r2 > 0 ? glm::dot(P.normal, d) / std::sqrt(r2) : 0;
+                const Vec3 d = sp - P.centroid;
+                const double r2 = glm::dot(d, d), facing = glm::dot(P.normal, d);
+                if (!(facing > 0) || !(r2 > 0)) continue;  // behind the patch: cos ≤ 0
+                const double cosj = facing / std::sqrt(r2);
                 if (cosj > 0) f += P.area * cosj / (M_PI * r2 + P.area);
             }
             f /= static_cast<double>(samples.size());
@@ -355,14 +361,29 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
         return out;
     };
     // A planar shooter's segments from x end on its outline: the pyramid with apex x over
-    // the outline holds them, tighter than the cone to the patch's bounding ball.
-    auto inPyramid = [&](const Vec3& x, std::uint64_t mask) {
-        if (P.outline.size() < 3) return true;
-        for (std::size_t k = 0; k < c.spheres.size(); ++k)
-            if ((mask & bitOf(k)) && sphereMeetsPyramid(x, P.outline, P.normal, c.spheres[k].first,
-                                                        c.spheres[k].second + margin))
-                return true;
-        return false;
+    // the outline holds them, tighter than the cone to the patch's bounding ball. Segments
+    // from a point of B(x, a) lie within a of those from x (at the same parameter), so the
+    // test for the ball is the one for x with each sphere widened by a. Returns the changed
+    // objects of `mask` that pass.
+    const bool planar = P.outline.size() >= 3;
+    const Vec3 outlineMean = planar ? polygonMean(P.outline) : Vec3(0.0);
+    auto pyramidMask = [&](const Vec3& x, double a, std::uint64_t mask) {
+        if (!planar) return mask;
+        if (a > 0) a += margin;
+        std::uint64_t out = 0;
+        for (std::size_t k = 0; k < c.spheres.size(); ++k) {
+            const std::uint64_t bit = bitOf(k);
+            if (!(mask & bit) || (out & bit)) continue;
+            if (sphereMeetsPyramid(x, P.outline, P.normal, outlineMean, c.spheres[k].first,
+                                   c.spheres[k].second + margin + a))
+                out |= bit;
+        }
+        return out;
+    };
+    // Both tests: the changed objects whose spheres may meet a segment from B(x, a).
+    auto shaftAndPyramidMask = [&](const Vec3& x, double a, std::uint64_t mask) {
+        const std::uint64_t m = shaftMask(x, a, mask);
+        return m ? pyramidMask(x, a, m) : m;
     };
     constexpr std::uint64_t kAll = ~std::uint64_t(0);
     mImpl->receiverBounds.update(mDisc);
@@ -400,7 +421,7 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
                 work.push_back({index, inherited});
                 continue;
             }
-            const std::uint64_t mask = shaftMask(n.ball.centre, n.ball.radius, inherited);
+            const std::uint64_t mask = shaftAndPyramidMask(n.ball.centre, n.ball.radius, inherited);
             if (!mask) continue;
             stack.push_back({n.right, mask});
             stack.push_back({n.left, mask});
@@ -409,20 +430,20 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
 
     // Each piece in parallel: its subtree's balls, patches and elements (a patch's elements
     // belong to no other piece).
-    const auto& patches = mDisc.patches();
-    const auto& elements = mDisc.elements();
-    delta.assign(elements.size(), Rgb(0.0));
+    delta.assign(mDisc.elements().size(), Rgb(0.0));
     auto receivePatch = [&](int q, std::uint64_t mask) {
-        for (int e : patches[q].elements) {
+        for (int r = bounds.firstReceiver[q]; r < bounds.firstReceiver[q + 1]; ++r) {
+            const int e = bounds.receiverElement[r];
             if (mask == 0) {
                 delta[e] = shooterRemoved ? -irradianceFrom(j, e, shot, before)
                                           : irradianceFrom(j, e, shot, after);
                 continue;
             }
-            const Vec3& x = elements[e].receiver;
-            const std::uint64_t m = shaftMask(x, 0, mask);
-            if (m && inPyramid(x, m))
-                delta[e] = irradianceChange(j, e, shot, before, after, changed, where);
+            const Vec3& x = bounds.receiverPoint[r];
+            if (shaftAndPyramidMask(x, 0, mask))
+                delta[e] = irradianceChange(
+                    j, q, {x, bounds.receiverNormal[r], static_cast<std::uint64_t>(e)}, shot,
+                    before, after, changed, where);
         }
     };
     tbb::parallel_for(std::size_t(0), work.size(), [&](std::size_t w) {
@@ -438,7 +459,7 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
         while (depth > 0) {
             const auto [index, inherited] = local[--depth];
             const ReceiverBounds::Node& n = bounds.nodes[index];
-            const std::uint64_t mask = shaftMask(n.ball.centre, n.ball.radius, inherited);
+            const std::uint64_t mask = shaftAndPyramidMask(n.ball.centre, n.ball.radius, inherited);
             if (!mask) continue;
             if (n.left >= 0) {
                 local[depth++] = {n.right, mask};
@@ -448,7 +469,8 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
             for (int i = n.first; i < n.first + n.count; ++i) {
                 const int q = bounds.order[i];
                 const ReceiverBounds::Ball& b = bounds.patches[q];
-                if (const std::uint64_t m = shaftMask(b.centre, b.radius, mask)) receivePatch(q, m);
+                if (const std::uint64_t m = shaftAndPyramidMask(b.centre, b.radius, mask))
+                    receivePatch(q, m);
             }
         }
     });
