@@ -409,7 +409,21 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
             // Cancel what a removed patch shot: −F(t−1) (George et al.: "energy that was
             // distributed by patches on the dynamic object is canceled"). A gathered
             // shooter's light on added receivers came with gatherToAdded.
-            if (shooterRemoved ? !receiverAdded : !gathered) work.push_back({root, 0});
+            // Every element receives: the object's tree in pieces of a few patches, so one
+            // large object (robot-room's head is 1,456 elements) is not one thread's work.
+            if (shooterRemoved ? receiverAdded : gathered) continue;
+            stack.assign(1, {root, 0});
+            while (!stack.empty()) {
+                const int index = stack.back().first;
+                stack.pop_back();
+                const ReceiverBounds::Node& n = bounds.nodes[index];
+                if (n.left < 0 || n.count <= ReceiverBounds::kLeafPatches) {
+                    work.push_back({index, 0});
+                    continue;
+                }
+                stack.push_back({n.right, 0});
+                stack.push_back({n.left, 0});
+            }
             continue;
         }
         stack.assign(1, {root, kAll});
