@@ -214,6 +214,8 @@ private:
     void submit(const EditCommand& c);
     void frameSelection();
     void stepBenchmark();
+    /// --bench-drag: the frame figures and DragBench::analyse() as one JSON line on stdout.
+    void printDragBenchReport();
 
     EditorOptions mOptions;
     GLFWwindow* mWindow = nullptr;
