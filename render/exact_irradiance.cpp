@@ -605,6 +605,16 @@ bool ExactIrradiance::nearElement(int element, const Vec3& x) const {
            mOptions.nearElementRadii * mElementRadius[element];
 }
 
+double ExactIrradiance::nearElementWeight(int element, const Vec3& x) const {
+    if (!mOptions.smoothFarField) return nearElement(element, x) ? 1.0 : 0.0;
+    const double reach = mOptions.nearElementRadii * mElementRadius[element];
+    const double d = glm::length(x - mDisc.elements()[element].centroid);
+    if (d >= reach) return 0.0;
+    if (d <= 0.5 * reach) return 1.0;
+    const double u = 2 * (reach - d) / reach;  // 1 at half the reach, 0 at the reach
+    return u * u * (3 - 2 * u);
+}
+
 Rgb ExactIrradiance::indirect(const Vec3& x, const Vec3& n) const {
     if (mReflected.empty()) return Rgb(0.0);
     Parts parts;
@@ -642,9 +652,19 @@ void ExactIrradiance::addGathered(const Vec3& x, const Vec3& n, Parts& parts) co
             cellKey(std::llround(c.x), std::llround(c.y), std::llround(c.z)));
         if (it == mElementCells.end()) return;
         for (int e : it->second) {
+            const double w = nearElementWeight(e, x);
+            if (!(w > 0)) continue;
+            const Element& el = mDisc.elements()[e];
+            if (glm::dot(el.normal, n) < 1 - 1e-9 ||
+                std::abs(glm::dot(el.centroid - x, n)) > 1e3 * mEpsilon)
+                parts.nearSurface = true;
             const Rgb b = mReflected[e];
-            if (!(b.x > 0 || b.y > 0 || b.z > 0) || !nearElement(e, x)) continue;
-            addSource(x, n, mDisc.elementPolygon(e), b, parts);
+            if (!(b.x > 0 || b.y > 0 || b.z > 0)) continue;
+            bool sampled = false;
+            const double f = formFactor(x, n, mDisc.elementPolygon(e), -1, sampled);
+            parts.gathered += w * f * b;
+            parts.nearIndirect += w * f * b;
+            parts.nearShare += w * f;
         }
         return;
     }
@@ -668,7 +688,8 @@ Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
     const Vec3 t = std::abs(n.x) > 0.5 ? glm::normalize(glm::cross(n, Vec3(0, 1, 0)))
                                        : glm::normalize(glm::cross(n, Vec3(1, 0, 0)));
     const Vec3 b = glm::cross(n, t);
-    // The pattern's jitter is seeded by the point, so a point's value is reproducible.
+    // The pattern's jitter is seeded by the point, so a point's value is reproducible and
+    // neighbouring points' errors are independent (they average out where they are pooled).
     std::uint64_t state = 0;
     for (double c : {x.x, x.y, x.z})
         state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
@@ -683,10 +704,13 @@ Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
                 r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u)) * n;
             const RayTracer::FirstHit hit = mTracer->firstHit(origin, d);
             if (hit.element < 0 || hit.backFace) continue;
-            if (mOptions.nearElementRadii > 0 ? nearElement(hit.element, x)
-                                              : nearPatch(hit.patch, x))
-                continue;
-            sum += mReflected[hit.element];
+            if (mOptions.nearElementRadii > 0) {
+                // What the exact part leaves of the element.
+                const double w = nearElementWeight(hit.element, x);
+                if (w < 1) sum += (1 - w) * mReflected[hit.element];
+            } else if (!nearPatch(hit.patch, x)) {
+                sum += mReflected[hit.element];
+            }
         }
     return sum / static_cast<double>(side * side);  // E = ∫ (B/π) cos dω = mean over cos
 }

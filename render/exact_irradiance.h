@@ -68,12 +68,20 @@ struct ExactIrradianceOptions {
     /// (the ratio estimator of formFactorToPatch; the unoccluded part stays exact).
     int maxExactBlockers = 0;
     int blockedRays = 256;
+    /// With farRays and nearElementRadii: an element passes from the exact part to the far
+    /// field's rays over a band of distances instead of at once — its share in the exact part
+    /// falls smoothly from 1 at half its near distance to 0 at it, and the rays that reach it
+    /// count the rest — so the split moves no light from one part to the other abruptly as
+    /// the point moves, and both parts are continuous functions of it. Off: a hard ball.
+    bool smoothFarField = false;
     /// What the interpolants use (`render --mode interpolant`, `export --hifi`, the editor,
-    /// `bench hifi`): `farRays` rays for the far field, sampled visibility past 48 blockers.
+    /// `bench hifi`): `farRays` rays for the far field with the smooth split, sampled
+    /// visibility past 48 blockers.
     static ExactIrradianceOptions forInterpolants(int farRays) {
         ExactIrradianceOptions o;
         o.farRays = farRays;
         o.maxExactBlockers = 48;
+        o.smoothFarField = true;
         return o;
     }
 };
@@ -116,6 +124,15 @@ public:
     /// against.
     struct Parts {
         Rgb gathered{0.0}, farField{0.0};
+        /// The form factor of the reflecting sources gathered exactly (weighted by their
+        /// share, with farRays): 0 where the far field's rays cover the whole hemisphere, so
+        /// that it is the whole indirect light, a smooth function of the point.
+        double nearShare = 0;
+        /// The part of `gathered` that is reflected light (the near field's).
+        Rgb nearIndirect{0.0};
+        /// A surface other than the point's own plane lies within the near field's reach (with
+        /// farRays and nearElementRadii): there the far field changes fast with the point.
+        bool nearSurface = false;
         Rgb total() const { return gathered + farField; }
     };
     /// `withFarField` false leaves the far field's rays out.
@@ -165,6 +182,10 @@ private:
 
     bool nearPatch(int patch, const Vec3& x) const;
     bool nearElement(int element, const Vec3& x) const;
+    /// An element's share of its light at x that the exact part gathers (nearElementRadii):
+    /// 1 or 0 by nearElement, or with smoothFarField 1 within half its near distance, 0 past
+    /// it, and a smoothstep between; the far field's rays count the rest.
+    double nearElementWeight(int element, const Vec3& x) const;
     /// The patch distance (in its radii) within which a patch may hold near sources.
     double nearPatchRadii() const {
         // An element within k of its radii r_e of x lies in a patch whose centroid is within

@@ -12,6 +12,7 @@
 #include <map>
 #include <sstream>
 #include <thread>
+#include <unordered_map>
 
 #include "core/random.h"
 #include "render/box_tree.h"
@@ -573,6 +574,11 @@ struct HifiBuild {
     double grid = 0;               ///< sampleGrid
     double minRefineArea = 0;      ///< smallestRefinedArea
     SampleCache cache;
+    /// The far field is pooled over neighbouring samples (poolFarField) and every
+    /// triangle's interpolant fitted again; perElementKeys holds each emitted triangle's
+    /// sample keys, in the order of perElement.
+    bool poolFarField = false;
+    std::vector<std::vector<std::array<SampleKey, 6>>> perElementKeys;
     std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
         centreSamples{0};
     std::atomic<bool> cancelled{false};
@@ -606,6 +612,11 @@ double smallestRefinedArea(const Discretization& disc, int maxRefineDepth) {
     if (areas.empty()) return 0;
     std::nth_element(areas.begin(), areas.begin() + areas.size() / 2, areas.end());
     return areas[areas.size() / 2] * std::pow(0.25, std::max(0, maxRefineDepth));
+}
+
+/// The median alive element's √area (m).
+double medianElementSize(const Discretization& disc) {
+    return std::sqrt(smallestRefinedArea(disc, 0));
 }
 
 /// The grid sample positions are shared on (metres): far finer than any element.
@@ -736,11 +747,12 @@ public:
                 mB.covered.fetch_add(1, std::memory_order_relaxed);
                 continue;
             }
-            queue.push_back({{p[0], p[1], p[2]},
-                             {sampleAt(p[0], centre), sampleAt(0.5 * (p[0] + p[1]), centre),
-                              sampleAt(p[1], centre), sampleAt(0.5 * (p[1] + p[2]), centre),
-                              sampleAt(p[2], centre), sampleAt(0.5 * (p[0] + p[2]), centre)},
-                             0});
+            Pending pending;
+            pending.p = {p[0], p[1], p[2]};
+            const glm::dvec2 at[6] = {p[0], 0.5 * (p[0] + p[1]), p[1],
+                                      0.5 * (p[1] + p[2]), p[2], 0.5 * (p[0] + p[2])};
+            for (int k = 0; k < 6; ++k) pending.r[k] = sampleAt(at[k], centre, pending.k[k]);
+            queue.push_back(std::move(pending));
         }
         // Each split adds three triangles to the element's count.
         int count = static_cast<int>(queue.size());
@@ -764,11 +776,13 @@ private:
         std::array<glm::dvec2, 3> p;
         std::array<ExactIrradiance::Parts, 6> r;
         int depth = 0;
+        std::array<SampleKey, 6> k;  ///< the samples' keys in the build's cache
     };
 
     /// The exact irradiance at q (2D), from the cache when another triangle took it; q moves
     /// towards `centre` when it lies on a contact line.
-    ExactIrradiance::Parts sampleAt(const glm::dvec2& q, const glm::dvec2& centre) {
+    ExactIrradiance::Parts sampleAt(const glm::dvec2& q, const glm::dvec2& centre,
+                                    SampleKey& key) {
         bool onContact = false;
         for (const auto& [a, b] : mAllContacts)
             if (distanceToSegment(q, a, b) <= 1e-6 * mSize) {
@@ -776,7 +790,7 @@ private:
                 break;
             }
         const Vec3 x = mG.frame.to3(onContact ? q + 1e-4 * (centre - q) : q);
-        SampleKey key;
+        key = SampleKey{};
         key.object = mEl.object;
         key.sheet = mSheet;
         key.element = onContact ? mE : -1;
@@ -841,16 +855,20 @@ private:
                                           {mid[2], mid[1], p[2]},
                                           {mid[0], mid[1], mid[2]}};
         // Their vertex samples in the parent's order (A, AB, B, BC, C, CA).
-        const ExactIrradiance::Parts vertex[4][3] = {
-            {r[0], r[1], r[5]}, {r[1], r[2], r[3]}, {r[5], r[3], r[4]}, {r[1], r[3], r[5]}};
+        const int vertex[4][3] = {{0, 1, 5}, {1, 2, 3}, {5, 3, 4}, {1, 3, 5}};
         for (int c = 0; c < 4; ++c) {
             const glm::dvec2* cp = corners[c];
             const glm::dvec2 cc = (cp[0] + cp[1] + cp[2]) / 3.0;
-            queue.push_back({{cp[0], cp[1], cp[2]},
-                             {vertex[c][0], sampleAt(0.5 * (cp[0] + cp[1]), cc), vertex[c][1],
-                              sampleAt(0.5 * (cp[1] + cp[2]), cc), vertex[c][2],
-                              sampleAt(0.5 * (cp[2] + cp[0]), cc)},
-                             t.depth + 1});
+            Pending child;
+            child.p = {cp[0], cp[1], cp[2]};
+            child.depth = t.depth + 1;
+            for (int v = 0; v < 3; ++v) {
+                child.r[2 * v] = r[vertex[c][v]];
+                child.k[2 * v] = t.k[vertex[c][v]];
+                const glm::dvec2 mid = 0.5 * (cp[v] + cp[(v + 1) % 3]);
+                child.r[2 * v + 1] = sampleAt(mid, cc, child.k[2 * v + 1]);
+            }
+            queue.push_back(std::move(child));
         }
     }
 
@@ -863,6 +881,8 @@ private:
         for (int k = 0; k < 3; ++k) ht.p[k] = mG.frame.to3(t.p[k]);
         ht.irradiance = QuadraticInterpolant::fromSamples(total);
         mOut.push_back(ht);
+        // With a pooled far field the interpolant is fitted again once every sample is taken.
+        if (mB.poolFarField) mB.perElementKeys[mE].push_back(t.k);
     }
 
     HifiBuild& mB;
@@ -874,6 +894,131 @@ private:
     std::vector<HifiTriangle>& mOut;
     const int mSheet;  ///< 1 on a back face's element, else 0 (part of the sample key)
 };
+
+struct SampleKeyStdHash {
+    std::size_t operator()(const SampleKey& k) const { return SampleKeyHash::hash(k); }
+};
+
+/// The far field of every sample in `cache` off contact lines, pooled over the other samples
+/// of its plane within a radius. What is pooled is the whole reflected light (the far field's
+/// rays and the near field's exact part, Parts::nearIndirect), which does not depend on how
+/// the two parts split it, and the sample's own near part is subtracted again: a weighted
+/// local linear fit (weights (1 − d²/r²)², evaluated at the sample), so that a gradient across
+/// the neighbourhood is kept and only the rays' noise averages out; each sample's rays are
+/// independent, so n neighbours leave about 1/√n of it. Where no other surface is within the
+/// near field's reach (Parts::nearShare 0, Parts::nearSurface false) the reflected light is
+/// the light of distant surfaces and smooth: `radius`, among such samples. Where another
+/// surface is near it changes faster: `nearRadius`, among such samples (0: each keeps its own
+/// value).
+std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> pooledFarField(const SampleCache& cache,
+                                                                      double grid,
+                                                                      double radius,
+                                                                      double nearRadius) {
+    struct Entry {
+        const SampleKey* key;
+        Vec3 x, n;
+        Rgb indirect;  ///< the far field and the near field's reflected light
+        Rgb near;      ///< the near field's reflected light
+        bool open;     ///< nothing else near: pooled over `radius`, else over nearRadius
+    };
+    std::vector<Entry> open;
+    for (const auto& [key, parts] : cache) {
+        if (key.element >= 0) continue;
+        const bool isOpen = !(parts.nearShare > 0 || parts.nearSurface);
+        if (!isOpen && !(nearRadius > 0)) continue;
+        const Vec3 x(key.position[0] * grid, key.position[1] * grid, key.position[2] * grid);
+        const Vec3 n(key.normal[0] * 1e-6, key.normal[1] * 1e-6, key.normal[2] * 1e-6);
+        open.push_back({&key, x, glm::normalize(n), parts.farField + parts.nearIndirect,
+                        parts.nearIndirect, isOpen});
+    }
+    // Neighbours through a grid of cells the pool's size.
+    auto cellOf = [&](const Vec3& x) {
+        const Vec3 c = glm::floor(x / radius);
+        return std::array<long long, 3>{std::llround(c.x), std::llround(c.y), std::llround(c.z)};
+    };
+    auto cellKey = [](long long i, long long j, long long k) {
+        return hashPair(hashPair(static_cast<std::uint64_t>(i), static_cast<std::uint64_t>(j)),
+                        static_cast<std::uint64_t>(k));
+    };
+    std::unordered_map<std::uint64_t, std::vector<int>> cells;
+    for (int i = 0; i < static_cast<int>(open.size()); ++i) {
+        const auto c = cellOf(open[i].x);
+        cells[cellKey(c[0], c[1], c[2])].push_back(i);
+    }
+    std::vector<Rgb> pooled(open.size());
+    std::vector<std::uint8_t> fitted(open.size(), 0);
+    tbb::parallel_for(0, static_cast<int>(open.size()), [&](int i) {
+        const Entry& a = open[i];
+        const double r = a.open ? radius : nearRadius;
+        const Vec3 t = std::abs(a.n.x) > 0.5 ? glm::normalize(glm::cross(a.n, Vec3(0, 1, 0)))
+                                             : glm::normalize(glm::cross(a.n, Vec3(1, 0, 0)));
+        const Vec3 b = glm::cross(a.n, t);
+        // Weighted least squares of F ≈ c0 + c1 u + c2 v about the sample.
+        double m[3][3] = {};
+        Rgb rhs[3] = {Rgb(0.0), Rgb(0.0), Rgb(0.0)};
+        int count = 0;
+        const auto c = cellOf(a.x);
+        for (long long di = -1; di <= 1; ++di)
+            for (long long dj = -1; dj <= 1; ++dj)
+                for (long long dk = -1; dk <= 1; ++dk) {
+                    const auto it = cells.find(cellKey(c[0] + di, c[1] + dj, c[2] + dk));
+                    if (it == cells.end()) continue;
+                    for (int j : it->second) {
+                        const Entry& o = open[j];
+                        if (o.open != a.open || o.key->object != a.key->object ||
+                            o.key->sheet != a.key->sheet || o.key->normal != a.key->normal)
+                            continue;
+                        const Vec3 d = o.x - a.x;
+                        const double d2 = glm::dot(d, d);
+                        if (d2 >= r * r || std::abs(glm::dot(d, a.n)) > 1e-6 * r) continue;
+                        const double w0 = 1 - d2 / (r * r), w = w0 * w0;
+                        const double f[3] = {1, glm::dot(d, t) / r, glm::dot(d, b) / r};
+                        for (int row = 0; row < 3; ++row) {
+                            for (int q = 0; q < 3; ++q) m[row][q] += w * f[row] * f[q];
+                            rhs[row] += w * f[row] * o.indirect;
+                        }
+                        ++count;
+                    }
+                }
+        // Too few neighbours, or all on a line (a strip one sample wide): the own value.
+        const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                           m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+        if (count < 8 || !(det > 1e-6 * m[0][0] * m[0][0] * m[0][0])) return;
+        // c0 by Cramer's rule.
+        const Rgb c0 = (rhs[0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                        m[0][1] * (rhs[1] * m[2][2] - m[1][2] * rhs[2]) +
+                        m[0][2] * (rhs[1] * m[2][1] - m[1][1] * rhs[2])) /
+                       det;
+        pooled[i] = glm::max(c0 - a.near, Rgb(0.0));
+        fitted[i] = 1;
+    });
+    std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> out;
+    for (std::size_t i = 0; i < open.size(); ++i)
+        if (fitted[i]) out.emplace(*open[i].key, pooled[i]);
+    return out;
+}
+
+/// Fits every triangle's interpolant again with the pooled far field (pooledFarField) in
+/// place of its samples' own.
+void refitWithPooledFarField(HifiBuild& b, double radius, double nearRadius) {
+    const auto pooled = pooledFarField(b.cache, b.grid, radius, nearRadius);
+    tbb::parallel_for(0, static_cast<int>(b.perElement.size()), [&](int e) {
+        auto& triangles = b.perElement[e];
+        const auto& keys = b.perElementKeys[e];
+        for (std::size_t k = 0; k < triangles.size() && k < keys.size(); ++k) {
+            std::array<Rgb, 6> total;
+            for (int v = 0; v < 6; ++v) {
+                SampleCache::const_accessor found;
+                if (!b.cache.find(found, keys[k][v])) return;
+                const auto it = pooled.find(keys[k][v]);
+                total[v] = found->second.gathered +
+                           (it != pooled.end() ? it->second : found->second.farField);
+            }
+            triangles[k].irradiance = QuadraticInterpolant::fromSamples(total);
+        }
+    });
+}
 
 /// Whether the whole element lies inside another solid (a sofa seat's end inside its arm): its
 /// centroid and points next to each corner are.
@@ -978,8 +1123,14 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     b.grid = sampleGrid(disc);
     b.minRefineArea = smallestRefinedArea(disc, options.maxRefineDepth);
     const int count = static_cast<int>(todo.size());
+    const double poolRadius = options.farFieldPoolRadius * medianElementSize(disc);
+    b.poolFarField = poolRadius > 0 && exact.options().farRays > 0 && exact.tracer();
+    if (b.poolFarField) b.perElementKeys.resize(disc.elements().size());
     auto work = [&] { tbb::parallel_for(0, count, [&](int k) { meshElement(b, todo[k]); }); };
     runReportingProgress(work, b.done, count, progress);
+    if (b.poolFarField && !b.cancelled.load())
+        refitWithPooledFarField(b, poolRadius,
+                                options.farFieldNearPoolRadius * medianElementSize(disc));
     // The elements' triangles in element order: kept ones from this mesh, the rest new.
     std::vector<HifiTriangle> triangles;
     std::vector<int> first(std::size_t(elementCount) + 1, 0);

@@ -65,6 +65,16 @@ struct HifiOptions {
     /// it off.
     double refineTolerance = 0.03;
     int maxRefineDepth = 3;
+    /// With the far field's rays (ExactIrradianceOptions::farRays): once every sample is
+    /// taken, each sample's far field is a local linear fit of its neighbours' on the same
+    /// plane (off contact lines) within this many median element sizes (√area), and the
+    /// interpolants are fitted to that: the rays' noise averages out over the neighbourhood
+    /// instead of freezing into each triangle. This radius serves samples with no other
+    /// surface within the near field's reach (the far field is the whole indirect light
+    /// there, and smooth); `farFieldNearPoolRadius` those with one, whose far field changes
+    /// faster. 0 turns either off.
+    double farFieldPoolRadius = 2.0;
+    double farFieldNearPoolRadius = 1.0;
     /// Polled once per element: when it returns true the build stops early and the mesh is
     /// left incomplete (HifiStats::cancelled). The editor cancels a build an edit outdates.
     std::function<bool()> cancelled;

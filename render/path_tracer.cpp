@@ -6,8 +6,10 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <sstream>
 #include <thread>
 
+#include "core/math.h"
 #include "core/random.h"
 #include "render/camera_rays.h"
 #include "solver/discretization.h"
@@ -239,6 +241,85 @@ double relativeRmse(const Image& image, const Image& reference,
         norm += glm::dot(reference.pixels[i], reference.pixels[i]);
     }
     return norm > 0 ? std::sqrt(err / norm) : 0.0;
+}
+
+std::vector<std::uint64_t> flatFaceKeys(const Discretization& disc, const RayTracer& tracer,
+                                        const CameraRays& rays) {
+    std::vector<std::uint64_t> keys(static_cast<std::size_t>(rays.width()) * rays.height(), 0);
+    tbb::parallel_for(0, rays.height(), [&](int y) {
+        for (int x = 0; x < rays.width(); ++x) {
+            const RayTracer::FirstHit hit =
+                tracer.firstHit(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
+            if (hit.element < 0 || hit.backFace) continue;
+            const Element& el = disc.elements()[hit.element];
+            if (disc.elementMaterial(hit.element).isEmitter()) continue;
+            // The object and its plane (normal and offset, to a thousandth).
+            std::uint64_t key = hashPair(0x9e3779b97f4a7c15ull, std::uint64_t(el.object));
+            for (double c :
+                 {el.normal.x, el.normal.y, el.normal.z, glm::dot(el.normal, el.centroid)})
+                key = hashPair(key, static_cast<std::uint64_t>(std::llround(c * 1e3)));
+            keys[static_cast<std::size_t>(y) * rays.width() + x] = key | 1;
+        }
+    });
+    return keys;
+}
+
+WindowErrors flatWindowErrors(const Image& image, const Image& reference,
+                              const std::vector<std::uint64_t>& faces, int window, int stride,
+                              int cell) {
+    WindowErrors out;
+    const int w = reference.width, h = reference.height;
+    cell = std::max(1, cell);
+    if (image.width != w || image.height != h || int(faces.size()) != w * h || window < cell)
+        return out;
+    // The relative error of each cell's mean luminance, at the cell's top-left pixel.
+    auto at = [w](int x, int y) { return static_cast<std::size_t>(y) * w + x; };
+    auto cellError = [&](int x0, int y0) {
+        double a = 0, r = 0;
+        for (int y = y0; y < y0 + cell; ++y)
+            for (int x = x0; x < x0 + cell; ++x) {
+                a += luminance(image.pixels[at(x, y)]);
+                r += luminance(reference.pixels[at(x, y)]);
+            }
+        return (a - r) / r;
+    };
+    double sumStd = 0;
+    for (int y0 = 0; y0 + window <= h; y0 += std::max(1, stride))
+        for (int x0 = 0; x0 + window <= w; x0 += std::max(1, stride)) {
+            const std::uint64_t face = faces[at(x0, y0)];
+            if (face == 0) continue;
+            bool one = true;
+            for (int y = y0; y < y0 + window && one; ++y)
+                for (int x = x0; x < x0 + window && one; ++x)
+                    one = faces[at(x, y)] == face && luminance(reference.pixels[at(x, y)]) > 0;
+            if (!one) continue;
+            double sum = 0, sum2 = 0, n = 0;
+            for (int y = y0; y + cell <= y0 + window; y += cell)
+                for (int x = x0; x + cell <= x0 + window; x += cell) {
+                    const double e = cellError(x, y);
+                    sum += e;
+                    sum2 += e * e;
+                    n += 1;
+                }
+            const double mean = sum / n;
+            const double sd = std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+            ++out.windows;
+            sumStd += sd;
+            if (sd > out.maxStd) {
+                out.maxStd = sd;
+                out.worstX = x0;
+                out.worstY = y0;
+            }
+        }
+    if (out.windows > 0) out.meanStd = sumStd / out.windows;
+    return out;
+}
+
+std::string WindowErrors::toString() const {
+    std::ostringstream s;
+    s << "WindowErrors{windows=" << windows << ", maxStd=" << maxStd << ", meanStd=" << meanStd
+      << ", worst=(" << worstX << ", " << worstY << ")}";
+    return s.str();
 }
 
 }  // namespace penumbra

@@ -6,10 +6,12 @@
 // paths' own hits by multiple importance sampling, and Russian roulette; every ray through
 // Embree (RayTracer).
 //
-// Index: PathTraceOptions · PathTraceResult · pathTrace
+// Index: PathTraceOptions · PathTraceResult · pathTrace · comparisons (relativeRmse,
+// flatWindowErrors)
 
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "render/image.h"
@@ -53,5 +55,28 @@ std::vector<std::uint8_t> emitterMask(const Discretization& disc, const RayTrace
 /// all when empty): sqrt(Σ |a − r|²) / sqrt(Σ |r|²) over the three channels.
 double relativeRmse(const Image& image, const Image& reference,
                     const std::vector<std::uint8_t>& mask = {});
+
+/// Per pixel: which flat face its centre sees, as a key (0: nothing, a back face or a lamp);
+/// pixels that see the same object in the same plane share it.
+std::vector<std::uint64_t> flatFaceKeys(const Discretization& disc, const RayTracer& tracer,
+                                        const CameraRays& rays);
+
+/// The low-frequency error of an image on flat surfaces, where a smooth reference is smooth
+/// too: over every `window` × `window` square of pixels (on a grid of `stride`) whose pixels
+/// all see one flat face (flatFaceKeys), the standard deviation of the relative luminance
+/// error (Y(a) − Y(r)) / Y(r) about its mean in the square. A blotch shows as a large value; a
+/// brightness offset alike over the square does not. With `cell` > 1 the error is taken
+/// between the means of `cell` × `cell` pixels (a path-traced reference's per-pixel noise
+/// averaged down; `window` a multiple of it).
+struct WindowErrors {
+    int windows = 0;               ///< blocks on one flat face
+    double maxStd = 0;             ///< the largest block's standard deviation
+    double meanStd = 0;            ///< over the blocks
+    int worstX = -1, worstY = -1;  ///< top-left pixel of the largest
+    std::string toString() const;
+};
+WindowErrors flatWindowErrors(const Image& image, const Image& reference,
+                              const std::vector<std::uint64_t>& faces, int window = 32,
+                              int stride = 8, int cell = 1);
 
 }  // namespace penumbra
