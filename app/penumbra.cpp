@@ -1,12 +1,15 @@
 // penumbra: the command line (DESIGN.md "Command line"). Parses arguments and calls the
-// libraries; exit status 0 success, 1 a --check mismatch, 2 bad input.
+// libraries; exit status 0 success, 1 a --check mismatch, 2 bad input, 130 SIGINT stopped an
+// interpolant build.
 #include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <OpenMesh/Core/System/omstream.hh>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -120,11 +123,49 @@ void writeReport(const std::string& path, const nlohmann::json& report) {
     if (!path.empty()) writeFileAtomically(path, report.dump(2) + "\n");
 }
 
+/// Thrown when SIGINT stopped an interpolant build: main exits with status 130.
+struct BuildInterrupted {};
+
+/// SIGINT while the interpolants are built (BuildSigint): during the meshing it asks the build
+/// to stop at its next element; during the leaf solve, which has no such point, it ends the
+/// process at once with status 130 (nothing has been written yet).
+std::atomic<bool> gMeshing{false}, gInterrupted{false};
+void onBuildSigint(int) {
+    if (gMeshing.load()) {
+        gInterrupted.store(true);
+    } else {
+        _exit(130);
+    }
+}
+
+/// Installs onBuildSigint for its lifetime, then puts back what was there.
+class BuildSigint {
+public:
+    BuildSigint() {
+        gMeshing.store(false);
+        gInterrupted.store(false);
+        struct sigaction action {};
+        action.sa_handler = onBuildSigint;
+        sigemptyset(&action.sa_mask);
+        sigaction(SIGINT, &action, &mPrevious);
+    }
+    ~BuildSigint() {
+        sigaction(SIGINT, &mPrevious, nullptr);
+        gMeshing.store(false);
+    }
+    BuildSigint(const BuildSigint&) = delete;
+    BuildSigint& operator=(const BuildSigint&) = delete;
+
+private:
+    struct sigaction mPrevious {};
+};
+
 /// The high-fidelity mesh of a solved scene (Hardt & Teller 1996): exact irradiance with the
 /// far field's rays and sampled visibility past 48 blockers, gathered from a second solve in
 /// which every element shoots (leafReflectedRadiosity), meshed and sampled with progress on a
-/// terminal.
+/// terminal (elements meshed of all, time left). SIGINT stops it: throws BuildInterrupted.
 HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
+    const BuildSigint sigint;
     const Discretization& disc = lit.discretization();
     ExactIrradiance exact(disc, ExactIrradianceOptions::forInterpolants(a.gatherRays),
                           &lit.tracer());
@@ -135,10 +176,28 @@ HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
                                               a.converge, a.maxShots));
     HifiMesh mesh;
     const bool tty = ::isatty(STDERR_FILENO);
-    mesh.build(disc, exact, HifiOptions{}, [&](double f) {
-        if (tty) std::fprintf(stderr, "\rmeshing and sampling %3.0f%%", 100 * f);
+    HifiOptions options;
+    options.cancelled = [] { return gInterrupted.load(); };
+    gMeshing.store(true);
+    const auto start = std::chrono::steady_clock::now();
+    const long long total = static_cast<long long>(disc.elements().size());
+    mesh.build(disc, exact, options, [&](double f) {
+        if (!tty) return;
+        // The time left at the pace so far (the build's fraction is of its elements).
+        const double elapsed =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        std::fprintf(stderr, "\rmeshing and sampling %3.0f%%: %lld of %lld elements", 100 * f,
+                     std::llround(f * total), total);
+        if (f > 0.01 && f < 1)
+            std::fprintf(stderr, ", %.0f s left   ", elapsed * (1 - f) / f);
+        else
+            std::fprintf(stderr, "              ");
     });
     if (tty) std::fprintf(stderr, "\n");
+    if (mesh.stats().cancelled) {
+        std::fprintf(stderr, "penumbra: interrupted; nothing written\n");
+        throw BuildInterrupted{};
+    }
     const HifiStats& st = mesh.stats();
     spdlog::debug(
         "interpolants: {} elements ({} meshed), {} triangles, {} samples, {} centre "
@@ -1227,6 +1286,8 @@ int main(int argc, char** argv) {
         if (*c.holodeckFill) return runHolodeckFill(c.solve, c.holodeck);
         if (*c.holodeckInfo) return runHolodeckInfo(c.holodeck);
         if (*c.holodeckMerge) return runHolodeckMerge(c.holodeck);
+    } catch (const BuildInterrupted&) {
+        return 130;  // 128 + SIGINT, as a shell reports a command Ctrl-C ended
     } catch (const std::exception& e) {
         std::fprintf(stderr, "penumbra: %s\n", e.what());
         return 2;
