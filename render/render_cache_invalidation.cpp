@@ -1,0 +1,164 @@
+// RenderCache's invalidation (Bala et al. §7.5: what an edit changed leaves the cache, is
+// relit, carried with a moved object, marked stale or hidden) and its toString; see
+// render_cache.h.
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <sstream>
+
+#include "render/render_cache.h"
+
+namespace penumbra {
+
+// ---------------------------------------------------------------------------------------------
+// Invalidation
+
+template <class Drop>
+std::size_t RenderCache::dropIf(Drop drop) {
+    // Compacts the record and the per-point arrays together, keeping the order, from the
+    // first point dropped (after building a pending screen point list, which reads points by
+    // index; nothing changes when nothing is dropped, as in most frames of a drag preview).
+    const std::size_t before = mPoints.size();
+    std::size_t kept = 0;
+    while (kept < before && !drop(mPoints[kept])) ++kept;
+    if (kept == before) return 0;
+    if (mScreenPending) buildScreenPoints();
+    for (std::size_t i = kept + 1; i < before; ++i) {
+        if (drop(mPoints[i])) continue;
+        if (kept != i) {
+            mPoints[kept] = std::move(mPoints[i]);
+            mPosition[kept] = mPosition[i];
+            mBorn[kept] = mBorn[i];
+            mVisible[kept] = mVisible[i];
+            mFlags[kept] = mFlags[i];
+        }
+        ++kept;
+    }
+    mPoints.resize(kept);
+    mPosition.resize(kept);
+    mBorn.resize(kept);
+    mVisible.resize(kept);
+    mFlags.resize(kept);
+    std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
+    return before - kept;
+}
+
+std::size_t RenderCache::invalidatePoints(const std::vector<std::uint8_t>& drop) {
+    if (drop.size() != mPoints.size())
+        throw std::invalid_argument(
+            "RenderCache::invalidatePoints: " + std::to_string(drop.size()) + " flags for " +
+            std::to_string(mPoints.size()) + " points");
+    // dropIf reads each point before it moves: its index is its place in mPoints then.
+    return dropIf([&](const CachePoint& p) { return drop[&p - mPoints.data()] != 0; });
+}
+
+std::size_t RenderCache::invalidateObjects(const std::unordered_set<int>& objects) {
+    return dropIf([&](const CachePoint& p) { return objects.count(p.object) > 0; });
+}
+
+std::size_t RenderCache::invalidateRegion(const Vec3& centre, double radius) {
+    return dropIf([&](const CachePoint& p) { return glm::length(p.position - centre) <= radius; });
+}
+
+std::size_t RenderCache::invalidateElements(const std::unordered_set<int>& elements) {
+    return dropIf(
+        [&](const CachePoint& p) { return p.element >= 0 && elements.count(p.element) > 0; });
+}
+
+void RenderCache::clear() {
+    dropIf([](const CachePoint&) { return true; });
+}
+
+std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
+                                 const std::vector<std::uint8_t>& stale) {
+    // (A pending screen point list, built later, shows the relit colours: the points are the
+    // same, only their estimate is newer.)
+    const std::size_t n = mPoints.size();
+    std::vector<std::size_t> counts((n + 8191) / 8192, 0);
+    tbb::parallel_for(std::size_t(0), counts.size(), [&](std::size_t c) {
+        std::size_t changed = 0;
+        for (std::size_t i = c * 8192; i < std::min(n, (c + 1) * 8192); ++i) {
+            CachePoint& p = mPoints[i];
+            if (p.element < 0) continue;
+            const auto e = static_cast<std::size_t>(p.element);
+            if (e < delta.size()) p.colour += delta[e];
+            if (e < stale.size() && stale[e]) {
+                mFlags[i] |= kStaleFlag;
+                ++changed;
+            }
+        }
+        counts[c] = changed;
+    });
+    std::size_t total = 0;
+    for (std::size_t c : counts) total += c;
+    return total;
+}
+
+std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromFrom,
+                               int elementOffset) {
+    if (mScreenPending) buildScreenPoints();  // it reads the positions
+    std::size_t moved = 0;
+    for (std::size_t i = 0; i < mPoints.size(); ++i) {
+        CachePoint& p = mPoints[i];
+        if (p.object != fromObject) continue;
+        p.position = Vec3(toFromFrom * glm::dvec4(p.position, 1.0));
+        p.object = toObject;
+        p.element += elementOffset;
+        mPosition[i] = p.position;
+        mFlags[i] |= kStaleFlag | kCarriedFlag;
+        ++moved;
+    }
+    return moved;
+}
+
+std::size_t RenderCache::markStale(const std::unordered_set<int>& objects) {
+    std::size_t marked = 0;
+    for (std::size_t i = 0; i < mPoints.size(); ++i)
+        if (objects.count(mPoints[i].object)) {
+            mFlags[i] |= kStaleFlag;
+            ++marked;
+        }
+    return marked;
+}
+
+std::size_t RenderCache::setHidden(
+    const std::function<bool(const Vec3& position, int object)>& hidden) {
+    const std::size_t n = mPoints.size();
+    std::vector<std::size_t> counts((n + 4095) / 4096, 0);
+    tbb::parallel_for(std::size_t(0), counts.size(), [&](std::size_t c) {
+        std::size_t here = 0;
+        for (std::size_t i = c * 4096; i < std::min(n, (c + 1) * 4096); ++i) {
+            const bool h = hidden && hidden(mPosition[i], mPoints[i].object);
+            mFlags[i] =
+                static_cast<std::uint8_t>((mFlags[i] & ~kHiddenFlag) | (h ? kHiddenFlag : 0));
+            here += h;
+        }
+        counts[c] = here;
+    });
+    std::size_t total = 0;
+    for (std::size_t c : counts) total += c;
+    return total;
+}
+
+// ---------------------------------------------------------------------------------------------
+// toString
+
+std::string CachePoint::toString() const {
+    std::ostringstream s;
+    s << "CachePoint{position (" << position.x << ", " << position.y << ", " << position.z
+      << "), colour (" << colour.x << ", " << colour.y << ", " << colour.z << "), object " << object
+      << ", element " << element << ", frame " << frame << ", exact " << exact << ", samples "
+      << samples << "}";
+    return s.str();
+}
+
+std::string RenderCache::toString() const {
+    std::ostringstream s;
+    s << "RenderCache{" << mWidth << "x" << mHeight << ", " << mPoints.size() << "/" << mCapacity
+      << " points, " << mVisibleCount << " visible, frame " << mFrame << "}";
+    return s.str();
+}
+
+}  // namespace penumbra
