@@ -24,6 +24,7 @@ nlohmann::json displayFrameJson(const DisplayFrameStats& f) {
             {"fill_ms", t.fillMs},
             {"hide_ms", t.hideMs},
             {"shadow_drop_ms", t.shadowDropMs},
+            {"shadow_reshade_ms", t.shadowReshadeMs},
             {"request_ms", t.requestMs},
             {"shade_ms", t.shadeMs},
             {"new_samples", f.newSamples},

@@ -58,6 +58,7 @@ struct DisplayStageTimes {
     double relightMs = 0;        ///<   of which relighting after a preview's estimate
     double hideMs = 0;           ///<   of which hiding the points behind a moving object
     double shadowDropMs = 0;     ///<   of which dropping the points a drag's move shadowed
+    double shadowReshadeMs = 0;  ///<     of which re-shading some of them in the frame
     double reachabilityMs = 0;   ///< §5.2
     double interpolateMs = 0;    ///< §5.3
     double antiAliasMs = 0;      ///< §5.3
@@ -156,6 +157,10 @@ struct InteractiveDisplayOptions {
     int shadowReshadeCell = 5;
     /// At most this many re-shaded at once (larger cells beyond): the frame's cost.
     int shadowReshadeMax = 2000;
+    /// The drop tests only the elements that some shaft to a lamp can reach the moved object
+    /// from (a test per element and lamp); false tests every element's probe points, the
+    /// reference the culled drop must equal.
+    bool shadowDropCull = true;
     /// Synchronous: every frame's requests are shaded before renderFrame returns and appear in
     /// the next frame; output depends only on the inputs (CLI, tests, benchmarks).
     /// Asynchronous: requests go to the shader's worker threads; each frame takes what is done.

@@ -163,13 +163,14 @@ struct DraggedSlab {
     int origin = -1, preview = -1;
     RayTracer::SubsetHandle originOnly, previewOnly;
 
-    explicit DraggedSlab(bool followShadows) {
+    explicit DraggedSlab(bool followShadows, bool cull = true) {
         session = std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{});
         session->converge(1e-3);
         InteractiveDisplayOptions options;
         options.width = options.height = kSize;
         options.synchronous = true;
         options.followShadows = followShadows;
+        options.shadowDropCull = cull;
         display = std::make_unique<InteractiveDisplay>(
             session->discretization(), session->tracer(), interactiveSolverOptions(), options);
         display->apply(SolutionView::of(session->solver()));
@@ -280,6 +281,23 @@ TEST(ShadowVolume, TheFrameAfterAMoveKeepsNoPointWhoseViewOfTheLampChangedMuch) 
                 "re-shaded in a region of %zu pixels\n",
                 drag.display->lastFrame().droppedShadowed, changedMuch, inVolume, reshaded,
                 region);
+}
+
+TEST(ShadowVolume, CullingTheElementsNoShaftReachesDropsExactlyWhatTestingEveryElementDrops) {
+    DraggedSlab culled(true, true), every(true, false);
+    const Image a = culled.display->renderFrame(culled.camera);
+    const Image b = every.display->renderFrame(every.camera);
+    EXPECT_GT(every.display->lastFrame().droppedShadowed, 0u);
+    EXPECT_EQ(culled.display->lastFrame().droppedShadowed,
+              every.display->lastFrame().droppedShadowed);
+    ASSERT_EQ(culled.display->cache().size(), every.display->cache().size());
+    for (std::size_t i = 0; i < culled.display->cache().size(); ++i) {
+        EXPECT_EQ(culled.display->cache().points()[i].element,
+                  every.display->cache().points()[i].element);
+        EXPECT_EQ(culled.display->cache().points()[i].colour,
+                  every.display->cache().points()[i].colour);
+    }
+    EXPECT_EQ(a.pixels, b.pixels);
 }
 
 TEST(ShadowVolume, TheShadowRegionIsCloserToItsNewStateInTheFramesAfterAMove) {
