@@ -326,22 +326,8 @@ nlohmann::json DragBench::measureShadowLag(EditSession& session,
         // References of the candidate states, the image's own first.
         std::vector<std::shared_ptr<const std::vector<std::uint8_t>>> refs{e.referenceShown};
         const CameraRays rays(e.camera, e.width, e.height);
-        for (const Candidate& c : candidates) {
-            TransformCommand move;
-            move.id = mOptions.object;
-            move.translate = c.transform.translate;
-            move.rotateDeg = c.transform.rotateDeg;
-            move.scale = c.transform.scale;
-            session.apply(EditCommand(move));
-            session.converge(1e-3);
-            PointShaderOptions so = displayShaderOptions();
-            so.threads = 0;
-            so.recordTriples = false;
-            PointShader shader(session.discretization(), session.tracer(), solverOptions, so);
-            shader.updateSolution(session.solver());
-            refs.push_back(displayedBytes(
-                renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis)));
-        }
+        for (const Candidate& c : candidates)
+            refs.push_back(displayedBytes(referenceOf(session, solverOptions, c.transform, rays)));
         // The floor's pixels where some candidate's reference differs from the own one by more
         // than a tenth of the range in a channel: where the shadows of the states differ.
         std::vector<std::size_t> mask;
@@ -485,14 +471,13 @@ nlohmann::json DragBench::renderReferences(const std::vector<DragBenchImage*>& c
     return references;
 }
 
-nlohmann::json DragBench::compareWithReference(EditSession& session,
-                                               const SolverOptions& solverOptions,
-                                               DragBenchImage& e, int at) {
+Image DragBench::referenceOf(EditSession& session, const SolverOptions& solverOptions,
+                             const Transform& transform, const CameraRays& rays) const {
     TransformCommand move;
     move.id = mOptions.object;
-    move.translate = e.transform.translate;
-    move.rotateDeg = e.transform.rotateDeg;
-    move.scale = e.transform.scale;
+    move.translate = transform.translate;
+    move.rotateDeg = transform.rotateDeg;
+    move.scale = transform.scale;
     session.apply(EditCommand(move));
     session.converge(1e-3);
     PointShaderOptions so = displayShaderOptions();
@@ -500,8 +485,14 @@ nlohmann::json DragBench::compareWithReference(EditSession& session,
     so.recordTriples = false;
     PointShader shader(session.discretization(), session.tracer(), solverOptions, so);
     shader.updateSolution(session.solver());
+    return renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis);
+}
+
+nlohmann::json DragBench::compareWithReference(EditSession& session,
+                                               const SolverOptions& solverOptions,
+                                               DragBenchImage& e, int at) {
     const CameraRays rays(e.camera, e.width, e.height);
-    const Image reference = renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis);
+    const Image reference = referenceOf(session, solverOptions, e.transform, rays);
     const auto referenceBytes = displayedBytes(reference);
     e.referenceError = relativeError(*e.shown, *referenceBytes);
     e.referenceShown = referenceBytes;

@@ -24,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "render/camera_rays.h"
 #include "render/image.h"
 #include "solver/scene.h"
 #include "ui/session_runner.h"
@@ -145,6 +146,10 @@ private:
     /// reference and compares (the `at`-th reference: its file name when recording).
     nlohmann::json compareWithReference(EditSession& session, const SolverOptions& solverOptions,
                                         DragBenchImage& image, int at);
+    /// The dragged object moved to `transform` in `session`, the lighting converged, and a
+    /// point-shader reference of that state rendered for `rays`.
+    Image referenceOf(EditSession& session, const SolverOptions& solverOptions,
+                      const Transform& transform, const CameraRays& rays) const;
     /// Whose shadow each referenced drag image shows on the floor: its own state's, or that of
     /// an image before it (the shadow lags the object). Per image: the candidate states'
     /// errors over the floor pixels where their references differ, the best one's lag in
