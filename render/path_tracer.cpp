@@ -149,21 +149,30 @@ Rgb tracePath(const Discretization& disc, const RayTracer& tracer, const Emitter
     return radiance;
 }
 
-}  // namespace
-
-std::vector<std::uint8_t> emitterMask(const Discretization& disc, const RayTracer& tracer,
-                                      const CameraRays& rays) {
-    std::vector<std::uint8_t> mask(static_cast<std::size_t>(rays.width()) * rays.height(), 0);
+/// Calls f(k, element) for each pixel k (row-major) of `rays` whose primary ray first meets the
+/// front of an element (rows in parallel).
+template <typename F>
+void forEachPixelElement(const RayTracer& tracer, const CameraRays& rays, F&& f) {
     tbb::parallel_for(0, rays.height(), [&](int y) {
         for (int x = 0; x < rays.width(); ++x) {
             const RayTracer::FirstHit hit =
                 tracer.firstHit(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
             if (hit.element < 0 || hit.backFace) continue;
-            const Element& el = disc.elements()[hit.element];
-            if (disc.elementMaterial(hit.element).isEmitter() &&
-                !disc.objects()[el.object].isBackFace(el.face))
-                mask[static_cast<std::size_t>(y) * rays.width() + x] = 1;
+            f(static_cast<std::size_t>(y) * rays.width() + x, hit.element);
         }
+    });
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> emitterMask(const Discretization& disc, const RayTracer& tracer,
+                                      const CameraRays& rays) {
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(rays.width()) * rays.height(), 0);
+    forEachPixelElement(tracer, rays, [&](std::size_t k, int element) {
+        const Element& el = disc.elements()[element];
+        if (disc.elementMaterial(element).isEmitter() &&
+            !disc.objects()[el.object].isBackFace(el.face))
+            mask[k] = 1;
     });
     // Grown by a pixel: pixels a lamp's edge crosses mix its radiance (tens of times the
     // room's) into theirs by their coverage, which anti-aliasing of either image decides.
@@ -246,20 +255,14 @@ double relativeRmse(const Image& image, const Image& reference,
 std::vector<std::uint64_t> flatFaceKeys(const Discretization& disc, const RayTracer& tracer,
                                         const CameraRays& rays) {
     std::vector<std::uint64_t> keys(static_cast<std::size_t>(rays.width()) * rays.height(), 0);
-    tbb::parallel_for(0, rays.height(), [&](int y) {
-        for (int x = 0; x < rays.width(); ++x) {
-            const RayTracer::FirstHit hit =
-                tracer.firstHit(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
-            if (hit.element < 0 || hit.backFace) continue;
-            const Element& el = disc.elements()[hit.element];
-            if (disc.elementMaterial(hit.element).isEmitter()) continue;
-            // The object and its plane (normal and offset, to a thousandth).
-            std::uint64_t key = hashPair(0x9e3779b97f4a7c15ull, std::uint64_t(el.object));
-            for (double c :
-                 {el.normal.x, el.normal.y, el.normal.z, glm::dot(el.normal, el.centroid)})
-                key = hashPair(key, static_cast<std::uint64_t>(std::llround(c * 1e3)));
-            keys[static_cast<std::size_t>(y) * rays.width() + x] = key | 1;
-        }
+    forEachPixelElement(tracer, rays, [&](std::size_t k, int element) {
+        const Element& el = disc.elements()[element];
+        if (disc.elementMaterial(element).isEmitter()) return;
+        // The object and its plane (normal and offset, to a thousandth).
+        std::uint64_t key = hashPair(0x9e3779b97f4a7c15ull, std::uint64_t(el.object));
+        for (double c : {el.normal.x, el.normal.y, el.normal.z, glm::dot(el.normal, el.centroid)})
+            key = hashPair(key, static_cast<std::uint64_t>(std::llround(c * 1e3)));
+        keys[k] = key | 1;
     });
     return keys;
 }
