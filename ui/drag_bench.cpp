@@ -58,22 +58,31 @@ std::string transformLine(const std::string& id, const Transform& t) {
     return formatEditCommand(EditCommand(c));
 }
 
+/// The byte offsets (3 per pixel, row-major) of the pixels of `rays` whose primary ray meets
+/// object `version` in `session`'s scene.
+std::vector<std::size_t> objectPixelBytes(EditSession& session, const CameraRays& rays,
+                                          int version) {
+    std::vector<std::size_t> out;
+    for (int y = 0; y < rays.height(); ++y)
+        for (int x = 0; x < rays.width(); ++x) {
+            const RayHit hit =
+                session.tracer().intersect(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
+            if (hit.object == version)
+                out.push_back(3 * (static_cast<std::size_t>(y) * rays.width() + x));
+        }
+    return out;
+}
+
 /// The displayed bytes of `e` and of its reference over the pixels where the reference's
 /// primary ray meets object `version`, in the same order.
 std::pair<std::vector<std::uint8_t>, std::vector<std::uint8_t>> objectBytes(
     EditSession& session, const CameraRays& rays, int version,
     const std::vector<std::uint8_t>& referenceBytes, const DragBenchImage& e) {
     std::vector<std::uint8_t> a, b;
-    for (int y = 0; y < e.height; ++y)
-        for (int x = 0; x < e.width; ++x) {
-            const RayHit hit =
-                session.tracer().intersect(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
-            if (hit.object != version) continue;
-            const std::size_t k = 3 * (static_cast<std::size_t>(y) * e.width + x);
-            for (int c = 0; c < 3; ++c) {
-                a.push_back((*e.shown)[k + c]);
-                b.push_back(referenceBytes[k + c]);
-            }
+    for (const std::size_t k : objectPixelBytes(session, rays, version))
+        for (int c = 0; c < 3; ++c) {
+            a.push_back((*e.shown)[k + c]);
+            b.push_back(referenceBytes[k + c]);
         }
     return {std::move(a), std::move(b)};
 }
@@ -331,19 +340,14 @@ nlohmann::json DragBench::measureShadowLag(EditSession& session,
         // The floor's pixels where some candidate's reference differs from the own one by more
         // than a tenth of the range in a channel: where the shadows of the states differ.
         std::vector<std::size_t> mask;
-        for (int y = 0; y < e.height; ++y)
-            for (int x = 0; x < e.width; ++x) {
-                const RayHit hit =
-                    session.tracer().intersect(rays.origin(), rays.rayDirection(x + 0.5, y + 0.5));
-                if (hit.object != floor) continue;
-                const std::size_t k = 3 * (static_cast<std::size_t>(y) * e.width + x);
-                bool differs = false;
-                for (std::size_t r = 1; r < refs.size() && !differs; ++r)
-                    for (int ch = 0; ch < 3; ++ch)
-                        differs = differs ||
-                                  std::abs(int((*refs[r])[k + ch]) - int((*refs[0])[k + ch])) > 25;
-                if (differs) mask.push_back(k);
-            }
+        for (const std::size_t k : objectPixelBytes(session, rays, floor)) {
+            bool differs = false;
+            for (std::size_t r = 1; r < refs.size() && !differs; ++r)
+                for (int ch = 0; ch < 3; ++ch)
+                    differs =
+                        differs || std::abs(int((*refs[r])[k + ch]) - int((*refs[0])[k + ch])) > 25;
+            if (differs) mask.push_back(k);
+        }
         nlohmann::json errors = nlohmann::json::array();
         int best = 0;
         double bestError = 1e300;
