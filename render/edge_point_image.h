@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <limits>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -176,6 +177,27 @@ struct EpiOptions {
     std::string toString() const;
 };
 
+/// A rectangle of pixels, [x0, x1) × [y0, y1); empty when x1 ≤ x0 or y1 ≤ y0.
+struct PixelWindow {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    bool empty() const { return x1 <= x0 || y1 <= y0; }
+    long long area() const { return empty() ? 0 : static_cast<long long>(x1 - x0) * (y1 - y0); }
+    /// The smallest window holding both (an empty one adds nothing).
+    PixelWindow unite(const PixelWindow& o) const {
+        if (empty()) return o;
+        if (o.empty()) return *this;
+        return {std::min(x0, o.x0), std::min(y0, o.y0), std::max(x1, o.x1), std::max(y1, o.y1)};
+    }
+    /// Grown by r pixels on every side, then clipped to the width × height raster.
+    PixelWindow grownWithin(int r, int width, int height) const {
+        if (empty()) return *this;
+        return {std::max(0, x0 - r), std::max(0, y0 - r), std::min(width, x1 + r),
+                std::min(height, y1 + r)};
+    }
+    bool operator==(const PixelWindow&) const = default;
+    std::string toString() const;
+};
+
 /// §4.1 pixel classification.
 enum class PixelClass : uint8_t { Empty = 0, Simple = 1, Complex = 2 };
 
@@ -214,6 +236,26 @@ public:
     /// sample within reach fall back to the interpolation ignoring edges, and to black when
     /// there is none within 5×5 either.
     Image reconstruct(bool useEdges = true);
+
+    /// How far a pixel's point or edges reach into the reconstruction, in pixels (Chebyshev):
+    /// the 4×4 depth blocks, §5.2's 5×5 reachability and §5.3's filter over it, the
+    /// anti-aliasing and complex-pixel neighbourhoods, and the smoothing's boxes and edge
+    /// distance (EpiOptions::smoothRadius, denseRadius).
+    int reconstructionReach() const;
+    /// build() and reconstruct() redone on a window of the raster only: for a producer whose
+    /// points and edges changed in a few pixels since the last frame (a still camera, an
+    /// object moving), at a cost in proportion to the window's area instead of the raster's.
+    /// Requires a reconstruct(useEdges) or reconstructWindow(…, useEdges) before it, since
+    /// which the point arrays (pointArrays(), holding this frame's point in every pixel) and
+    /// the edges differ only in the pixels of `changed` (an edge that appeared or went: in
+    /// every pixel it crosses). `image` is that call's output; the pixels within
+    /// reconstructionReach() of `changed` are replaced in it, the rest kept. The result
+    /// equals a whole build() and reconstruct() (up to the rounding of the smoothing's
+    /// summed-area sums). Afterwards holes(), holeCount(), interpolationWeights(),
+    /// pixelClass() and countPixels() cover the whole raster; the other per-pixel state and
+    /// the stage times are the window's, and a reconstruct() needs a build() first.
+    void reconstructWindow(const std::vector<ScreenEdge>& edges, const PixelWindow& changed,
+                           bool useEdges, Image& image);
 
     /// Empty pixels black (dark grey with a point), simple purple, complex green (as the
     /// paper's Figure 7) — the edges as the EPI sees them.
@@ -436,6 +478,10 @@ private:
     std::vector<uint16_t> mSubCode;   ///< §5.4 scratch: 4 subpixel edge codes per marked pixel
     std::vector<uint8_t> mFiltered;   ///< §5.4 scratch: complex pixels the filter runs on
     std::vector<uint8_t> mSubType;    ///< §5.4 scratch: their neighbour types
+
+    // reconstructWindow(): the window's own EPI (kept while its size holds) and its edges.
+    std::unique_ptr<EdgePointImage> mWindow;
+    std::vector<ScreenEdge> mWindowEdges;
 };
 
 /// False only when EdgePointImage::build() would record no intersection of `e` with any

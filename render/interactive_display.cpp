@@ -68,7 +68,8 @@ std::string DisplayFrameStats::toString() const {
       << newSampleFraction << "), " << requestedSamples << " requested, pixels " << emptyPixels
       << " empty / " << simplePixels << " simple / " << complexPixels << " complex, "
       << unsampledPixels << " unsampled (" << unfilledPixels << " unfilled), "
-      << droppedShadowed << " dropped in moved shadows" << (usedEdges ? "" : ", no edges") << "}";
+      << reconstructedPixels << " reconstructed, " << droppedShadowed << " dropped in moved shadows"
+      << (usedEdges ? "" : ", no edges") << "}";
     return s.str();
 }
 
@@ -195,6 +196,13 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
     mFrame = DisplayFrameStats{};
     DisplayFrameStats& st = mFrame;
     st.usedEdges = useEdges;
+    // A windowed frame needs the camera and the mode of the last reconstruction.
+    if (mOptions.windowedFrames) {
+        mFrameCameraSame = mWindowValid && mWindowUseEdges == useEdges && mWindowCamera &&
+                           *mWindowCamera == camera;
+        if (!mFrameCameraSame) mWindowValid = false;
+        mWindowCamera = camera;
+    }
 
     // A finished estimate of the drag preview's direct light (backgroundPreview): drop the
     // points on elements whose H_direct changed (the moving shadow, a moved lamp's light).
@@ -293,8 +301,48 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
 Image InteractiveDisplay::reconstructFrame() {
     // The edge-and-point image and its reconstruction (§4–5): the EPI's own arrays only.
     const auto t = Clock::now();
-    mEpi.build(mScreenEdges);
-    Image image = clampedAtZero(mEpi.reconstruct(mFrame.usedEdges));
+    const std::optional<std::vector<PixelWindow>> windows =
+        mOptions.windowedFrames ? changedWindows() : std::nullopt;
+    Image image;
+    mFrameWindowed = windows.has_value();
+    if (windows) {
+        // Only the pixels the changes reach (a still camera): the rest is the last image.
+        mWindowTimes = {};
+        const int reach = mEpi.reconstructionReach();
+        for (const PixelWindow& window : *windows) {
+            mEpi.reconstructWindow(mScreenEdges, window, mFrame.usedEdges, mShownImage);
+            const EpiStageTimes& t = mEpi.stageTimes();
+            mWindowTimes.depthFilterMs += t.depthFilterMs;
+            mWindowTimes.rasterizeMs += t.rasterizeMs;
+            mWindowTimes.classifyMs += t.classifyMs;
+            mWindowTimes.reachabilityMs += t.reachabilityMs;
+            mWindowTimes.interpolateMs += t.interpolateMs;
+            mWindowTimes.antiAliasMs += t.antiAliasMs;
+            mWindowTimes.complexFilterMs += t.complexFilterMs;
+            mWindowTimes.smoothMs += t.smoothMs;
+            const PixelWindow out = window.grownWithin(reach, mOptions.width, mOptions.height);
+            for (int y = out.y0; y < out.y1; ++y)
+                for (int x = out.x0; x < out.x1; ++x)
+                    mShownImage.at(x, y) = glm::max(mShownImage.at(x, y), Rgb(0.0));
+            noteShown(out);
+            mFrame.reconstructedPixels += static_cast<std::size_t>(out.area());
+        }
+        mLastWindowed = mLastWindowed || !windows->empty();
+        noteShownEdges();
+        image = mShownImage;
+    } else {
+        mEpi.build(mScreenEdges);
+        image = clampedAtZero(mEpi.reconstruct(mFrame.usedEdges));
+        mFrame.reconstructedPixels = static_cast<std::size_t>(mOptions.width) * mOptions.height;
+        mLastWindowed = false;
+        if (mOptions.windowedFrames) {
+            mShownImage = image;
+            noteShown({0, 0, mOptions.width, mOptions.height});
+            noteShownEdges();
+            mWindowValid = true;
+            mWindowUseEdges = mFrame.usedEdges;
+        }
+    }
     mFrame.times.totalMs += msSince(t);
     return image;
 }
@@ -302,7 +350,7 @@ Image InteractiveDisplay::reconstructFrame() {
 void InteractiveDisplay::finishFrame(const CameraRays& camera, Image& image) {
     const auto finishStart = Clock::now();
     DisplayFrameStats& st = mFrame;
-    const EpiStageTimes& epi = mEpi.stageTimes();
+    const EpiStageTimes& epi = mFrameWindowed ? mWindowTimes : mEpi.stageTimes();
     st.times.rasterizeMs = epi.depthFilterMs + epi.rasterizeMs + epi.classifyMs;
     st.times.reachabilityMs = epi.reachabilityMs;
     st.times.interpolateMs = epi.interpolateMs;
@@ -336,6 +384,7 @@ void InteractiveDisplay::finishFrame(const CameraRays& camera, Image& image) {
         changedBudget = static_cast<int>(std::min<std::size_t>(changedBudget, room - budget));
     }
     std::vector<ShadeRequest> requests;
+    mCache.setRequestChangedOnly(mOptions.dragSamplesChangedOnly && mShader->previewObject() >= 0);
     if (budget > 0) {
         mCache.applyInterpolationFeedback(mEpi.interpolationWeights());
         requests = mCache.requestSamples(camera, budget, changedBudget);
@@ -358,6 +407,10 @@ void InteractiveDisplay::finishFrame(const CameraRays& camera, Image& image) {
 }
 
 Image InteractiveDisplay::reconstructLast(bool useEdges) {
+    // After windowed frames the EPI's whole build is older than its points: build it again.
+    if (mLastWindowed) mEpi.build(mScreenEdges);
+    mLastWindowed = false;
+    mWindowValid = false;  // the EPI's state is no longer the shown image's
     return clampedAtZero(mEpi.reconstruct(useEdges));
 }
 

@@ -28,9 +28,11 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <unordered_set>
+#include <utility>
 #include <vector>
 
 #include "render/camera_rays.h"
@@ -94,6 +96,10 @@ struct DisplayFrameStats {
     std::size_t unsampledPixels = 0;
     /// Pixels shown without any value: the holes when the fallback is off, else 0.
     std::size_t unfilledPixels = 0;
+    /// Pixels the frame rebuilt and reconstructed: the raster's, or with
+    /// InteractiveDisplayOptions::windowedFrames the window its changes reach (0: nothing
+    /// changed, the last image again).
+    std::size_t reconstructedPixels = 0;
     bool usedEdges = true;
     std::string toString() const;
 };
@@ -161,6 +167,25 @@ struct InteractiveDisplayOptions {
     /// from (a test per element and lamp); false tests every element's probe points, the
     /// reference the culled drop must equal.
     bool shadowDropCull = true;
+    /// With the camera as in the last frame, a frame rebuilds and reconstructs only the
+    /// window of pixels its changes reach (EdgePointImage::reconstructWindow): the pixels
+    /// whose point or edges differ from what the last frames reconstructed, grown by the
+    /// reconstruction's reach. A drag's frames then cost in proportion to the region the object
+    /// and its shadows cover, and a still frame in which nothing changed costs nothing. false:
+    /// every frame whole (the reference a windowed frame equals when windowColourTolerance is
+    /// 0).
+    bool windowedFrames = false;
+    /// A point whose colour moved by at most this fraction of its value since its pixel was
+    /// last reconstructed does not count as changed (the solver's light settling by fractions
+    /// of a percent everywhere would make every frame whole); its pixel shows the change when
+    /// next reconstructed. 0: every change counts.
+    double windowColourTolerance = 0.005;
+    /// A window larger than this share of the raster is reconstructed whole.
+    double windowMaxShare = 0.6;
+    /// While an object is dragged (a preview shown), new samples go only to the pixels the
+    /// drag changed (RenderCache::setRequestChangedOnly: empty, stale or carried ones); the
+    /// rest of the picture, at rest before the drag, is refined again after the drop.
+    bool dragSamplesChangedOnly = false;
     /// Synchronous: every frame's requests are shaded before renderFrame returns and appear in
     /// the next frame; output depends only on the inputs (CLI, tests, benchmarks).
     /// Asynchronous: requests go to the shader's worker threads; each frame takes what is done.
@@ -496,6 +521,32 @@ private:
     bool mShadowsStale = true;
     double mLastShadowUpdateMs = 0;
     std::vector<ScreenEdge> mScreenEdges;  ///< the last frame's edges that may mark the EPI
+    /// InteractiveDisplayOptions::windowedFrames: windows covering the pixels whose points or
+    /// edges changed since the last reconstruction (none: nothing changed), or nullopt when the
+    /// frame must be whole (a new camera, another reconstruction, the first frame, changes
+    /// over too large a share). Points from the EPI's arrays against mShown*, edges against
+    /// mShownEdges; per band of rows a rectangle, bands merged where one window costs less.
+    std::optional<std::vector<PixelWindow>> changedWindows() const;
+    EpiStageTimes mWindowTimes;  ///< a windowed frame's EPI stages, summed over its windows
+    /// After a reconstruction of `window` (the whole raster for a whole frame): what its pixels
+    /// showed becomes mShown*.
+    void noteShown(const PixelWindow& window);
+    /// After a frame's reconstruction: its edges become mShownEdges.
+    void noteShownEdges();
+    bool mFrameWindowed = false;  ///< the frame being made is windowed
+    /// The state a windowed frame starts from: the last reconstruction's image (clamped at 0,
+    /// holes black), camera and mode, and per pixel the point it reconstructed.
+    bool mWindowValid = false;
+    bool mWindowUseEdges = true;
+    bool mLastWindowed = false;  ///< the EPI's whole build is older than the last frame
+    std::optional<CameraRays> mWindowCamera;
+    bool mFrameCameraSame = false;  ///< beginFrame's camera is mWindowCamera
+    Image mShownImage;
+    std::vector<double> mShownDepth;
+    std::vector<glm::vec3> mShownColour;
+    std::vector<std::uint8_t> mShownPosition, mShownTrust;
+    /// The edges of the last reconstruction, with their keys (edgeKey), sorted by key.
+    std::vector<std::pair<std::uint64_t, ScreenEdge>> mShownEdges;
     /// Per object: the last frame's silhouettes and facing sharp edges (allocations reused).
     std::vector<std::vector<WorldEdge>> mSilhouettes, mSharpEdges;
     std::vector<ScreenEdge> mProjectScratch;  ///< projectEpiEdges' working space

@@ -805,7 +805,7 @@ std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, 
         tbb::blocked_range<std::size_t>(0, pixels, 4096), std::array<std::size_t, 2>{0, 0},
         [&](const tbb::blocked_range<std::size_t>& r, std::array<std::size_t, 2> c) {
             for (std::size_t k = r.begin(); k != r.end(); ++k) {
-                const int tier = held(k) ? 0 : pixelTier(k);
+                const int tier = held(k) || notRequestable(k) ? 0 : pixelTier(k);
                 c[0] += tier == 1;
                 c[1] += tier == 2;
             }
@@ -847,7 +847,7 @@ std::vector<ShadeRequest> RenderCache::requestSamplesSerial(const CameraRays& ca
     // tier ≥ `tier` count.
     std::vector<double> pr(mPriority);
     for (std::size_t k = 0; k < pixels; ++k)
-        if (held(k) || pixelTier(k) < tier) pr[k] = 0;
+        if (held(k) || pixelTier(k) < tier || notRequestable(k)) pr[k] = 0;
 
     // Tiles: summed priority, then a systematic sample of `budget` positions over the sums.
     const int T = std::max(1, mOptions.tileSize);
@@ -923,7 +923,7 @@ std::vector<ShadeRequest> RenderCache::requestSamplesParallel(const CameraRays& 
                 for (int x = tx * T; x < std::min(mWidth, (tx + 1) * T); ++x) {
                     const std::size_t k = static_cast<std::size_t>(y) * mWidth + x;
                     // (A select: the held pixels are scattered.)
-                    const bool out = held(k) || pixelTier(k) < tier;
+                    const bool out = held(k) || pixelTier(k) < tier || notRequestable(k);
                     const double p = out ? 0.0 : mPriority[k];
                     mEffective[k] = p;
                     sum += p;

@@ -158,6 +158,10 @@ public:
     /// rest of the image needs.
     std::vector<ShadeRequest> requestSamples(const CameraRays& camera, int budget = -1,
                                              int changedBudget = 0);
+    /// With `only` true, requestSamples() draws among the pixels an edit changed alone: those
+    /// without a point and those whose point is stale or carried (while an object is dragged:
+    /// the region its moves changed; the rest waits for the drop).
+    void setRequestChangedOnly(bool only) { mRequestChangedOnly = only; }
     /// Plain render-cache reconstruction of the last frame (no edges): a pixel with a point
     /// shows it, an empty one the distance-weighted mean of the points within 1, 2 or 3 pixels
     /// (the first ring that has any); black when none.
@@ -268,6 +272,11 @@ private:
     std::vector<ShadeRequest> requestSamplesSerial(const CameraRays& camera, int budget, int tier);
     std::vector<ShadeRequest> requestSamplesParallel(const CameraRays& camera, int budget,
                                                      int tier);
+    /// Pixel k may not be requested (setRequestChangedOnly): it holds a point not changed.
+    bool notRequestable(std::size_t k) const {
+        return mRequestChangedOnly && mScreenOfPixel[k] >= 0 && mPixelAge[k] < kStaleAge;
+    }
+    bool mRequestChangedOnly = false;
     /// Pixel k was requested within the last holdFrames frames: it waits.
     bool held(std::size_t k) const {
         return mRequested[k] > 0 && mFrame + 1 < mRequested[k] + mOptions.holdFrames;

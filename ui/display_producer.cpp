@@ -238,6 +238,11 @@ InteractiveDisplayOptions DisplayProducer::displayOptions(const ViewRequest& vie
     // the shader's workers have the capacity, and at the base rate the old and new shadows of
     // a moved table take seconds to re-shade.
     options.changedSampleFraction = 0.08;
+    // A still camera's frames reconstruct only the pixels that changed, and while an object is
+    // dragged the shader re-shades only what the drag changed: the drag's frames cost what its
+    // object and shadows cover, not the viewport.
+    options.windowedFrames = true;
+    options.dragSamplesChangedOnly = true;
     return options;
 }
 
