@@ -14,6 +14,11 @@ std::uint64_t splitmix64(std::uint64_t state);
 /// Deterministic 64-bit hash of a pair, for pair-seeded sample patterns.
 std::uint64_t hashPair(std::uint64_t a, std::uint64_t b);
 
+/// A uniform double in [0, 1) from a 64-bit key (its hashPair with a fixed constant).
+inline double unitFromKey(std::uint64_t key) {
+    return static_cast<double>(hashPair(key, 0x9E3779B97F4A7C15ULL) >> 11) * 0x1.0p-53;
+}
+
 /// A SplitMix64 stream of uniform doubles in [0, 1).
 class SplitMix {
 public:

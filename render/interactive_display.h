@@ -27,6 +27,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -626,6 +627,20 @@ std::size_t penumbraPrefix(const PenumbraOrder& order, const CameraRays& camera,
 /// references of other scene states. Throws std::invalid_argument for samplesPerAxis < 1.
 Image renderShaderReference(const PointShader& shader, const CameraRays& camera,
                             int samplesPerAxis = 2);
+
+/// The shader options of renderConvergedReference's shader: `display`'s, synchronous, with
+/// `options`' deep shadow sampling and seed, negative estimates not clamped.
+PointShaderOptions convergedReferenceShaderOptions(const PointShaderOptions& display,
+                                                   const ConvergedReferenceOptions& options);
+/// renderConvergedReference with a given shader (made with convergedReferenceShaderOptions):
+/// options.samplesPerAxis² jittered samples a pixel, and options.edgeSamplesPerAxis² instead on
+/// the pixels whose samples' displayed values spread by more than options.edgeSpread or for
+/// which `edgePixel` (may be empty) holds; their count into `edgePixels` when given.
+/// Deterministic. Throws std::invalid_argument for samples per axis < 1.
+Image renderEdgeRefinedReference(const PointShader& shader, const CameraRays& camera,
+                                 const ConvergedReferenceOptions& options,
+                                 const std::function<bool(int x, int y)>& edgePixel = {},
+                                 std::size_t* edgePixels = nullptr);
 
 /// Root mean square difference over all pixels and channels (linear values). Throws
 /// std::invalid_argument when the sizes differ.

@@ -49,13 +49,18 @@ nlohmann::json StillBench::analyse() {
     const SolverOptions solverOptions = interactiveSolverOptions();
     auto session = EditSession::open(mOptions.scene, solverOptions, mOptions.import);
     session->converge(1e-3);
-    PointShaderOptions so = displayShaderOptions();
-    so.threads = 0;
-    so.recordTriples = false;
-    PointShader shader(session->discretization(), session->tracer(), solverOptions, so);
+    // The reference converged as InteractiveDisplay::renderConvergedReference's: deep shadow
+    // sampling, and the pixels whose samples spread (the lamps' and objects' edges) shaded with
+    // edgeSamplesPerAxis² jittered samples, so that neither the display's anti-aliasing of an
+    // edge nor Gouraud's 2 × 2 grid is measured against a coarse grid's own.
+    ConvergedReferenceOptions ro;
+    ro.samplesPerAxis = mOptions.referenceSamplesPerAxis;
+    PointShader shader(session->discretization(), session->tracer(), solverOptions,
+                       convergedReferenceShaderOptions(displayShaderOptions(), ro));
     shader.updateSolution(session->solver());
     const CameraRays rays(last->camera, w, h);
-    const Image reference = renderShaderReference(shader, rays, mOptions.referenceSamplesPerAxis);
+    std::size_t edgePixels = 0;
+    const Image reference = renderEdgeRefinedReference(shader, rays, ro, {}, &edgePixels);
     const Image gouraud =
         renderGouraud(session->discretization(), session->tracer(),
                       session->solver().displayRadiosity(), last->camera, w, h, 2);
@@ -68,6 +73,7 @@ nlohmann::json StillBench::analyse() {
     const double gouraudUnlit = relativeRmse(gouraud, reference, lamps);
     out["width"] = w;
     out["height"] = h;
+    out["reference_edge_pixels"] = edgePixels;
     out["gouraud_error"] = gouraudError;
     out["gouraud_error_without_lamps"] = gouraudUnlit;
     nlohmann::json points = nlohmann::json::array();
