@@ -383,6 +383,13 @@ private:
     std::vector<std::uint32_t> mChunkBandCount;  ///< per chunk of points and band: count, then slot
     std::vector<std::uint32_t> mBandStart;       ///< per band: first entry in mBandPoints
     std::vector<BandEntry> mBandPoints;          ///< on-screen points by band, in index order
+    // Scratch of dropIf(): per point whether it goes, and the compacted arrays before they
+    // are swapped in (kept between drops: a drag drops points every frame).
+    std::vector<std::uint8_t> mDropFlags;
+    std::vector<CachePoint> mPointsScratch;
+    std::vector<Vec3> mPositionScratch;
+    std::vector<std::uint64_t> mBornScratch;
+    std::vector<std::uint8_t> mVisibleScratch, mFlagsScratch;
     // Scratch of requestSamplesParallel().
     std::vector<double> mEffective;    ///< per pixel: priority, 0 while held back
     std::vector<double> mTileSum;      ///< per tile: summed effective priority

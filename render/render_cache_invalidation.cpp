@@ -17,30 +17,52 @@ namespace penumbra {
 
 template <class Drop>
 std::size_t RenderCache::dropIf(Drop drop) {
-    // Compacts the record and the per-point arrays together, keeping the order, from the
-    // first point dropped (after building a pending screen point list, which reads points by
-    // index; nothing changes when nothing is dropped, as in most frames of a drag preview).
+    // Compacts the record and the per-point arrays together, keeping the order (after building
+    // a pending screen point list, which reads points by index; nothing changes when nothing
+    // is dropped, as in most frames of a drag preview). In parallel: which points go (the
+    // predicates only read), each chunk's survivors counted, then moved to their places in
+    // the scratch arrays, which are swapped in (a drag's shadow drop compacts the whole cache
+    // every frame).
     const std::size_t before = mPoints.size();
-    std::size_t kept = 0;
-    while (kept < before && !drop(mPoints[kept])) ++kept;
+    constexpr std::size_t kChunk = 8192;
+    const std::size_t chunks = (before + kChunk - 1) / kChunk;
+    mDropFlags.resize(before);
+    std::vector<std::size_t> keptIn(chunks + 1, 0);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        std::size_t kept = 0;
+        for (std::size_t i = c * kChunk; i < std::min(before, (c + 1) * kChunk); ++i) {
+            const bool d = drop(mPoints[i]);
+            mDropFlags[i] = d ? 1 : 0;
+            kept += !d;
+        }
+        keptIn[c + 1] = kept;
+    });
+    for (std::size_t c = 0; c < chunks; ++c) keptIn[c + 1] += keptIn[c];
+    const std::size_t kept = keptIn[chunks];
     if (kept == before) return 0;
     if (mScreenPending) buildScreenPoints();
-    for (std::size_t i = kept + 1; i < before; ++i) {
-        if (drop(mPoints[i])) continue;
-        if (kept != i) {
-            mPoints[kept] = std::move(mPoints[i]);
-            mPosition[kept] = mPosition[i];
-            mBorn[kept] = mBorn[i];
-            mVisible[kept] = mVisible[i];
-            mFlags[kept] = mFlags[i];
+    mPointsScratch.resize(kept);
+    mPositionScratch.resize(kept);
+    mBornScratch.resize(kept);
+    mVisibleScratch.resize(kept);
+    mFlagsScratch.resize(kept);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        std::size_t to = keptIn[c];
+        for (std::size_t i = c * kChunk; i < std::min(before, (c + 1) * kChunk); ++i) {
+            if (mDropFlags[i]) continue;
+            mPointsScratch[to] = std::move(mPoints[i]);
+            mPositionScratch[to] = mPosition[i];
+            mBornScratch[to] = mBorn[i];
+            mVisibleScratch[to] = mVisible[i];
+            mFlagsScratch[to] = mFlags[i];
+            ++to;
         }
-        ++kept;
-    }
-    mPoints.resize(kept);
-    mPosition.resize(kept);
-    mBorn.resize(kept);
-    mVisible.resize(kept);
-    mFlags.resize(kept);
+    });
+    mPoints.swap(mPointsScratch);
+    mPosition.swap(mPositionScratch);
+    mBorn.swap(mBornScratch);
+    mVisible.swap(mVisibleScratch);
+    mFlags.swap(mFlagsScratch);
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
     return before - kept;
 }
@@ -50,7 +72,7 @@ std::size_t RenderCache::invalidatePoints(const std::vector<std::uint8_t>& drop)
         throw std::invalid_argument(
             "RenderCache::invalidatePoints: " + std::to_string(drop.size()) + " flags for " +
             std::to_string(mPoints.size()) + " points");
-    // dropIf reads each point before it moves: its index is its place in mPoints then.
+    // dropIf asks of each point before any moves: its index is its place in mPoints then.
     return dropIf([&](const CachePoint& p) { return drop[&p - mPoints.data()] != 0; });
 }
 
