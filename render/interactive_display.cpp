@@ -369,6 +369,13 @@ void InteractiveDisplay::finishFrame(const CameraRays& camera, Image& image) {
     }
     std::vector<ShadeRequest> requests;
     mCache.setRequestChangedOnly(mOptions.dragSamplesChangedOnly && mShader->previewObject() >= 0);
+    if (mOptions.restWhenConverged) {
+        const int merge = mOptions.cache.mergeSamples;
+        const std::uint8_t converged =
+            merge > 0 ? static_cast<std::uint8_t>(std::min<int>(merge, kEpiTrustExact))
+                      : kEpiTrustExact;
+        mCache.setRequestConverged(mEpi.pointArrays().trust, converged, 2 * converged);
+    }
     if (budget > 0) {
         mCache.applyInterpolationFeedback(mEpi.interpolationWeights());
         requests = mCache.requestSamples(camera, budget, changedBudget);

@@ -187,6 +187,12 @@ struct InteractiveDisplayOptions {
     /// drag changed (RenderCache::setRequestChangedOnly: empty, stale or carried ones); the
     /// rest of the picture, at rest before the drag, is refined again after the drop.
     bool dragSamplesChangedOnly = false;
+    /// A pixel whose own point is exact or the mean of the cache's mergeSamples samples (and
+    /// fresh, shaded for this view) is not sampled again (RenderCache::setRequestConverged):
+    /// a still view stops once every pixel has converged, and then costs next to nothing (with
+    /// windowedFrames, frames in which nothing changed reconstruct nothing). Until its lighting
+    /// or the view changes; false: the priority image samples every pixel forever.
+    bool restWhenConverged = false;
     /// Synchronous: every frame's requests are shaded before renderFrame returns and appear in
     /// the next frame; output depends only on the inputs (CLI, tests, benchmarks).
     /// Asynchronous: requests go to the shader's worker threads; each frame takes what is done.

@@ -796,6 +796,7 @@ std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, 
         budget =
             static_cast<int>(std::lround(mOptions.sampleFraction * static_cast<double>(pixels)));
     if (budget <= 0) return {};
+    if (mConvergedTrust && mRequestCap > 0) mRequestCount.resize(pixels, 0);
     // What an edit changed first (Bala et al. §7.5: re-shaded before anything else): carried
     // points (no estimate of their new lighting), then stale ones (an estimate), each pass as
     // many requests as its pixels not waiting, drawn among them alone; the rest of the budget
@@ -830,6 +831,13 @@ std::vector<ShadeRequest> RenderCache::requestSamples(const CameraRays& camera, 
         budget -= static_cast<int>(pass.size());
         out.insert(out.end(), pass.begin(), pass.end());
         if (budget <= 0) break;
+    }
+    if (mConvergedTrust && mRequestCap > 0) {
+        for (const ShadeRequest& r : out) {
+            std::uint16_t& n = mRequestCount[static_cast<std::size_t>(r.pixel.y) * mWidth +
+                                             static_cast<std::size_t>(r.pixel.x)];
+            if (n < 0xFFFF) ++n;
+        }
     }
     return out;
 }

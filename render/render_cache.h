@@ -162,6 +162,18 @@ public:
     /// without a point and those whose point is stale or carried (while an object is dragged:
     /// the region its moves changed; the rest waits for the drop).
     void setRequestChangedOnly(bool only) { mRequestChangedOnly = only; }
+    /// Leaves out of requestSamples() the pixels whose point is converged: fresh (not stale or
+    /// carried) with trust[k] (the last reprojection's ScreenPoint::trust per pixel, as
+    /// EpiPointArrays::trust holds it) at least `converged`; and every pixel requested `cap`
+    /// times (> 0) since the view, the lighting or the cache's points last changed (a pixel
+    /// whose samples fall on different elements, or are culled behind a nearer neighbour,
+    /// never converges). A still view so stops asking. nullptr: none left out. `trust` must
+    /// outlive the calls.
+    void setRequestConverged(const std::uint8_t* trust, std::uint8_t converged, int cap) {
+        mConvergedTrust = trust;
+        mConverged = converged;
+        mRequestCap = cap;
+    }
     /// Plain render-cache reconstruction of the last frame (no edges): a pixel with a point
     /// shows it, an empty one the distance-weighted mean of the points within 1, 2 or 3 pixels
     /// (the first ring that has any); black when none.
@@ -272,11 +284,23 @@ private:
     std::vector<ShadeRequest> requestSamplesSerial(const CameraRays& camera, int budget, int tier);
     std::vector<ShadeRequest> requestSamplesParallel(const CameraRays& camera, int budget,
                                                      int tier);
-    /// Pixel k may not be requested (setRequestChangedOnly): it holds a point not changed.
+    /// Pixel k may not be requested: it holds a fresh point, and the drag asks only for changed
+    /// ones (setRequestChangedOnly) or the point has converged (setRequestConverged).
     bool notRequestable(std::size_t k) const {
-        return mRequestChangedOnly && mScreenOfPixel[k] >= 0 && mPixelAge[k] < kStaleAge;
+        const bool fresh = mScreenOfPixel[k] >= 0 && mPixelAge[k] < kStaleAge;
+        return (mConvergedTrust && mRequestCap > 0 && mRequestCount[k] >= mRequestCap) ||
+               (fresh &&
+                (mRequestChangedOnly || (mConvergedTrust && mConvergedTrust[k] >= mConverged)));
     }
+    /// Per pixel: requests since the view, the lighting or the points last changed
+    /// (setRequestConverged's cap), saturating.
+    std::vector<std::uint16_t> mRequestCount;
+    int mRequestCap = 0;
+    /// Something changed (the view, the lighting, the points): every pixel may be asked again.
+    void restartRequestCounts() { std::fill(mRequestCount.begin(), mRequestCount.end(), 0); }
     bool mRequestChangedOnly = false;
+    const std::uint8_t* mConvergedTrust = nullptr;
+    std::uint8_t mConverged = 255;
     /// Pixel k was requested within the last holdFrames frames: it waits.
     bool held(std::size_t k) const {
         return mRequested[k] > 0 && mFrame + 1 < mRequested[k] + mOptions.holdFrames;
@@ -322,7 +346,10 @@ private:
     }
     /// Before a reprojection to `camera`: starts a new view when the camera moved.
     void noteView(const CameraRays& camera) {
-        if (!mLastCamera || !(*mLastCamera == camera)) mViewFrame = mFrame;
+        if (!mLastCamera || !(*mLastCamera == camera)) {
+            mViewFrame = mFrame;
+            restartRequestCounts();
+        }
         mLastCamera = camera;
     }
 

@@ -64,6 +64,7 @@ std::size_t RenderCache::dropIf(Drop drop) {
     mVisible.swap(mVisibleScratch);
     mFlags.swap(mFlagsScratch);
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
+    restartRequestCounts();
     return before - kept;
 }
 
@@ -95,6 +96,7 @@ void RenderCache::clear() {
 
 std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
                                  const std::vector<std::uint8_t>& stale) {
+    restartRequestCounts();
     // (A pending screen point list, built later, shows the relit colours: the points are the
     // same, only their estimate is newer.)
     const std::size_t n = mPoints.size();
@@ -120,6 +122,7 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
 
 std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromFrom,
                                int elementOffset) {
+    restartRequestCounts();
     if (mScreenPending) buildScreenPoints();  // it reads the positions
     std::size_t moved = 0;
     for (std::size_t i = 0; i < mPoints.size(); ++i) {
@@ -136,6 +139,7 @@ std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromF
 }
 
 std::size_t RenderCache::markStale(const std::unordered_set<int>& objects) {
+    restartRequestCounts();
     std::size_t marked = 0;
     for (std::size_t i = 0; i < mPoints.size(); ++i)
         if (objects.count(mPoints[i].object)) {

@@ -243,6 +243,8 @@ InteractiveDisplayOptions DisplayProducer::displayOptions(const ViewRequest& vie
     // object and shadows cover, not the viewport.
     options.windowedFrames = true;
     options.dragSamplesChangedOnly = true;
+    // A converged still view rests: no samples, no reconstruction, until something changes.
+    options.restWhenConverged = true;
     return options;
 }
 

@@ -163,5 +163,39 @@ TEST(DisplayWindow, LocalChangesReconstructTheirWindowsAlone) {
     EXPECT_LE(b.lastFrame().reconstructedPixels, most);
 }
 
+TEST(DisplayWindow, AConvergedStillViewRests) {
+    // Every pixel's own point exact or the mean of mergeSamples samples: no more requests, and
+    // with windowed frames nothing reconstructed; without the option the sampling goes on.
+    EditSession session(test::makeLitRoom("red"), SolverOptions{});
+    session.converge(1e-3);
+    constexpr int kSmall = 48;
+    InteractiveDisplayOptions resting = test::litRoomDisplayOptions(kSmall);
+    resting.cache.mergeSamples = 4;
+    resting.windowedFrames = true;
+    resting.restWhenConverged = true;
+    InteractiveDisplayOptions busy = resting;
+    busy.restWhenConverged = false;
+    InteractiveDisplay a(session.discretization(), session.tracer(), SolverOptions{}, resting);
+    InteractiveDisplay b(session.discretization(), session.tracer(), SolverOptions{}, busy);
+    const CameraRays rays(test::litRoomTopCamera(), kSmall, kSmall);
+    for (InteractiveDisplay* d : {&a, &b}) d->apply(SolutionView::of(session.solver()));
+    int frames = 0;
+    for (; frames < 2000 && (frames < 2 || a.lastFrame().requestedSamples > 0); ++frames) {
+        a.renderFrame(rays);
+        b.renderFrame(rays);
+    }
+    ASSERT_LT(frames, 2000) << "the still view never converged";
+    EXPECT_EQ(a.lastFrame().requestedSamples, 0u);
+    EXPECT_GT(b.lastFrame().requestedSamples, 0u);
+    // The next frames change nothing: nothing is reconstructed, and the picture is the same.
+    const Image before = a.renderFrame(rays);
+    const Image after = a.renderFrame(rays);
+    EXPECT_EQ(a.lastFrame().reconstructedPixels, 0u);
+    EXPECT_EQ(largestDifference(after, before), 0.0);
+    // At rest it shows the same as the display that kept sampling, within the samples' noise.
+    EXPECT_LT(relativeImageRmse(after, b.renderFrame(rays)), 0.05);
+    std::printf("converged after %d frames\n", frames);
+}
+
 }  // namespace
 }  // namespace penumbra
