@@ -160,11 +160,14 @@ private:
     struct sigaction mPrevious {};
 };
 
-/// The high-fidelity mesh of a solved scene (Hardt & Teller 1996): exact irradiance with the
-/// far field's rays and sampled visibility past 48 blockers, gathered from a second solve in
-/// which every element shoots (leafReflectedRadiosity), meshed and sampled with progress on a
-/// terminal (elements meshed of all, time left). SIGINT stops it: throws BuildInterrupted.
-HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
+/// The high-fidelity mesh of a scene (Hardt & Teller 1996): exact irradiance with the far
+/// field's rays and sampled visibility past 48 blockers, gathered from a second solve in which
+/// every element shoots (leafReflectedRadiosity), meshed and sampled with progress on a
+/// terminal (elements meshed of all, time left). With `leafOnly` the scene's own solver has not
+/// run (the leaf solve replaces it) and receives the leaf solve's stats; else the leaf solve
+/// falls back on the scene's solution where it would be the same solve. SIGINT stops it: throws
+/// BuildInterrupted.
+HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a, LeafSolveStats* leafOnly = nullptr) {
     const BuildSigint sigint;
     const Discretization& disc = lit.discretization();
     ExactIrradiance exact(disc, ExactIrradianceOptions::forInterpolants(a.gatherRays),
@@ -172,8 +175,15 @@ HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
     SolverOptions leafOptions = interactiveSolverOptions();
     leafOptions.seed = a.seed;
     leafOptions.stochasticBelow = a.stochasticBelow;
-    exact.setReflected(leafReflectedRadiosity(lit.scene(), disc, lit.solver(), leafOptions,
-                                              a.converge, a.maxShots));
+    if (leafOnly) {
+        exact.setReflected(leafReflectedRadiosity(lit.scene(), disc, leafOptions, a.converge,
+                                                  a.maxShots, leafOnly,
+                                                  progressPrinter(a.converge)));
+        if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\n");
+    } else {
+        exact.setReflected(leafReflectedRadiosity(lit.scene(), disc, lit.solver(), leafOptions,
+                                                  a.converge, a.maxShots));
+    }
     HifiMesh mesh;
     const bool tty = ::isatty(STDERR_FILENO);
     HifiOptions options;
@@ -201,9 +211,10 @@ HifiMesh buildInterpolants(LitScene& lit, const SolveArgs& a) {
     const HifiStats& st = mesh.stats();
     spdlog::debug(
         "interpolants: {} elements ({} meshed), {} triangles, {} samples, {} centre "
-        "tests, {} covered, {} buried elements, {} capped, built in {:.2f} s",
+        "tests, {} covered, {} buried elements, {} capped, {} sampled once, built in {:.2f} s",
         st.elements, st.meshedElements, st.triangles, st.samples, st.centreSamples,
-        st.coveredTriangles, st.buriedElements, st.cappedElements, st.seconds);
+        st.coveredTriangles, st.buriedElements, st.cappedElements, st.singleSampleElements,
+        st.seconds);
     return mesh;
 }
 
@@ -219,6 +230,7 @@ nlohmann::json hifiReport(const HifiMesh& mesh) {
             {"covered_triangles", st.coveredTriangles},
             {"buried_elements", st.buriedElements},
             {"capped_elements", st.cappedElements},
+            {"single_sample_elements", st.singleSampleElements},
             {"build_seconds", st.seconds}};
 }
 
@@ -556,13 +568,18 @@ int runPathTraceRender(const SolveArgs& a, const RenderArgs& r) {
 /// through exact irradiance samples, evaluated per pixel.
 int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     using Clock = std::chrono::steady_clock;
-    auto lit = openAndSolve(a);
+    // The picture gathers from the leaf solve, in which every element shoots: the scene's own
+    // solve would be thrown away, so it runs only where adaptive subdivision (--subdivide)
+    // makes elements the leaf solve does not have.
+    const bool leafOnly = !(a.subdivide > 0);
+    auto lit = leafOnly ? LitScene::open(a.scene, solverOptionsOf(a), a.import) : openAndSolve(a);
     const Camera camera = pickCamera(lit->scene(), a.scene, r.camera);
     const CameraRays rays(camera, r.width, r.height);
     const Discretization& disc = lit->discretization();
     SolveArgs withRays = a;
     withRays.gatherRays = r.gatherRays;
-    const HifiMesh mesh = buildInterpolants(*lit, withRays);
+    LeafSolveStats leaf;
+    const HifiMesh mesh = buildInterpolants(*lit, withRays, leafOnly ? &leaf : nullptr);
     // The paper's passes on an offscreen GL context (EGL on a GPU, else OSMesa); one Embree
     // ray per sample when no context can be made.
     nlohmann::json pass;
@@ -587,6 +604,14 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     writeImage(image, r.out);
     nlohmann::json report = lit->reportJson();
+    if (leafOnly) {
+        // The solve the picture was made from.
+        report["shots"] = leaf.solver.shots;
+        report["rays"] = leaf.solver.rays;
+        report["seconds"] = leaf.solver.seconds;
+        report["unshot_fraction"] = leaf.unshotFraction;
+        report["stochastic_batches"] = leaf.solver.stochasticBatches;
+    }
     addImageFields(report, r);
     report["pixel_pass"] = pass;
     report["hifi"] = hifiReport(mesh);

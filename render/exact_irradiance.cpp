@@ -1,5 +1,7 @@
 #include "render/exact_irradiance.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -328,12 +330,19 @@ void ExactIrradiance::rebuild() {
 
 void ExactIrradiance::buildElementCells() {
     mElementCells.clear();
+    mNearBall.clear();
+    mElementPolygon.clear();
     const double k = mOptions.nearElementRadii;
     if (!(k > 0)) return;
     std::vector<int> sources;
     for (const SourcePatch& sp : mPatches)
         for (int e : mDisc.patches()[sp.patch].elements) sources.push_back(e);
+    mNearBall.resize(mDisc.elements().size());
+    for (std::size_t e = 0; e < mNearBall.size(); ++e)
+        mNearBall[e] = {mDisc.elements()[e].centroid, k * mElementRadius[e]};
     if (sources.empty()) return;
+    mElementPolygon.resize(mDisc.elements().size());
+    for (int e : sources) mElementPolygon[e] = mDisc.elementPolygon(e);
     // Cells about the size of most near balls (the third quartile), so a ball covers a few
     // cells; no smaller than an eighth of the largest, so no ball covers more than 17 a side.
     std::vector<double> reach;
@@ -387,8 +396,13 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
     const PlaneFrame frame(source);
     const double hx = glm::dot(x - frame.origin, frame.n);
     if (!(hx > mEpsilon)) return out;  // behind the source (or on its plane): sees nothing
-    std::vector<Vec2> source2;
-    source2.reserve(source.size());
+    // Scratch kept per thread: a point's sources call this many times.
+    thread_local std::vector<Vec2> source2;
+    thread_local std::vector<Vec3> sideNormal, clipA, clipB;
+    thread_local std::vector<Vec2> shadow;
+    thread_local std::vector<std::vector<Vec2>> shadows;
+    thread_local std::vector<int> candidates;
+    source2.clear();
     for (const Vec3& p : source) source2.push_back(frame.to2(p));
     PolygonSet2 visible(source2);
     if (visible.empty()) return out;
@@ -397,7 +411,7 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
     // pointing inward) and the source's plane, slightly lifted so the source's own surface and
     // anything on its plane do not count as blockers.
     const std::size_t n = source.size();
-    std::vector<Vec3> sideNormal(n);
+    sideNormal.assign(n, Vec3(0.0));
     Vec3 centroid(0.0);
     for (const Vec3& p : source) centroid += p;
     centroid /= static_cast<double>(n);
@@ -430,10 +444,22 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
         return true;
     };
     const double lift = 1e3 * mEpsilon;
-    std::vector<Vec3> clipA, clipB;
-    std::vector<Vec2> shadow;
-    std::vector<std::vector<Vec2>> shadows;
-    std::vector<int> candidates;
+    // A polygon with every corner strictly outside one of the pyramid's planes is clipped
+    // away whole: tested on its corners first, without clipping.
+    auto outsidePyramid = [&](const std::vector<Vec3>& polygon) {
+        auto allBelow = [&](auto side) {
+            for (const Vec3& p : polygon)
+                if (!(side(p) < 0)) return false;
+            return true;
+        };
+        if (allBelow([&](const Vec3& p) { return glm::dot(p - frame.origin, frame.n) - lift; }))
+            return true;
+        for (std::size_t i = 0; i < n; ++i)
+            if (allBelow([&](const Vec3& p) { return glm::dot(p - x, sideNormal[i]); }))
+                return true;
+        return false;
+    };
+    std::size_t shadowCount = 0;
     for (const ObjectBlockers& ob : mObjects) {
         if (ob.object == ignoreObject || !boxOverlaps(ob.lo, ob.hi)) continue;
         // The blockers whose boxes meet the pyramid's, through the object's box tree.
@@ -448,6 +474,7 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
             if (!boxOverlaps(B.lo, B.hi)) continue;
             // A polygon whose plane passes through x cannot hide anything from x.
             if (std::abs(glm::dot(x - B.polygon[0], B.normal)) <= lift) continue;
+            if (outsidePyramid(B.polygon)) continue;
             clipConvex(
                 B.polygon,
                 [&](const Vec3& p) { return glm::dot(p - frame.origin, frame.n) - lift; }, clipA);
@@ -470,16 +497,15 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
             }
             // With a limit, the shadows are subtracted once all are known to be within it:
             // a source given up on costs no subtraction.
-            if (maxBlockers > 0)
-                shadows.push_back(shadow);
-            else
+            if (maxBlockers > 0) {
+                if (shadows.size() <= shadowCount) shadows.emplace_back();
+                shadows[shadowCount++] = shadow;
+            } else {
                 visible.subtract(shadow);
+            }
         }
     }
-    for (const std::vector<Vec2>& s : shadows) {
-        if (visible.empty()) break;
-        visible.subtract(s);
-    }
+    for (std::size_t k = 0; k < shadowCount && !visible.empty(); ++k) visible.subtract(shadows[k]);
     out.reserve(visible.pieces().size());
     for (const auto& piece : visible.pieces()) {
         std::vector<Vec3> poly;
@@ -601,15 +627,17 @@ bool ExactIrradiance::nearPatch(int patch, const Vec3& x) const {
 }
 
 bool ExactIrradiance::nearElement(int element, const Vec3& x) const {
-    return glm::length(x - mDisc.elements()[element].centroid) <=
-           mOptions.nearElementRadii * mElementRadius[element];
+    const NearBall& ball = mNearBall[element];
+    return glm::length(x - ball.centre) <= ball.reach;
 }
 
 double ExactIrradiance::nearElementWeight(int element, const Vec3& x) const {
     if (!mOptions.smoothFarField) return nearElement(element, x) ? 1.0 : 0.0;
-    const double reach = mOptions.nearElementRadii * mElementRadius[element];
-    const double d = glm::length(x - mDisc.elements()[element].centroid);
-    if (d >= reach) return 0.0;
+    const NearBall& ball = mNearBall[element];
+    const Vec3 dx = x - ball.centre;
+    const double d2 = glm::dot(dx, dx), reach = ball.reach;
+    if (d2 >= reach * reach) return 0.0;
+    const double d = std::sqrt(d2);
     if (d <= 0.5 * reach) return 1.0;
     const double u = 2 * (reach - d) / reach;  // 1 at half the reach, 0 at the reach
     return u * u * (3 - 2 * u);
@@ -660,8 +688,11 @@ void ExactIrradiance::addGathered(const Vec3& x, const Vec3& n, Parts& parts) co
                 parts.nearSurface = true;
             const Rgb b = mReflected[e];
             if (!(b.x > 0 || b.y > 0 || b.z > 0)) continue;
+            // x on the element's plane or behind it sees none of its front (clipVisible's own
+            // test, on the centroid): no form factor to compute.
+            if (glm::dot(x - el.centroid, el.normal) <= 0.5 * mEpsilon) continue;
             bool sampled = false;
-            const double f = formFactor(x, n, mDisc.elementPolygon(e), -1, sampled);
+            const double f = formFactor(x, n, mElementPolygon[e], -1, sampled);
             parts.gathered += w * f * b;
             parts.nearIndirect += w * f * b;
             parts.nearShare += w * f;
@@ -726,11 +757,63 @@ std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const std::vecto
     return out;
 }
 
-std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
-                                        const ProgressiveSolver& solved,
-                                        const SolverOptions& options, double eps,
-                                        std::uint64_t maxShots) {
-    std::vector<Rgb> out = reflectedRadiosity(disc, solved);
+namespace {
+
+/// Per element of `disc`, the element of `fine` of the same object and orientation whose
+/// centroid is nearest its centroid (-1: none), through a grid of cells `cell` wide.
+std::vector<int> nearestElements(const Discretization& disc, const Discretization& fine,
+                                 double cell) {
+    cell = std::max(cell, 1e-6);
+    using Key = std::tuple<int, long long, long long, long long>;
+    auto cellOf = [&](int object, const Vec3& c) {
+        const Vec3 g = glm::floor(c / cell);
+        return Key(object, std::llround(g.x), std::llround(g.y), std::llround(g.z));
+    };
+    std::map<Key, std::vector<int>> cells;
+    for (std::size_t f = 0; f < fine.elements().size(); ++f)
+        if (fine.elementAlive(static_cast<int>(f)))
+            cells[cellOf(fine.elements()[f].object, fine.elements()[f].centroid)].push_back(
+                static_cast<int>(f));
+    std::vector<int> out(disc.elements().size(), -1);
+    tbb::parallel_for(std::size_t(0), disc.elements().size(), [&](std::size_t e) {
+        if (!disc.elementAlive(static_cast<int>(e))) return;
+        const Element& el = disc.elements()[e];
+        double best = 1e300;
+        auto consider = [&](int f) {
+            const Element& fe = fine.elements()[f];
+            if (glm::dot(fe.normal, el.normal) < 1 - 1e-6) return;
+            const Vec3 d = fe.centroid - el.centroid;
+            const double d2 = glm::dot(d, d);
+            if (d2 < best || (d2 == best && f < out[e])) best = d2, out[e] = f;
+        };
+        const auto [object, i, j, k] = cellOf(el.object, el.centroid);
+        for (long long di = -1; di <= 1; ++di)
+            for (long long dj = -1; dj <= 1; ++dj)
+                for (long long dk = -1; dk <= 1; ++dk) {
+                    const auto it = cells.find(Key(object, i + di, j + dj, k + dk));
+                    if (it != cells.end())
+                        for (int f : it->second) consider(f);
+                }
+        // None within a cell (an element far larger than the element size): every one.
+        if (out[e] < 0)
+            for (std::size_t f = 0; f < fine.elements().size(); ++f)
+                if (fine.elementAlive(static_cast<int>(f)) &&
+                    fine.elements()[f].object == el.object)
+                    consider(static_cast<int>(f));
+    });
+    return out;
+}
+
+/// The leaf solve: `disc`'s elements' reflected radiosity from a solve of `scene` in which every
+/// element shoots, with receivers in the open. With `solved`, returns its reflected radiosity
+/// instead when that solve would be the same one (patches already elements, no receiver
+/// moved). `stats` (optional) receives the leaf solve's stats and unshot fraction.
+std::vector<Rgb> solveLeaves(const Scene& scene, const Discretization& disc,
+                             const ProgressiveSolver* solved, const SolverOptions& options,
+                             double eps, std::uint64_t maxShots, LeafSolveStats* stats,
+                             const std::function<void(double)>& progress) {
+    std::vector<Rgb> out =
+        solved ? reflectedRadiosity(disc, *solved) : std::vector<Rgb>(disc.elements().size());
     Scene leafScene = scene;
     leafScene.settings.patchSize = scene.settings.elementSize;
     Discretization fine(leafScene);
@@ -738,30 +821,40 @@ std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization
     // Receivers in the open (SolverOptions::placeReceivers): with patches already elements,
     // the solve is needed only when some receiver moves.
     if (fine.placeReceivers(tracer) == 0 &&
-        scene.settings.patchSize <= scene.settings.elementSize)
+        scene.settings.patchSize <= scene.settings.elementSize && solved) {
+        if (stats) *stats = {solved->stats(), solved->unshotFraction()};
         return out;
+    }
     // Receivers are placed already: the solver need not place them again.
     SolverOptions leafOptions = options;
     leafOptions.placeReceivers = false;
     ProgressiveSolver solver(fine, tracer, leafOptions);
-    solver.converge(eps, maxShots);
+    solver.converge(eps, maxShots, progress);
+    if (stats) *stats = {solver.stats(), solver.unshotFraction()};
     const std::vector<Rgb> fineReflected = reflectedRadiosity(fine, solver);
-    // The same elements, grouped differently: matched by object and centroid.
-    using Key = std::tuple<int, long long, long long, long long>;
-    auto key = [](int object, const Vec3& c) {
-        return Key(object, std::llround(c.x * 1e6), std::llround(c.y * 1e6),
-                   std::llround(c.z * 1e6));
-    };
-    std::map<Key, int> byCentroid;
-    for (std::size_t e = 0; e < fine.elements().size(); ++e)
-        byCentroid.emplace(key(fine.elements()[e].object, fine.elements()[e].centroid),
-                           static_cast<int>(e));
-    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
-        const auto it =
-            byCentroid.find(key(disc.elements()[e].object, disc.elements()[e].centroid));
-        if (it != byCentroid.end()) out[e] = fineReflected[it->second];
-    }
+    // Where patches split a surface differently the two discretizations' elements differ;
+    // each element takes the leaf solve's value of the fine element of its object and plane
+    // whose centroid is nearest its own (its own self where the elements are the same).
+    const std::vector<int> nearest = nearestElements(disc, fine, scene.settings.elementSize);
+    for (std::size_t e = 0; e < disc.elements().size(); ++e)
+        if (nearest[e] >= 0) out[e] = fineReflected[nearest[e]];
     return out;
+}
+
+}  // namespace
+
+std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
+                                        const ProgressiveSolver& solved,
+                                        const SolverOptions& options, double eps,
+                                        std::uint64_t maxShots) {
+    return solveLeaves(scene, disc, &solved, options, eps, maxShots, nullptr, {});
+}
+
+std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
+                                        const SolverOptions& options, double eps,
+                                        std::uint64_t maxShots, LeafSolveStats* stats,
+                                        const std::function<void(double)>& progress) {
+    return solveLeaves(scene, disc, nullptr, options, eps, maxShots, stats, progress);
 }
 
 std::string ExactIrradiance::toString() const {

@@ -10,19 +10,19 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
 #include "render/box_tree.h"
+#include "solver/progressive_solver.h"
 #include "solver/scene.h"
 
 namespace penumbra {
 
 class Discretization;
-class ProgressiveSolver;
 class RayTracer;
-struct SolverOptions;
 
 /// A region of a plane as disjoint convex polygons (counter-clockwise): what is left of a
 /// convex polygon after convex polygons are subtracted from it, one at a time.
@@ -232,6 +232,15 @@ private:
     /// Per element: its bounding radius about the centroid, at most 1.5 √area (the near
     /// field's scale: a sliver's reach follows its solid angle, not its length).
     std::vector<double> mElementRadius;
+    /// Per element: its centroid and nearElementRadii × mElementRadius, side by side, so that
+    /// testing the elements a point's cell lists reads no more than it needs.
+    struct NearBall {
+        Vec3 centre{0.0};
+        double reach = 0;
+    };
+    std::vector<NearBall> mNearBall;
+    /// Per source element listed in mElementCells: its polygon (elementPolygon), read once.
+    std::vector<std::vector<Vec3>> mElementPolygon;
     /// With farRays and nearElementRadii: the source elements by the grid cells their near
     /// balls (nearElementRadii × the element's radius about its centroid) overlap, so a
     /// point's near elements are all in its own cell (cells of mElementCellSize).
@@ -255,12 +264,29 @@ std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const std::vecto
 /// and centroid; `disc`'s own patches stay the gather's source groups. The second solve
 /// places its receivers in the open (SolverOptions::placeReceivers): a floor element the foot
 /// of a box crosses with its centroid under the box would otherwise send nothing toward the
-/// box's face, whose foot it fills half the view of. Returns `solved`'s reflected radiosity
-/// when the patches already are the elements and no receiver moves.
+/// box's face, whose foot it fills half the view of. Where the patches split a surface
+/// differently from the leaf solve's, so that an element has no twin, it takes the value of the
+/// leaf solve's element of its object and orientation whose centroid is nearest. Returns
+/// `solved`'s reflected radiosity when the patches already are the elements and no receiver
+/// moves.
 std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
                                         const ProgressiveSolver& solved,
                                         const SolverOptions& options, double eps,
                                         std::uint64_t maxShots);
+
+/// What the leaf solve did (its solver's stats) and the unshot fraction it stopped at.
+struct LeafSolveStats {
+    SolverStats solver;
+    double unshotFraction = 0;
+};
+/// The same without a solution of `disc` (none is needed: the leaf solve replaces it): the
+/// leaf solve always runs, also where it is `disc`'s own (patches already elements). `stats`
+/// (optional)
+/// receives what the leaf solve did; `progress` is the solver's (ProgressiveSolver::converge).
+std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
+                                        const SolverOptions& options, double eps,
+                                        std::uint64_t maxShots, LeafSolveStats* stats = nullptr,
+                                        const std::function<void(double)>& progress = {});
 
 /// Whether a planar polygon is convex (all turns the same way about `normal`).
 bool isConvexPolygon(const std::vector<Vec3>& polygon, const Vec3& normal);

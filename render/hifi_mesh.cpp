@@ -10,8 +10,10 @@
 #include <deque>
 #include <limits>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <thread>
+#include <tuple>
 #include <unordered_map>
 
 #include "core/random.h"
@@ -20,6 +22,7 @@
 #include "render/cdt.h"
 #include "render/edge_tree.h"
 #include "render/exact_irradiance.h"
+#include "render/far_field_pool.h"
 #include "render/light_change.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
@@ -573,6 +576,10 @@ struct HifiBuild {
     double absoluteTolerance = 0;  ///< refinementFloor
     double grid = 0;               ///< sampleGrid
     double minRefineArea = 0;      ///< smallestRefinedArea
+    /// An element whose squared diameter is at most this (m²) and that no segment crosses is
+    /// sampled once: the squared diagonal of refinement's finest triangle on an element of the
+    /// area-weighted median area.
+    double singleSampleDiameter2 = 0;
     SampleCache cache;
     /// The far field is pooled over neighbouring samples (poolFarField) and every
     /// triangle's interpolant fitted again; perElementKeys holds each emitted triangle's
@@ -582,7 +589,7 @@ struct HifiBuild {
     std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
         centreSamples{0};
     std::atomic<bool> cancelled{false};
-    std::atomic<int> covered{0}, buried{0}, cappedElements{0};
+    std::atomic<int> covered{0}, buried{0}, cappedElements{0}, singleSample{0};
 
     /// Whether the point x of element `el`'s plane lies inside another object that bounds a
     /// solid (the first surface along the normal is such an object seen from inside); false
@@ -612,6 +619,26 @@ double smallestRefinedArea(const Discretization& disc, int maxRefineDepth) {
     if (areas.empty()) return 0;
     std::nth_element(areas.begin(), areas.begin() + areas.size() / 2, areas.end());
     return areas[areas.size() / 2] * std::pow(0.25, std::max(0, maxRefineDepth));
+}
+
+/// The area of the element that holds the median square metre of surface (elements sorted by
+/// area): the scene's element size as its large surfaces have it, whatever a finely tessellated
+/// mesh adds in number.
+double areaWeightedMedianArea(const Discretization& disc) {
+    std::vector<double> areas;
+    double total = 0;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e)
+        if (disc.elementAlive(static_cast<int>(e))) {
+            areas.push_back(disc.elements()[e].area);
+            total += areas.back();
+        }
+    std::sort(areas.begin(), areas.end());
+    double below = 0;
+    for (double a : areas) {
+        below += a;
+        if (below >= 0.5 * total) return a;
+    }
+    return areas.empty() ? 0 : areas.back();
 }
 
 /// The median alive element's √area (m).
@@ -730,9 +757,12 @@ public:
 
     /// Samples (and refines) every non-degenerate triangle of `tri` that is not covered.
     /// Refinement goes level by level over the element, so that HifiOptions::maxTriangles,
-    /// when it stops it, leaves the element evenly refined.
-    void sampleTriangles(const Triangulation2& tri) {
+    /// when it stops it, leaves the element evenly refined. With `once` (an element smaller
+    /// than refinement's finest triangle, nothing crossing it) one sample at the element's
+    /// centroid serves all six points of each triangle: a constant interpolant.
+    void sampleTriangles(const Triangulation2& tri, bool once = false) {
         std::deque<Pending> queue;
+        std::optional<std::pair<ExactIrradiance::Parts, SampleKey>> single;
         for (const auto& t : tri.triangles) {
             glm::dvec2 p[3] = {tri.points[t[0]], tri.points[t[1]], tri.points[t[2]]};
             const double cross =
@@ -749,11 +779,24 @@ public:
             }
             Pending pending;
             pending.p = {p[0], p[1], p[2]};
+            if (once) {
+                if (!single) {
+                    SampleKey key;
+                    const glm::dvec2 c = mG.frame.to2(mEl.centroid);
+                    const ExactIrradiance::Parts r = sampleAt(c, c, key);
+                    single.emplace(r, key);
+                }
+                pending.r.fill(single->first);
+                pending.k.fill(single->second);
+                emit(pending);
+                continue;
+            }
             const glm::dvec2 at[6] = {p[0], 0.5 * (p[0] + p[1]), p[1],
                                       0.5 * (p[1] + p[2]), p[2], 0.5 * (p[0] + p[2])};
             for (int k = 0; k < 6; ++k) pending.r[k] = sampleAt(at[k], centre, pending.k[k]);
             queue.push_back(std::move(pending));
         }
+        if (single) mB.singleSample.fetch_add(1, std::memory_order_relaxed);
         // Each split adds three triangles to the element's count.
         int count = static_cast<int>(queue.size());
         const int cap = std::max(mB.options.maxTriangles, count);
@@ -900,102 +943,42 @@ struct SampleKeyStdHash {
 };
 
 /// The far field of every sample in `cache` off contact lines, pooled over the other samples
-/// of its plane within a radius. What is pooled is the whole reflected light (the far field's
-/// rays and the near field's exact part, Parts::nearIndirect), which does not depend on how
-/// the two parts split it, and the sample's own near part is subtracted again: a weighted
-/// local linear fit (weights (1 − d²/r²)², evaluated at the sample), so that a gradient across
-/// the neighbourhood is kept and only the rays' noise averages out; each sample's rays are
-/// independent, so n neighbours leave about 1/√n of it. Where no other surface is within the
-/// near field's reach (Parts::nearShare 0, Parts::nearSurface false) the reflected light is
-/// the light of distant surfaces and smooth: `radius`, among such samples. Where another
-/// surface is near it changes faster: `nearRadius`, among such samples (0: each keeps its own
-/// value).
+/// of its plane within a radius (poolFarField). What is pooled is the whole reflected light
+/// (the far field's rays and the near field's exact part, Parts::nearIndirect), which does not
+/// depend on how the two split it, and the sample's own near part is subtracted again. Where
+/// no other surface is within the near field's reach (Parts::nearShare 0, Parts::nearSurface
+/// false) the reflected light is the light of distant surfaces and smooth: `radius`, among
+/// such samples. Where another surface is near it changes faster: `nearRadius`, among such
+/// samples (0: each keeps its own value).
 std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> pooledFarField(const SampleCache& cache,
                                                                       double grid,
                                                                       double radius,
                                                                       double nearRadius) {
-    struct Entry {
-        const SampleKey* key;
-        Vec3 x, n;
-        Rgb indirect;  ///< the far field and the near field's reflected light
-        Rgb near;      ///< the near field's reflected light
-        bool open;     ///< nothing else near: pooled over `radius`, else over nearRadius
-    };
-    std::vector<Entry> open;
+    std::vector<const SampleKey*> keys;
+    std::vector<FarFieldSample> samples;
+    // A plane id per object, sheet and normal.
+    std::map<std::tuple<int, int, std::array<long long, 3>>, int> planes;
     for (const auto& [key, parts] : cache) {
         if (key.element >= 0) continue;
-        const bool isOpen = !(parts.nearShare > 0 || parts.nearSurface);
-        if (!isOpen && !(nearRadius > 0)) continue;
-        const Vec3 x(key.position[0] * grid, key.position[1] * grid, key.position[2] * grid);
-        const Vec3 n(key.normal[0] * 1e-6, key.normal[1] * 1e-6, key.normal[2] * 1e-6);
-        open.push_back({&key, x, glm::normalize(n), parts.farField + parts.nearIndirect,
-                        parts.nearIndirect, isOpen});
+        FarFieldSample s;
+        s.open = !(parts.nearShare > 0 || parts.nearSurface);
+        if (!s.open && !(nearRadius > 0)) continue;
+        s.x = Vec3(key.position[0] * grid, key.position[1] * grid, key.position[2] * grid);
+        s.n =
+            glm::normalize(Vec3(key.normal[0] * 1e-6, key.normal[1] * 1e-6, key.normal[2] * 1e-6));
+        s.plane = planes
+                      .emplace(std::make_tuple(key.object, key.sheet, key.normal),
+                               static_cast<int>(planes.size()))
+                      .first->second;
+        s.indirect = parts.farField + parts.nearIndirect;
+        s.near = parts.nearIndirect;
+        keys.push_back(&key);
+        samples.push_back(s);
     }
-    // Neighbours through a grid of cells the pool's size.
-    auto cellOf = [&](const Vec3& x) {
-        const Vec3 c = glm::floor(x / radius);
-        return std::array<long long, 3>{std::llround(c.x), std::llround(c.y), std::llround(c.z)};
-    };
-    auto cellKey = [](long long i, long long j, long long k) {
-        return hashPair(hashPair(static_cast<std::uint64_t>(i), static_cast<std::uint64_t>(j)),
-                        static_cast<std::uint64_t>(k));
-    };
-    std::unordered_map<std::uint64_t, std::vector<int>> cells;
-    for (int i = 0; i < static_cast<int>(open.size()); ++i) {
-        const auto c = cellOf(open[i].x);
-        cells[cellKey(c[0], c[1], c[2])].push_back(i);
-    }
-    std::vector<Rgb> pooled(open.size());
-    std::vector<std::uint8_t> fitted(open.size(), 0);
-    tbb::parallel_for(0, static_cast<int>(open.size()), [&](int i) {
-        const Entry& a = open[i];
-        const double r = a.open ? radius : nearRadius;
-        const Vec3 t = std::abs(a.n.x) > 0.5 ? glm::normalize(glm::cross(a.n, Vec3(0, 1, 0)))
-                                             : glm::normalize(glm::cross(a.n, Vec3(1, 0, 0)));
-        const Vec3 b = glm::cross(a.n, t);
-        // Weighted least squares of F ≈ c0 + c1 u + c2 v about the sample.
-        double m[3][3] = {};
-        Rgb rhs[3] = {Rgb(0.0), Rgb(0.0), Rgb(0.0)};
-        int count = 0;
-        const auto c = cellOf(a.x);
-        for (long long di = -1; di <= 1; ++di)
-            for (long long dj = -1; dj <= 1; ++dj)
-                for (long long dk = -1; dk <= 1; ++dk) {
-                    const auto it = cells.find(cellKey(c[0] + di, c[1] + dj, c[2] + dk));
-                    if (it == cells.end()) continue;
-                    for (int j : it->second) {
-                        const Entry& o = open[j];
-                        if (o.open != a.open || o.key->object != a.key->object ||
-                            o.key->sheet != a.key->sheet || o.key->normal != a.key->normal)
-                            continue;
-                        const Vec3 d = o.x - a.x;
-                        const double d2 = glm::dot(d, d);
-                        if (d2 >= r * r || std::abs(glm::dot(d, a.n)) > 1e-6 * r) continue;
-                        const double w0 = 1 - d2 / (r * r), w = w0 * w0;
-                        const double f[3] = {1, glm::dot(d, t) / r, glm::dot(d, b) / r};
-                        for (int row = 0; row < 3; ++row) {
-                            for (int q = 0; q < 3; ++q) m[row][q] += w * f[row] * f[q];
-                            rhs[row] += w * f[row] * o.indirect;
-                        }
-                        ++count;
-                    }
-                }
-        // Too few neighbours, or all on a line (a strip one sample wide): the own value.
-        const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-                           m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-                           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-        if (count < 8 || !(det > 1e-6 * m[0][0] * m[0][0] * m[0][0])) return;
-        // c0 by Cramer's rule.
-        const Rgb c0 = (rhs[0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-                        m[0][1] * (rhs[1] * m[2][2] - m[1][2] * rhs[2]) +
-                        m[0][2] * (rhs[1] * m[2][1] - m[1][1] * rhs[2])) /
-                       det;
-        pooled[i] = glm::max(c0 - a.near, Rgb(0.0));
-        fitted[i] = 1;
-    });
+    const PooledFarField pooled = poolFarField(samples, radius, nearRadius);
     std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> out;
-    for (std::size_t i = 0; i < open.size(); ++i)
-        if (fitted[i]) out.emplace(*open[i].key, pooled[i]);
+    for (std::size_t i = 0; i < samples.size(); ++i)
+        if (pooled.fitted[i]) out.emplace(*keys[i], pooled.value[i]);
     return out;
 }
 
@@ -1018,6 +1001,13 @@ void refitWithPooledFarField(HifiBuild& b, double radius, double nearRadius) {
             triangles[k].irradiance = QuadraticInterpolant::fromSamples(total);
         }
     });
+}
+
+/// The element's squared bounding radius about `centre` (m²).
+double squaredRadius(const ElementGeometry& g, const Vec3& centre) {
+    double r2 = 0;
+    for (const Vec3& p : g.poly) r2 = std::max(r2, glm::dot(p - centre, p - centre));
+    return r2;
 }
 
 /// Whether the whole element lies inside another solid (a sofa seat's end inside its arm): its
@@ -1050,8 +1040,13 @@ void meshElement(HifiBuild& b, int e) {
     ElementSegments segs = discontinuitiesOn(b, e, g, size);
     // Triangulate (the element as it is when nothing crosses it).
     const Triangulation2 tri = triangulateElement(b, g, segs);
-    // Six exact samples per triangle, refined where the interpolant misses.
-    ElementSampler(b, e, g, size, segs.allContacts).sampleTriangles(tri);
+    // Six exact samples per triangle, refined where the interpolant misses; one for an element
+    // no wider than refinement's finest triangle that nothing crosses (a face of a finely
+    // tessellated mesh, a centimetre or two across): six would fit a quadratic over a few
+    // pixels from samples no neighbour shares (its normal is its own).
+    const bool once = segs.shadow.empty() && segs.contact.empty() &&
+                      4 * squaredRadius(g, el.centroid) <= b.singleSampleDiameter2;
+    ElementSampler(b, e, g, size, segs.allContacts).sampleTriangles(tri, once);
     if (segs.capped) b.cappedElements.fetch_add(1, std::memory_order_relaxed);
 }
 
@@ -1122,6 +1117,8 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     b.absoluteTolerance = refinementFloor(disc);
     b.grid = sampleGrid(disc);
     b.minRefineArea = smallestRefinedArea(disc, options.maxRefineDepth);
+    b.singleSampleDiameter2 =
+        2 * areaWeightedMedianArea(disc) * std::pow(0.25, std::max(0, options.maxRefineDepth));
     const int count = static_cast<int>(todo.size());
     const double poolRadius = options.farFieldPoolRadius * medianElementSize(disc);
     b.poolFarField = poolRadius > 0 && exact.options().farRays > 0 && exact.tracer();
@@ -1156,6 +1153,7 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     mStats.coveredTriangles = b.covered.load();
     mStats.buriedElements = b.buried.load();
     mStats.cappedElements = b.cappedElements.load();
+    mStats.singleSampleElements = b.singleSample.load();
     mStats.samples = b.samples.load();
     mStats.centreSamples = b.centreSamples.load();
     mStats.seconds =
@@ -1252,7 +1250,7 @@ Rgb HifiMesh::radiosity(const Discretization& disc, int triangle, double s, doub
     const Material& m = disc.elementMaterial(tri.element);
     const Element& el = disc.elements()[tri.element];
     const bool back = disc.objects()[el.object].isBackFace(el.face);
-    return (back ? Rgb(0.0) : m.emission) + m.reflectance * tri.irradiance(s, t);
+    return (back ? Rgb(0.0) : m.emission) + m.reflectance * tri.irradiance.irradiance(s, t);
 }
 
 Image renderInterpolants(const Discretization& disc, const RayTracer& tracer, const HifiMesh& mesh,

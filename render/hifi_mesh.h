@@ -40,6 +40,9 @@ struct QuadraticInterpolant {
     Rgb operator()(double s, double t) const {
         return c[0] * (s * s) + c[1] * (s * t) + c[2] * s + c[3] * (t * t) + c[4] * t + c[5];
     }
+    /// Irradiance, which is never negative: where the quadratic dips below 0 between its
+    /// samples (beside a sharp change it rings), 0.
+    Rgb irradiance(double s, double t) const { return glm::max((*this)(s, t), Rgb(0.0)); }
 };
 
 struct HifiOptions {
@@ -104,6 +107,10 @@ struct HifiStats {
     int buriedElements = 0;
     /// Elements whose segments or triangles HifiOptions::maxSegments / maxTriangles cut.
     int cappedElements = 0;
+    /// Elements no wider than refinement's finest triangle (diameter at most the diagonal of a
+    /// square of 4^−maxRefineDepth of the area-weighted median element's area) and crossed by
+    /// no segment: sampled once, at the centroid, with a constant interpolant.
+    int singleSampleElements = 0;
 };
 
 /// Built once for a scene state; rebuild after an edit.
@@ -130,7 +137,8 @@ public:
     /// The triangle of `element` containing world point x (its plane's projection), with
     /// barycentrics (s, t); -1 when the element has none.
     int locate(int element, const Vec3& x, double& s, double& t) const;
-    /// Radiosity B = E + ρ R(s, t) of a triangle at (s, t), with the element's material.
+    /// Radiosity B = E + ρ R(s, t) of a triangle at (s, t), with the element's material (R
+    /// clamped at 0: QuadraticInterpolant::irradiance).
     Rgb radiosity(const Discretization& disc, int triangle, double s, double t) const;
     const HifiStats& stats() const { return mStats; }
     std::string toString() const;

@@ -140,6 +140,33 @@ TEST_F(RenderModesCli, LogReplaysOneLinePerFrame) {
     EXPECT_NEAR(report["frames"][2]["new_sample_fraction"].get<double>(), 0.03, 0.01);
 }
 
+TEST_F(RenderModesCli, TheInterpolantsNeedNoSolveOfTheSceneButTheLeafSolve) {
+    // The picture gathers from the leaf solve (every element shoots), which starts from
+    // nothing: without --subdivide the scene's own solve is skipped, and the picture is the one
+    // made after it (--subdivide 10 runs it and subdivides nothing). The report's solve figures
+    // are the leaf solve's.
+    auto interpolants = [&](const std::string& name, const std::string& args) {
+        RunResult run =
+            render("--mode interpolant --gather-rays 16 --samples 1 " + args + " --out '" +
+                   path(name + ".exr") + "' --report '" + path(name + ".json") + "'");
+        EXPECT_EQ(run.exitStatus, 0) << name << ": " << run.err;
+        return json::parse(readFile(path(name + ".json")));
+    };
+    const json leafOnly = interpolants("leaf", "");
+    const json solvedFirst = interpolants("solved", "--subdivide 10");
+    ASSERT_EQ(solvedFirst["subdivisions"].get<int>(), 0);
+    EXPECT_GT(leafOnly["shots"].get<int>(), 0);
+    EXPECT_GT(leafOnly["rays"].get<double>(), 0);
+    EXPECT_LT(leafOnly["unshot_fraction"].get<double>(), 0.05);
+    const penumbra::Image a = penumbra::readExr(path("leaf.exr"));
+    const penumbra::Image b = penumbra::readExr(path("solved.exr"));
+    ASSERT_EQ(a.pixels.size(), b.pixels.size());
+    for (std::size_t i = 0; i < a.pixels.size(); ++i)
+        for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(a.pixels[i][c], b.pixels[i][c], 1e-5 * (1 + b.pixels[i][c]))
+                << "pixel " << i << " channel " << c;
+}
+
 TEST_F(RenderModesCli, BadValuesExitTwoWithOneLine) {
     for (const std::string& args :
          {std::string("--mode sketch"), std::string("--mode epi --overlay normals"),

@@ -48,6 +48,21 @@ TEST(QuadraticInterpolant, ReproducesAnyQuadraticExactly) {
     }
 }
 
+TEST(QuadraticInterpolant, IrradianceIsTheQuadraticClampedAtZero) {
+    // Bright corners, dark midpoints: the quadratic through them dips below 0 inside.
+    const std::array<Rgb, 6> r = {Rgb(1.0), Rgb(0.0), Rgb(1.0), Rgb(0.0), Rgb(1.0), Rgb(0.0)};
+    const QuadraticInterpolant q = QuadraticInterpolant::fromSamples(r);
+    int negative = 0;
+    for (int i = 0; i <= 20; ++i)
+        for (int j = 0; j + i <= 20; ++j) {
+            const double s = i / 20.0, t = j / 20.0;
+            const double raw = q(s, t).x;
+            if (raw < 0) ++negative;
+            EXPECT_EQ(q.irradiance(s, t).x, std::max(raw, 0.0)) << s << ", " << t;
+        }
+    EXPECT_GT(negative, 0) << "the samples were meant to make the quadratic dip below 0";
+}
+
 /// Whether segment a–b is covered by triangle edges of `tri` lying on it.
 bool coveredByEdges(const Triangulation2& tri, glm::dvec2 a, glm::dvec2 b) {
     const glm::dvec2 d = b - a;
@@ -503,6 +518,54 @@ TEST(HifiMesh, InterpolantsFollowTheExactIrradianceCloserThanConstantElements) {
     const double relHifi = std::sqrt(errHifi / norm), relConst = std::sqrt(errConst / norm);
     EXPECT_LT(relHifi, 0.02);
     EXPECT_LT(relHifi, 0.3 * relConst);
+}
+
+TEST(HifiMesh, AFaceSmallerThanTheFinestRefinementIsSampledOnceAtItsCentroid) {
+    // A tessellated ball 2 cm across above the card scene's floor: its faces (a few millimetres)
+    // are smaller than refinement's finest triangle on the 0.1 m floor elements, so each is one
+    // sample at its centroid, its triangles' interpolants that constant; the floor's are not.
+    Scene scene;
+    test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(10.0));
+    test::addMaterial(scene, "grey", Rgb(0.5));
+    scene.objects.push_back(test::makeQuad("floor", 2, 2, "grey", {0, 0, 0}));
+    scene.objects.push_back(test::makeQuad("lamp", 0.4, 0.4, "lamp", {0, 1, 0}, {180, 0, 0}));
+    SceneObject ball;
+    ball.id = "ball";
+    ball.shape.type = ShapeType::Sphere;
+    ball.shape.radius = 0.01;
+    ball.shape.segments = 12;
+    ball.material = "grey";
+    ball.transform.translate = Vec3(-0.5, 0.3, -0.5);
+    scene.objects.push_back(ball);
+    scene.settings.patchSize = 0.5;
+    scene.settings.elementSize = 0.1;
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ProgressiveSolver solver(disc, tracer, SolverOptions{});
+    solver.converge(1e-4, 100000);
+    ExactIrradiance exact(disc);
+    exact.setReflected(reflectedRadiosity(disc, solver));
+    HifiMesh mesh;
+    mesh.build(disc, exact);
+    int ballElements = 0;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+        const Element& el = disc.elements()[e];
+        if (el.object != 2) continue;
+        ++ballElements;
+        const int first = mesh.first(static_cast<int>(e)),
+                  last = mesh.first(static_cast<int>(e) + 1);
+        ASSERT_GT(last, first) << "ball element " << e << " has no triangles";
+        const Rgb truth = exact.irradiance(el.centroid, el.normal);
+        for (int t = first; t < last; ++t) {
+            const QuadraticInterpolant& q = mesh.triangles()[t].irradiance;
+            for (int k = 0; k < 5; ++k)
+                EXPECT_NEAR(glm::length(q.c[k]), 0.0, 1e-12)
+                    << "element " << e << " coefficient " << k;
+            EXPECT_NEAR(q.c[5].x, truth.x, 1e-9 * (1 + truth.x)) << "element " << e;
+        }
+    }
+    EXPECT_GT(ballElements, 50);
+    EXPECT_EQ(mesh.stats().singleSampleElements, ballElements);
 }
 
 TEST(HifiMesh, ACancelledBuildStopsEarlyAndSaysSo) {

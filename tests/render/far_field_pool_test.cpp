@@ -1,0 +1,94 @@
+// The far field's pooling (render/far_field_pool.h): the grid of cells per plane finds the
+// same neighbours as testing every sample against every other, and the local linear fit
+// reproduces a linear field exactly.
+
+#include "render/far_field_pool.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/random.h"
+
+namespace penumbra {
+namespace {
+
+/// Samples scattered over a floor (two objects' planes at y = 0, one of them with a second,
+/// parallel face at y = 0.3 sharing its plane id), a wall and a tilted panel, open and near
+/// ones mixed, each carrying a linear field plus noise.
+std::vector<FarFieldSample> scatteredSamples(double noise, std::uint64_t seed) {
+    SplitMix random(seed);
+    std::vector<FarFieldSample> samples;
+    const Vec3 tilted = glm::normalize(Vec3(0.3, 1, 0.2));
+    auto field = [](const Vec3& x) { return Rgb(1 + 0.5 * x.x, 2 - 0.25 * x.z, 0.5 + x.y); };
+    for (int i = 0; i < 3000; ++i) {
+        FarFieldSample s;
+        const double u = 2 * random.next(), v = 2 * random.next();
+        switch (i % 4) {
+            case 0:
+                s.x = Vec3(u, 0, v), s.n = Vec3(0, 1, 0), s.plane = 0;
+                break;
+            case 1:
+                s.x = Vec3(u, i % 8 == 1 ? 0.3 : 0.0, v), s.n = Vec3(0, 1, 0), s.plane = 1;
+                break;
+            case 2:
+                s.x = Vec3(0, u, v), s.n = Vec3(1, 0, 0), s.plane = 2;
+                break;
+            default: {
+                const Vec3 t = glm::normalize(glm::cross(tilted, Vec3(1, 0, 0)));
+                const Vec3 b = glm::cross(tilted, t);
+                s.x = Vec3(1, 1, 1) + (u - 1) * t + (v - 1) * b;
+                s.n = tilted;
+                s.plane = 3;
+            }
+        }
+        s.open = random.next() < 0.7;
+        s.near = Rgb(0.1 * random.next());
+        s.indirect = field(s.x) + Rgb(noise * (random.next() - 0.5));
+        samples.push_back(s);
+    }
+    return samples;
+}
+
+TEST(FarFieldPool, TheGridFindsWhatTestingEverySampleFinds) {
+    const std::vector<FarFieldSample> samples = scatteredSamples(0.2, 7);
+    for (const auto& [radius, nearRadius] : {std::pair{0.2, 0.1}, {0.35, 0.0}, {0.05, 0.05}}) {
+        const PooledFarField grid = poolFarField(samples, radius, nearRadius, PoolSearch::Grid);
+        const PooledFarField every = poolFarField(samples, radius, nearRadius, PoolSearch::Every);
+        int fitted = 0;
+        for (std::size_t i = 0; i < samples.size(); ++i) {
+            ASSERT_EQ(grid.fitted[i], every.fitted[i])
+                << "sample " << i << " radius " << radius << " near radius " << nearRadius;
+            if (!grid.fitted[i]) continue;
+            ++fitted;
+            for (int c = 0; c < 3; ++c)
+                ASSERT_NEAR(grid.value[i][c], every.value[i][c], 1e-9 * (1 + every.value[i][c]))
+                    << "sample " << i << " channel " << c << " radius " << radius;
+        }
+        // Most samples have neighbours enough, except with the smallest radius.
+        if (radius > 0.1) {
+            EXPECT_GT(fitted, static_cast<int>(samples.size()) / 2) << radius;
+        }
+    }
+}
+
+TEST(FarFieldPool, ALinearFieldIsFittedExactlyAndParallelFacesDoNotMix) {
+    // Without noise the fit of each sample's plane is the field at the sample, less its own
+    // near part; the face at y = 0.3 shares a plane id with the floor's and its field differs
+    // (it holds x.y), so a sample that mixed them would be off.
+    const std::vector<FarFieldSample> samples = scatteredSamples(0.0, 11);
+    const PooledFarField pooled = poolFarField(samples, 0.3, 0.3);
+    int fitted = 0;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        if (!pooled.fitted[i]) continue;
+        ++fitted;
+        const Rgb expected = glm::max(samples[i].indirect - samples[i].near, Rgb(0.0));
+        for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(pooled.value[i][c], expected[c], 1e-9)
+                << "sample " << i << " channel " << c;
+    }
+    EXPECT_GT(fitted, 2000);
+}
+
+}  // namespace
+}  // namespace penumbra
