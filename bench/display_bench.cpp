@@ -70,6 +70,11 @@ struct CaseResult {
     std::size_t steadyPoints = 0;
     bool steadyFull = false;  ///< false: kFillFrames did not fill the cache
     int fillFrames = 0;
+    /// Still frames after the steady state: the camera of its last frame, the cache full;
+    /// the reprojection incremental (RenderCacheOptions::incremental) where it applies.
+    DisplayStageTimes still;
+    int stillIncremental = 0;
+    double stillReprojectedPixels = 0;
 };
 
 void add(DisplayStageTimes& sum, const DisplayStageTimes& t, double w) {
@@ -79,6 +84,8 @@ void add(DisplayStageTimes& sum, const DisplayStageTimes& t, double w) {
     sum.projectMs += w * t.projectMs;
     sum.rasterizeMs += w * t.rasterizeMs;
     sum.pointsMs += w * t.pointsMs;
+    sum.insertMs += w * t.insertMs;
+    sum.reprojectMs += w * t.reprojectMs;
     sum.reachabilityMs += w * t.reachabilityMs;
     sum.interpolateMs += w * t.interpolateMs;
     sum.antiAliasMs += w * t.antiAliasMs;
@@ -231,6 +238,17 @@ void measureSteadyState(InteractiveDisplay& display, const Camera& camera,
     }
     res.steadyPoints = display.cache().points().size();
     res.steadyFull = res.steadyPoints >= capacity;
+    // The camera stops: the same new samples a frame, the reprojection redoing only the
+    // pixels they reach (after two frames that keep what it starts from).
+    const CameraRays still(orbitCamera(camera, options.degPerFrame * (k - 1)), W, H);
+    for (int f = 0; f < 2; ++f) display.renderFrame(still, true);
+    for (int f = 0; f < kSteadyFrames; ++f) {
+        display.renderFrame(still, true);
+        add(res.still, display.lastFrame().times, 1.0 / kSteadyFrames);
+        res.stillIncremental += display.cache().lastReprojectionIncremental();
+        res.stillReprojectedPixels +=
+            static_cast<double>(display.lastFrame().reprojectedPixels) / kSteadyFrames;
+    }
 }
 
 /// The case's JSON report: its figures, the display options that matter, and `frames`.
@@ -265,6 +283,12 @@ nlohmann::json caseJson(const CaseResult& res, const InteractiveDisplayOptions& 
             {"steady_total_ms", res.steady.totalMs},
             {"steady_points_ms", res.steady.pointsMs},
             {"steady_shade_ms", res.steady.shadeMs},
+            {"steady_reproject_ms", res.steady.reprojectMs},
+            {"still_reproject_ms", res.still.reprojectMs},
+            {"still_points_ms", res.still.pointsMs},
+            {"still_total_ms", res.still.totalMs},
+            {"still_incremental_frames", res.stillIncremental},
+            {"still_reprojected_pixels", res.stillReprojectedPixels},
             {"steady_stages_ms",
              {{"silhouette", res.steady.silhouetteMs},
               {"shadow", res.steady.shadowMs},
@@ -374,6 +398,14 @@ void printTable(const std::vector<CaseResult>& results, const DisplayBenchOption
             "%.1f fps, %.1f ms a frame of which points %.1f ms)\n",
             r.steadyFull ? "full" : "NOT yet full", r.steadyPoints, r.fillFrames,
             1000 / r.steady.totalMs, r.steady.totalMs, r.steady.pointsMs);
+        std::printf(
+            "       (still camera, the cache full: reprojection %.2f ms against %.2f ms while "
+            "the camera moves, %.1fx; %d of %d frames incremental, %.0f of %d pixels redone; "
+            "%.1f ms a frame)\n",
+            r.still.reprojectMs, r.steady.reprojectMs,
+            r.still.reprojectMs > 0 ? r.steady.reprojectMs / r.still.reprojectMs : 0.0,
+            r.stillIncremental, kSteadyFrames, r.stillReprojectedPixels,
+            options.width * options.height, r.still.totalMs);
         std::printf(
             "    epi error >= 30%% below cache          : %6.1f%% below (%.4f vs %.4f) "
             "%s\n",

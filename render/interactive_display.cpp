@@ -37,10 +37,11 @@ std::string DisplayStageTimes::toString() const {
     s << "DisplayStageTimes{edges " << findEdgesMs << " ms (silhouettes " << silhouetteMs
       << ", shadows " << shadowMs << ", project " << projectMs << "), rasterize " << rasterizeMs
       << ", points " << pointsMs << " (relight " << relightMs << ", hide " << hideMs
-      << ", shadow drop " << shadowDropMs << " (re-shade " << shadowReshadeMs << ")), reach "
-      << reachabilityMs << ", interp " << interpolateMs << ", aa " << antiAliasMs << ", complex "
-      << complexFilterMs << ", smooth " << smoothMs << ", fill " << fillMs << ", request "
-      << requestMs << ", total " << totalMs << ", shade " << shadeMs << "}";
+      << ", shadow drop " << shadowDropMs << " (re-shade " << shadowReshadeMs << "), insert "
+      << insertMs << ", reproject " << reprojectMs << "), reach " << reachabilityMs << ", interp "
+      << interpolateMs << ", aa " << antiAliasMs << ", complex " << complexFilterMs << ", smooth "
+      << smoothMs << ", fill " << fillMs << ", request " << requestMs << ", total " << totalMs
+      << ", shade " << shadeMs << "}";
     return s.str();
 }
 
@@ -51,9 +52,9 @@ std::string DisplayFrameStats::toString() const {
       << screenEdges << " on screen, " << visiblePoints << " points, " << newSamples << " new ("
       << newSampleFraction << "), " << requestedSamples << " requested, pixels " << emptyPixels
       << " empty / " << simplePixels << " simple / " << complexPixels << " complex, "
-      << unsampledPixels << " unsampled (" << unfilledPixels << " unfilled), "
-      << reconstructedPixels << " reconstructed, " << droppedShadowed << " dropped in moved shadows"
-      << (usedEdges ? "" : ", no edges") << "}";
+      << unsampledPixels << " unsampled (" << unfilledPixels << " unfilled), " << reprojectedPixels
+      << " reprojected, " << reconstructedPixels << " reconstructed, " << droppedShadowed
+      << " dropped in moved shadows" << (usedEdges ? "" : ", no edges") << "}";
     return s.str();
 }
 
@@ -222,7 +223,9 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
             if (p.element >= 0 && static_cast<std::size_t>(p.element) < mChangedAt.size() &&
                 p.shading < mChangedAt[p.element])
                 p.stale = true;
+        const auto insertStart = Clock::now();
         mCache.insert(done);
+        st.times.insertMs = msSince(insertStart);
         mInsertedSinceFrame += done.size();
     }
     st.newSamples = mInsertedSinceFrame;
@@ -230,9 +233,12 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
 
     // Reproject the cache to this camera (Walter et al. 1999), its visible points written
     // straight into the EPI's point arrays (§4.3).
+    const auto reprojectStart = Clock::now();
     mCache.reproject(camera, mEpi.pointArrays());
+    st.times.reprojectMs = msSince(reprojectStart);
     st.frame = mCache.frame();
     st.visiblePoints = mCache.visibleCount();
+    st.reprojectedPixels = mCache.lastReprojectedPixels();
     st.times.pointsMs = msSince(t);
 
     // Edges (§6): silhouettes and forward-facing sharp edges per frame, shadow edges kept until

@@ -62,6 +62,8 @@ struct DisplayStageTimes {
     double hideMs = 0;           ///<   of which hiding the points behind a moving object
     double shadowDropMs = 0;     ///<   of which dropping the points a drag's move shadowed
     double shadowReshadeMs = 0;  ///<     of which re-shading some of them in the frame
+    double insertMs = 0;         ///<   of which inserting the shaded points
+    double reprojectMs = 0;      ///<   of which the reprojection (RenderCache::reproject)
     double reachabilityMs = 0;   ///< §5.2
     double interpolateMs = 0;    ///< §5.3
     double antiAliasMs = 0;      ///< §5.3
@@ -101,6 +103,9 @@ struct DisplayFrameStats {
     /// InteractiveDisplayOptions::windowedFrames the window its changes reach (0: nothing
     /// changed, the last image again).
     std::size_t reconstructedPixels = 0;
+    /// Pixels the render cache's reprojection redid (RenderCache::lastReprojectedPixels: the
+    /// raster's, or with a still camera those its changed points reach).
+    std::size_t reprojectedPixels = 0;
     bool usedEdges = true;
     std::string toString() const;
 };

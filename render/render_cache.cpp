@@ -67,6 +67,9 @@ RenderCache::RenderCache(int width, int height, std::size_t capacity, RenderCach
     mScreenOfPixel.assign(pixels, -1);
     mPriority.assign(pixels, 1.0);
     mRequested.assign(pixels, 0);
+    mDirty.assign(pixels, 0);
+    mAffected.assign(pixels, 0);
+    mRowVisible.assign(static_cast<std::size_t>(height), 0);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -206,6 +209,7 @@ std::vector<std::uint8_t> RenderCache::mergeIntoPixels(const std::vector<ShadedP
         if (!built)
             mPendingOriginals.push_back(
                 {static_cast<std::size_t>(y) * mWidth + x, q.colour, q.position, trustOf(q)});
+        touch(static_cast<std::size_t>(i));
         if (q.shading != s.shading) {
             // Shaded under other lighting (a solution update, a drag step): the new sample
             // replaces the mean, which would otherwise lag behind the change.
@@ -281,10 +285,12 @@ void RenderCache::insert(const std::vector<ShadedPoint>& all) {
             mBorn.emplace_back();
             mVisible.emplace_back();
             mFlags.emplace_back();
+            mTouched.emplace_back();
         } else {
             slot = static_cast<std::size_t>(slots[v++]);
             mPoints[slot] = toCache(batch[i]);
         }
+        touch(slot);
         mPosition[slot] = batch[i].position;
         mBorn[slot] = mFrame;  // age 0 in the next reprojection
         mVisible[slot] = 1;    // new points count as visible
@@ -312,6 +318,7 @@ void checkRaster(const CameraRays& camera, int width, int height) {
 const std::vector<ScreenPoint>& RenderCache::reproject(const CameraRays& camera) {
     checkRaster(camera, mWidth, mHeight);
     ++mFrame;
+    mIncrementalValid = false;  // no EPI arrays to update next time
     if (mOptions.parallel) {
         reprojectParallel(camera, nullptr);
     } else {
@@ -331,9 +338,11 @@ void RenderCache::reproject(const CameraRays& camera, const EpiPointArrays& poin
     }
     ++mFrame;
     if (mOptions.parallel) {
+        if (mOptions.incremental && reprojectIncremental(camera, points)) return;
         reprojectParallel(camera, &points);
         return;
     }
+    mIncrementalValid = false;
     // The serial reference: the list, then placed as EdgePointImage::build places it.
     reprojectSerial(camera);
     for (std::size_t k = 0; k < mScreenOfPixel.size(); ++k) {
@@ -412,6 +421,10 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
     mLuminanceHi.assign(mPixelPoint.size(), -1e300);
     mPixelAge.resize(mPixelPoint.size());
     noteView(camera);
+    std::fill(mTouched.begin(), mTouched.end(), 0);
+    std::fill(mDirty.begin(), mDirty.end(), 0);
+    mIncrementalFrame = false;
+    mReprojectedPixels = mPixelPoint.size();
     for (std::size_t k = 0; k < mPixelPoint.size(); ++k) {
         const int i = mPixelPoint[k];
         if (i < 0) continue;
@@ -435,11 +448,16 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
     mProj.resize(n);
     mPixelDepth.resize(pixels);
     mPixelAge.resize(pixels);
+    const bool still = mLastCamera && *mLastCamera == camera;
     noteView(camera);
     mLuminance.resize(pixels);
     mLuminanceHi.resize(pixels);
     mRowCount.resize(static_cast<std::size_t>(mHeight) + 1);
     std::fill(mVisible.begin(), mVisible.end(), 0);
+    std::fill(mTouched.begin(), mTouched.end(), 0);
+    std::fill(mDirty.begin(), mDirty.end(), 0);
+    mIncrementalFrame = false;
+    mReprojectedPixels = pixels;
     const int bands = std::min(mHeight, 8);
     const std::size_t chunks = (n + kProjectChunk - 1) / kProjectChunk;
     projectPoints(camera, bands, chunks);
@@ -447,7 +465,24 @@ void RenderCache::reprojectParallel(const CameraRays& camera, const EpiPointArra
     zBufferBands(bands);
     cullOccludedPoints();
     writeVisiblePixels(camera, epi);
+    // A camera that did not move is likely to stay: keep what the next frame's incremental
+    // reprojection starts from.
+    if (epi && still && mOptions.incremental)
+        keepForIncremental(*epi);
+    else
+        mIncrementalValid = false;
     computePriority();
+}
+
+bool RenderCache::projectOne(const CameraRays& camera, const Vec3& position, double& depth,
+                             int& pixel) const {
+    const auto p = camera.projectToPixel(position);
+    if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) return false;
+    depth = glm::dot(position - camera.origin(), camera.forward());
+    const int x = std::min(static_cast<int>(p->x), mWidth - 1);
+    const int y = std::min(static_cast<int>(p->y), mHeight - 1);
+    pixel = y * mWidth + x;
+    return true;
 }
 
 void RenderCache::projectPoints(const CameraRays& camera, int bands, std::size_t chunks) {
@@ -472,13 +507,8 @@ void RenderCache::projectPoints(const CameraRays& camera, int bands, std::size_t
             proj.age = pointAge(i);
             mProjBand[i] = 0xFF;
             if (mFlags[i] & kHiddenFlag) continue;  // behind a moving object (setHidden)
-            const auto p = camera.projectToPixel(position);
-            if (!p || !(p->x >= 0 && p->x < mWidth && p->y >= 0 && p->y < mHeight)) continue;
-            proj.depth = glm::dot(position - camera.origin(), camera.forward());
-            const int x = std::min(static_cast<int>(p->x), mWidth - 1);
-            const int y = std::min(static_cast<int>(p->y), mHeight - 1);
-            proj.pixel = y * mWidth + x;
-            const std::uint8_t b = mRowBand[y];
+            if (!projectOne(camera, position, proj.depth, proj.pixel)) continue;
+            const std::uint8_t b = mRowBand[proj.pixel / mWidth];
             mProjBand[i] = b;
             ++count[b];
         }
@@ -544,6 +574,28 @@ void RenderCache::zBufferBands(int bands) {
     });
 }
 
+int RenderCache::culledPoint(const std::vector<int>& zPoint, int x, int y) const {
+    const int rad = std::max(0, mOptions.depthRadius);
+    const double margin = 1 + mOptions.depthMargin;
+    const int k = y * mWidth + x;
+    if (zPoint[k] < 0) return -1;
+    const double self = mPixelDepth[k];
+    int neighbours = 0, nearer = 0;
+    for (int dy = -rad; dy <= rad; ++dy) {
+        const int yy = y + dy;
+        if (yy < 0 || yy >= mHeight) continue;
+        for (int dx = -rad; dx <= rad; ++dx) {
+            const int xx = x + dx;
+            if ((dx == 0 && dy == 0) || xx < 0 || xx >= mWidth) continue;
+            const int q = yy * mWidth + xx;
+            if (zPoint[q] < 0) continue;
+            ++neighbours;
+            nearer += mPixelDepth[q] * margin < self;
+        }
+    }
+    return nearer > 0 && 2 * nearer >= neighbours ? -1 : zPoint[k];
+}
+
 void RenderCache::cullOccludedPoints() {
     const std::size_t pixels = static_cast<std::size_t>(mWidth) * mHeight;
     // Depth culling as in reprojectSerial(), on pixel-indexed depths, branch-free for inner
@@ -554,25 +606,7 @@ void RenderCache::cullOccludedPoints() {
     mFiltered.resize(pixels);
     tbb::parallel_for(0, mHeight, [&](int y) {
         // Any pixel and radius: the point or −1 when culled.
-        auto cullAt = [&](int x) {
-            const int k = y * mWidth + x;
-            if (mPixelPoint[k] < 0) return -1;
-            const double self = mPixelDepth[k];
-            int neighbours = 0, nearer = 0;
-            for (int dy = -rad; dy <= rad; ++dy) {
-                const int yy = y + dy;
-                if (yy < 0 || yy >= mHeight) continue;
-                for (int dx = -rad; dx <= rad; ++dx) {
-                    const int xx = x + dx;
-                    if ((dx == 0 && dy == 0) || xx < 0 || xx >= mWidth) continue;
-                    const int q = yy * mWidth + xx;
-                    if (mPixelPoint[q] < 0) continue;
-                    ++neighbours;
-                    nearer += mPixelDepth[q] * margin < self;
-                }
-            }
-            return nearer > 0 && 2 * nearer >= neighbours ? -1 : mPixelPoint[k];
-        };
+        auto cullAt = [&](int x) { return culledPoint(mPixelPoint, x, y); };
         const std::size_t row = static_cast<std::size_t>(y) * mWidth;
         int* __restrict filtered = &mFiltered[row];
         int survivors = 0;

@@ -89,6 +89,13 @@ struct RenderCacheOptions {
     /// requestSamples() over tiles; false runs the plain serial references. Both give
     /// bit-identical results.
     bool parallel = true;
+    /// A still camera (the parallel reprojection into an EPI's arrays, the same camera and
+    /// arrays as the last one): only the pixels the points changed since then reach (their
+    /// old and new pixels and, for the culling, the neighbours) are redone, at a cost in
+    /// proportion to the changes instead of the cache. The result equals a whole reprojection
+    /// bit for bit; beyond incrementalShare of the points changed, the whole one runs.
+    bool incremental = true;
+    double incrementalShare = 0.25;
 };
 
 class RenderCache {
@@ -134,6 +141,10 @@ public:
     }
     /// How many points the last reproject() kept (screenPoints().size()).
     std::size_t visibleCount() const { return mVisibleCount; }
+    /// Whether the last reproject() redid only the changed pixels (RenderCacheOptions::
+    /// incremental), and how many pixels it redid then.
+    bool lastReprojectionIncremental() const { return mIncrementalFrame; }
+    std::size_t lastReprojectedPixels() const { return mReprojectedPixels; }
     /// Per pixel (y·width + x): index into points() of its visible point, or −1. Valid until the
     /// next insert() or invalidation.
     const std::vector<int>& pixelPoints() const { return mPixelPoint; }
@@ -266,10 +277,32 @@ private:
     /// rows in parallel; leaves the survivors in mPixelPoint and their count per row in
     /// mRowCount[y + 1].
     void cullOccludedPoints();
+    /// Pixel (x, y)'s point of the z-buffer `zPoint` (depths in mPixelDepth) after depth
+    /// culling: −1 when culled or empty.
+    int culledPoint(const std::vector<int>& zPoint, int x, int y) const;
+    /// `position`'s view depth and pixel for `camera`; false when it falls off the raster.
+    bool projectOne(const CameraRays& camera, const Vec3& position, double& depth,
+                    int& pixel) const;
     /// reprojectParallel(): the visible pixels' output, rows in parallel from mRowCount's
     /// offsets: the screen point list, or with `epi` its arrays (the list left pending), and
     /// the luminance the priority reads.
     void writeVisiblePixels(const CameraRays& camera, const EpiPointArrays* epi);
+    /// reprojectParallel() into an EPI with the camera of the frame before: the pixel lists
+    /// and the pre-culling z-buffer an incremental reprojection starts from.
+    void keepForIncremental(const EpiPointArrays& epi);
+    /// The incremental reprojection (RenderCacheOptions::incremental) when it applies; false
+    /// when the whole one must run.
+    bool reprojectIncremental(const CameraRays& camera, const EpiPointArrays& epi);
+    /// Point i changes (insert, merge, relight, carry, hide, …): its old and new pixels are
+    /// redone by the next incremental reprojection.
+    void touch(std::size_t i) { mTouched[i] = 1; }
+    /// dropIf() while the incremental state is kept: the dropped points' pixels are redone,
+    /// the lists and per-point projections follow the compaction (`keptIn`: survivors before
+    /// each chunk of `chunk` points, mDropFlags marking the dropped).
+    void compactIncremental(const std::vector<std::size_t>& keptIn, std::size_t chunk);
+    /// The projection arrays (mProj, mProjBand, mNextInPixel, mTouched) sized as the points,
+    /// points appended since the last reprojection off screen and touched.
+    void growPerPointArrays();
     /// The priority image from the visible pixels' luminance (mLuminance, mLuminanceHi) and
     /// ages (mPixelAge), which both reprojections fill.
     void computePriority();
@@ -410,6 +443,24 @@ private:
     std::vector<std::uint32_t> mChunkBandCount;  ///< per chunk of points and band: count, then slot
     std::vector<std::uint32_t> mBandStart;       ///< per band: first entry in mBandPoints
     std::vector<BandEntry> mBandPoints;          ///< on-screen points by band, in index order
+    // The incremental reprojection's state (kept by a whole reprojection into an EPI whose
+    // camera did not move; mIncrementalValid while it describes the cache).
+    bool mIncrementalValid = false;
+    bool mIncrementalFrame = false;
+    std::size_t mReprojectedPixels = 0;
+    EpiPointArrays mIncrementalEpi;       ///< the arrays the last reprojection wrote
+    std::vector<int> mZPoint;             ///< per pixel: the z-buffer's point before culling
+    std::vector<int> mShownPoint;         ///< per pixel: its visible point after culling
+    std::vector<int> mPixelHead;          ///< per pixel: first point projecting there, −1
+    std::vector<int> mNextInPixel;        ///< per point: next point of its pixel's list
+    std::vector<std::uint8_t> mTouched;   ///< per point: changed since the last reprojection
+    std::vector<std::uint8_t> mDirty;     ///< per pixel: its points changed
+    std::vector<std::uint8_t> mAffected;  ///< per pixel: scratch of the incremental pass
+    std::vector<int> mRowVisible;         ///< per row: visible points
+    std::vector<int> mRemap;              ///< compactIncremental(): old index → new, −1 dropped
+    std::vector<ProjectedPoint> mProjScratch;  ///< compactIncremental()'s compacted arrays
+    std::vector<std::uint8_t> mProjBandScratch, mTouchedScratch;
+    std::vector<int> mNextScratch;
     // Scratch of dropIf(): per point whether it goes, and the compacted arrays before they
     // are swapped in (kept between drops: a drag drops points every frame).
     std::vector<std::uint8_t> mDropFlags;

@@ -41,7 +41,9 @@ std::size_t RenderCache::dropIf(Drop drop) {
     const std::size_t kept = keptIn[chunks];
     if (kept == before) return 0;
     if (mScreenPending) buildScreenPoints();
+    if (mIncrementalValid) compactIncremental(keptIn, kChunk);
     mPointsScratch.resize(kept);
+    mTouchedScratch.resize(kept);
     mPositionScratch.resize(kept);
     mBornScratch.resize(kept);
     mVisibleScratch.resize(kept);
@@ -55,6 +57,7 @@ std::size_t RenderCache::dropIf(Drop drop) {
             mBornScratch[to] = mBorn[i];
             mVisibleScratch[to] = mVisible[i];
             mFlagsScratch[to] = mFlags[i];
+            mTouchedScratch[to] = mTouched[i];
             ++to;
         }
     });
@@ -63,6 +66,7 @@ std::size_t RenderCache::dropIf(Drop drop) {
     mBorn.swap(mBornScratch);
     mVisible.swap(mVisibleScratch);
     mFlags.swap(mFlagsScratch);
+    mTouched.swap(mTouchedScratch);
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
     restartRequestCounts();
     return before - kept;
@@ -107,8 +111,12 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
             CachePoint& p = mPoints[i];
             if (p.element < 0) continue;
             const auto e = static_cast<std::size_t>(p.element);
-            if (e < delta.size()) p.colour += delta[e];
+            if (e < delta.size() && delta[e] != Rgb(0.0)) {
+                p.colour += delta[e];
+                touch(i);
+            }
             if (e < stale.size() && stale[e]) {
+                if (!(mFlags[i] & kStaleFlag)) touch(i);
                 mFlags[i] |= kStaleFlag;
                 ++changed;
             }
@@ -133,6 +141,7 @@ std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromF
         p.element += elementOffset;
         mPosition[i] = p.position;
         mFlags[i] |= kStaleFlag | kCarriedFlag;
+        touch(i);
         ++moved;
     }
     return moved;
@@ -143,6 +152,7 @@ std::size_t RenderCache::markStale(const std::unordered_set<int>& objects) {
     std::size_t marked = 0;
     for (std::size_t i = 0; i < mPoints.size(); ++i)
         if (objects.count(mPoints[i].object)) {
+            if (!(mFlags[i] & kStaleFlag)) touch(i);
             mFlags[i] |= kStaleFlag;
             ++marked;
         }
@@ -157,6 +167,7 @@ std::size_t RenderCache::setHidden(
         std::size_t here = 0;
         for (std::size_t i = c * 4096; i < std::min(n, (c + 1) * 4096); ++i) {
             const bool h = hidden && hidden(mPosition[i], mPoints[i].object);
+            if (h != ((mFlags[i] & kHiddenFlag) != 0)) touch(i);
             mFlags[i] =
                 static_cast<std::uint8_t>((mFlags[i] & ~kHiddenFlag) | (h ? kHiddenFlag : 0));
             here += h;

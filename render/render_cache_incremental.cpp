@@ -1,0 +1,299 @@
+// RenderCache's incremental reprojection (RenderCacheOptions::incremental): with a still camera
+// a frame redoes only the pixels its changed points reach, and equals the whole reprojection
+// bit for bit. See render_cache.h.
+//
+// What the whole reprojection into an EPI keeps when the camera did not move
+// (keepForIncremental): per pixel the list of points projecting there (in index order), the
+// z-buffer's point before culling and the visible one after; per point its projection. Every
+// change to a point touches it (touch()); dropIf() renumbers the lists (compactIncremental()).
+// The next reprojection with the same camera and arrays then:
+//   1. takes each touched point out of its old pixel's list and into its new one's, both
+//      pixels dirty;
+//   2. redoes the z-buffer of the dirty pixels from their lists in index order (the whole
+//      z-buffer's order, which decides near-equal depths), and ages every other pixel's point
+//      by a frame, as the whole reprojection's ages do;
+//   3. redoes the culling, the visible points and their EPI samples in the dirty pixels and
+//      their culling neighbourhoods, which are all the culling reads from the dirty ones;
+//   4. recomputes the priority image (whole: it is cheap and every age moved).
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <limits>
+
+#include "render/render_cache.h"
+
+namespace penumbra {
+
+namespace {
+
+/// As render_cache.cpp: near-equal depths (within this fraction) go to the younger point, and
+/// a pixel without a point has this depth.
+constexpr double kSameSurface = 0.01;
+constexpr double kNoDepth = std::numeric_limits<double>::infinity();
+
+/// The indices where `flags` is set, ascending, gathered in parallel.
+std::vector<int> setIndices(const std::vector<std::uint8_t>& flags) {
+    constexpr std::size_t kChunk = 1 << 15;
+    const std::size_t n = flags.size();
+    const std::size_t chunks = (n + kChunk - 1) / kChunk;
+    std::vector<std::vector<int>> found(chunks);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        for (std::size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i)
+            if (flags[i]) found[c].push_back(static_cast<int>(i));
+    });
+    std::vector<int> out;
+    for (const auto& f : found) out.insert(out.end(), f.begin(), f.end());
+    return out;
+}
+
+}  // namespace
+
+void RenderCache::growPerPointArrays() {
+    const std::size_t n = mPoints.size();
+    if (mProj.size() < n) mProj.resize(n);
+    if (mProjBand.size() < n) mProjBand.resize(n, 0xFF);
+    if (mNextInPixel.size() < n) mNextInPixel.resize(n, -1);
+}
+
+void RenderCache::keepForIncremental(const EpiPointArrays& epi) {
+    const std::size_t pixels = static_cast<std::size_t>(mWidth) * mHeight;
+    // cullOccludedPoints() swapped the z-buffer out: mFiltered holds it before culling.
+    mZPoint.swap(mFiltered);
+    mShownPoint = mPixelPoint;
+    mPixelHead.assign(pixels, -1);
+    mNextInPixel.resize(mPoints.size());
+    // Each band's entries are in index order: pushed to the front from the last, each
+    // pixel's list comes out ascending. Bands own disjoint pixels.
+    const int bands = static_cast<int>(mBandStart.size()) - 1;
+    tbb::parallel_for(0, bands, [&](int band) {
+        for (std::uint32_t j = mBandStart[band + 1]; j-- > mBandStart[band];) {
+            const BandEntry& e = mBandPoints[j];
+            mNextInPixel[e.point] = mPixelHead[e.pixel];
+            mPixelHead[e.pixel] = e.point;
+        }
+    });
+    for (int y = 0; y < mHeight; ++y) mRowVisible[y] = mRowCount[y + 1] - mRowCount[y];
+    mIncrementalEpi = epi;
+    mIncrementalValid = true;
+}
+
+bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointArrays& epi) {
+    if (!mIncrementalValid || !mLastCamera || !(*mLastCamera == camera) ||
+        epi.depth != mIncrementalEpi.depth || epi.colour != mIncrementalEpi.colour ||
+        epi.position != mIncrementalEpi.position || epi.trust != mIncrementalEpi.trust)
+        return false;
+    const std::size_t n = mPoints.size();
+    growPerPointArrays();
+    const std::vector<int> touched = setIndices(mTouched);
+    if (n == 0 || static_cast<double>(touched.size()) > mOptions.incrementalShare * n) return false;
+
+    // 1. The touched points leave their old pixels' lists and join their new ones'.
+    auto unlink = [&](int i, int k) {
+        int* at = &mPixelHead[k];
+        while (*at >= 0 && *at != i) at = &mNextInPixel[*at];
+        if (*at == i) *at = mNextInPixel[i];
+    };
+    for (int i : touched)
+        if (mProjBand[i] != 0xFF) {
+            unlink(i, mProj[i].pixel);
+            mDirty[mProj[i].pixel] = 1;
+        }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, touched.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t t = r.begin(); t != r.end(); ++t) {
+                              const int i = touched[t];
+                              ProjectedPoint& proj = mProj[i];
+                              const bool on =
+                                  !(mFlags[i] & kHiddenFlag) &&
+                                  projectOne(camera, mPosition[i], proj.depth, proj.pixel);
+                              mProjBand[i] = on ? 0 : 0xFF;
+                          }
+                      });
+    for (int i : touched)
+        if (mProjBand[i] != 0xFF) {
+            const int k = mProj[i].pixel;
+            mNextInPixel[i] = mPixelHead[k];
+            mPixelHead[k] = i;
+            mDirty[k] = 1;
+        }
+
+    // 2. Every point a frame older (stale and carried ones keep their ages), then the dirty
+    // pixels' z-buffer from their lists.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mPixelAge.size(), 1 << 15),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          int* __restrict age = mPixelAge.data();
+                          for (std::size_t k = r.begin(); k != r.end(); ++k)
+                              age[k] += age[k] < kStaleAge ? 1 : 0;
+                      });
+    const std::vector<int> dirty = setIndices(mDirty);
+    // Per dirty pixel: whether its z-buffer depth (a pixel without a point: kNoDepth) moved,
+    // the one thing its neighbours' culling reads of it.
+    std::vector<std::uint8_t> depthMoved(dirty.size());
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, dirty.size(), 256),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            std::vector<int> candidates;
+            for (std::size_t d = r.begin(); d != r.end(); ++d) {
+                const int k = dirty[d];
+                candidates.clear();
+                for (int j = mPixelHead[k]; j >= 0; j = mNextInPixel[j]) candidates.push_back(j);
+                std::sort(candidates.begin(), candidates.end());
+                int cur = -1, curAge = 0;
+                double curDepth = kNoDepth;
+                for (int j : candidates) {
+                    const double depth = mProj[j].depth;
+                    const int age = pointAge(static_cast<std::size_t>(j));
+                    if (cur >= 0 && !(depth < curDepth * (1 - kSameSurface) ||
+                                      (depth <= curDepth * (1 + kSameSurface) && age < curAge)))
+                        continue;
+                    cur = j;
+                    curDepth = depth;
+                    curAge = age;
+                }
+                mZPoint[k] = cur;
+                depthMoved[d] = mPixelDepth[k] != curDepth;
+                mPixelDepth[k] = curDepth;
+                if (cur >= 0) mPixelAge[k] = curAge;
+            }
+        });
+
+    // 3. The dirty pixels and those whose culling reads a dirty one's moved depth: the
+    // culling, the visible point, its sample in the EPI and the luminance the priority reads.
+    const int rad = std::max(0, mOptions.depthRadius);
+    std::vector<int> affected;
+    affected.reserve(dirty.size() * 2);
+    auto affect = [&](int q) {
+        if (!mAffected[q]) {
+            mAffected[q] = 1;
+            affected.push_back(q);
+        }
+    };
+    for (std::size_t d = 0; d < dirty.size(); ++d) {
+        const int k = dirty[d];
+        affect(k);
+        if (!depthMoved[d]) continue;
+        const int x = k % mWidth, y = k / mWidth;
+        for (int yy = std::max(0, y - rad); yy <= std::min(mHeight - 1, y + rad); ++yy)
+            for (int xx = std::max(0, x - rad); xx <= std::min(mWidth - 1, x + rad); ++xx)
+                affect(yy * mWidth + xx);
+    }
+    std::vector<int> shown(affected.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, affected.size(), 512),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t a = r.begin(); a != r.end(); ++a)
+                              shown[a] =
+                                  culledPoint(mZPoint, affected[a] % mWidth, affected[a] / mWidth);
+                      });
+    // Visibility: the touched points and the former points of the pixels whose point
+    // changed are not visible unless they are shown below. A pixel neither dirty nor showing
+    // another point keeps its sample (its point is untouched).
+    for (int i : touched) mVisible[i] = 0;
+    std::vector<std::uint8_t> rewrite(affected.size());
+    for (std::size_t a = 0; a < affected.size(); ++a) {
+        const int k = affected[a];
+        rewrite[a] = mDirty[k] || shown[a] != mShownPoint[k];
+        if (!rewrite[a]) continue;
+        if (mShownPoint[k] >= 0) {
+            mVisible[mShownPoint[k]] = 0;
+            --mRowVisible[k / mWidth];
+        }
+        if (shown[a] >= 0) ++mRowVisible[k / mWidth];
+        mShownPoint[k] = shown[a];
+    }
+    // A screen point list built since the last reprojection renumbered mScreenOfPixel.
+    if (!mScreenPending) mScreenOfPixel = mShownPoint;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, affected.size(), 512),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t a = r.begin(); a != r.end(); ++a) {
+                              const int k = affected[a];
+                              const int i = shown[a];
+                              mAffected[k] = 0;
+                              if (!rewrite[a]) continue;
+                              mScreenOfPixel[k] = i;
+                              if (i < 0) {
+                                  mLuminance[k] = 1e300;
+                                  mLuminanceHi[k] = -1e300;
+                                  epi.place(k, nullptr);
+                                  continue;
+                              }
+                              const CachePoint& pt = mPoints[i];
+                              mVisible[i] = 1;
+                              const ScreenPoint p{
+                                  camera.projectAtDepth(pt.position, mPixelDepth[k]),
+                                  mPixelDepth[k], pt.colour, mPixelAge[k], trustOf(pt)};
+                              epi.place(k, &p);
+                              mLuminance[k] = mLuminanceHi[k] = luminance(pt.colour);
+                          }
+                      });
+    for (int k : dirty) mDirty[k] = 0;
+    for (int i : touched) mTouched[i] = 0;
+    mRowCount[0] = 0;
+    for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] = mRowCount[y] + mRowVisible[y];
+    mVisibleCount = static_cast<std::size_t>(mRowCount[mHeight]);
+    mPixelPoint = mShownPoint;
+    mScreenPending = true;
+    mPendingOriginals.clear();
+    mScreenCamera = camera;
+    noteView(camera);
+    mIncrementalFrame = true;
+    mReprojectedPixels = static_cast<std::size_t>(std::count(rewrite.begin(), rewrite.end(), 1));
+
+    // 4. The priority image.
+    computePriority();
+    return true;
+}
+
+void RenderCache::compactIncremental(const std::vector<std::size_t>& keptIn, std::size_t chunk) {
+    growPerPointArrays();
+    const std::size_t before = mPoints.size();
+    const std::size_t kept = keptIn.back();
+    mRemap.resize(before);
+    tbb::parallel_for(std::size_t(0), keptIn.size() - 1, [&](std::size_t c) {
+        int to = static_cast<int>(keptIn[c]);
+        for (std::size_t i = c * chunk; i < std::min(before, (c + 1) * chunk); ++i)
+            mRemap[i] = mDropFlags[i] ? -1 : to++;
+    });
+    // Per row of pixels: the lists without the dropped points (their pixels dirty), renumbered,
+    // and the z-buffer's and the visible points renumbered (a dropped visible point leaves
+    // its row's count).
+    mNextScratch.assign(kept, -1);
+    tbb::parallel_for(0, mHeight, [&](int y) {
+        for (int x = 0; x < mWidth; ++x) {
+            const int k = y * mWidth + x;
+            int head = -1;
+            int* tail = &head;
+            for (int j = mPixelHead[k]; j >= 0; j = mNextInPixel[j]) {
+                if (mRemap[j] < 0) {
+                    mDirty[k] = 1;
+                    continue;
+                }
+                *tail = mRemap[j];
+                tail = &mNextScratch[mRemap[j]];
+            }
+            *tail = -1;
+            mPixelHead[k] = head;
+            if (mZPoint[k] >= 0) mZPoint[k] = mRemap[mZPoint[k]];
+            if (mShownPoint[k] >= 0) {
+                mShownPoint[k] = mRemap[mShownPoint[k]];
+                if (mShownPoint[k] < 0) --mRowVisible[y];
+            }
+        }
+    });
+    mNextInPixel.swap(mNextScratch);
+    mProjScratch.resize(kept);
+    mProjBandScratch.resize(kept);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, before, 1 << 15),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i)
+                              if (mRemap[i] >= 0) {
+                                  mProjScratch[mRemap[i]] = mProj[i];
+                                  mProjBandScratch[mRemap[i]] = mProjBand[i];
+                              }
+                      });
+    mProj.swap(mProjScratch);
+    mProjBand.swap(mProjBandScratch);
+}
+
+}  // namespace penumbra
