@@ -296,11 +296,17 @@ private:
     /// Point i changes (insert, merge, relight, carry, hide, …): its old and new pixels are
     /// redone by the next incremental reprojection.
     void touch(std::size_t i) { mTouched[i] = 1; }
-    /// dropIf() while the incremental state is kept: the dropped points' pixels are redone,
-    /// the lists and per-point projections follow the compaction (`keptIn`: survivors before
-    /// each chunk of `chunk` points, mDropFlags marking the dropped).
-    void compactIncremental(const std::vector<std::size_t>& keptIn, std::size_t chunk);
-    /// The projection arrays (mProj, mProjBand, mNextInPixel, mTouched) sized as the points,
+    /// dropIf(), with the incremental state kept: the dropped points (indices, ascending)
+    /// leave their pixels' lists, which are redone.
+    void leavePixels(const std::vector<int>& gone);
+    /// dropIf(): point `from` moves to index `to` (a hole), all its arrays with it.
+    void movePoint(std::size_t from, std::size_t to);
+    /// movePoint() with the incremental state kept: its projection and its place in its
+    /// pixel's list follow it, and the pixel is redone.
+    void movedInPixels(int from, int to);
+    /// Takes point i out of pixel k's list (nothing when it is not there).
+    void unlinkFromPixel(int i, int k);
+    /// The projection arrays (mProj, mProjBand, mNextInPixel) sized as the points,
     /// points appended since the last reprojection off screen and touched.
     void growPerPointArrays();
     /// The priority image from the visible pixels' luminance (mLuminance, mLuminanceHi) and
@@ -457,17 +463,8 @@ private:
     std::vector<std::uint8_t> mDirty;     ///< per pixel: its points changed
     std::vector<std::uint8_t> mAffected;  ///< per pixel: scratch of the incremental pass
     std::vector<int> mRowVisible;         ///< per row: visible points
-    std::vector<int> mRemap;              ///< compactIncremental(): old index → new, −1 dropped
-    std::vector<ProjectedPoint> mProjScratch;  ///< compactIncremental()'s compacted arrays
-    std::vector<std::uint8_t> mProjBandScratch, mTouchedScratch;
-    std::vector<int> mNextScratch;
-    // Scratch of dropIf(): per point whether it goes, and the compacted arrays before they
-    // are swapped in (kept between drops: a drag drops points every frame).
+    /// Scratch of dropIf(): per point whether it goes.
     std::vector<std::uint8_t> mDropFlags;
-    std::vector<CachePoint> mPointsScratch;
-    std::vector<Vec3> mPositionScratch;
-    std::vector<std::uint64_t> mBornScratch;
-    std::vector<std::uint8_t> mVisibleScratch, mFlagsScratch;
     // Scratch of requestSamplesParallel().
     std::vector<double> mEffective;    ///< per pixel: priority, 0 while held back
     std::vector<double> mTileSum;      ///< per tile: summed effective priority

@@ -5,7 +5,8 @@
 // What the whole reprojection into an EPI keeps when the camera did not move
 // (keepForIncremental): per pixel the list of points projecting there (in index order), the
 // z-buffer's point before culling and the visible one after; per point its projection. Every
-// change to a point touches it (touch()); dropIf() renumbers the lists (compactIncremental()).
+// change to a point touches it (touch()); dropIf() takes the dropped points out of their lists
+// and renumbers the ones it moves (leavePixels(), movedInPixels()).
 // The next reprojection with the same camera and arrays then:
 //   1. takes each touched point out of its old pixel's list and into its new one's, both
 //      pixels dirty;
@@ -90,14 +91,9 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
     if (n == 0 || static_cast<double>(touched.size()) > mOptions.incrementalShare * n) return false;
 
     // 1. The touched points leave their old pixels' lists and join their new ones'.
-    auto unlink = [&](int i, int k) {
-        int* at = &mPixelHead[k];
-        while (*at >= 0 && *at != i) at = &mNextInPixel[*at];
-        if (*at == i) *at = mNextInPixel[i];
-    };
     for (int i : touched)
         if (mProjBand[i] != 0xFF) {
-            unlink(i, mProj[i].pixel);
+            unlinkFromPixel(i, mProj[i].pixel);
             mDirty[mProj[i].pixel] = 1;
         }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, touched.size(), 1024),
@@ -245,55 +241,41 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
     return true;
 }
 
-void RenderCache::compactIncremental(const std::vector<std::size_t>& keptIn, std::size_t chunk) {
+void RenderCache::leavePixels(const std::vector<int>& gone) {
     growPerPointArrays();
-    const std::size_t before = mPoints.size();
-    const std::size_t kept = keptIn.back();
-    mRemap.resize(before);
-    tbb::parallel_for(std::size_t(0), keptIn.size() - 1, [&](std::size_t c) {
-        int to = static_cast<int>(keptIn[c]);
-        for (std::size_t i = c * chunk; i < std::min(before, (c + 1) * chunk); ++i)
-            mRemap[i] = mDropFlags[i] ? -1 : to++;
-    });
-    // Per row of pixels: the lists without the dropped points (their pixels dirty), renumbered,
-    // and the z-buffer's and the visible points renumbered (a dropped visible point leaves
-    // its row's count).
-    mNextScratch.assign(kept, -1);
-    tbb::parallel_for(0, mHeight, [&](int y) {
-        for (int x = 0; x < mWidth; ++x) {
-            const int k = y * mWidth + x;
-            int head = -1;
-            int* tail = &head;
-            for (int j = mPixelHead[k]; j >= 0; j = mNextInPixel[j]) {
-                if (mRemap[j] < 0) {
-                    mDirty[k] = 1;
-                    continue;
-                }
-                *tail = mRemap[j];
-                tail = &mNextScratch[mRemap[j]];
-            }
-            *tail = -1;
-            mPixelHead[k] = head;
-            if (mZPoint[k] >= 0) mZPoint[k] = mRemap[mZPoint[k]];
-            if (mShownPoint[k] >= 0) {
-                mShownPoint[k] = mRemap[mShownPoint[k]];
-                if (mShownPoint[k] < 0) --mRowVisible[y];
-            }
+    for (int i : gone) {
+        if (mProjBand[i] == 0xFF) continue;
+        const int k = mProj[i].pixel;
+        unlinkFromPixel(i, k);
+        mDirty[k] = 1;
+        if (mZPoint[k] == i) mZPoint[k] = -1;
+        if (mShownPoint[k] == i) {
+            mShownPoint[k] = -1;
+            --mRowVisible[k / mWidth];
         }
-    });
-    mNextInPixel.swap(mNextScratch);
-    mProjScratch.resize(kept);
-    mProjBandScratch.resize(kept);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, before, 1 << 15),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t i = r.begin(); i != r.end(); ++i)
-                              if (mRemap[i] >= 0) {
-                                  mProjScratch[mRemap[i]] = mProj[i];
-                                  mProjBandScratch[mRemap[i]] = mProjBand[i];
-                              }
-                      });
-    mProj.swap(mProjScratch);
-    mProjBand.swap(mProjBandScratch);
+    }
+}
+
+void RenderCache::movedInPixels(int from, int to) {
+    mProj[to] = mProj[from];
+    mProjBand[to] = mProjBand[from];
+    if (mProjBand[from] == 0xFF) return;
+    // Its place in the pixel's list, under its new index; the pixel is redone, since ties of
+    // the z-buffer follow the index order.
+    const int k = mProj[from].pixel;
+    int* at = &mPixelHead[k];
+    while (*at != from) at = &mNextInPixel[*at];
+    *at = to;
+    mNextInPixel[to] = mNextInPixel[from];
+    mDirty[k] = 1;
+    if (mZPoint[k] == from) mZPoint[k] = to;
+    if (mShownPoint[k] == from) mShownPoint[k] = to;
+}
+
+void RenderCache::unlinkFromPixel(int i, int k) {
+    int* at = &mPixelHead[k];
+    while (*at >= 0 && *at != i) at = &mNextInPixel[*at];
+    if (*at == i) *at = mNextInPixel[i];
 }
 
 }  // namespace penumbra

@@ -17,59 +17,60 @@ namespace penumbra {
 
 template <class Drop>
 std::size_t RenderCache::dropIf(Drop drop) {
-    // Compacts the record and the per-point arrays together, keeping the order (after building
-    // a pending screen point list, which reads points by index; nothing changes when nothing
-    // is dropped, as in most frames of a drag preview). In parallel: which points go (the
-    // predicates only read), each chunk's survivors counted, then moved to their places in
-    // the scratch arrays, which are swapped in (a drag's shadow drop compacts the whole cache
-    // every frame).
+    // Which points go (in parallel: the predicates only read), then each hole below the new
+    // size takes the next surviving point from above it: a drag's shadow drop removes a few
+    // thousand points of hundreds of thousands every frame, and so moves only that many
+    // instead of compacting the whole cache. The survivors' order changes; the ties that
+    // reprojection and replacement resolve by index stay deterministic. A pending screen
+    // point list reads points by index: it is built first.
     const std::size_t before = mPoints.size();
     constexpr std::size_t kChunk = 8192;
     const std::size_t chunks = (before + kChunk - 1) / kChunk;
     mDropFlags.resize(before);
-    std::vector<std::size_t> keptIn(chunks + 1, 0);
+    std::vector<std::vector<int>> goneIn(chunks);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
-        std::size_t kept = 0;
         for (std::size_t i = c * kChunk; i < std::min(before, (c + 1) * kChunk); ++i) {
             const bool d = drop(mPoints[i]);
             mDropFlags[i] = d ? 1 : 0;
-            kept += !d;
+            if (d) goneIn[c].push_back(static_cast<int>(i));
         }
-        keptIn[c + 1] = kept;
     });
-    for (std::size_t c = 0; c < chunks; ++c) keptIn[c + 1] += keptIn[c];
-    const std::size_t kept = keptIn[chunks];
-    if (kept == before) return 0;
+    std::vector<int> gone;
+    for (const auto& g : goneIn) gone.insert(gone.end(), g.begin(), g.end());
+    if (gone.empty()) return 0;
     if (mScreenPending) buildScreenPoints();
-    if (mIncrementalValid) compactIncremental(keptIn, kChunk);
-    mPointsScratch.resize(kept);
-    mTouchedScratch.resize(kept);
-    mPositionScratch.resize(kept);
-    mBornScratch.resize(kept);
-    mVisibleScratch.resize(kept);
-    mFlagsScratch.resize(kept);
-    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
-        std::size_t to = keptIn[c];
-        for (std::size_t i = c * kChunk; i < std::min(before, (c + 1) * kChunk); ++i) {
-            if (mDropFlags[i]) continue;
-            mPointsScratch[to] = std::move(mPoints[i]);
-            mPositionScratch[to] = mPosition[i];
-            mBornScratch[to] = mBorn[i];
-            mVisibleScratch[to] = mVisible[i];
-            mFlagsScratch[to] = mFlags[i];
-            mTouchedScratch[to] = mTouched[i];
-            ++to;
-        }
-    });
-    mPoints.swap(mPointsScratch);
-    mPosition.swap(mPositionScratch);
-    mBorn.swap(mBornScratch);
-    mVisible.swap(mVisibleScratch);
-    mFlags.swap(mFlagsScratch);
-    mTouched.swap(mTouchedScratch);
+    if (mIncrementalValid) leavePixels(gone);
+    const std::size_t kept = before - gone.size();
+    std::size_t from = kept;
+    for (int hole : gone) {
+        if (static_cast<std::size_t>(hole) >= kept) break;
+        while (mDropFlags[from]) ++from;
+        movePoint(from++, static_cast<std::size_t>(hole));
+    }
+    mPoints.resize(kept);
+    mPosition.resize(kept);
+    mBorn.resize(kept);
+    mVisible.resize(kept);
+    mFlags.resize(kept);
+    mTouched.resize(kept);
+    if (mIncrementalValid) {
+        mProj.resize(kept);
+        mProjBand.resize(kept);
+        mNextInPixel.resize(kept);
+    }
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
     restartRequestCounts();
-    return before - kept;
+    return gone.size();
+}
+
+void RenderCache::movePoint(std::size_t from, std::size_t to) {
+    mPoints[to] = std::move(mPoints[from]);
+    mPosition[to] = mPosition[from];
+    mBorn[to] = mBorn[from];
+    mVisible[to] = mVisible[from];
+    mFlags[to] = mFlags[from];
+    mTouched[to] = mTouched[from];
+    if (mIncrementalValid) movedInPixels(static_cast<int>(from), static_cast<int>(to));
 }
 
 std::size_t RenderCache::invalidatePoints(const std::vector<std::uint8_t>& drop) {
