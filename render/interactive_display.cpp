@@ -585,8 +585,7 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
         return total > 0 ? change / total : 0.0;
     };
     // Per element: whether the change exceeds kShadowChange of its light at the centroid or at
-    // a corner (pulled in a little: a shadow's edge may cross a large element anywhere). Its
-    // points go together: the element's estimate shows the change no better than they do.
+    // a corner (pulled in a little: a shadow's edge may cross a large element anywhere).
     constexpr double kShadowChange = 0.1;
     const std::size_t elements = mDisc.elements().size();
     std::vector<std::uint8_t> changed(elements, 0);
@@ -628,8 +627,17 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
             changed[e] = any ? 1 : 0;
         }
     });
-    auto shadowed = [&](int element) {
-        return element >= 0 && static_cast<std::size_t>(element) < elements && changed[element];
+    // A point of such an element goes when it lies in the object's old or new shadow volume
+    // (its shaft to a lamp meets either box): outside both the object hides nothing of any
+    // lamp from it, before or after, and its direct light stands. So the drop follows the
+    // shadow, not the elements it crosses.
+    auto shadowed = [&](int element, const Vec3& x) {
+        if (element < 0 || static_cast<std::size_t>(element) >= elements || !changed[element])
+            return false;
+        for (const ShaftLight& light : lights)
+            if (shaftMeetsBox(x, light, nowLo, nowHi) || shaftMeetsBox(x, light, thenLo, thenHi))
+                return true;
+        return false;
     };
     const std::vector<CachePoint>& points = mCache.points();
     std::vector<std::uint8_t> drop(points.size(), 0);
@@ -638,7 +646,9 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
         tbb::blocked_range<std::size_t>(0, points.size(), 8192), std::size_t{0},
         [&](const tbb::blocked_range<std::size_t>& r, std::size_t count) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                drop[i] = points[i].object >= 0 && shadowed(points[i].element) ? 1 : 0;
+                drop[i] = points[i].object >= 0 && shadowed(points[i].element, points[i].position)
+                              ? 1
+                              : 0;
                 count += drop[i] && mCache.visible(i) && !mCache.hidden(i);
             }
             return count;
@@ -682,7 +692,7 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
     }
     const std::size_t dropped = mCache.invalidatePoints(drop);
     std::erase_if(results, [&](const ShadedPoint& p) {
-        return p.shading < mMoveSerial && p.object >= 0 && shadowed(p.element);
+        return p.shading < mMoveSerial && p.object >= 0 && shadowed(p.element, p.position);
     });
     if (!requests.empty()) {
         const auto reshadeStart = Clock::now();

@@ -293,9 +293,17 @@ private:
     /// The incremental reprojection (RenderCacheOptions::incremental) when it applies; false
     /// when the whole one must run.
     bool reprojectIncremental(const CameraRays& camera, const EpiPointArrays& epi);
-    /// Point i changes (insert, merge, relight, carry, hide, …): its old and new pixels are
+    /// Point i changes (insert, merge, carry, hide, stale, …): its old and new pixels are
     /// redone by the next incremental reprojection.
-    void touch(std::size_t i) { mTouched[i] = 1; }
+    void touch(std::size_t i) { mTouched[i] = kTouchedPlace; }
+    /// Only point i's colour changes (relight): its sample is rewritten where it is shown.
+    void touchColour(std::size_t i) {
+        if (!mTouched[i]) mTouched[i] = kTouchedColour;
+    }
+    static constexpr std::uint8_t kTouchedPlace = 1, kTouchedColour = 2;
+    /// The incremental reprojection's output for pixel k showing point i (−1: none): the
+    /// EPI's sample, the luminance the priority reads, the screen index.
+    void writeShown(const CameraRays& camera, const EpiPointArrays& epi, int k, int i);
     /// dropIf(), with the incremental state kept: the dropped points (indices, ascending)
     /// leave their pixels' lists, which are redone.
     void leavePixels(const std::vector<int>& gone);

@@ -34,15 +34,15 @@ namespace {
 constexpr double kSameSurface = 0.01;
 constexpr double kNoDepth = std::numeric_limits<double>::infinity();
 
-/// The indices where `flags` is set, ascending, gathered in parallel.
-std::vector<int> setIndices(const std::vector<std::uint8_t>& flags) {
+/// The indices where `flags` equals `value`, ascending, gathered in parallel.
+std::vector<int> indicesOf(const std::vector<std::uint8_t>& flags, std::uint8_t value) {
     constexpr std::size_t kChunk = 1 << 15;
     const std::size_t n = flags.size();
     const std::size_t chunks = (n + kChunk - 1) / kChunk;
     std::vector<std::vector<int>> found(chunks);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
         for (std::size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i)
-            if (flags[i]) found[c].push_back(static_cast<int>(i));
+            if (flags[i] == value) found[c].push_back(static_cast<int>(i));
     });
     std::vector<int> out;
     for (const auto& f : found) out.insert(out.end(), f.begin(), f.end());
@@ -87,8 +87,9 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
         return false;
     const std::size_t n = mPoints.size();
     growPerPointArrays();
-    const std::vector<int> touched = setIndices(mTouched);
+    const std::vector<int> touched = indicesOf(mTouched, kTouchedPlace);
     if (n == 0 || static_cast<double>(touched.size()) > mOptions.incrementalShare * n) return false;
+    const std::vector<int> recoloured = indicesOf(mTouched, kTouchedColour);
 
     // 1. The touched points leave their old pixels' lists and join their new ones'.
     for (int i : touched)
@@ -123,7 +124,7 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
                           for (std::size_t k = r.begin(); k != r.end(); ++k)
                               age[k] += age[k] < kStaleAge ? 1 : 0;
                       });
-    const std::vector<int> dirty = setIndices(mDirty);
+    const std::vector<int> dirty = indicesOf(mDirty, 1);
     // Per dirty pixel: whether its z-buffer depth (a pixel without a point: kNoDepth) moved,
     // the one thing its neighbours' culling reads of it.
     std::vector<std::uint8_t> depthMoved(dirty.size());
@@ -206,25 +207,35 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
                               const int k = affected[a];
                               const int i = shown[a];
                               mAffected[k] = 0;
-                              if (!rewrite[a]) continue;
-                              mScreenOfPixel[k] = i;
-                              if (i < 0) {
-                                  mLuminance[k] = 1e300;
-                                  mLuminanceHi[k] = -1e300;
-                                  epi.place(k, nullptr);
-                                  continue;
-                              }
-                              const CachePoint& pt = mPoints[i];
-                              mVisible[i] = 1;
-                              const ScreenPoint p{
-                                  camera.projectAtDepth(pt.position, mPixelDepth[k]),
-                                  mPixelDepth[k], pt.colour, mPixelAge[k], trustOf(pt)};
-                              epi.place(k, &p);
-                              mLuminance[k] = mLuminanceHi[k] = luminance(pt.colour);
+                              if (rewrite[a]) writeShown(camera, epi, k, i);
                           }
                       });
+    // Points whose colour alone changed (a relight): their samples where they are shown, or
+    // every shown sample when most changed.
+    std::size_t rewritten = static_cast<std::size_t>(std::count(rewrite.begin(), rewrite.end(), 1));
+    if (static_cast<double>(recoloured.size()) > mOptions.incrementalShare * n) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mShownPoint.size(), 4096),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              for (std::size_t k = r.begin(); k != r.end(); ++k)
+                                  if (mShownPoint[k] >= 0)
+                                      writeShown(camera, epi, static_cast<int>(k), mShownPoint[k]);
+                          });
+        rewritten = mShownPoint.size();
+    } else {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, recoloured.size(), 1024),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              for (std::size_t t = r.begin(); t != r.end(); ++t) {
+                                  const int i = recoloured[t];
+                                  if (mProjBand[i] == 0xFF) continue;
+                                  const int k = mProj[i].pixel;
+                                  if (mShownPoint[k] == i) writeShown(camera, epi, k, i);
+                              }
+                          });
+        rewritten += recoloured.size();
+    }
     for (int k : dirty) mDirty[k] = 0;
     for (int i : touched) mTouched[i] = 0;
+    for (int i : recoloured) mTouched[i] = 0;
     mRowCount[0] = 0;
     for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] = mRowCount[y] + mRowVisible[y];
     mVisibleCount = static_cast<std::size_t>(mRowCount[mHeight]);
@@ -234,11 +245,27 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
     mScreenCamera = camera;
     noteView(camera);
     mIncrementalFrame = true;
-    mReprojectedPixels = static_cast<std::size_t>(std::count(rewrite.begin(), rewrite.end(), 1));
+    mReprojectedPixels = rewritten;
 
     // 4. The priority image.
     computePriority();
     return true;
+}
+
+void RenderCache::writeShown(const CameraRays& camera, const EpiPointArrays& epi, int k, int i) {
+    mScreenOfPixel[k] = i;
+    if (i < 0) {
+        mLuminance[k] = 1e300;
+        mLuminanceHi[k] = -1e300;
+        epi.place(k, nullptr);
+        return;
+    }
+    const CachePoint& pt = mPoints[i];
+    mVisible[i] = 1;
+    const ScreenPoint p{camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k],
+                        pt.colour, mPixelAge[k], trustOf(pt)};
+    epi.place(k, &p);
+    mLuminance[k] = mLuminanceHi[k] = luminance(pt.colour);
 }
 
 void RenderCache::leavePixels(const std::vector<int>& gone) {

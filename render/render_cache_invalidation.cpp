@@ -114,7 +114,7 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
             const auto e = static_cast<std::size_t>(p.element);
             if (e < delta.size() && delta[e] != Rgb(0.0)) {
                 p.colour += delta[e];
-                touch(i);
+                touchColour(i);
             }
             if (e < stale.size() && stale[e]) {
                 if (!(mFlags[i] & kStaleFlag)) touch(i);

@@ -109,6 +109,10 @@ TEST(RenderCacheIncremental, EqualsTheWholeReprojectionThroughEveryKindOfEdit) {
                 stale[(at + 7) % 60000] = 1;
             }
             for (RenderCache* c : {&incremental, &whole}) c->relight(delta, stale);
+        } else if (edit == 6) {
+            // Every element a little brighter (a solution update): colours alone change.
+            const std::vector<Rgb> delta(200000, Rgb(0.001 * (1 + frame % 3)));
+            for (RenderCache* c : {&incremental, &whole}) c->relight(delta, {});
         } else if (edit == 3) {
             const Mat4 shift = glm::translate(Mat4(1.0), Vec3(0.01 * u(rng), 0.02, 0.0));
             for (RenderCache* c : {&incremental, &whole}) c->carry(1, 1, shift, 0);
