@@ -22,8 +22,9 @@
 #include <thread>
 #include <unordered_set>
 
+#include "app/cli_common.h"
+#include "app/holodeck_commands.h"
 #include "app/import_flags.h"
-#include "app/mpi_world.h"
 #include "bench/bench.h"
 #include "bench/display_report.h"
 #include "core/durable_file.h"
@@ -44,7 +45,6 @@
 #include "render/gouraud_renderer.h"
 #include "render/hifi_mesh.h"
 #include "render/holodeck/holo_file.h"
-#include "render/holodeck/holo_merge.h"
 #include "render/holodeck/holo_server.h"
 #include "render/holodeck/holo_view.h"
 #include "render/image.h"
@@ -52,76 +52,9 @@
 #include "render/path_tracer.h"
 
 using namespace penumbra;
+using namespace penumbra::cli;
 
 namespace {
-
-struct SolveArgs {
-    std::string scene;
-    double converge = 1e-3;
-    std::uint64_t maxShots = 1000000;
-    int threads = 0;
-    std::uint64_t seed = 1;
-    double subdivide = 0;
-    double stochasticBelow = interactiveSolverOptions().stochasticBelow;
-    std::string save, exportPath, report, saveScene;
-    ImportOptions import;
-    bool exportHifi = false;  ///< export: the interpolants' triangles instead of the elements
-    int gatherRays = 256;     ///< interpolants: ExactIrradianceOptions::farRays
-};
-
-constexpr const char* kSceneHelp = "scene file (*.json, or *.gltf *.glb *.obj to import)";
-
-void addSolveOptions(CLI::App* cmd, SolveArgs& a) {
-    cmd->add_option("SCENE", a.scene, kSceneHelp)->required();
-    addImportFlags(cmd, a.import);
-    cmd->add_option("--converge", a.converge,
-                    "stop when unshot energy < EPS x emitted energy (default 1e-3)")
-        ->check(CLI::Range(0.0, 1.0));
-    cmd->add_option("--max-shots", a.maxShots, "at most N shots");
-    cmd->add_option("--threads", a.threads, "worker threads (default: all cores)")
-        ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--seed", a.seed, "seed of the pair-seeded sample patterns");
-    cmd->add_option("--subdivide", a.subdivide,
-                    "adaptive element subdivision where neighbour radiosity differs by more "
-                    "than this fraction (0: off)")
-        ->check(CLI::Range(0.0, 10.0));
-    cmd->add_option("--stochastic-below", a.stochasticBelow,
-                    "shoot stochastically when a shot carries less than this fraction of the "
-                    "emitted power (0: every shot deterministic)")
-        ->check(CLI::Range(0.0, 1.0));
-}
-
-/// Progress on stderr when it is a terminal.
-std::function<void(double)> progressPrinter(double eps) {
-    if (!isatty(STDERR_FILENO)) return {};
-    return [eps](double unshot) {
-        static int calls = 0;
-        if (++calls % 16) return;
-        double done = unshot > 0 ? std::log(unshot) / std::log(eps) : 1.0;
-        std::fprintf(stderr, "\rsolving: unshot %.4f%%  (%3.0f%%)", unshot * 100,
-                     std::clamp(done, 0.0, 1.0) * 100);
-    };
-}
-
-/// The solver's options as the command line sets them.
-SolverOptions solverOptionsOf(const SolveArgs& a) {
-    SolverOptions options = interactiveSolverOptions();
-    options.seed = a.seed;
-    options.stochasticBelow = a.stochasticBelow;
-    options.gradientThreshold = a.subdivide;
-    return options;
-}
-
-std::unique_ptr<LitScene> openAndSolve(const SolveArgs& a) {
-    auto lit = LitScene::open(a.scene, solverOptionsOf(a), a.import);
-    lit->solver().converge(a.converge, a.maxShots, progressPrinter(a.converge));
-    if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\n");
-    return lit;
-}
-
-void writeReport(const std::string& path, const nlohmann::json& report) {
-    if (!path.empty()) writeFileAtomically(path, report.dump(2) + "\n");
-}
 
 /// Thrown when SIGINT stopped an interpolant build: main exits with status 130.
 struct BuildInterrupted {};
@@ -316,28 +249,12 @@ struct RenderArgs {
 };
 
 /// The scene's camera named `name`, else "default", else the first, else a default Camera.
-Camera pickCamera(const Scene& scene, const std::string& scenePath, const std::string& name) {
-    if (!name.empty()) {
-        const Camera* c = scene.findCamera(name);
-        if (!c) throw InputError(scenePath, "cameras", "no camera named '" + name + "'");
-        return *c;
-    }
-    if (const Camera* c = scene.findCamera("default")) return *c;
-    if (!scene.cameras.empty()) return scene.cameras.front();
-    return Camera{};
-}
-
 /// The fields every `render` report has: the image written, the mode and the size.
 void addImageFields(nlohmann::json& report, const RenderArgs& r) {
     report["image"] = r.out;
     report["mode"] = r.mode;
     report["width"] = r.width;
     report["height"] = r.height;
-}
-
-/// The holodeck beside a scene: its path with the extension .hdk.
-std::string defaultHolodeckPath(const std::string& scene) {
-    return std::filesystem::path(scene).replace_extension(".hdk").string();
 }
 
 /// `path` with "-SUFFIX" before its extension: out.png, "0003" -> out-0003.png.
@@ -748,243 +665,6 @@ void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPix
         ->check(CLI::Range(0.0, 1e6));
 }
 
-// ---------------------------------------------------------------------------------------------
-// holodeck fill and info (Ward & Simmons 1999; docs/holodeck.md).
-
-struct HolodeckArgs {
-    std::string file;  ///< fill: --holodeck (default SCENE.hdk); info: FILE; merge: OUT
-    std::vector<std::string> parts;  ///< merge: PART...
-    std::string camera;
-    double seconds = 0;
-    std::int64_t samples = 0;
-    int width = 512, height = 512;  ///< --camera: the view whose beams are filled
-};
-
-nlohmann::json holodeckJson(const HoloFile& file) {
-    const HoloFileInfo info = file.info();
-    nlohmann::json sections = nlohmann::json::array();
-    for (const HoloSection& s : file.sections())
-        sections.push_back({{"kind", s.kind() == SectionKind::Interior ? "interior" : "exterior"},
-                            {"origin", {s.origin().x, s.origin().y, s.origin().z}},
-                            {"size", {s.size().x, s.size().y, s.size().z}},
-                            {"grid", {s.grid()[0], s.grid()[1], s.grid()[2]}},
-                            {"beams", s.beamCount()}});
-    return {
-        {"file", file.path()},
-        {"sections", sections},
-        {"beams", info.beams},
-        {"samples", info.samples},
-        {"bytes", info.bytes},
-        {"free_bytes", info.freeBytes},
-        {"fragments", info.fragments},
-        {"bytes_per_sample", info.samples > 0 ? double(info.bytes) / double(info.samples) : 0.0}};
-}
-
-int runHolodeckInfo(const HolodeckArgs& h) {
-    const HoloFile file = HoloFile::openReadOnly(h.file);
-    std::printf("%s\n", holodeckJson(file).dump(2).c_str());
-    return 0;
-}
-
-/// The display's own point shader over a solved scene, as a fill shades with it: the display's
-/// options, the command's seed.
-std::unique_ptr<PointShader> makeFillShader(const SolveArgs& a, LitScene& lit) {
-    PointShaderOptions shading = InteractiveDisplayOptions{}.shader;
-    shading.seed = a.seed;
-    shading.threads = 0;
-    auto shader = std::make_unique<PointShader>(lit.discretization(), lit.tracer(),
-                                                solverOptionsOf(a), shading);
-    shader->updateSolution(lit.solver());
-    return shader;
-}
-
-/// The sections of a new holodeck for a solved scene: the scene file's, or the layout over its
-/// surfaces (an existing file keeps its own).
-std::vector<HoloSection> newHolodeckSections(LitScene& lit) {
-    return holodeckSections(lit.scene().settings, lit.discretization());
-}
-
-/// fill's new samples: --samples, or a million unless --seconds bounds it.
-std::int64_t fillSamples(const HolodeckArgs& h) {
-    return h.samples > 0 || h.seconds > 0 ? h.samples : 1000000;
-}
-
-int runHolodeckFillRanks(const MpiWorld& world, const SolveArgs& a, const HolodeckArgs& h);
-
-int runHolodeckFill(const SolveArgs& a, const HolodeckArgs& h) {
-    // Under mpirun, the ranks share the fill (docs/holodeck.md, "Scale-out"); otherwise MPI is
-    // never initialised.
-    if (launchedByMpirun()) {
-        const MpiWorld world;
-        return runHolodeckFillRanks(world, a, h);
-    }
-    const std::string path = h.file.empty() ? defaultHolodeckPath(a.scene) : h.file;
-    auto lit = openAndSolve(a);
-    std::optional<CameraRays> view;
-    if (!h.camera.empty())
-        view.emplace(pickCamera(lit->scene(), a.scene, h.camera), h.width, h.height);
-    const std::unique_ptr<PointShader> shader = makeFillShader(a, *lit);
-    // A new holodeck gets the scene's sections; an existing one keeps its own.
-    HoloFile file(path, newHolodeckSections(*lit));
-    HoloServer server(file, shader.get());
-    const bool tty = ::isatty(STDERR_FILENO);
-    const std::int64_t samples = fillSamples(h);
-    const auto progress = [&](double f) {
-        if (tty) std::fprintf(stderr, "\rholodeck: filling %3.0f%%", 100 * f);
-    };
-    // A camera: its pixel rays (fillView); none: every beam by its volume (batch mode).
-    const FillStats stats =
-        view ? fillView(server, *shader, lit->tracer(), *view, samples, h.seconds, a.seed, progress)
-             : server.fill(server.batchRequests(1e6), samples, h.seconds, 5.0, progress);
-    if (tty) std::fprintf(stderr, "\n");
-    nlohmann::json report = holodeckJson(file);
-    report["samples_added"] = stats.samples;
-    report["beams_filled"] = stats.beams;
-    report["seconds"] = stats.seconds;
-    report["samples_per_second"] = stats.seconds > 0 ? stats.samples / stats.seconds : 0.0;
-    std::printf("%s\n", report.dump(2).c_str());
-    return 0;
-}
-
-// ---------------------------------------------------------------------------------------------
-// holodeck fill under mpirun, and merge (docs/holodeck.md, "Scale-out"; render/holodeck/
-// holo_merge.h says why a merge never duplicates a sample).
-
-/// Rank k's part file beside the target: FILE.rankK.hdk.
-std::string partPath(const std::string& path, int rank) {
-    return std::filesystem::path(path)
-        .replace_extension(".rank" + std::to_string(rank) + ".hdk")
-        .string();
-}
-
-/// One phase of a job: runs `step` on every rank, then the ranks agree whether all succeeded;
-/// the lowest failing rank prints its error (one line). False when any rank failed.
-bool allSucceed(const MpiWorld& world, const std::function<void()>& step) {
-    std::string error;
-    try {
-        step();
-    } catch (const std::exception& e) {
-        error = e.what();
-        if (error.empty()) error = "failed";
-    }
-    const int failing = world.lowestFailing(!error.empty());
-    if (failing == world.rank()) std::fprintf(stderr, "penumbra: %s\n", error.c_str());
-    return failing < 0;
-}
-
-/// One rank's share of the fill's beams, started from the target's samples of them and filled
-/// into its part file.
-FillStats fillPart(const MpiWorld& world, const HolodeckArgs& h, const std::string& path,
-                   const PointShader& shader) {
-    HoloFile base = HoloFile::openReadOnly(path);
-    // A part left by a killed run starts afresh (`holodeck merge` takes such parts).
-    const std::string part = partPath(path, world.rank());
-    std::error_code ignored;
-    std::filesystem::remove(part, ignored);
-    HoloFile file(part, base.sections());
-    HoloServer server(file, &shader);
-    const RankShare share =
-        shareRequests(server.batchRequests(1e6), fillSamples(h), world.size(), world.rank());
-    seedPart(base, file, share.requests);
-    if (share.samples <= 0 && !(h.seconds > 0)) return {};
-    const bool tty = world.rank() == 0 && ::isatty(STDERR_FILENO);
-    const FillStats stats =
-        server.fill(share.requests, share.samples, h.seconds, 5.0, [&](double f) {
-            if (tty) std::fprintf(stderr, "\rholodeck: filling %3.0f%%", 100 * f);
-        });
-    if (tty) std::fprintf(stderr, "\n");
-    return stats;
-}
-
-/// Rank 0: merges every rank's part into the target, removes the parts, and reports the file.
-nlohmann::json mergeParts(const std::string& path, int ranks) {
-    std::vector<std::string> parts;
-    for (int k = 0; k < ranks; ++k) parts.push_back(partPath(path, k));
-    HoloFile target(path, {});
-    const Clock::time_point start = Clock::now();
-    const HoloMergeStats merged = mergeHoloParts(target, parts);
-    for (const std::string& part : parts) std::filesystem::remove(part);
-    nlohmann::json report = holodeckJson(target);
-    report["merge_seconds"] = secondsSince(start);
-    report["beams_merged"] = merged.beams;
-    return report;
-}
-
-int runHolodeckFillRanks(const MpiWorld& world, const SolveArgs& a, const HolodeckArgs& h) {
-    const std::string path = h.file.empty() ? defaultHolodeckPath(a.scene) : h.file;
-    // The machine's cores shared among its ranks, unless --threads says otherwise.
-    std::optional<tbb::global_control> threads;
-    if (a.threads == 0)
-        threads.emplace(tbb::global_control::max_allowed_parallelism,
-                        std::max(1, int(std::thread::hardware_concurrency()) / world.localSize()));
-    // Every rank solves the scene (the same solution: the solver is deterministic); rank 0
-    // opens or creates the target, so that every rank finds its sections.
-    std::unique_ptr<LitScene> lit;
-    std::unique_ptr<PointShader> shader;
-    if (!allSucceed(world, [&] {
-            // A view's fill shades its pixel rays in their own order (fillView): one process.
-            if (!h.camera.empty())
-                throw InputError("--camera", "",
-                                 "under mpirun, fill shares every beam among the ranks; fill a "
-                                 "camera's view without mpirun");
-            lit = LitScene::open(a.scene, solverOptionsOf(a), a.import);
-            const bool tty = world.rank() == 0 && ::isatty(STDERR_FILENO);
-            lit->solver().converge(
-                a.converge, a.maxShots,
-                tty ? progressPrinter(a.converge) : std::function<void(double)>{});
-            if (tty) std::fprintf(stderr, "\n");
-            shader = makeFillShader(a, *lit);
-            if (world.rank() == 0) HoloFile target(path, newHolodeckSections(*lit));
-        }))
-        return 2;
-    // Every rank fills its share into its part; rank 0 merges them.
-    const Clock::time_point start = Clock::now();
-    FillStats stats;
-    if (!allSucceed(world, [&] { stats = fillPart(world, h, path, *shader); })) {
-        std::error_code ignored;
-        std::filesystem::remove(partPath(path, world.rank()), ignored);
-        return 2;
-    }
-    const std::int64_t samples = world.sum(stats.samples), beams = world.sum(stats.beams);
-    const double fillSeconds = world.max(stats.seconds);
-    nlohmann::json report;
-    if (!allSucceed(world, [&] {
-            if (world.rank() == 0) report = mergeParts(path, world.size());
-        }))
-        return 2;
-    if (world.rank() != 0) return 0;
-    const double seconds = secondsSince(start);
-    report["ranks"] = world.size();
-    report["samples_added"] = samples;
-    report["beams_filled"] = beams;
-    report["fill_seconds"] = fillSeconds;
-    report["seconds"] = seconds;
-    report["samples_per_second"] = seconds > 0 ? samples / seconds : 0.0;
-    std::printf("%s\n", report.dump(2).c_str());
-    return 0;
-}
-
-/// holodeck merge OUT PART...: a new OUT takes the first part's sections; a refused merge
-/// leaves OUT as it was (a new one is removed).
-int runHolodeckMerge(const HolodeckArgs& h) {
-    const bool existed = std::filesystem::exists(h.file);
-    try {
-        HoloFile target(h.file, HoloFile::openReadOnly(h.parts.front()).sections());
-        const HoloMergeStats merged = mergeHoloParts(target, h.parts);
-        nlohmann::json report = holodeckJson(target);
-        report["parts"] = merged.parts;
-        report["beams_merged"] = merged.beams;
-        report["samples_added"] = merged.samplesAdded;
-        report["samples_shared"] = merged.samplesShared;
-        std::printf("%s\n", report.dump(2).c_str());
-    } catch (...) {
-        std::error_code ignored;
-        if (!existed) std::filesystem::remove(h.file, ignored);
-        throw;
-    }
-    return 0;
-}
-
 /// Every subcommand's options land here; the CLI::App pointers say which one ran.
 struct Commands {
     SolveArgs solve;
@@ -995,10 +675,9 @@ struct Commands {
     RedistributionBenchOptions redist;
     DisplayBenchOptions display;
     HifiBenchOptions hifi;
-    HolodeckArgs holodeck;
+    HolodeckCommands holodeck;
     HolodeckBenchOptions benchHolodeckOptions;
     CLI::App* benchHolodeck = nullptr;
-    CLI::App *holodeckFill = nullptr, *holodeckInfo = nullptr, *holodeckMerge = nullptr;
     CLI::App *solveCmd = nullptr, *probeCmd = nullptr, *exportCmd = nullptr, *renderCmd = nullptr,
              *replayCmd = nullptr, *benchSolver = nullptr, *benchRedist = nullptr,
              *benchDisplay = nullptr, *benchHifi = nullptr;
@@ -1143,37 +822,6 @@ void addReplayCommand(CLI::App& app, Commands& c) {
         ->check(CLI::Range(0.0, 1.0));
 }
 
-void addHolodeckCommands(CLI::App& app, Commands& c) {
-    CLI::App* holodeck =
-        app.add_subcommand("holodeck", "the persistent ray cache (Ward & Simmons)");
-    holodeck->require_subcommand(1);
-    HolodeckArgs& h = c.holodeck;
-    CLI::App* fill = c.holodeckFill =
-        holodeck->add_subcommand("fill", "solve a scene and fill its holodeck with shaded samples");
-    addSolveOptions(fill, c.solve);
-    fill->add_option("--holodeck", h.file, "the holodeck file (default: SCENE.hdk)");
-    fill->add_option("--camera", h.camera,
-                     "fill the beams this camera's view needs (default: every beam, in "
-                     "proportion to its volume)");
-    fill->add_option("--width", h.width, "--camera: view width in pixels")
-        ->check(CLI::Range(1, 16384));
-    fill->add_option("--height", h.height, "--camera: view height in pixels")
-        ->check(CLI::Range(1, 16384));
-    CLI::Option* seconds =
-        fill->add_option("--seconds", h.seconds, "fill for S seconds")->check(CLI::PositiveNumber);
-    fill->add_option("--samples", h.samples, "fill N new samples (default 1,000,000)")
-        ->check(CLI::PositiveNumber)
-        ->excludes(seconds);
-    CLI::App* info = c.holodeckInfo =
-        holodeck->add_subcommand("info", "print a holodeck's sections, beams, samples and bytes");
-    info->add_option("FILE", h.file, "holodeck file")->required();
-    CLI::App* merge = c.holodeckMerge = holodeck->add_subcommand(
-        "merge", "merge holodecks filled from the same one (e.g. by mpirun's ranks) into OUT");
-    merge->add_option("OUT", h.file, "the holodeck merged into (created when missing)")->required();
-    merge->add_option("PART", h.parts, "holodecks with OUT's sections, filled with one seed")
-        ->required();
-}
-
 void addBenchCommands(CLI::App& app, Commands& c) {
     CLI::App* benchCmd = app.add_subcommand("bench", "benchmarks (Google Benchmark + tables)");
     benchCmd->require_subcommand(1);
@@ -1281,7 +929,7 @@ int main(int argc, char** argv) {
     addRenderCommand(app, c);
     addReplayCommand(app, c);
     addBenchCommands(app, c);
-    addHolodeckCommands(app, c);
+    addHolodeckCommands(app, c.solve, c.holodeck);
 
     try {
         app.parse(argc, argv);
@@ -1308,9 +956,7 @@ int main(int argc, char** argv) {
         if (*c.benchDisplay) return runDisplayBench(c.display);
         if (*c.benchHifi) return runHifiBench(c.hifi);
         if (*c.benchHolodeck) return runHolodeckBench(c.benchHolodeckOptions);
-        if (*c.holodeckFill) return runHolodeckFill(c.solve, c.holodeck);
-        if (*c.holodeckInfo) return runHolodeckInfo(c.holodeck);
-        if (*c.holodeckMerge) return runHolodeckMerge(c.holodeck);
+        if (const int status = runHolodeckCommand(c.solve, c.holodeck); status >= 0) return status;
     } catch (const BuildInterrupted&) {
         return 130;  // 128 + SIGINT, as a shell reports a command Ctrl-C ended
     } catch (const std::exception& e) {
