@@ -160,6 +160,7 @@ nlohmann::json hifiReport(const HifiMesh& mesh) {
             {"contact_segments", st.contactSegments},
             {"samples", st.samples},
             {"centre_samples", st.centreSamples},
+            {"far_rays", st.farRays},
             {"covered_triangles", st.coveredTriangles},
             {"buried_elements", st.buriedElements},
             {"capped_elements", st.cappedElements},
@@ -276,6 +277,20 @@ double compareWith(const Image& image, const std::string& path, const Discretiza
                              std::to_string(reference.height) + ", the render " +
                              std::to_string(image.width) + "x" + std::to_string(image.height));
     return relativeRmse(image, reference, emitterMask(disc, tracer, rays));
+}
+
+/// The blotch figure of `image` against the EXR `path` (flatWindowErrors: 32 × 32 pixel windows
+/// of one flat face, stride 4, errors between 4 × 4-pixel cells), for the report.
+nlohmann::json flatWindowsWith(const Image& image, const std::string& path,
+                               const Discretization& disc, const RayTracer& tracer,
+                               const CameraRays& rays) {
+    const WindowErrors w =
+        flatWindowErrors(image, readExr(path), flatFaceKeys(disc, tracer, rays), 32, 4, 4);
+    return {{"windows", w.windows},
+            {"mean_std", w.meanStd},
+            {"max_std", w.maxStd},
+            {"worst_x", w.worstX},
+            {"worst_y", w.worstY}};
 }
 
 InteractiveDisplayOptions displayOptionsOf(const RenderArgs& r, std::uint64_t seed) {
@@ -533,8 +548,10 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     report["pixel_pass"] = pass;
     report["hifi"] = hifiReport(mesh);
     report["hifi"]["render_ms"] = ms;
-    if (!r.compare.empty())
+    if (!r.compare.empty()) {
         report["relative_rmse"] = compareWith(image, r.compare, disc, lit->tracer(), rays);
+        report["flat_windows"] = flatWindowsWith(image, r.compare, disc, lit->tracer(), rays);
+    }
     writeReport(a.report, report);
     return 0;
 }

@@ -647,7 +647,8 @@ Rgb ExactIrradiance::indirect(const Vec3& x, const Vec3& n) const {
     if (mReflected.empty()) return Rgb(0.0);
     Parts parts;
     addGathered(x, n, parts);
-    if (sampledFarField()) parts.farField += farIndirect(x, n);
+    if (sampledFarField())
+        parts.farField += farIndirect(x, n, farPlan(), luminance(parts.total())).value;
     return parts.total();
 }
 
@@ -657,7 +658,13 @@ ExactIrradiance::Parts ExactIrradiance::irradianceParts(const Vec3& x, const Vec
     addDirect(x, n, parts);
     if (!mOptions.indirect || mReflected.empty()) return parts;
     addGathered(x, n, parts);
-    if (withFarField && sampledFarField()) parts.farField += farIndirect(x, n);
+    if (withFarField && sampledFarField()) {
+        const FarFieldEstimate far = farIndirect(x, n, farPlan(), luminance(parts.total()));
+        parts.farField += far.value;
+        parts.farError = far.standardError;
+        parts.farRays = far.rays;
+        parts.farPasses = far.passes;
+    }
     return parts;
 }
 
@@ -712,38 +719,52 @@ void ExactIrradiance::addGathered(const Vec3& x, const Vec3& n, Parts& parts) co
             }
 }
 
-Rgb ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n) const {
-    // Stratified cosine-distributed directions (Malley: a stratified disc lifted).
-    const int side =
-        std::max(1, static_cast<int>(std::lround(std::sqrt(double(mOptions.farRays)))));
-    const Vec3 t = std::abs(n.x) > 0.5 ? glm::normalize(glm::cross(n, Vec3(0, 1, 0)))
-                                       : glm::normalize(glm::cross(n, Vec3(1, 0, 0)));
-    const Vec3 b = glm::cross(n, t);
-    // The pattern's jitter is seeded by the point, so a point's value is reproducible and
-    // neighbouring points' errors are independent (they average out where they are pooled).
-    std::uint64_t state = 0;
+FarFieldRays ExactIrradiance::farPlan() const {
+    FarFieldRays plan;
+    plan.perPass = mOptions.farRays;
+    return plan;
+}
+
+void ExactIrradiance::refineFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts) const {
+    if (!sampledFarField() || mReflected.empty() || parts.farPasses >= passes) return;
+    FarFieldEstimate from;
+    from.value = parts.farField;
+    from.standardError = parts.farError;
+    from.rays = parts.farRays;
+    from.passes = parts.farPasses;
+    FarFieldRays plan = farPlan();
+    plan.maxPasses = passes;
+    const FarFieldEstimate far = farIndirect(x, n, plan, 0, &from);
+    parts.farField = far.value;
+    parts.farError = far.standardError;
+    parts.farRays = far.rays;
+    parts.farPasses = far.passes;
+}
+
+FarFieldEstimate ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n,
+                                              const FarFieldRays& plan, double gathered,
+                                              const FarFieldEstimate* from) const {
+    // Each point's jitter is its own, seeded by its position, so that its value is
+    // reproducible and neighbouring points' errors are independent (they average out where
+    // the build pools them).
+    std::uint64_t seed = 0;
     for (double c : {x.x, x.y, x.z})
-        state = hashPair(state, static_cast<std::uint64_t>(std::llround(c * 1e9)));
-    SplitMix random(state);
+        seed = hashPair(seed, static_cast<std::uint64_t>(std::llround(c * 1e9)));
     const Vec3 origin = x + mTracer->epsilon() * n;
-    Rgb sum(0.0);
-    for (int i = 0; i < side; ++i)
-        for (int k = 0; k < side; ++k) {
-            const double u = (i + random.next()) / side, v = (k + random.next()) / side;
-            const double r = std::sqrt(u), phi = 2 * M_PI * v;
-            const Vec3 d =
-                r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u)) * n;
+    // E = ∫ (B/π) cos dω: the mean over cosine-distributed rays of what they read.
+    return estimateFarField(
+        n, seed, plan, gathered,
+        [&](const Vec3& d) -> Rgb {
             const RayTracer::FirstHit hit = mTracer->firstHit(origin, d);
-            if (hit.element < 0 || hit.backFace) continue;
+            if (hit.element < 0 || hit.backFace) return Rgb(0.0);
             if (mOptions.nearElementRadii > 0) {
                 // What the exact part leaves of the element.
                 const double w = nearElementWeight(hit.element, x);
-                if (w < 1) sum += (1 - w) * mReflected[hit.element];
-            } else if (!nearPatch(hit.patch, x)) {
-                sum += mReflected[hit.element];
+                return w < 1 ? (1 - w) * mReflected[hit.element] : Rgb(0.0);
             }
-        }
-    return sum / static_cast<double>(side * side);  // E = ∫ (B/π) cos dω = mean over cos
+            return nearPatch(hit.patch, x) ? Rgb(0.0) : mReflected[hit.element];
+        },
+        from);
 }
 
 std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const ProgressiveSolver& solver) {

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "render/box_tree.h"
+#include "render/far_field.h"
 #include "solver/progressive_solver.h"
 #include "solver/scene.h"
 
@@ -49,7 +50,8 @@ struct ExactIrradianceOptions {
     /// patch's mean radiosity.
     double nearRadii = 3.0;
     /// 0: every patch gathered exactly. N > 0 (with a ray tracer): only the near patches
-    /// are; the rest of the hemisphere is sampled by N stratified cosine-distributed rays,
+    /// are; the rest of the hemisphere is sampled by N stratified cosine-distributed rays
+    /// (refineFarField adds passes of 4 N, 16 N, ...),
     /// each reading the reflected radiosity of the element it hits (hits on near patches
     /// count nothing, they are in the exact part). The far field is smooth and its share
     /// small, so a few hundred rays keep its noise well under a per cent of the total, at a
@@ -75,8 +77,9 @@ struct ExactIrradianceOptions {
     /// the point moves, and both parts are continuous functions of it. Off: a hard ball.
     bool smoothFarField = false;
     /// What the interpolants use (`render --mode interpolant`, `export --hifi`, the editor,
-    /// `bench hifi`): `farRays` rays for the far field with the smooth split, sampled
-    /// visibility past 48 blockers.
+    /// `bench hifi`): `farRays` rays for the far field (a first pass, which the build
+    /// continues where its error shows: HifiOptions::farFieldRefineBudget) with the smooth
+    /// split, sampled visibility past 48 blockers.
     static ExactIrradianceOptions forInterpolants(int farRays) {
         ExactIrradianceOptions o;
         o.farRays = farRays;
@@ -133,10 +136,17 @@ public:
         /// A surface other than the point's own plane lies within the near field's reach (with
         /// farRays and nearElementRadii): there the far field changes fast with the point.
         bool nearSurface = false;
+        int farRays = 0;      ///< rays the far field cast
+        int farPasses = 0;    ///< in that many passes (estimateFarField)
+        double farError = 0;  ///< the far field's estimated standard error (luminance, W/m²)
         Rgb total() const { return gathered + farField; }
     };
     /// `withFarField` false leaves the far field's rays out.
     Parts irradianceParts(const Vec3& x, const Vec3& n, bool withFarField = true) const;
+    /// Continues the far field of `parts` (irradianceParts at the same x and n) with its next
+    /// passes, up to `passes` passes in all whatever their error (the caller chose the point
+    /// for its error): farField, farError, farRays and farPasses are updated.
+    void refineFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts) const;
 
     std::size_t blockerCount() const { return mBlockers.size(); }
     std::size_t emitterCount() const { return mEmitters.size(); }
@@ -202,7 +212,13 @@ private:
     /// the point-to-point kernel.
     double sampledVisibleFraction(const Vec3& x, const Vec3& n,
                                   const std::vector<Vec3>& source) const;
-    Rgb farIndirect(const Vec3& x, const Vec3& n) const;
+    /// The far field's passes at x by `plan` (farPlan), continuing `from` when given;
+    /// `gathered` is the luminance of the rest of x's irradiance (the relative tolerance's
+    /// base).
+    FarFieldEstimate farIndirect(const Vec3& x, const Vec3& n, const FarFieldRays& plan,
+                                 double gathered, const FarFieldEstimate* from = nullptr) const;
+    /// One pass of farRays rays.
+    FarFieldRays farPlan() const;
     /// Form factor to the visible part of `source`; `sampled` set when its visibility was
     /// estimated by rays (past maxExactBlockers).
     double formFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& source,

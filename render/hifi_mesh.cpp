@@ -1,6 +1,5 @@
 #include "render/hifi_mesh.h"
 
-#include <tbb/concurrent_hash_map.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -9,12 +8,9 @@
 #include <cmath>
 #include <deque>
 #include <limits>
-#include <map>
 #include <optional>
 #include <sstream>
 #include <thread>
-#include <tuple>
-#include <unordered_map>
 
 #include "core/random.h"
 #include "render/box_tree.h"
@@ -22,7 +18,7 @@
 #include "render/cdt.h"
 #include "render/edge_tree.h"
 #include "render/exact_irradiance.h"
-#include "render/far_field_pool.h"
+#include "render/hifi_samples.h"
 #include "render/light_change.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
@@ -522,32 +518,6 @@ void dropBoundarySegments(const std::vector<glm::dvec2>& poly,
                segs.end());
 }
 
-/// Where an exact sample is taken. A point off every contact line is shared by the triangles
-/// of every element of its object's surface that meet there with the same plane (key without
-/// the element); on a contact line irradiance jumps, so each element samples its own side.
-struct SampleKey {
-    int object = -1, sheet = 0, element = -1;
-    std::array<long long, 3> position{}, normal{};
-    bool operator==(const SampleKey& o) const {
-        return object == o.object && sheet == o.sheet && element == o.element &&
-               position == o.position && normal == o.normal;
-    }
-};
-
-struct SampleKeyHash {
-    static std::size_t hash(const SampleKey& k) {
-        std::uint64_t h = hashPair(static_cast<std::uint64_t>(k.object),
-                                   static_cast<std::uint64_t>(k.sheet) * 2654435761u +
-                                       static_cast<std::uint64_t>(k.element + 1));
-        for (long long c : k.position) h = hashPair(h, static_cast<std::uint64_t>(c));
-        for (long long c : k.normal) h = hashPair(h, static_cast<std::uint64_t>(c));
-        return static_cast<std::size_t>(h);
-    }
-    static bool equal(const SampleKey& a, const SampleKey& b) { return a == b; }
-};
-
-using SampleCache = tbb::concurrent_hash_map<SampleKey, ExactIrradiance::Parts, SampleKeyHash>;
-
 /// What every element's meshing shares in one HifiMesh::build: the scene's shadow events and
 /// contacts, the exact samples taken so far, each element's triangles, and the counters the
 /// build's stats report.
@@ -581,15 +551,16 @@ struct HifiBuild {
     /// area-weighted median area.
     double singleSampleDiameter2 = 0;
     SampleCache cache;
-    /// The far field is pooled over neighbouring samples (poolFarField) and every
-    /// triangle's interpolant fitted again; perElementKeys holds each emitted triangle's
-    /// sample keys, in the order of perElement.
-    bool poolFarField = false;
+    /// Once every sample is taken the far field is refined (refineFarFields) and pooled over
+    /// neighbouring samples (poolFarField), and every triangle's interpolant fitted again;
+    /// perElementKeys holds each emitted triangle's sample keys, in the order of perElement.
+    bool refitFarField = false;
     std::vector<std::vector<std::array<SampleKey, 6>>> perElementKeys;
     std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
         centreSamples{0};
     std::atomic<bool> cancelled{false};
     std::atomic<int> covered{0}, buried{0}, cappedElements{0}, singleSample{0};
+    std::atomic<long long> farRays{0};
 
     /// Whether the point x of element `el`'s plane lies inside another object that bounds a
     /// solid (the first surface along the normal is such an object seen from inside); false
@@ -849,6 +820,7 @@ private:
         // twice to the same value.
         mB.samples.fetch_add(1, std::memory_order_relaxed);
         const ExactIrradiance::Parts value = mB.exact.irradianceParts(x, mEl.normal);
+        mB.farRays.fetch_add(value.farRays, std::memory_order_relaxed);
         // The first value stored wins, so every triangle sharing the point sees one.
         SampleCache::accessor stored;
         if (mB.cache.insert(stored, key)) stored->second = value;
@@ -924,8 +896,8 @@ private:
         for (int k = 0; k < 3; ++k) ht.p[k] = mG.frame.to3(t.p[k]);
         ht.irradiance = QuadraticInterpolant::fromSamples(total);
         mOut.push_back(ht);
-        // With a pooled far field the interpolant is fitted again once every sample is taken.
-        if (mB.poolFarField) mB.perElementKeys[mE].push_back(t.k);
+        // With a refined or pooled far field it is fitted again once every sample is taken.
+        if (mB.refitFarField) mB.perElementKeys[mE].push_back(t.k);
     }
 
     HifiBuild& mB;
@@ -937,71 +909,6 @@ private:
     std::vector<HifiTriangle>& mOut;
     const int mSheet;  ///< 1 on a back face's element, else 0 (part of the sample key)
 };
-
-struct SampleKeyStdHash {
-    std::size_t operator()(const SampleKey& k) const { return SampleKeyHash::hash(k); }
-};
-
-/// The far field of every sample in `cache` off contact lines, pooled over the other samples
-/// of its plane within a radius (poolFarField). What is pooled is the whole reflected light
-/// (the far field's rays and the near field's exact part, Parts::nearIndirect), which does not
-/// depend on how the two split it, and the sample's own near part is subtracted again. Where
-/// no other surface is within the near field's reach (Parts::nearShare 0, Parts::nearSurface
-/// false) the reflected light is the light of distant surfaces and smooth: `radius`, among
-/// such samples. Where another surface is near it changes faster: `nearRadius`, among such
-/// samples (0: each keeps its own value).
-std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> pooledFarField(const SampleCache& cache,
-                                                                      double grid,
-                                                                      double radius,
-                                                                      double nearRadius) {
-    std::vector<const SampleKey*> keys;
-    std::vector<FarFieldSample> samples;
-    // A plane id per object, sheet and normal.
-    std::map<std::tuple<int, int, std::array<long long, 3>>, int> planes;
-    for (const auto& [key, parts] : cache) {
-        if (key.element >= 0) continue;
-        FarFieldSample s;
-        s.open = !(parts.nearShare > 0 || parts.nearSurface);
-        if (!s.open && !(nearRadius > 0)) continue;
-        s.x = Vec3(key.position[0] * grid, key.position[1] * grid, key.position[2] * grid);
-        s.n =
-            glm::normalize(Vec3(key.normal[0] * 1e-6, key.normal[1] * 1e-6, key.normal[2] * 1e-6));
-        s.plane = planes
-                      .emplace(std::make_tuple(key.object, key.sheet, key.normal),
-                               static_cast<int>(planes.size()))
-                      .first->second;
-        s.indirect = parts.farField + parts.nearIndirect;
-        s.near = parts.nearIndirect;
-        keys.push_back(&key);
-        samples.push_back(s);
-    }
-    const PooledFarField pooled = poolFarField(samples, radius, nearRadius);
-    std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> out;
-    for (std::size_t i = 0; i < samples.size(); ++i)
-        if (pooled.fitted[i]) out.emplace(*keys[i], pooled.value[i]);
-    return out;
-}
-
-/// Fits every triangle's interpolant again with the pooled far field (pooledFarField) in
-/// place of its samples' own.
-void refitWithPooledFarField(HifiBuild& b, double radius, double nearRadius) {
-    const auto pooled = pooledFarField(b.cache, b.grid, radius, nearRadius);
-    tbb::parallel_for(0, static_cast<int>(b.perElement.size()), [&](int e) {
-        auto& triangles = b.perElement[e];
-        const auto& keys = b.perElementKeys[e];
-        for (std::size_t k = 0; k < triangles.size() && k < keys.size(); ++k) {
-            std::array<Rgb, 6> total;
-            for (int v = 0; v < 6; ++v) {
-                SampleCache::const_accessor found;
-                if (!b.cache.find(found, keys[k][v])) return;
-                const auto it = pooled.find(keys[k][v]);
-                total[v] = found->second.gathered +
-                           (it != pooled.end() ? it->second : found->second.farField);
-            }
-            triangles[k].irradiance = QuadraticInterpolant::fromSamples(total);
-        }
-    });
-}
 
 /// The element's squared bounding radius about `centre` (m²).
 double squaredRadius(const ElementGeometry& g, const Vec3& centre) {
@@ -1120,14 +1027,14 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     b.singleSampleDiameter2 =
         2 * areaWeightedMedianArea(disc) * std::pow(0.25, std::max(0, options.maxRefineDepth));
     const int count = static_cast<int>(todo.size());
-    const double poolRadius = options.farFieldPoolRadius * medianElementSize(disc);
-    b.poolFarField = poolRadius > 0 && exact.options().farRays > 0 && exact.tracer();
-    if (b.poolFarField) b.perElementKeys.resize(disc.elements().size());
+    b.refitFarField = exact.options().farRays > 0 && exact.tracer() &&
+                      (options.farFieldPoolRadius > 0 || options.farFieldRefineBudget > 0);
+    if (b.refitFarField) b.perElementKeys.resize(disc.elements().size());
     auto work = [&] { tbb::parallel_for(0, count, [&](int k) { meshElement(b, todo[k]); }); };
     runReportingProgress(work, b.done, count, progress);
-    if (b.poolFarField && !b.cancelled.load())
-        refitWithPooledFarField(b, poolRadius,
-                                options.farFieldNearPoolRadius * medianElementSize(disc));
+    if (b.refitFarField && !b.cancelled.load())
+        b.farRays += finishFarFields(b.cache, b.grid, exact, options, medianElementSize(disc),
+                                     b.perElement, b.perElementKeys);
     // The elements' triangles in element order: kept ones from this mesh, the rest new.
     std::vector<HifiTriangle> triangles;
     std::vector<int> first(std::size_t(elementCount) + 1, 0);
@@ -1156,6 +1063,7 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     mStats.singleSampleElements = b.singleSample.load();
     mStats.samples = b.samples.load();
     mStats.centreSamples = b.centreSamples.load();
+    mStats.farRays = b.farRays.load();
     mStats.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }

@@ -75,9 +75,22 @@ struct HifiOptions {
     /// instead of freezing into each triangle. This radius serves samples with no other
     /// surface within the near field's reach (the far field is the whole indirect light
     /// there, and smooth); `farFieldNearPoolRadius` those with one, whose far field changes
-    /// faster. 0 turns either off.
+    /// faster. 0 turns either off. Near another surface (a box's face above the floor, the
+    /// strip along a wall's corner) a fit over a strip of such samples leans with the near
+    /// field's curvature, so by default those keep their own far field, whose passes
+    /// (ExactIrradianceOptions::farMaxPasses) hold its noise down instead.
     double farFieldPoolRadius = 2.0;
-    double farFieldNearPoolRadius = 1.0;
+    double farFieldNearPoolRadius = 0.0;
+    /// With the far field's rays: once every sample is taken (before the pooling), the
+    /// samples whose far field's estimated standard error exceeds farFieldRefineTolerance of
+    /// their whole irradiance — the noise that would show — get the far field's next passes
+    /// (ExactIrradiance::refineFarField: 4 ×, then 16 × its rays, with strata twice and four
+    /// times as fine), the worst first, up to farFieldRefinePasses passes and within
+    /// farFieldRefineBudget × the first passes' rays: the build's cost stays bounded whatever
+    /// the scene. 0 turns it off.
+    double farFieldRefineTolerance = 0.01;
+    double farFieldRefineBudget = 1.0;
+    int farFieldRefinePasses = 3;
     /// Polled once per element: when it returns true the build stops early and the mesh is
     /// left incomplete (HifiStats::cancelled). The editor cancels a build an edit outdates.
     std::function<bool()> cancelled;
@@ -98,6 +111,7 @@ struct HifiStats {
     int remeshed = 0;         ///< elements this build meshed (update(): the changed ones)
     int samples = 0;          ///< irradiance evaluations at triangle vertices and midpoints
     int centreSamples = 0;    ///< exact-part evaluations at centres (the refinement test)
+    long long farRays = 0;    ///< the far field's rays over all samples (farRays per pass)
     double seconds = 0;
     bool cancelled = false;  ///< HifiOptions::cancelled stopped the build
     /// Triangles dropped inside other objects (with ExactIrradiance's ray tracer).

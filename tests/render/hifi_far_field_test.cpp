@@ -1,18 +1,23 @@
 // The interpolants' far field is smooth (issue 46, point 2): in a closed room of one
 // reflectance and one emission (the furnace) the interpolant image is flat at the closed form
-// E / (1 − ρ) / π, and in the Cornell box the relative error over any 32 × 32 pixel window of a
-// flat face, against the exact gather of the same solution at every pixel (every reflecting
-// patch through its visible part, no rays), stays within a per cent.
+// E / (1 − ρ) / π, with the far field pooled over neighbouring samples and with each sample's
+// own; and in the Cornell box the relative error over any 32 × 32 pixel window of a face lit
+// mostly by reflected light (the back wall, the short box's front face, the ceiling), against
+// the exact gather of the same solution at every pixel (every reflecting patch through its
+// visible part, no rays), stays within a per cent. PENUMBRA_TEST_IMAGES=DIR writes the Cornell
+// views' images there (VIEW-reference.exr, VIEW-interpolants.exr).
 
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
 
 #include <cmath>
+#include <cstdlib>
 
 #include "edit/scene_io.h"
 #include "render/camera_rays.h"
 #include "render/exact_irradiance.h"
 #include "render/hifi_mesh.h"
+#include "render/image.h"
 #include "render/path_tracer.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
@@ -52,27 +57,26 @@ TEST(HifiFarField, TheFurnaceRoomIsFlatAtTheClosedForm) {
     RayTracer tracer(disc);
     ProgressiveSolver solver(disc, tracer, SolverOptions{});
     solver.converge(1e-5, 1000000);
-    const HifiMesh mesh = buildInterpolants(disc, tracer, solver, true);
     // Into a corner, so the view holds three walls and their edges.
     const CameraRays rays(lookingAt({0.3, 0.2, 0.35}, {-0.5, -0.5, -0.5}, 80), 64, 64);
-    const Image image = renderInterpolants(disc, tracer, mesh, rays, 1);
     const double truth = 1.0 / (1 - 0.5) / M_PI;
-    double worst = 0;
-    for (const Rgb& p : image.pixels) worst = std::max(worst, std::abs(p.x - truth) / truth);
-    EXPECT_LT(worst, 0.005) << "radiance off E / (1 − ρ) / π = " << truth << " by " << 100 * worst
-                            << "% at worst";
+    // The far field pooled over neighbouring samples (the build's default), and each sample's
+    // own: the far field's rays alone keep it flat.
+    for (bool pool : {true, false}) {
+        const HifiMesh mesh = buildInterpolants(disc, tracer, solver, pool);
+        const Image image = renderInterpolants(disc, tracer, mesh, rays, 1);
+        double worst = 0;
+        for (const Rgb& p : image.pixels) worst = std::max(worst, std::abs(p.x - truth) / truth);
+        EXPECT_LT(worst, 0.005) << (pool ? "pooled" : "own")
+                                << " far field: radiance off E / (1 − ρ) / π = " << truth << " by "
+                                << 100 * worst << "% at worst";
+    }
 }
 
-TEST(HifiFarField, CornellWindowsOfFlatFacesFollowTheExactGather) {
-    Scene scene = loadScene(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json");
-    Discretization disc(scene);
-    RayTracer tracer(disc);
-    ProgressiveSolver solver(disc, tracer, SolverOptions{});
-    solver.converge(1e-3, 1000000);
-    // The back wall above the boxes, filling the view.
-    const CameraRays rays(lookingAt({0, 1.15, 0.2}, {0, 1.15, -0.75}, 30), 64, 64);
-    // The reference: every reflecting patch gathered through its visible part (near ones
-    // element by element) at each pixel's point, with the same solution's light.
+/// The exact gather of `solver`'s solution at each pixel's point (every reflecting patch
+/// through its visible part, near ones element by element; no rays): a smooth reference.
+Image exactGather(const Discretization& disc, const RayTracer& tracer,
+                  const ProgressiveSolver& solver, const CameraRays& rays) {
     ExactIrradiance exact(disc, {}, &tracer);
     exact.setReflected(reflectedRadiosity(disc, solver));
     Image reference(rays.width(), rays.height());
@@ -89,19 +93,44 @@ TEST(HifiFarField, CornellWindowsOfFlatFacesFollowTheExactGather) {
                 M_PI;
         }
     });
-    const std::vector<std::uint64_t> faces = flatFaceKeys(disc, tracer, rays);
-    // Each sample's own rays, then the far field pooled over neighbouring samples (the default).
-    WindowErrors own, pooled;
-    for (bool pool : {false, true}) {
-        const Image image = renderInterpolants(
-            disc, tracer, buildInterpolants(disc, tracer, solver, pool), rays, 1);
-        (pool ? pooled : own) = flatWindowErrors(image, reference, faces, 32, 4);
+    return reference;
+}
+
+struct CornellView {
+    const char* name;
+    Camera camera;
+};
+
+TEST(HifiFarField, CornellWindowsOfFlatFacesFollowTheExactGather) {
+    Scene scene = loadScene(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json");
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ProgressiveSolver solver(disc, tracer, SolverOptions{});
+    solver.converge(1e-3, 1000000);
+    // Faces lit mostly by reflected light, where the far field's noise shows most, each filling
+    // its view: the back wall above the boxes; the short box's front face (normal
+    // (−0.29, 0, 0.96)) above its lower third, where the floor's contact bends the light faster
+    // than the quadratics follow; the ceiling beside the lamp.
+    const CornellView views[] = {
+        {"back-wall", lookingAt({0, 1.15, 0.2}, {0, 1.15, -0.75}, 30)},
+        {"short-box", lookingAt({0.005, 0.26, 1.216}, {0.239, 0.26, 0.451}, 18)},
+        {"ceiling", lookingAt({-0.35, 0.9, 0.6}, {-0.45, 1.5, 0.1}, 30)},
+    };
+    const HifiMesh mesh = buildInterpolants(disc, tracer, solver, true);
+    for (const CornellView& view : views) {
+        const CameraRays rays(view.camera, 64, 64);
+        const Image reference = exactGather(disc, tracer, solver, rays);
+        const Image image = renderInterpolants(disc, tracer, mesh, rays, 1);
+        if (const char* dir = std::getenv("PENUMBRA_TEST_IMAGES")) {
+            writeExr(reference, std::string(dir) + "/" + view.name + "-reference.exr");
+            writeExr(image, std::string(dir) + "/" + view.name + "-interpolants.exr");
+        }
+        const WindowErrors w =
+            flatWindowErrors(image, reference, flatFaceKeys(disc, tracer, rays), 32, 4);
+        RecordProperty(view.name, w.toString());
+        ASSERT_GT(w.windows, 10) << view.name << ": " << w.toString();
+        EXPECT_LE(w.maxStd, 0.01) << view.name << ": " << w.toString();
     }
-    ASSERT_GT(pooled.windows, 10) << pooled.toString();
-    EXPECT_LE(pooled.maxStd, 0.01) << "pooled " << pooled.toString();
-    // The pooling is what makes it smooth: the samples' own rays leave twice the blotches.
-    EXPECT_LT(2 * pooled.maxStd, own.maxStd)
-        << "pooled " << pooled.toString() << ", own " << own.toString();
 }
 
 }  // namespace
