@@ -304,6 +304,8 @@ private:
     /// The incremental reprojection's output for pixel k showing point i (−1: none): the
     /// EPI's sample, the luminance the priority reads, the screen index.
     void writeShown(const CameraRays& camera, const EpiPointArrays& epi, int k, int i);
+    /// writeShown() for a point whose colour alone changed since its sample was written.
+    void writeShownColour(const CameraRays& camera, const EpiPointArrays& epi, int k, int i);
     /// dropIf(), with the incremental state kept: the dropped points (indices, ascending)
     /// leave their pixels' lists, which are redone.
     void leavePixels(const std::vector<int>& gone);

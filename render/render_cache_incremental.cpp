@@ -21,6 +21,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include "render/render_cache.h"
@@ -218,7 +219,8 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
                           [&](const tbb::blocked_range<std::size_t>& r) {
                               for (std::size_t k = r.begin(); k != r.end(); ++k)
                                   if (mShownPoint[k] >= 0)
-                                      writeShown(camera, epi, static_cast<int>(k), mShownPoint[k]);
+                                      writeShownColour(camera, epi, static_cast<int>(k),
+                                                       mShownPoint[k]);
                           });
         rewritten = mShownPoint.size();
     } else {
@@ -228,7 +230,7 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
                                   const int i = recoloured[t];
                                   if (mProjBand[i] == 0xFF) continue;
                                   const int k = mProj[i].pixel;
-                                  if (mShownPoint[k] == i) writeShown(camera, epi, k, i);
+                                  if (mShownPoint[k] == i) writeShownColour(camera, epi, k, i);
                               }
                           });
         rewritten += recoloured.size();
@@ -266,6 +268,20 @@ void RenderCache::writeShown(const CameraRays& camera, const EpiPointArrays& epi
                         pt.colour, mPixelAge[k], trustOf(pt)};
     epi.place(k, &p);
     mLuminance[k] = mLuminanceHi[k] = luminance(pt.colour);
+}
+
+void RenderCache::writeShownColour(const CameraRays& camera, const EpiPointArrays& epi, int k,
+                                   int i) {
+    // The sample's place, depth and trust stand; a kept sample stays kept while its colour is
+    // finite (epiKeepsPoint), and then only its colour changes.
+    const Rgb& colour = mPoints[i].colour;
+    if (epi.position[k] == 0xFF || !std::isfinite(colour.x) || !std::isfinite(colour.y) ||
+        !std::isfinite(colour.z)) {
+        writeShown(camera, epi, k, i);
+        return;
+    }
+    epi.colour[k] = glm::vec3(colour);
+    mLuminance[k] = mLuminanceHi[k] = luminance(colour);
 }
 
 void RenderCache::leavePixels(const std::vector<int>& gone) {
