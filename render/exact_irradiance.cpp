@@ -444,19 +444,22 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
         return true;
     };
     const double lift = 1e3 * mEpsilon;
+    // The pyramid's planes, positive inside: its base and its i-th side.
+    auto base = [&](const Vec3& p) { return glm::dot(p - frame.origin, frame.n) - lift; };
+    auto side = [&](std::size_t i) {
+        return [&, i](const Vec3& p) { return glm::dot(p - x, sideNormal[i]); };
+    };
     // A polygon with every corner strictly outside one of the pyramid's planes is clipped
     // away whole: tested on its corners first, without clipping.
     auto outsidePyramid = [&](const std::vector<Vec3>& polygon) {
-        auto allBelow = [&](auto side) {
+        auto allBelow = [&](auto plane) {
             for (const Vec3& p : polygon)
-                if (!(side(p) < 0)) return false;
+                if (!(plane(p) < 0)) return false;
             return true;
         };
-        if (allBelow([&](const Vec3& p) { return glm::dot(p - frame.origin, frame.n) - lift; }))
-            return true;
+        if (allBelow(base)) return true;
         for (std::size_t i = 0; i < n; ++i)
-            if (allBelow([&](const Vec3& p) { return glm::dot(p - x, sideNormal[i]); }))
-                return true;
+            if (allBelow(side(i))) return true;
         return false;
     };
     std::size_t shadowCount = 0;
@@ -475,12 +478,9 @@ std::vector<std::vector<Vec3>> ExactIrradiance::clipVisible(const Vec3& x,
             // A polygon whose plane passes through x cannot hide anything from x.
             if (std::abs(glm::dot(x - B.polygon[0], B.normal)) <= lift) continue;
             if (outsidePyramid(B.polygon)) continue;
-            clipConvex(
-                B.polygon,
-                [&](const Vec3& p) { return glm::dot(p - frame.origin, frame.n) - lift; }, clipA);
+            clipConvex(B.polygon, base, clipA);
             for (std::size_t i = 0; i < n && !clipA.empty(); ++i) {
-                clipConvex(
-                    clipA, [&](const Vec3& p) { return glm::dot(p - x, sideNormal[i]); }, clipB);
+                clipConvex(clipA, side(i), clipB);
                 clipA.swap(clipB);
             }
             if (clipA.size() < 3) continue;
@@ -647,8 +647,7 @@ Rgb ExactIrradiance::indirect(const Vec3& x, const Vec3& n) const {
     if (mReflected.empty()) return Rgb(0.0);
     Parts parts;
     addGathered(x, n, parts);
-    if (sampledFarField())
-        parts.farField += farIndirect(x, n, farPlan(), luminance(parts.total())).value;
+    if (sampledFarField()) addFarField(x, n, 1, parts);
     return parts.total();
 }
 
@@ -658,13 +657,7 @@ ExactIrradiance::Parts ExactIrradiance::irradianceParts(const Vec3& x, const Vec
     addDirect(x, n, parts);
     if (!mOptions.indirect || mReflected.empty()) return parts;
     addGathered(x, n, parts);
-    if (withFarField && sampledFarField()) {
-        const FarFieldEstimate far = farIndirect(x, n, farPlan(), luminance(parts.total()));
-        parts.farField += far.value;
-        parts.farError = far.standardError;
-        parts.farRays = far.rays;
-        parts.farPasses = far.passes;
-    }
+    if (withFarField && sampledFarField()) addFarField(x, n, 1, parts);
     return parts;
 }
 
@@ -719,31 +712,12 @@ void ExactIrradiance::addGathered(const Vec3& x, const Vec3& n, Parts& parts) co
             }
 }
 
-FarFieldRays ExactIrradiance::farPlan() const {
-    FarFieldRays plan;
-    plan.perPass = mOptions.farRays;
-    return plan;
-}
-
 void ExactIrradiance::refineFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts) const {
     if (!sampledFarField() || mReflected.empty() || parts.farPasses >= passes) return;
-    FarFieldEstimate from;
-    from.value = parts.farField;
-    from.standardError = parts.farError;
-    from.rays = parts.farRays;
-    from.passes = parts.farPasses;
-    FarFieldRays plan = farPlan();
-    plan.maxPasses = passes;
-    const FarFieldEstimate far = farIndirect(x, n, plan, 0, &from);
-    parts.farField = far.value;
-    parts.farError = far.standardError;
-    parts.farRays = far.rays;
-    parts.farPasses = far.passes;
+    addFarField(x, n, passes, parts);
 }
 
-FarFieldEstimate ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n,
-                                              const FarFieldRays& plan, double gathered,
-                                              const FarFieldEstimate* from) const {
+void ExactIrradiance::addFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts) const {
     // Each point's jitter is its own, seeded by its position, so that its value is
     // reproducible and neighbouring points' errors are independent (they average out where
     // the build pools them).
@@ -751,9 +725,19 @@ FarFieldEstimate ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n,
     for (double c : {x.x, x.y, x.z})
         seed = hashPair(seed, static_cast<std::uint64_t>(std::llround(c * 1e9)));
     const Vec3 origin = x + mTracer->epsilon() * n;
-    // E = ∫ (B/π) cos dω: the mean over cosine-distributed rays of what they read.
-    return estimateFarField(
-        n, seed, plan, gathered,
+    FarFieldRays plan;
+    plan.perPass = mOptions.farRays;
+    plan.maxPasses = passes;
+    FarFieldEstimate from;
+    from.value = parts.farField;
+    from.standardError = parts.farError;
+    from.rays = parts.farRays;
+    from.passes = parts.farPasses;
+    // E = ∫ (B/π) cos dω: the mean over cosine-distributed rays of what they read. No
+    // tolerance: the passes run to `passes` unless one leaves no error (the build's
+    // refinement picks the points by their error).
+    const FarFieldEstimate far = estimateFarField(
+        n, seed, plan, 0,
         [&](const Vec3& d) -> Rgb {
             const RayTracer::FirstHit hit = mTracer->firstHit(origin, d);
             if (hit.element < 0 || hit.backFace) return Rgb(0.0);
@@ -764,7 +748,11 @@ FarFieldEstimate ExactIrradiance::farIndirect(const Vec3& x, const Vec3& n,
             }
             return nearPatch(hit.patch, x) ? Rgb(0.0) : mReflected[hit.element];
         },
-        from);
+        &from);
+    parts.farField = far.value;
+    parts.farError = far.standardError;
+    parts.farRays = far.rays;
+    parts.farPasses = far.passes;
 }
 
 std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const ProgressiveSolver& solver) {

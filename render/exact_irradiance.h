@@ -212,13 +212,10 @@ private:
     /// the point-to-point kernel.
     double sampledVisibleFraction(const Vec3& x, const Vec3& n,
                                   const std::vector<Vec3>& source) const;
-    /// The far field's passes at x by `plan` (farPlan), continuing `from` when given;
-    /// `gathered` is the luminance of the rest of x's irradiance (the relative tolerance's
-    /// base).
-    FarFieldEstimate farIndirect(const Vec3& x, const Vec3& n, const FarFieldRays& plan,
-                                 double gathered, const FarFieldEstimate* from = nullptr) const;
-    /// One pass of farRays rays.
-    FarFieldRays farPlan() const;
+    /// The far field's passes at x (estimateFarField, passes of farRays, 4 farRays, ...) up to
+    /// `passes` in all, continuing those `parts` holds (none: from the first): farField,
+    /// farError, farRays and farPasses are set.
+    void addFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts) const;
     /// Form factor to the visible part of `source`; `sampled` set when its visibility was
     /// estimated by rays (past maxExactBlockers).
     double formFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& source,

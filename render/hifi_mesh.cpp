@@ -804,14 +804,7 @@ private:
                 break;
             }
         const Vec3 x = mG.frame.to3(onContact ? q + 1e-4 * (centre - q) : q);
-        key = SampleKey{};
-        key.object = mEl.object;
-        key.sheet = mSheet;
-        key.element = onContact ? mE : -1;
-        for (int k = 0; k < 3; ++k) {
-            key.position[k] = std::llround(x[k] / mB.grid);
-            key.normal[k] = std::llround(mEl.normal[k] * 1e6);
-        }
+        key = SampleKey::at(mEl.object, mSheet, onContact ? mE : -1, x, mEl.normal, mB.grid);
         {
             SampleCache::const_accessor found;
             if (mB.cache.find(found, key)) return found->second;

@@ -77,8 +77,8 @@ struct HifiOptions {
     /// there, and smooth); `farFieldNearPoolRadius` those with one, whose far field changes
     /// faster. 0 turns either off. Near another surface (a box's face above the floor, the
     /// strip along a wall's corner) a fit over a strip of such samples leans with the near
-    /// field's curvature, so by default those keep their own far field, whose passes
-    /// (ExactIrradianceOptions::farMaxPasses) hold its noise down instead.
+    /// field's curvature, so by default those keep their own far field, whose further
+    /// passes (farFieldRefineBudget below) hold its noise down instead.
     double farFieldPoolRadius = 2.0;
     double farFieldNearPoolRadius = 0.0;
     /// With the far field's rays: once every sample is taken (before the pooling), the

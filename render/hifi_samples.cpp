@@ -38,9 +38,8 @@ std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> pooledFarField(const Sample
         FarFieldSample s;
         s.open = !(parts.nearShare > 0 || parts.nearSurface);
         if (!s.open && !(nearRadius > 0)) continue;
-        s.x = Vec3(key.position[0] * grid, key.position[1] * grid, key.position[2] * grid);
-        s.n =
-            glm::normalize(Vec3(key.normal[0] * 1e-6, key.normal[1] * 1e-6, key.normal[2] * 1e-6));
+        s.x = key.point(grid);
+        s.n = key.unitNormal();
         s.plane = planes
                       .emplace(std::make_tuple(key.object, key.sheet, key.normal),
                                static_cast<int>(planes.size()))
@@ -86,10 +85,7 @@ long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance
             const SampleKey& key = todo[i].second;
             SampleCache::accessor found;
             if (!cache.find(found, key)) return;
-            const Vec3 x(key.position[0] * grid, key.position[1] * grid, key.position[2] * grid);
-            const Vec3 n = glm::normalize(
-                Vec3(key.normal[0] * 1e-6, key.normal[1] * 1e-6, key.normal[2] * 1e-6));
-            exact.refineFarField(x, n, pass, found->second);
+            exact.refineFarField(key.point(grid), key.unitNormal(), pass, found->second);
         });
         allowance -= static_cast<long long>(take) * cost;
         spent += static_cast<long long>(take) * cost;

@@ -9,6 +9,7 @@
 #include <tbb/concurrent_hash_map.h>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -24,6 +25,26 @@ namespace penumbra {
 struct SampleKey {
     int object = -1, sheet = 0, element = -1;
     std::array<long long, 3> position{}, normal{};
+    /// The key of point x (m) with unit normal n, its position on a grid `grid` (m) wide.
+    static SampleKey at(int object, int sheet, int element, const Vec3& x, const Vec3& n,
+                        double grid) {
+        SampleKey key;
+        key.object = object;
+        key.sheet = sheet;
+        key.element = element;
+        for (int k = 0; k < 3; ++k) {
+            key.position[k] = std::llround(x[k] / grid);
+            key.normal[k] = std::llround(n[k] * 1e6);
+        }
+        return key;
+    }
+    /// The point (m) and unit normal the key was made of (at()), to the grid's precision.
+    Vec3 point(double grid) const {
+        return Vec3(position[0] * grid, position[1] * grid, position[2] * grid);
+    }
+    Vec3 unitNormal() const {
+        return glm::normalize(Vec3(normal[0] * 1e-6, normal[1] * 1e-6, normal[2] * 1e-6));
+    }
     bool operator==(const SampleKey& o) const {
         return object == o.object && sheet == o.sheet && element == o.element &&
                position == o.position && normal == o.normal;

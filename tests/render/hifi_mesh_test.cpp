@@ -126,6 +126,16 @@ struct CardScene {
     }
 };
 
+/// The exact irradiance (no far field's rays) of `disc`'s solution converged to 1e-4: what most
+/// of these tests build the interpolants from.
+ExactIrradiance solvedExact(Discretization& disc, RayTracer& tracer) {
+    ProgressiveSolver solver(disc, tracer, SolverOptions{});
+    solver.converge(1e-4, 100000);
+    ExactIrradiance exact(disc);
+    exact.setReflected(reflectedRadiosity(disc, solver));
+    return exact;
+}
+
 TEST(HifiMesh, ShadowEventsLieOnTheCardsPenumbraBoundaries) {
     // The card's edge x = 0.15 at height 0.5 with lamp edges x = ±0.2 at height 1: its VE/EV
     // events meet the floor at x = 0.15 + (0.15 ∓ 0.2) · 0.5 / 0.5, i.e. x = 0.1 and x = 0.35.
@@ -246,10 +256,7 @@ TEST(HifiMesh, SharesSamplesWhereIrradianceIsContinuousAndSplitsThemAtContacts) 
     const Scene scene = boxOnFloor(true);
     Discretization disc(scene);
     RayTracer tracer(disc);
-    ProgressiveSolver solver(disc, tracer, SolverOptions{});
-    solver.converge(1e-4, 100000);
-    ExactIrradiance exact(disc);
-    exact.setReflected(reflectedRadiosity(disc, solver));
+    const ExactIrradiance exact = solvedExact(disc, tracer);
     HifiMesh mesh;
     mesh.build(disc, exact);
     // Without sharing every triangle would take six samples of its own.
@@ -541,10 +548,7 @@ TEST(HifiMesh, AFaceSmallerThanTheFinestRefinementIsSampledOnceAtItsCentroid) {
     scene.settings.elementSize = 0.1;
     Discretization disc(scene);
     RayTracer tracer(disc);
-    ProgressiveSolver solver(disc, tracer, SolverOptions{});
-    solver.converge(1e-4, 100000);
-    ExactIrradiance exact(disc);
-    exact.setReflected(reflectedRadiosity(disc, solver));
+    const ExactIrradiance exact = solvedExact(disc, tracer);
     HifiMesh mesh;
     mesh.build(disc, exact);
     int ballElements = 0;
@@ -570,10 +574,7 @@ TEST(HifiMesh, AFaceSmallerThanTheFinestRefinementIsSampledOnceAtItsCentroid) {
 
 TEST(HifiMesh, ACancelledBuildStopsEarlyAndSaysSo) {
     CardScene s(0.25);
-    ProgressiveSolver solver(*s.disc, *s.tracer, SolverOptions{});
-    solver.converge(1e-4, 100000);
-    ExactIrradiance exact(*s.disc);
-    exact.setReflected(reflectedRadiosity(*s.disc, solver));
+    const ExactIrradiance exact = solvedExact(*s.disc, *s.tracer);
     HifiMesh whole;
     whole.build(*s.disc, exact);
     EXPECT_FALSE(whole.stats().cancelled);
@@ -671,10 +672,7 @@ TEST(HifiMesh, RendersWithoutADisplay) {
     // The per-pixel pass needs no window system: it runs with DISPLAY unset.
     ::unsetenv("DISPLAY");
     CardScene s(0.25);
-    ProgressiveSolver solver(*s.disc, *s.tracer, SolverOptions{});
-    solver.converge(1e-4, 100000);
-    ExactIrradiance exact(*s.disc);
-    exact.setReflected(reflectedRadiosity(*s.disc, solver));
+    const ExactIrradiance exact = solvedExact(*s.disc, *s.tracer);
     HifiMesh mesh;
     mesh.build(*s.disc, exact);
     Camera camera;
