@@ -22,16 +22,9 @@ namespace penumbra {
 
 namespace {
 
-/// Of two near-equal depths (within this fraction) the younger point wins the pixel.
-constexpr double kSameSurface = 0.01;
-
 /// reprojectParallel(): points per chunk of the projection pass, whose band counts give each
 /// chunk's slots in the bands' lists.
 constexpr std::size_t kProjectChunk = 8192;
-
-/// reprojectParallel(): the z-buffer depth of a pixel without a point (for the culling:
-/// never nearer, and not counted).
-constexpr double kNoDepth = std::numeric_limits<double>::infinity();
 
 /// The frame's random draws, counter-based: draw i is hashPair(seed, i), so any stretch of
 /// the sequence can be drawn where it is used (requestSamplesParallel() starts each tile at
@@ -379,9 +372,7 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
             continue;
         }
         const double dc = depth[cur];
-        if (depth[i] < dc * (1 - kSameSurface) ||
-            (depth[i] <= dc * (1 + kSameSurface) && pointAge(i) < pointAge(cur)))
-            cur = static_cast<int>(i);
+        if (takesPixel(depth[i], pointAge(i), dc, pointAge(cur))) cur = static_cast<int>(i);
     }
 
     // Depth culling (after Walter et al. 1999): a point is taken as hidden when at least half
@@ -563,9 +554,7 @@ void RenderCache::zBufferBands(int bands) {
             const double d = e.depth;
             if (cur >= 0) {
                 const double dc = mPixelDepth[k];
-                if (!(d < dc * (1 - kSameSurface) ||
-                      (d <= dc * (1 + kSameSurface) && e.age < mPixelAge[k])))
-                    continue;
+                if (!takesPixel(d, e.age, dc, mPixelAge[k])) continue;
             }
             cur = e.point;
             mPixelDepth[k] = d;
@@ -694,8 +683,7 @@ void RenderCache::writeVisiblePixels(const CameraRays& camera, const EpiPointArr
             // flag are the random access). The position is projected again from the point's
             // record, on the line its colour is read from, with the z-buffer's depth: the
             // projection pass's value bit for bit, without writing and reading it per point.
-            const ScreenPoint p{camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k],
-                                pt.colour, mPixelAge[k], trustOf(pt)};
+            const ScreenPoint p = shownPoint(camera, k, i);
             if (epi) {
                 // What EdgePointImage::build would place from the list (a NaN colour is not).
                 mScreenOfPixel[k] = i;
@@ -721,8 +709,7 @@ void RenderCache::buildScreenPoints() const {
             const int k = y * mWidth + x;
             const int i = mScreenOfPixel[k];
             if (i < 0) continue;
-            mScreen[s] = {mScreenCamera->projectAtDepth(mPoints[i].position, mPixelDepth[k]),
-                          mPixelDepth[k], mPoints[i].colour, mPixelAge[k], trustOf(mPoints[i])};
+            mScreen[s] = shownPoint(*mScreenCamera, k, i);
             mScreenOfPixel[k] = s++;
         }
     });

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <functional>
 #include <glm/glm.hpp>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -277,6 +278,25 @@ private:
     /// rows in parallel; leaves the survivors in mPixelPoint and their count per row in
     /// mRowCount[y + 1].
     void cullOccludedPoints();
+    /// Of two near-equal depths (within this fraction) the younger point wins the pixel.
+    static constexpr double kSameSurface = 0.01;
+    /// The z-buffer depth of a pixel without a point (for the culling: never nearer, and not
+    /// counted).
+    static constexpr double kNoDepth = std::numeric_limits<double>::infinity();
+    /// The z-buffer's rule (every reprojection's, in index order): a point at `depth` of age
+    /// `age` takes a pixel held at `heldDepth` by a point of age `heldAge` when it is nearer
+    /// by more than kSameSurface, or as near and younger.
+    static bool takesPixel(double depth, int age, double heldDepth, int heldAge) {
+        return depth < heldDepth * (1 - kSameSurface) ||
+               (depth <= heldDepth * (1 + kSameSurface) && age < heldAge);
+    }
+    /// Pixel k's visible point i as the frame shows it, seen from `camera`: the position
+    /// projected again at the z-buffer's depth, the pixel's age, the point's trust.
+    ScreenPoint shownPoint(const CameraRays& camera, std::size_t k, int i) const {
+        const CachePoint& pt = mPoints[i];
+        return {camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k], pt.colour,
+                mPixelAge[k], trustOf(pt)};
+    }
     /// Pixel (x, y)'s point of the z-buffer `zPoint` (depths in mPixelDepth) after depth
     /// culling: −1 when culled or empty.
     int culledPoint(const std::vector<int>& zPoint, int x, int y) const;
@@ -293,6 +313,21 @@ private:
     /// The incremental reprojection (RenderCacheOptions::incremental) when it applies; false
     /// when the whole one must run.
     bool reprojectIncremental(const CameraRays& camera, const EpiPointArrays& epi);
+    /// reprojectIncremental(), step 1: the points `touched` in place leave their old pixels'
+    /// lists and join their new ones'; both pixels are dirty.
+    void relinkTouched(const CameraRays& camera, const std::vector<int>& touched);
+    /// Step 2: the z-buffer of the `dirty` pixels from their lists; per dirty pixel whether its
+    /// depth moved (the one thing its neighbours' culling reads of it).
+    std::vector<std::uint8_t> zBufferDirty(const std::vector<int>& dirty);
+    /// Step 3: the culling, visible point and EPI sample of the dirty pixels and of those
+    /// whose culling reads a moved depth. Returns the samples rewritten.
+    std::size_t redoAffected(const CameraRays& camera, const EpiPointArrays& epi,
+                             const std::vector<int>& touched, const std::vector<int>& dirty,
+                             const std::vector<std::uint8_t>& depthMoved);
+    /// Step 4: the samples of the shown points among `recoloured` (colour-only changes), or
+    /// of every shown point when they are many. Returns the samples rewritten.
+    std::size_t rewriteRecoloured(const CameraRays& camera, const EpiPointArrays& epi,
+                                  const std::vector<int>& recoloured);
     /// Point i changes (insert, merge, carry, hide, stale, …): its old and new pixels are
     /// redone by the next incremental reprojection.
     void touch(std::size_t i) { mTouched[i] = kTouchedPlace; }

@@ -8,14 +8,16 @@
 // change to a point touches it (touch()); dropIf() takes the dropped points out of their lists
 // and renumbers the ones it moves (leavePixels(), movedInPixels()).
 // The next reprojection with the same camera and arrays then:
-//   1. takes each touched point out of its old pixel's list and into its new one's, both
-//      pixels dirty;
-//   2. redoes the z-buffer of the dirty pixels from their lists in index order (the whole
-//      z-buffer's order, which decides near-equal depths), and ages every other pixel's point
-//      by a frame, as the whole reprojection's ages do;
+//   1. takes each point touched in place out of its old pixel's list and into its new one's,
+//      both pixels dirty (relinkTouched);
+//   2. ages every pixel's point by a frame, as the whole reprojection's ages do, and redoes
+//      the z-buffer of the dirty pixels from their lists in index order (the whole z-buffer's
+//      order, which decides near-equal depths; zBufferDirty);
 //   3. redoes the culling, the visible points and their EPI samples in the dirty pixels and
-//      their culling neighbourhoods, which are all the culling reads from the dirty ones;
-//   4. recomputes the priority image (whole: it is cheap and every age moved).
+//      the neighbourhoods of those whose depth moved, all the culling reads of them
+//      (redoAffected);
+//   4. rewrites the colours of the relit points' samples (rewriteRecoloured);
+//   5. recomputes the priority image (whole: it is cheap and every age moved).
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -29,11 +31,6 @@
 namespace penumbra {
 
 namespace {
-
-/// As render_cache.cpp: near-equal depths (within this fraction) go to the younger point, and
-/// a pixel without a point has this depth.
-constexpr double kSameSurface = 0.01;
-constexpr double kNoDepth = std::numeric_limits<double>::infinity();
 
 /// The indices where `flags` equals `value`, ascending, gathered in parallel.
 std::vector<int> indicesOf(const std::vector<std::uint8_t>& flags, std::uint8_t value) {
@@ -92,7 +89,40 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
     if (n == 0 || static_cast<double>(touched.size()) > mOptions.incrementalShare * n) return false;
     const std::vector<int> recoloured = indicesOf(mTouched, kTouchedColour);
 
-    // 1. The touched points leave their old pixels' lists and join their new ones'.
+    relinkTouched(camera, touched);
+    // Every point a frame older (stale and carried ones keep their ages), then the dirty
+    // pixels' z-buffer from their lists.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mPixelAge.size(), 1 << 15),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          int* __restrict age = mPixelAge.data();
+                          for (std::size_t k = r.begin(); k != r.end(); ++k)
+                              age[k] += age[k] < kStaleAge ? 1 : 0;
+                      });
+    const std::vector<int> dirty = indicesOf(mDirty, 1);
+    const std::vector<std::uint8_t> depthMoved = zBufferDirty(dirty);
+    // A screen point list built since the last reprojection renumbered mScreenOfPixel.
+    if (!mScreenPending) mScreenOfPixel = mShownPoint;
+    const std::size_t rewritten = redoAffected(camera, epi, touched, dirty, depthMoved) +
+                                  rewriteRecoloured(camera, epi, recoloured);
+
+    for (int k : dirty) mDirty[k] = 0;
+    for (int i : touched) mTouched[i] = 0;
+    for (int i : recoloured) mTouched[i] = 0;
+    mRowCount[0] = 0;
+    for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] = mRowCount[y] + mRowVisible[y];
+    mVisibleCount = static_cast<std::size_t>(mRowCount[mHeight]);
+    mPixelPoint = mShownPoint;
+    mScreenPending = true;
+    mPendingOriginals.clear();
+    mScreenCamera = camera;
+    noteView(camera);
+    mIncrementalFrame = true;
+    mReprojectedPixels = std::min(rewritten, mShownPoint.size());
+    computePriority();  // whole: it is cheap and every age moved
+    return true;
+}
+
+void RenderCache::relinkTouched(const CameraRays& camera, const std::vector<int>& touched) {
     for (int i : touched)
         if (mProjBand[i] != 0xFF) {
             unlinkFromPixel(i, mProj[i].pixel);
@@ -116,49 +146,44 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
             mPixelHead[k] = i;
             mDirty[k] = 1;
         }
+}
 
-    // 2. Every point a frame older (stale and carried ones keep their ages), then the dirty
-    // pixels' z-buffer from their lists.
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mPixelAge.size(), 1 << 15),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          int* __restrict age = mPixelAge.data();
-                          for (std::size_t k = r.begin(); k != r.end(); ++k)
-                              age[k] += age[k] < kStaleAge ? 1 : 0;
-                      });
-    const std::vector<int> dirty = indicesOf(mDirty, 1);
-    // Per dirty pixel: whether its z-buffer depth (a pixel without a point: kNoDepth) moved,
-    // the one thing its neighbours' culling reads of it.
+std::vector<std::uint8_t> RenderCache::zBufferDirty(const std::vector<int>& dirty) {
     std::vector<std::uint8_t> depthMoved(dirty.size());
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, dirty.size(), 256),
-        [&](const tbb::blocked_range<std::size_t>& r) {
-            std::vector<int> candidates;
-            for (std::size_t d = r.begin(); d != r.end(); ++d) {
-                const int k = dirty[d];
-                candidates.clear();
-                for (int j = mPixelHead[k]; j >= 0; j = mNextInPixel[j]) candidates.push_back(j);
-                std::sort(candidates.begin(), candidates.end());
-                int cur = -1, curAge = 0;
-                double curDepth = kNoDepth;
-                for (int j : candidates) {
-                    const double depth = mProj[j].depth;
-                    const int age = pointAge(static_cast<std::size_t>(j));
-                    if (cur >= 0 && !(depth < curDepth * (1 - kSameSurface) ||
-                                      (depth <= curDepth * (1 + kSameSurface) && age < curAge)))
-                        continue;
-                    cur = j;
-                    curDepth = depth;
-                    curAge = age;
-                }
-                mZPoint[k] = cur;
-                depthMoved[d] = mPixelDepth[k] != curDepth;
-                mPixelDepth[k] = curDepth;
-                if (cur >= 0) mPixelAge[k] = curAge;
-            }
-        });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, dirty.size(), 256),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          std::vector<int> candidates;
+                          for (std::size_t d = r.begin(); d != r.end(); ++d) {
+                              const int k = dirty[d];
+                              // In index order, as the whole z-buffer takes them.
+                              candidates.clear();
+                              for (int j = mPixelHead[k]; j >= 0; j = mNextInPixel[j])
+                                  candidates.push_back(j);
+                              std::sort(candidates.begin(), candidates.end());
+                              int held = -1, heldAge = 0;
+                              double heldDepth = kNoDepth;
+                              for (int j : candidates) {
+                                  const double depth = mProj[j].depth;
+                                  const int age = pointAge(static_cast<std::size_t>(j));
+                                  if (held >= 0 && !takesPixel(depth, age, heldDepth, heldAge))
+                                      continue;
+                                  held = j;
+                                  heldDepth = depth;
+                                  heldAge = age;
+                              }
+                              mZPoint[k] = held;
+                              depthMoved[d] = mPixelDepth[k] != heldDepth;
+                              mPixelDepth[k] = heldDepth;
+                              if (held >= 0) mPixelAge[k] = heldAge;
+                          }
+                      });
+    return depthMoved;
+}
 
-    // 3. The dirty pixels and those whose culling reads a dirty one's moved depth: the
-    // culling, the visible point, its sample in the EPI and the luminance the priority reads.
+std::size_t RenderCache::redoAffected(const CameraRays& camera, const EpiPointArrays& epi,
+                                      const std::vector<int>& touched,
+                                      const std::vector<int>& dirty,
+                                      const std::vector<std::uint8_t>& depthMoved) {
     const int rad = std::max(0, mOptions.depthRadius);
     std::vector<int> affected;
     affected.reserve(dirty.size() * 2);
@@ -200,21 +225,19 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
         if (shown[a] >= 0) ++mRowVisible[k / mWidth];
         mShownPoint[k] = shown[a];
     }
-    // A screen point list built since the last reprojection renumbered mScreenOfPixel.
-    if (!mScreenPending) mScreenOfPixel = mShownPoint;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, affected.size(), 512),
                       [&](const tbb::blocked_range<std::size_t>& r) {
                           for (std::size_t a = r.begin(); a != r.end(); ++a) {
-                              const int k = affected[a];
-                              const int i = shown[a];
-                              mAffected[k] = 0;
-                              if (rewrite[a]) writeShown(camera, epi, k, i);
+                              mAffected[affected[a]] = 0;
+                              if (rewrite[a]) writeShown(camera, epi, affected[a], shown[a]);
                           }
                       });
-    // Points whose colour alone changed (a relight): their samples where they are shown, or
-    // every shown sample when most changed.
-    std::size_t rewritten = static_cast<std::size_t>(std::count(rewrite.begin(), rewrite.end(), 1));
-    if (static_cast<double>(recoloured.size()) > mOptions.incrementalShare * n) {
+    return static_cast<std::size_t>(std::count(rewrite.begin(), rewrite.end(), 1));
+}
+
+std::size_t RenderCache::rewriteRecoloured(const CameraRays& camera, const EpiPointArrays& epi,
+                                           const std::vector<int>& recoloured) {
+    if (static_cast<double>(recoloured.size()) > mOptions.incrementalShare * mPoints.size()) {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mShownPoint.size(), 4096),
                           [&](const tbb::blocked_range<std::size_t>& r) {
                               for (std::size_t k = r.begin(); k != r.end(); ++k)
@@ -222,36 +245,18 @@ bool RenderCache::reprojectIncremental(const CameraRays& camera, const EpiPointA
                                       writeShownColour(camera, epi, static_cast<int>(k),
                                                        mShownPoint[k]);
                           });
-        rewritten = mShownPoint.size();
-    } else {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, recoloured.size(), 1024),
-                          [&](const tbb::blocked_range<std::size_t>& r) {
-                              for (std::size_t t = r.begin(); t != r.end(); ++t) {
-                                  const int i = recoloured[t];
-                                  if (mProjBand[i] == 0xFF) continue;
-                                  const int k = mProj[i].pixel;
-                                  if (mShownPoint[k] == i) writeShownColour(camera, epi, k, i);
-                              }
-                          });
-        rewritten += recoloured.size();
+        return mShownPoint.size();
     }
-    for (int k : dirty) mDirty[k] = 0;
-    for (int i : touched) mTouched[i] = 0;
-    for (int i : recoloured) mTouched[i] = 0;
-    mRowCount[0] = 0;
-    for (int y = 0; y < mHeight; ++y) mRowCount[y + 1] = mRowCount[y] + mRowVisible[y];
-    mVisibleCount = static_cast<std::size_t>(mRowCount[mHeight]);
-    mPixelPoint = mShownPoint;
-    mScreenPending = true;
-    mPendingOriginals.clear();
-    mScreenCamera = camera;
-    noteView(camera);
-    mIncrementalFrame = true;
-    mReprojectedPixels = rewritten;
-
-    // 4. The priority image.
-    computePriority();
-    return true;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, recoloured.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t t = r.begin(); t != r.end(); ++t) {
+                              const int i = recoloured[t];
+                              if (mProjBand[i] == 0xFF) continue;
+                              const int k = mProj[i].pixel;
+                              if (mShownPoint[k] == i) writeShownColour(camera, epi, k, i);
+                          }
+                      });
+    return recoloured.size();
 }
 
 void RenderCache::writeShown(const CameraRays& camera, const EpiPointArrays& epi, int k, int i) {
@@ -262,12 +267,10 @@ void RenderCache::writeShown(const CameraRays& camera, const EpiPointArrays& epi
         epi.place(k, nullptr);
         return;
     }
-    const CachePoint& pt = mPoints[i];
     mVisible[i] = 1;
-    const ScreenPoint p{camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k],
-                        pt.colour, mPixelAge[k], trustOf(pt)};
+    const ScreenPoint p = shownPoint(camera, k, i);
     epi.place(k, &p);
-    mLuminance[k] = mLuminanceHi[k] = luminance(pt.colour);
+    mLuminance[k] = mLuminanceHi[k] = luminance(p.colour);
 }
 
 void RenderCache::writeShownColour(const CameraRays& camera, const EpiPointArrays& epi, int k,
