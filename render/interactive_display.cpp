@@ -21,6 +21,7 @@
 
 #include "core/random.h"
 #include "core/timing.h"
+#include "render/parallel_indices.h"
 #include "render/shadow_volume.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
@@ -683,8 +684,12 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
         const int now = moved.back();
         const Mat4 thenFromNow = mDisc.objects()[moved.front()].worldFromObject *
                                  glm::inverse(mDisc.objects()[now].worldFromObject);
-        for (std::size_t i = 0; i < points.size(); ++i) {
+        // The points to ask about, found in parallel; the requests made in index order.
+        const std::vector<int> asked = indicesWhere(points.size(), [&](std::size_t i) {
             // Dropped, seen in the last frame and not now behind the moved object.
+            return (drop[i] && mCache.visible(i) && !mCache.hidden(i)) || points[i].object == now;
+        });
+        for (const int i : asked) {
             if (drop[i] && mCache.visible(i) && !mCache.hidden(i)) request(points[i].position);
             if (points[i].object == now)
                 request(Vec3(thenFromNow * glm::dvec4(points[i].position, 1.0)));

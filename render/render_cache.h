@@ -253,6 +253,9 @@ public:
 private:
     template <class Drop>
     std::size_t dropIf(Drop drop);
+    /// dropIf() with the screen point list pending: the list's point indices follow the moves
+    /// (the dropped points' records kept), instead of the whole list being built first.
+    void renumberPendingScreen(const std::vector<int>& gone, std::size_t kept);
     /// The slots insert() replaces for `count` new points, ascending: the `count` points
     /// first by the key (visible in the last frame, birth frame, index), hidden before visible
     /// and the oldest first.

@@ -26,6 +26,7 @@
 #include <cmath>
 #include <limits>
 
+#include "render/parallel_indices.h"
 #include "render/render_cache.h"
 
 namespace penumbra {
@@ -34,17 +35,7 @@ namespace {
 
 /// The indices where `flags` equals `value`, ascending, gathered in parallel.
 std::vector<int> indicesOf(const std::vector<std::uint8_t>& flags, std::uint8_t value) {
-    constexpr std::size_t kChunk = 1 << 15;
-    const std::size_t n = flags.size();
-    const std::size_t chunks = (n + kChunk - 1) / kChunk;
-    std::vector<std::vector<int>> found(chunks);
-    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
-        for (std::size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i)
-            if (flags[i] == value) found[c].push_back(static_cast<int>(i));
-    });
-    std::vector<int> out;
-    for (const auto& f : found) out.insert(out.end(), f.begin(), f.end());
-    return out;
+    return indicesWhere(flags.size(), [&](std::size_t i) { return flags[i] == value; });
 }
 
 }  // namespace

@@ -22,7 +22,7 @@ std::size_t RenderCache::dropIf(Drop drop) {
     // thousand points of hundreds of thousands every frame, and so moves only that many
     // instead of compacting the whole cache. The survivors' order changes; the ties that
     // reprojection and replacement resolve by index stay deterministic. A pending screen
-    // point list reads points by index: it is built first.
+    // point list reads points by index: renumbered (renumberPendingScreen).
     const std::size_t before = mPoints.size();
     constexpr std::size_t kChunk = 8192;
     const std::size_t chunks = (before + kChunk - 1) / kChunk;
@@ -38,9 +38,14 @@ std::size_t RenderCache::dropIf(Drop drop) {
     std::vector<int> gone;
     for (const auto& g : goneIn) gone.insert(gone.end(), g.begin(), g.end());
     if (gone.empty()) return 0;
-    if (mScreenPending) buildScreenPoints();
-    if (mIncrementalValid) leavePixels(gone);
     const std::size_t kept = before - gone.size();
+    if (mScreenPending) {
+        if (kept > 0)
+            renumberPendingScreen(gone, kept);
+        else
+            buildScreenPoints();
+    }
+    if (mIncrementalValid) leavePixels(gone);
     std::size_t from = kept;
     for (int hole : gone) {
         if (static_cast<std::size_t>(hole) >= kept) break;
@@ -61,6 +66,42 @@ std::size_t RenderCache::dropIf(Drop drop) {
     std::fill(mPixelPoint.begin(), mPixelPoint.end(), -1);
     restartRequestCounts();
     return gone.size();
+}
+
+void RenderCache::renumberPendingScreen(const std::vector<int>& gone, std::size_t kept) {
+    // The holes below `kept` take the survivors above it in order (dropIf): each survivor's
+    // new index.
+    const std::size_t before = mPoints.size();
+    std::vector<int> newIndex(before - kept, -1);
+    std::size_t from = kept;
+    for (int hole : gone) {
+        if (static_cast<std::size_t>(hole) >= kept) break;
+        while (mDropFlags[from]) ++from;
+        newIndex[from++ - kept] = hole;
+    }
+    // Per pixel of the list: a moved point under its new index; a dropped one keeps the
+    // reprojection's record (as a merge does) over a stand-in index, which the record
+    // overrides in everything the list reads of the point.
+    const int pixels = mWidth * mHeight;
+    constexpr int kChunk = 1 << 14;
+    const int chunks = (pixels + kChunk - 1) / kChunk;
+    std::vector<std::vector<PendingOriginal>> records(static_cast<std::size_t>(chunks));
+    tbb::parallel_for(0, chunks, [&](int c) {
+        for (int k = c * kChunk; k < std::min(pixels, (c + 1) * kChunk); ++k) {
+            const int i = mScreenOfPixel[k];
+            if (i < 0) continue;
+            if (mDropFlags[i]) {
+                const CachePoint& p = mPoints[i];
+                records[c].push_back(
+                    {static_cast<std::size_t>(k), p.colour, p.position, trustOf(p)});
+                mScreenOfPixel[k] = 0;
+            } else if (static_cast<std::size_t>(i) >= kept) {
+                mScreenOfPixel[k] = newIndex[i - kept];
+            }
+        }
+    });
+    for (const auto& r : records)
+        mPendingOriginals.insert(mPendingOriginals.end(), r.begin(), r.end());
 }
 
 void RenderCache::movePoint(std::size_t from, std::size_t to) {
@@ -132,18 +173,42 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
 std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromFrom,
                                int elementOffset) {
     restartRequestCounts();
-    if (mScreenPending) buildScreenPoints();  // it reads the positions
+    // A pending screen point list shows the points where the reprojection saw them: the moved
+    // ones it shows keep that record (mergeIntoPixels' way), rather than the whole list being
+    // built now for a few of its points.
+    const bool pending = mScreenPending && mScreenCamera.has_value();
+    constexpr std::size_t kChunk = 4096;
+    const std::size_t n = mPoints.size();
+    const std::size_t chunks = (n + kChunk - 1) / kChunk;
+    std::vector<std::size_t> counts(chunks, 0);
+    std::vector<std::vector<PendingOriginal>> originals(pending ? chunks : 0);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        std::size_t here = 0;
+        for (std::size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i) {
+            CachePoint& p = mPoints[i];
+            if (p.object != fromObject) continue;
+            double depth = 0;
+            int pixel = -1;
+            if (pending && projectOne(*mScreenCamera, p.position, depth, pixel) &&
+                mScreenOfPixel[pixel] == static_cast<int>(i))
+                originals[c].push_back(
+                    {static_cast<std::size_t>(pixel), p.colour, p.position, trustOf(p)});
+            p.position = Vec3(toFromFrom * glm::dvec4(p.position, 1.0));
+            p.object = toObject;
+            p.element += elementOffset;
+            mPosition[i] = p.position;
+            mFlags[i] |= kStaleFlag | kCarriedFlag;
+            touch(i);
+            ++here;
+        }
+        counts[c] = here;
+    });
     std::size_t moved = 0;
-    for (std::size_t i = 0; i < mPoints.size(); ++i) {
-        CachePoint& p = mPoints[i];
-        if (p.object != fromObject) continue;
-        p.position = Vec3(toFromFrom * glm::dvec4(p.position, 1.0));
-        p.object = toObject;
-        p.element += elementOffset;
-        mPosition[i] = p.position;
-        mFlags[i] |= kStaleFlag | kCarriedFlag;
-        touch(i);
-        ++moved;
+    for (std::size_t c = 0; c < chunks; ++c) {
+        moved += counts[c];
+        if (pending)
+            mPendingOriginals.insert(mPendingOriginals.end(), originals[c].begin(),
+                                     originals[c].end());
     }
     return moved;
 }

@@ -1,5 +1,8 @@
 #include "ui/view_mode.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -48,11 +51,16 @@ bool usesInteractiveDisplay(ViewMode mode) {
 }
 
 std::vector<std::uint8_t> encodeDisplay(const Image& radiance) {
+    // Every frame of the viewport passes here: rows in parallel.
     std::vector<std::uint8_t> rgba(radiance.pixels.size() * 4);
-    for (std::size_t i = 0; i < radiance.pixels.size(); ++i) {
-        for (int c = 0; c < 3; ++c) rgba[4 * i + c] = srgbByte(radiance.pixels[i][c]);
-        rgba[4 * i + 3] = 255;
-    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, radiance.pixels.size(), 1 << 14),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              const Rgb& p = radiance.pixels[i];
+                              for (int c = 0; c < 3; ++c) rgba[4 * i + c] = srgbByte(p[c]);
+                              rgba[4 * i + 3] = 255;
+                          }
+                      });
     return rgba;
 }
 

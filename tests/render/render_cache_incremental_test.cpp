@@ -204,5 +204,73 @@ TEST(RenderCacheIncremental, AMovedCameraOrOtherArraysReprojectWhole) {
     EXPECT_FALSE(cache.lastReprojectionIncremental());
 }
 
+TEST(RenderCacheIncremental, CarryAndDropLeaveThePendingScreenListAsTheReprojectionShowedIt) {
+    // A reprojection into an EPI leaves the screen point list to be built on demand. A carry
+    // (a drag step) then moves points the list shows, and a drop removes some and renumbers
+    // the rest: the list built after them must show the points where the reprojection saw
+    // them, as the list built before the edits does, bit for bit, also after a merge changed
+    // some of the same points first.
+    const int w = 40, h = 30;
+    const CameraRays rays(cameraAt(Vec3(0, 1, 3), Vec3(0, 1, 0)), w, h);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<ShadedPoint> batch;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            // A slab (object 1) before a wall (object 0) over the middle of the view.
+            const bool slab = x > 10 && x < 28 && y > 6 && y < 22;
+            ShadedPoint p;
+            p.pixel = {x + 0.5, y + 0.5};
+            p.position = rays.origin() + (slab ? 2.5 : 5.0) * rays.rayDirection(x + 0.5, y + 0.5);
+            p.radiance = Rgb(u(rng), u(rng), 0.3);
+            p.object = slab ? 1 : 0;
+            p.element = (slab ? 100000 : 0) + x + 1000 * y;
+            p.shading = 1;
+            batch.push_back(p);
+        }
+    // A later sample of some slab pixels under other lighting: it replaces their record.
+    std::vector<ShadedPoint> later;
+    for (const ShadedPoint& p : batch)
+        if (p.object == 1 && u(rng) < 0.3) {
+            ShadedPoint q = p;
+            q.radiance = Rgb(0.9, 0.1, 0.1);
+            q.shading = 2;
+            q.frame = 1;
+            later.push_back(q);
+        }
+    const Mat4 move = glm::translate(Mat4(1.0), Vec3(0.07, 0.03, 0.0));
+    RenderCache built(w, h, 4 * w * h), pending(w, h, 4 * w * h);
+    EdgePointImage epiBuilt(w, h), epiPending(w, h);
+    for (auto [cache, epi] : {std::pair{&built, &epiBuilt}, std::pair{&pending, &epiPending}}) {
+        cache->insert(batch);
+        cache->reproject(rays, epi->pointArrays());
+        cache->insert(later);
+    }
+    // Then a drop of some points of both objects (a drag's shadow drop), which renumbers the
+    // survivors, and a second carry of the renumbered points.
+    std::vector<std::uint8_t> drop(built.size(), 0);
+    for (auto& d : drop) d = u(rng) < 0.2;
+    ASSERT_FALSE(built.screenPoints().empty());  // the list built before the edits
+    ASSERT_GT(built.carry(1, 1, move, 0), 0u);
+    ASSERT_GT(pending.carry(1, 1, move, 0), 0u);
+    const std::size_t dropped = built.invalidatePoints(drop);
+    ASSERT_GT(dropped, 0u);
+    ASSERT_EQ(pending.invalidatePoints(drop), dropped);
+    ASSERT_GT(built.carry(1, 1, move, 0), 0u);
+    ASSERT_GT(pending.carry(1, 1, move, 0), 0u);
+    const auto& a = built.screenPoints();
+    const auto& b = pending.screenPoints();
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t k = 0; k < a.size(); ++k)
+        ASSERT_TRUE(a[k].position == b[k].position && a[k].depth == b[k].depth &&
+                    a[k].colour == b[k].colour && a[k].age == b[k].age && a[k].trust == b[k].trust)
+            << "screen point " << k;
+    EXPECT_EQ(built.priority(), pending.priority());
+    // And both reproject the moved points alike.
+    built.reproject(rays, epiBuilt.pointArrays());
+    pending.reproject(rays, epiPending.pointArrays());
+    EXPECT_EQ(differingPixel(epiBuilt.pointArrays(), epiPending.pointArrays()), "");
+}
+
 }  // namespace
 }  // namespace penumbra
