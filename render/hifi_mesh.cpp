@@ -16,7 +16,7 @@
 #include "render/box_tree.h"
 #include "render/camera_rays.h"
 #include "render/cdt.h"
-#include "render/edge_tree.h"
+#include "render/edge_mesh.h"
 #include "render/exact_irradiance.h"
 #include "render/hifi_samples.h"
 #include "render/light_change.h"
