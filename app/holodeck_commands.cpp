@@ -14,12 +14,12 @@
 #include "core/input_error.h"
 #include "core/timing.h"
 #include "render/camera_rays.h"
+#include "render/display/interactive_display.h"
+#include "render/display/point_shader.h"
 #include "render/holodeck/holo_file.h"
 #include "render/holodeck/holo_merge.h"
 #include "render/holodeck/holo_server.h"
 #include "render/holodeck/holo_view.h"
-#include "render/interactive_display.h"
-#include "render/point_shader.h"
 
 namespace penumbra::cli {
 

@@ -6,7 +6,7 @@
 #include <map>
 #include <string>
 
-#include "edit/scene_import.h"
+#include "edit/io/scene_import.h"
 
 namespace penumbra {
 

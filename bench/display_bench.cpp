@@ -19,8 +19,8 @@
 #include "core/timing.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
+#include "render/display/interactive_display.h"
 #include "render/image.h"
-#include "render/interactive_display.h"
 
 namespace penumbra {
 

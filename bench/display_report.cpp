@@ -1,6 +1,6 @@
 #include "bench/display_report.h"
 
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 
 namespace penumbra {
 

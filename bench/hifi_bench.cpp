@@ -20,13 +20,13 @@
 #include "edit/edit_command.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
-#include "render/exact_irradiance.h"
-#include "render/gl/interpolant_gl.h"
+#include "render/display/interactive_display.h"
 #include "render/gl/offscreen_context.h"
 #include "render/gouraud_renderer.h"
-#include "render/hifi_mesh.h"
+#include "render/hifi/exact_irradiance.h"
+#include "render/hifi/hifi_mesh.h"
+#include "render/hifi/interpolant_gl.h"
 #include "render/image.h"
-#include "render/interactive_display.h"
 #include "render/path_tracer.h"
 
 namespace penumbra {

@@ -25,11 +25,11 @@
 #include "edit/edit_session.h"
 #include "edit/lit_scene.h"
 #include "render/camera_rays.h"
+#include "render/display/interactive_display.h"
+#include "render/display/point_shader.h"
 #include "render/holodeck/holo_file.h"
 #include "render/holodeck/holo_server.h"
 #include "render/holodeck/holo_view.h"
-#include "render/interactive_display.h"
-#include "render/point_shader.h"
 
 namespace penumbra {
 namespace {

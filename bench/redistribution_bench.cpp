@@ -20,8 +20,8 @@
 #include "bench/bench.h"
 #include "core/durable_file.h"
 #include "core/log.h"
+#include "edit/io/scene_io.h"
 #include "edit/lit_scene.h"
-#include "edit/scene_io.h"
 #include "render/image.h"
 
 namespace penumbra {

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "core/input_error.h"
-#include "edit/scene_io.h"
+#include "edit/io/scene_io.h"
 
 namespace penumbra {
 

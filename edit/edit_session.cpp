@@ -11,8 +11,8 @@
 #include <stdexcept>
 
 #include "core/input_error.h"
-#include "edit/export.h"
-#include "edit/scene_io.h"
+#include "edit/io/export.h"
+#include "edit/io/scene_io.h"
 
 namespace penumbra {
 

@@ -7,7 +7,7 @@
 
 #include "core/durable_file.h"
 #include "core/input_error.h"
-#include "edit/scene_io.h"
+#include "edit/io/scene_io.h"
 
 namespace penumbra {
 

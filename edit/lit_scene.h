@@ -11,7 +11,7 @@
 // writeFileAtomically: saveSolution's, and the one for callers that write files of their own
 // beside a lit scene's.
 #include "core/durable_file.h"
-#include "edit/scene_import.h"
+#include "edit/io/scene_import.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"

@@ -9,7 +9,7 @@
 #include <optional>
 #include <string>
 
-#include "edit/scene_import.h"
+#include "edit/io/scene_import.h"
 #include "solver/edit_event.h"
 #include "solver/progressive_solver.h"
 

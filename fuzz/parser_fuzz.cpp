@@ -17,9 +17,9 @@
 
 #include "core/input_error.h"
 #include "edit/edit_log.h"
-#include "edit/mesh_io.h"
-#include "edit/scene_import.h"
-#include "edit/scene_io.h"
+#include "edit/io/mesh_io.h"
+#include "edit/io/scene_import.h"
+#include "edit/io/scene_io.h"
 #include "render/holodeck/holo_file.h"
 
 #define PENUMBRA_FUZZ_SCENE 1

@@ -32,7 +32,7 @@
 #include <thread>
 #include <vector>
 
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 #include "ui/holodeck_service.h"
 #include "ui/interpolant_service.h"
 #include "ui/runner_board.h"

@@ -12,8 +12,8 @@
 #include "edit/edit_session.h"
 #include "edit/lit_scene.h"
 #include "render/camera_rays.h"
-#include "render/interactive_display.h"
-#include "render/point_shader.h"
+#include "render/display/interactive_display.h"
+#include "render/display/point_shader.h"
 #include "solver/ray_tracer.h"
 
 namespace penumbra {

@@ -22,8 +22,8 @@
 #include <thread>
 
 #include "core/input_error.h"
-#include "edit/mesh_io.h"
-#include "edit/scene_import.h"
+#include "edit/io/mesh_io.h"
+#include "edit/io/scene_import.h"
 #include "render/image.h"
 #include "solver/progressive_solver.h"
 

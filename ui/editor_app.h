@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "edit/edit_log.h"
-#include "edit/scene_import.h"
+#include "edit/io/scene_import.h"
 #include "ui/drag_bench.h"
 #include "ui/drag_controller.h"
 #include "ui/file_dialog.h"

@@ -18,9 +18,9 @@
 #include <thread>
 #include <vector>
 
+#include "render/display/render_cache.h"
 #include "render/holodeck/holo_file.h"
 #include "render/holodeck/holo_server.h"
-#include "render/render_cache.h"
 #include "ui/runner_board.h"
 #include "ui/service_thread.h"
 #include "ui/shared_session.h"

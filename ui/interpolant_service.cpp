@@ -5,7 +5,7 @@
 
 #include "core/log.h"
 #include "core/thread_priority.h"
-#include "render/exact_irradiance.h"
+#include "render/hifi/exact_irradiance.h"
 #include "solver/discretization.h"
 
 namespace penumbra {

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "render/hifi_mesh.h"
+#include "render/hifi/hifi_mesh.h"
 #include "ui/runner_board.h"
 #include "ui/shared_session.h"
 

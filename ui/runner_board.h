@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "render/camera_rays.h"
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 #include "solver/progressive_solver.h"
 #include "solver/scene.h"
 #include "ui/view_mode.h"

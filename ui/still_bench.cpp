@@ -8,11 +8,11 @@
 
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
+#include "render/display/interactive_display.h"
+#include "render/display/point_shader.h"
 #include "render/gouraud_renderer.h"
 #include "render/image.h"
-#include "render/interactive_display.h"
 #include "render/path_tracer.h"
-#include "render/point_shader.h"
 #include "solver/progressive_solver.h"
 
 namespace penumbra {

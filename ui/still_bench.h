@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "edit/scene_import.h"
+#include "edit/io/scene_import.h"
 #include "ui/runner_board.h"
 
 namespace penumbra {

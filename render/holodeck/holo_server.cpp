@@ -12,7 +12,7 @@
 #include "core/random.h"
 #include "core/timing.h"
 #include "render/camera_rays.h"
-#include "render/point_shader.h"
+#include "render/display/point_shader.h"
 #include "solver/ray_tracer.h"
 
 namespace penumbra {

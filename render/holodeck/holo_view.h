@@ -10,10 +10,10 @@
 #include <utility>
 #include <vector>
 
+#include "render/display/point_shader.h"
+#include "render/display/render_cache.h"
 #include "render/holodeck/holo_server.h"
 #include "render/light_change.h"
-#include "render/point_shader.h"
-#include "render/render_cache.h"
 
 namespace penumbra {
 

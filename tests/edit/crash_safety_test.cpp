@@ -33,7 +33,7 @@
 #include "crash_edits.h"
 #include "edit/edit_log.h"
 #include "edit/edit_session.h"
-#include "edit/scene_io.h"
+#include "edit/io/scene_io.h"
 
 extern char** environ;
 

@@ -14,7 +14,7 @@
 #include "core/input_error.h"
 #include "edit/edit_command.h"
 #include "edit/edit_session.h"
-#include "edit/scene_io.h"
+#include "edit/io/scene_io.h"
 #include "log_capture.h"
 #include "test_scenes.h"
 

@@ -16,8 +16,8 @@
 
 #include "core/input_error.h"
 #include "edit/edit_log.h"
-#include "edit/mesh_io.h"
-#include "edit/scene_io.h"
+#include "edit/io/mesh_io.h"
+#include "edit/io/scene_io.h"
 #include "test_scenes.h"
 
 namespace penumbra {

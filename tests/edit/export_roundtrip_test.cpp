@@ -19,7 +19,7 @@
 #include <tiny_gltf.h>
 #include <tiny_obj_loader.h>
 
-#include "edit/export.h"
+#include "edit/io/export.h"
 #include "solver/discretization.h"
 #include "test_scenes.h"
 

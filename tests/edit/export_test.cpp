@@ -1,7 +1,7 @@
 // Export of lit scenes: each format is parsed back here independently of the writer and its
 // vertex count, face count, geometry and colours checked against the input.
 
-#include "edit/export.h"
+#include "edit/io/export.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -11,8 +11,8 @@
 #include <sstream>
 
 #include "core/input_error.h"
-#include "edit/export.h"
-#include "edit/scene_import.h"
+#include "edit/io/export.h"
+#include "edit/io/scene_import.h"
 #include "solver/discretization.h"
 #include "test_scenes.h"
 

@@ -4,7 +4,7 @@
 // Lambert closed forms solved through imported files; Penumbra's own glTF export read back;
 // bad files refused with one line naming the file.
 
-#include "edit/scene_import.h"
+#include "edit/io/scene_import.h"
 
 #include <gtest/gtest.h>
 
@@ -18,8 +18,8 @@
 #include <nlohmann/json.hpp>
 
 #include "core/input_error.h"
-#include "edit/export.h"
-#include "edit/scene_io.h"
+#include "edit/io/export.h"
+#include "edit/io/scene_io.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"

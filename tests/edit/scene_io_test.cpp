@@ -3,7 +3,7 @@
 // Index: helpers · round trip · transform order · mesh formats · degenerate faces ·
 //        bad scene input · API pieces for the edit log · saving
 
-#include "edit/scene_io.h"
+#include "edit/io/scene_io.h"
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>
@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "core/input_error.h"
-#include "edit/mesh_io.h"
+#include "edit/io/mesh_io.h"
 #include "log_capture.h"
 
 namespace penumbra {

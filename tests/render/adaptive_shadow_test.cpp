@@ -16,8 +16,8 @@
 #include <vector>
 
 #include "render/camera_rays.h"
-#include "render/interactive_display.h"
-#include "render/point_shader.h"
+#include "render/display/interactive_display.h"
+#include "render/display/point_shader.h"
 #include "solver/discretization.h"
 #include "solver/ray_tracer.h"
 #include "test_scenes.h"

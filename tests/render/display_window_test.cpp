@@ -15,7 +15,7 @@
 #include "edit/edit_session.h"
 #include "lit_room_display.h"
 #include "render/camera_rays.h"
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 #include "solver/ray_tracer.h"
 #include "test_scenes.h"
 

@@ -1,6 +1,6 @@
 // EdgeFinder over a Discretization: world-space silhouettes of transformed objects against a
 // world-space brute force, forward-facing sharp edges, moves without rebuilding trees.
-#include "render/edge_finder.h"
+#include "render/display/edge_finder.h"
 
 #include <gtest/gtest.h>
 

@@ -13,7 +13,7 @@
 #include <random>
 #include <vector>
 
-#include "render/edge_point_image.h"
+#include "render/display/edge_point_image.h"
 
 namespace penumbra {
 namespace {

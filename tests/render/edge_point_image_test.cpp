@@ -3,7 +3,7 @@
 // against their exact (area-coverage) images with and without edges, depth culling, the
 // complex filter, edge cases, and a timing printout at 512×512.
 
-#include "render/edge_point_image.h"
+#include "render/display/edge_point_image.h"
 
 #include <gtest/gtest.h>
 #include <time.h>

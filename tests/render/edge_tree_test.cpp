@@ -1,6 +1,6 @@
 // Edge tree (Bala et al. 2003 §6.4) against brute force over every edge (eq. 1), sharp
 // edges (§6.2) of boxes and spheres, and the silhouette time on ~1M triangles.
-#include "render/edge_tree.h"
+#include "render/display/edge_tree.h"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include <random>
 #include <set>
 
-#include "edit/mesh_io.h"
+#include "edit/io/mesh_io.h"
 #include "solver/discretization.h"
 
 using namespace penumbra;

@@ -11,7 +11,7 @@
 #include <random>
 #include <vector>
 
-#include "render/edge_point_image.h"
+#include "render/display/edge_point_image.h"
 
 namespace penumbra {
 namespace {

@@ -11,8 +11,8 @@
 #include <random>
 #include <vector>
 
-#include "render/edge_point_image.h"
-#include "render/interactive_display.h"
+#include "render/display/edge_point_image.h"
+#include "render/display/interactive_display.h"
 
 namespace penumbra {
 namespace {

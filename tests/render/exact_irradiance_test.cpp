@@ -3,7 +3,7 @@
 // half-plane blocker (what stays visible is again a rectangle), a blocker covering the source —
 // and the polygon subtraction against areas computed by hand.
 
-#include "render/exact_irradiance.h"
+#include "render/hifi/exact_irradiance.h"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // same neighbours as testing every sample against every other, and the local linear fit
 // reproduces a linear field exactly.
 
-#include "render/far_field_pool.h"
+#include "render/hifi/far_field_pool.h"
 
 #include <gtest/gtest.h>
 

@@ -3,7 +3,7 @@
 // 0.5 + 4.5 · (acos 0.2 − 0.2 √0.96) / π (Malley: a cosine-distributed direction's x is
 // that of a uniform point of the unit disc, so the bright side's share is a disc segment's).
 
-#include "render/far_field.h"
+#include "render/hifi/far_field.h"
 
 #include <gtest/gtest.h>
 

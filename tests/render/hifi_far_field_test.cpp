@@ -13,10 +13,10 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "edit/scene_io.h"
+#include "edit/io/scene_io.h"
 #include "render/camera_rays.h"
-#include "render/exact_irradiance.h"
-#include "render/hifi_mesh.h"
+#include "render/hifi/exact_irradiance.h"
+#include "render/hifi/hifi_mesh.h"
 #include "render/image.h"
 #include "render/path_tracer.h"
 #include "solver/discretization.h"

@@ -5,7 +5,7 @@
 // lines, and the interpolants of a blocker over a plane are closer to the exact irradiance
 // than the solution's constant elements.
 
-#include "render/hifi_mesh.h"
+#include "render/hifi/hifi_mesh.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -16,8 +16,8 @@
 
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
-#include "render/cdt.h"
-#include "render/exact_irradiance.h"
+#include "render/hifi/cdt.h"
+#include "render/hifi/exact_irradiance.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"

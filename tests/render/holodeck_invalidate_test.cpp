@@ -12,8 +12,8 @@
 #include <map>
 #include <set>
 
+#include "render/display/point_shader.h"
 #include "render/holodeck/holo_server.h"
-#include "render/point_shader.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"

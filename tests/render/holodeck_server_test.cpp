@@ -8,9 +8,9 @@
 
 #include <filesystem>
 
-#include "render/holodeck/holo_server.h"
 #include "core/random.h"
-#include "render/point_shader.h"
+#include "render/display/point_shader.h"
+#include "render/holodeck/holo_server.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"

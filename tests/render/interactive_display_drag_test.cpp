@@ -20,7 +20,7 @@
 #include "display_events.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 #include "solver/discretization.h"
 #include "solver/ray_tracer.h"
 #include "test_scenes.h"

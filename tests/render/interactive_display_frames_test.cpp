@@ -21,7 +21,7 @@
 
 #include "display_events.h"
 #include "edit/edit_session.h"
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 #include "solver/discretization.h"
 
 namespace penumbra {

@@ -14,7 +14,7 @@
 #include "lit_room_display.h"
 #include "point_shader_test_access.h"
 #include "render/camera_rays.h"
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 #include "solver/discretization.h"
 #include "solver/ray_tracer.h"
 #include "test_scenes.h"

@@ -2,16 +2,16 @@
 // same barycentric coordinates at every pixel both see inside a triangle, so the same image,
 // on an OSMesa context and on an EGL context, with no DISPLAY.
 
-#include "render/gl/interpolant_gl.h"
+#include "render/hifi/interpolant_gl.h"
 
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 
 #include "render/camera_rays.h"
-#include "render/exact_irradiance.h"
 #include "render/gl/offscreen_context.h"
-#include "render/hifi_mesh.h"
+#include "render/hifi/exact_irradiance.h"
+#include "render/hifi/hifi_mesh.h"
 #include "render/path_tracer.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"

@@ -2,7 +2,7 @@
 // The display the lit-room drag tests use (tests/test_scenes.h makeLitRoom): small,
 // synchronous (deterministic), a few more new samples a frame than the default.
 
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 
 namespace penumbra::test {
 

@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "render/camera_rays.h"
-#include "render/exact_irradiance.h"
+#include "render/hifi/exact_irradiance.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"

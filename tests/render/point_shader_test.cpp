@@ -6,7 +6,7 @@
 //
 // Index: scenes and closed forms · direct lighting · indirect part · determinism · threading
 
-#include "render/point_shader.h"
+#include "render/display/point_shader.h"
 
 #include <gtest/gtest.h>
 

@@ -4,7 +4,7 @@
 
 #include <vector>
 
-#include "render/point_shader.h"
+#include "render/display/point_shader.h"
 
 namespace penumbra {
 

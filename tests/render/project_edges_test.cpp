@@ -9,7 +9,7 @@
 #include <span>
 #include <vector>
 
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 
 namespace penumbra {
 namespace {

@@ -3,7 +3,7 @@
 // rasterized on a fine subpixel grid; chaining against path enumeration on that same flood
 // fill; region areas and edge-ambiguous sample cells against dense point sampling.
 
-#include "render/reachability.h"
+#include "render/display/reachability.h"
 
 #include <gtest/gtest.h>
 

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "render/camera_rays.h"
-#include "render/edge_point_image.h"
-#include "render/render_cache.h"
+#include "render/display/edge_point_image.h"
+#include "render/display/render_cache.h"
 
 namespace penumbra {
 namespace {

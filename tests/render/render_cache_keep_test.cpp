@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "render/camera_rays.h"
-#include "render/render_cache.h"
+#include "render/display/render_cache.h"
 
 namespace penumbra {
 namespace {

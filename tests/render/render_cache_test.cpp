@@ -6,7 +6,7 @@
 // Index: helpers · reprojection · depth culling · invalidation · capacity · requests ·
 //        with the point shader
 
-#include "render/render_cache.h"
+#include "render/display/render_cache.h"
 
 #include <gtest/gtest.h>
 
@@ -22,8 +22,8 @@
 #include <vector>
 
 #include "render/camera_rays.h"
-#include "render/edge_point_image.h"
-#include "render/point_shader.h"
+#include "render/display/edge_point_image.h"
+#include "render/display/point_shader.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
 #include "solver/ray_tracer.h"

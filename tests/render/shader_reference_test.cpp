@@ -8,7 +8,7 @@
 
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
-#include "render/interactive_display.h"
+#include "render/display/interactive_display.h"
 #include "test_scenes.h"
 
 namespace penumbra {

@@ -12,10 +12,10 @@
 #include <random>
 #include <set>
 
-#include "edit/mesh_io.h"
-#include "edit/scene_io.h"
-#include "render/edge_finder.h"
-#include "render/shadow_events.h"
+#include "edit/io/mesh_io.h"
+#include "edit/io/scene_io.h"
+#include "render/display/edge_finder.h"
+#include "render/display/shadow_events.h"
 #include "shadow_test_support.h"
 #include "test_scenes.h"
 

@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "edit/mesh_io.h"
-#include "render/edge_finder.h"
+#include "edit/io/mesh_io.h"
+#include "render/display/edge_finder.h"
 #include "shadow_test_support.h"
 
 using namespace penumbra;

@@ -10,7 +10,7 @@
 #include <tuple>
 #include <vector>
 
-#include "render/edge_finder.h"
+#include "render/display/edge_finder.h"
 
 namespace penumbra::test {
 

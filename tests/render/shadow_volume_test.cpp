@@ -7,15 +7,16 @@
 // Index: helpers · shaftMeetsBox against brute force · blockedFraction, lightWeight · a drag
 //        drops the shadowed points
 
+#include "render/display/shadow_volume.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
 
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
-#include "render/edge_finder.h"
-#include "render/interactive_display.h"
-#include "render/shadow_volume.h"
+#include "render/display/edge_finder.h"
+#include "render/display/interactive_display.h"
 #include "solver/contour_integral.h"
 #include "solver/discretization.h"
 #include "solver/ray_tracer.h"

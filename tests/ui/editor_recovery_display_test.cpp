@@ -9,7 +9,7 @@
 #include <filesystem>
 
 #include "edit/edit_log.h"
-#include "edit/scene_io.h"
+#include "edit/io/scene_io.h"
 #include "ui/editor_app.h"
 #include "ui/editor_test_support.h"
 #include "ui/recovery.h"

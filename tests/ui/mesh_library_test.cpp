@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
-#include "edit/mesh_io.h"
+#include "edit/io/mesh_io.h"
 
 namespace penumbra {
 namespace {

@@ -6,16 +6,15 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdio>
-
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <thread>
 
 #include "render/camera_rays.h"
-#include "render/exact_irradiance.h"
 #include "render/gouraud_renderer.h"
-#include "render/hifi_mesh.h"
+#include "render/hifi/exact_irradiance.h"
+#include "render/hifi/hifi_mesh.h"
 #include "render/path_tracer.h"
 #include "runner_test_support.h"
 #include "test_scenes.h"

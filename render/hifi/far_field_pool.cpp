@@ -1,0 +1,126 @@
+#include "render/hifi/far_field_pool.h"
+
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <cmath>
+#include <unordered_map>
+
+#include "core/random.h"
+
+namespace penumbra {
+
+namespace {
+
+/// The weighted least squares of F ≈ c0 + c1 u + c2 v about one sample.
+class LocalLinearFit {
+public:
+    LocalLinearFit(const FarFieldSample& a, double r) : mA(a), mR(r) {
+        mT = std::abs(a.n.x) > 0.5 ? glm::normalize(glm::cross(a.n, Vec3(0, 1, 0)))
+                                   : glm::normalize(glm::cross(a.n, Vec3(1, 0, 0)));
+        mB = glm::cross(a.n, mT);
+    }
+
+    /// Adds sample o when it lies in the sample's plane within the radius.
+    void add(const FarFieldSample& o) {
+        const Vec3 d = o.x - mA.x;
+        const double d2 = glm::dot(d, d);
+        if (d2 >= mR * mR || std::abs(glm::dot(d, mA.n)) > 1e-6 * mR) return;
+        const double w0 = 1 - d2 / (mR * mR), w = w0 * w0;
+        const double f[3] = {1, glm::dot(d, mT) / mR, glm::dot(d, mB) / mR};
+        for (int row = 0; row < 3; ++row) {
+            for (int q = 0; q < 3; ++q) mM[row][q] += w * f[row] * f[q];
+            mRhs[row] += w * f[row] * o.indirect;
+        }
+        ++mCount;
+    }
+
+    /// c0 less the sample's own near part; false with too few neighbours or all on a line (a
+    /// strip one sample wide).
+    bool solve(Rgb& out) const {
+        const double(&m)[3][3] = mM;
+        const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                           m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+        if (mCount < 8 || !(det > 1e-6 * m[0][0] * m[0][0] * m[0][0])) return false;
+        // c0 by Cramer's rule.
+        const Rgb c0 = (mRhs[0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                        m[0][1] * (mRhs[1] * m[2][2] - m[1][2] * mRhs[2]) +
+                        m[0][2] * (mRhs[1] * m[2][1] - m[1][1] * mRhs[2])) /
+                       det;
+        out = glm::max(c0 - mA.near, Rgb(0.0));
+        return true;
+    }
+
+private:
+    const FarFieldSample& mA;
+    const double mR;
+    Vec3 mT{0.0}, mB{0.0};
+    double mM[3][3] = {};
+    Rgb mRhs[3] = {Rgb(0.0), Rgb(0.0), Rgb(0.0)};
+    int mCount = 0;
+};
+
+/// Samples pool with those of their own group: plane and kind.
+long long groupOf(const FarFieldSample& s) { return 2LL * s.plane + (s.open ? 1 : 0); }
+
+/// A group's grid cell.
+using CellKey = std::array<long long, 4>;
+
+struct CellKeyHash {
+    std::size_t operator()(const CellKey& k) const {
+        std::uint64_t h = 0;
+        for (long long v : k) h = hashPair(h, static_cast<std::uint64_t>(v));
+        return static_cast<std::size_t>(h);
+    }
+};
+
+}  // namespace
+
+PooledFarField poolFarField(const std::vector<FarFieldSample>& samples, double radius,
+                            double nearRadius, PoolSearch search) {
+    const int count = static_cast<int>(samples.size());
+    PooledFarField out;
+    out.value.assign(samples.size(), Rgb(0.0));
+    out.fitted.assign(samples.size(), 0);
+    auto radiusOf = [&](const FarFieldSample& s) { return s.open ? radius : nearRadius; };
+    auto cellOf = [&](const FarFieldSample& s, double r) {
+        const Vec3 c = glm::floor(s.x / r);
+        return CellKey{groupOf(s), std::llround(c.x), std::llround(c.y), std::llround(c.z)};
+    };
+    // Each group's samples by cells of its radius: a sample's neighbours are in its 27 cells.
+    std::unordered_map<CellKey, std::vector<int>, CellKeyHash> cells;
+    if (search == PoolSearch::Grid)
+        for (int i = 0; i < count; ++i) {
+            const double r = radiusOf(samples[i]);
+            if (r > 0) cells[cellOf(samples[i], r)].push_back(i);
+        }
+    tbb::parallel_for(0, count, [&](int i) {
+        const FarFieldSample& a = samples[i];
+        const double r = radiusOf(a);
+        if (!(r > 0)) return;
+        const long long group = groupOf(a);
+        LocalLinearFit fit(a, r);
+        if (search == PoolSearch::Every) {
+            for (const FarFieldSample& o : samples)
+                if (groupOf(o) == group) fit.add(o);
+        } else {
+            const CellKey c = cellOf(a, r);
+            for (long long di = -1; di <= 1; ++di)
+                for (long long dj = -1; dj <= 1; ++dj)
+                    for (long long dk = -1; dk <= 1; ++dk) {
+                        const auto it = cells.find({group, c[1] + di, c[2] + dj, c[3] + dk});
+                        if (it == cells.end()) continue;
+                        for (int j : it->second) fit.add(samples[j]);
+                    }
+        }
+        Rgb value;
+        if (fit.solve(value)) {
+            out.value[i] = value;
+            out.fitted[i] = 1;
+        }
+    });
+    return out;
+}
+
+}  // namespace penumbra

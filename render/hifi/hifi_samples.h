@@ -1,0 +1,94 @@
+#pragma once
+// The interpolant build's exact samples as HifiMesh's build and the far field's pooling share
+// them (render/hifi_mesh.cpp, render/hifi_samples.cpp): where a sample is taken, the cache of
+// samples, the far fields' refinement and the refit of the interpolants with the pooled far
+// field. Internal to render/.
+//
+// Index: SampleKey · SampleCache · refineFarFields · refitWithPooledFarField · finishFarFields
+
+#include <tbb/concurrent_hash_map.h>
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "core/random.h"
+#include "render/hifi/exact_irradiance.h"
+#include "render/hifi/hifi_mesh.h"
+
+namespace penumbra {
+
+/// Where an exact sample is taken. A point off every contact line is shared by the triangles
+/// of every element of its object's surface that meet there with the same plane (key without
+/// the element); on a contact line irradiance jumps, so each element samples its own side.
+struct SampleKey {
+    int object = -1, sheet = 0, element = -1;
+    std::array<long long, 3> position{}, normal{};
+    /// The key of point x (m) with unit normal n, its position on a grid `grid` (m) wide.
+    static SampleKey at(int object, int sheet, int element, const Vec3& x, const Vec3& n,
+                        double grid) {
+        SampleKey key;
+        key.object = object;
+        key.sheet = sheet;
+        key.element = element;
+        for (int k = 0; k < 3; ++k) {
+            key.position[k] = std::llround(x[k] / grid);
+            key.normal[k] = std::llround(n[k] * 1e6);
+        }
+        return key;
+    }
+    /// The point (m) and unit normal the key was made of (at()), to the grid's precision.
+    Vec3 point(double grid) const {
+        return Vec3(position[0] * grid, position[1] * grid, position[2] * grid);
+    }
+    Vec3 unitNormal() const {
+        return glm::normalize(Vec3(normal[0] * 1e-6, normal[1] * 1e-6, normal[2] * 1e-6));
+    }
+    bool operator==(const SampleKey& o) const {
+        return object == o.object && sheet == o.sheet && element == o.element &&
+               position == o.position && normal == o.normal;
+    }
+};
+
+struct SampleKeyHash {
+    static std::size_t hash(const SampleKey& k) {
+        std::uint64_t h = hashPair(static_cast<std::uint64_t>(k.object),
+                                   static_cast<std::uint64_t>(k.sheet) * 2654435761u +
+                                       static_cast<std::uint64_t>(k.element + 1));
+        for (long long c : k.position) h = hashPair(h, static_cast<std::uint64_t>(c));
+        for (long long c : k.normal) h = hashPair(h, static_cast<std::uint64_t>(c));
+        return static_cast<std::size_t>(h);
+    }
+    static bool equal(const SampleKey& a, const SampleKey& b) { return a == b; }
+};
+
+using SampleCache = tbb::concurrent_hash_map<SampleKey, ExactIrradiance::Parts, SampleKeyHash>;
+
+/// Continues the far field (ExactIrradiance::refineFarField) of the samples in `cache` whose
+/// estimated error exceeds `tolerance` of their irradiance, the worst first, pass by pass up
+/// to `passes` passes, until `budget` × the rays the cache's far fields cast so far are spent.
+/// Returns the rays cast.
+long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
+                          double tolerance, double budget, int passes);
+
+/// Fits every triangle's interpolant again (`perElement`, each triangle's six sample keys in
+/// `perElementKeys`, in the same order) with the far field of every sample in `cache` off
+/// contact lines pooled over its neighbours (poolFarField, render/far_field_pool.h) in place of
+/// its own: over `radius` among samples with no other surface within the near field's reach,
+/// over `nearRadius` (0: none) among the others. `grid` is the cache's position grid (m).
+void refitWithPooledFarField(
+    const SampleCache& cache, double grid, std::vector<std::vector<HifiTriangle>>& perElement,
+    const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys, double radius,
+    double nearRadius);
+
+/// What the build does once every sample is taken: refineFarFields by `options`'
+/// farFieldRefineTolerance, farFieldRefineBudget and farFieldRefinePasses (budget 0: none), then
+/// refitWithPooledFarField over farFieldPoolRadius and farFieldNearPoolRadius × `elementSize`
+/// (m). Returns the rays the refinement cast.
+long long finishFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
+                          const HifiOptions& options, double elementSize,
+                          std::vector<std::vector<HifiTriangle>>& perElement,
+                          const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys);
+
+}  // namespace penumbra
