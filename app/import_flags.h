@@ -1,5 +1,5 @@
 #pragma once
-// The command-line flags of a glTF/OBJ import (edit/scene_import.h), shared by `penumbra` and
+// The command-line flags of a glTF/OBJ import (edit/io/scene_import.h), shared by `penumbra` and
 // `penumbra-editor`.
 
 #include <CLI/CLI.hpp>

@@ -214,7 +214,7 @@ void EditorApp::openScene(const std::string& path) {
 
 void EditorApp::saveScene(const std::string& path) {
     if (!mRunner) return;
-    // Written atomically by the solver thread (edit/scene_io.h), in order with the edits; once
+    // Written atomically by the solver thread (edit/io/scene_io.h), in order with the edits; once
     // it is written, the journal starts again (for `path`: Save as moves it).
     std::string journal;
     if (!mJournal.empty()) journal = recoveryJournalPath(path);

@@ -50,7 +50,7 @@ void exportLitScene(const Discretization& disc, const std::vector<Rgb>& elementR
 void checkExportPath(const std::string& path);
 
 /// One triangle of a finer lit mesh than the elements (the high-fidelity mesh of
-/// render/hifi_mesh.h): world-space corners, counter-clockwise seen from the front, and the
+/// render/hifi/hifi_mesh.h): world-space corners, counter-clockwise seen from the front, and the
 /// radiosity B (W/m²) at each.
 struct LitTriangle {
     int element = -1;  ///< the element it lies in (object, material, normal)

@@ -31,7 +31,7 @@ namespace penumbra {
 /// are not counted in the warning.
 TriMesh loadMeshFile(const std::string& path);
 
-/// A material of a scene file as the file states it (edit/scene_import.h converts it).
+/// A material of a scene file as the file states it (edit/io/scene_import.h converts it).
 struct MeshFileMaterial {
     std::string name;
     /// glTF baseColorFactor (rgb) × the mean of its baseColorTexture (linear, decoded from

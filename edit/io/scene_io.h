@@ -17,7 +17,7 @@
 
 namespace penumbra {
 
-struct ImportOptions;  // edit/scene_import.h
+struct ImportOptions;  // edit/io/scene_import.h
 
 /// The only scene format this version reads and writes.
 inline constexpr const char* kSceneFormat = "penumbra-scene/1";
@@ -27,7 +27,7 @@ inline constexpr const char* kSceneFormat = "penumbra-scene/1";
 /// Duplicate keys anywhere (e.g. two materials named "white") and malformed JSON
 /// (`FILE: line L, column C: ...`) are errors. Throws InputError.
 Scene loadScene(const std::string& path);
-/// The same; a .gltf, .glb or .obj path is imported (edit/scene_import.h) with `import`.
+/// The same; a .gltf, .glb or .obj path is imported (edit/io/scene_import.h) with `import`.
 Scene loadScene(const std::string& path, const ImportOptions& import);
 
 /// Validates an already parsed scene. `sourceName` names the input in error messages;

@@ -1,8 +1,8 @@
 #pragma once
 // The interactive display of Bala, Walter, Greenberg 2003 (§3, Figure 2): one owner that wires
-// the point shader (render/point_shader.h), the render cache (render/render_cache.h), the edge
-// finder (render/edge_finder.h) and the edge-and-point image (render/edge_point_image.h) into
-// frames, and tells them about edits.
+// the point shader (render/display/point_shader.h), the render cache
+// (render/display/render_cache.h), the edge finder (render/display/edge_finder.h) and the
+// edge-and-point image (render/display/edge_point_image.h) into frames, and tells them about edits.
 //
 // Index: DisplayStageTimes · DisplayFrameStats · InteractiveDisplayOptions · SolutionView ·
 //        InteractiveDisplay (frames, warm-up, edits and solution updates, reference and error) ·

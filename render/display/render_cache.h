@@ -32,7 +32,7 @@ namespace penumbra {
 // ScreenPoint (a cached point as seen in the current frame: sub-pixel position in CameraRays
 // pixel coordinates, view depth along the camera's forward axis in metres, radiance, and age in
 // frames reprojected since shaded, 0 in its first frame) is the EPI's input type, defined in
-// render/edge_point_image.h.
+// render/display/edge_point_image.h.
 
 /// One cached shaded point (Walter et al. 1999 §3). Its age and whether it survived the last
 /// reprojection are kept by the cache (RenderCache::age, RenderCache::visible), in arrays

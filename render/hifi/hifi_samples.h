@@ -1,8 +1,8 @@
 #pragma once
 // The interpolant build's exact samples as HifiMesh's build and the far field's pooling share
-// them (render/hifi_mesh.cpp, render/hifi_samples.cpp): where a sample is taken, the cache of
-// samples, the far fields' refinement and the refit of the interpolants with the pooled far
-// field. Internal to render/.
+// them (render/hifi/hifi_mesh.cpp, render/hifi/hifi_samples.cpp): where a sample is taken, the
+// cache of samples, the far fields' refinement and the refit of the interpolants with the pooled
+// far field. Internal to render/hifi/.
 //
 // Index: SampleKey · SampleCache · refineFarFields · refitWithPooledFarField · finishFarFields
 
@@ -74,8 +74,8 @@ long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance
 
 /// Fits every triangle's interpolant again (`perElement`, each triangle's six sample keys in
 /// `perElementKeys`, in the same order) with the far field of every sample in `cache` off
-/// contact lines pooled over its neighbours (poolFarField, render/far_field_pool.h) in place of
-/// its own: over `radius` among samples with no other surface within the near field's reach,
+/// contact lines pooled over its neighbours (poolFarField, render/hifi/far_field_pool.h) in place
+/// of its own: over `radius` among samples with no other surface within the near field's reach,
 /// over `nearRadius` (0: none) among the others. `grid` is the cache's position grid (m).
 void refitWithPooledFarField(
     const SampleCache& cache, double grid, std::vector<std::vector<HifiTriangle>>& perElement,

@@ -1,4 +1,4 @@
-// glTF and OBJ scene import (edit/scene_import.h) against hand-made files: node transforms
+// glTF and OBJ scene import (edit/io/scene_import.h) against hand-made files: node transforms
 // (TRS, matrix, hierarchy) checked with independently written trigonometry, materials,
 // emissive surfaces, point lights (power), cameras, OBJ with MTL and units; the furnace and
 // Lambert closed forms solved through imported files; Penumbra's own glTF export read back;

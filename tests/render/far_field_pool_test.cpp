@@ -1,4 +1,4 @@
-// The far field's pooling (render/far_field_pool.h): the grid of cells per plane finds the
+// The far field's pooling (render/hifi/far_field_pool.h): the grid of cells per plane finds the
 // same neighbours as testing every sample against every other, and the local linear fit
 // reproduces a linear field exactly.
 

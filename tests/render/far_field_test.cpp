@@ -1,4 +1,4 @@
-// The far field's passes (render/far_field.h) against a closed form: a hemisphere whose
+// The far field's passes (render/hifi/far_field.h) against a closed form: a hemisphere whose
 // reflected radiosity is 5 on the side x > 0.2 and 0.5 elsewhere sends irradiance
 // 0.5 + 4.5 · (acos 0.2 − 0.2 √0.96) / π (Malley: a cosine-distributed direction's x is
 // that of a uniform point of the unit disc, so the bright side's share is a disc segment's).

@@ -1,4 +1,4 @@
-// The shadow volumes of a dragged object (render/shadow_volume.h) and what the display does
+// The shadow volumes of a dragged object (render/display/shadow_volume.h) and what the display does
 // with them: shaftMeetsBox against brute force (segments to many points of the lamp),
 // blockedFraction and lightWeight against closed forms, and a drag in the edge-and-point
 // display, where the points whose view of the lamp the move changed go at the next frame and
