@@ -879,6 +879,25 @@ void addBenchCommands(CLI::App& app, Commands& c) {
     benchHifi->add_option("--frames", hifi.frames)->check(CLI::Range(1, 100000));
     benchHifi->add_option("--plot-dir", hifi.plotDir, "write the error images there");
     benchHifi->add_option("--json", hifi.jsonOut, "write every figure as JSON");
+    benchHifi
+        ->add_option("--reference-spp", hifi.referenceSpp,
+                     "paths per pixel of the path-traced reference the path tracer races the "
+                     "interpolants against (0: no race; default 1024)")
+        ->check(CLI::Range(0, 1 << 20));
+    benchHifi->add_option("--compare-width", hifi.compareWidth, "the race's picture size")
+        ->check(CLI::Range(8, 8192));
+    benchHifi->add_option("--compare-height", hifi.compareHeight)->check(CLI::Range(8, 8192));
+    benchHifi
+        ->add_option("--compare-samples", hifi.compareSamples,
+                     "the interpolants' samples per pixel per axis in the race (default 2)")
+        ->check(CLI::Range(1, 16));
+    benchHifi
+        ->add_option("--pathtrace-max-seconds", hifi.pathTraceMaxSeconds,
+                     "stop the path tracer's doubling after this many seconds of tracing")
+        ->check(CLI::Range(0.0, 1e7));
+    benchHifi->add_option("--reference-cache", hifi.referenceCache,
+                          "read the path-traced references from PATH-<scene>-<W>x<H>-<N>spp.exr, "
+                          "or write them there");
 
     HolodeckBenchOptions& holo = c.benchHolodeckOptions;
     CLI::App* benchHolodeck = c.benchHolodeck = benchCmd->add_subcommand(

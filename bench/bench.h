@@ -90,11 +90,26 @@ struct HifiBenchOptions {
     int errorHeight = 240;
     std::string plotDir;  ///< writes hifi-<scene>-{reference,gouraud,interpolant}.png there
     std::string jsonOut;
+    /// The race against the path tracer: both against a `referenceSpp` path trace of the
+    /// default view at compareWidth × compareHeight (0: no race). The path tracer renders at
+    /// 1, 2, 4, … paths per pixel until its error is at most the interpolants' (or
+    /// `pathTraceMaxSeconds` of tracing are spent, or a quarter of referenceSpp is reached).
+    int referenceSpp = 1024;
+    int compareWidth = 320;
+    int compareHeight = 240;
+    int compareSamples = 2;  ///< the interpolants' samples per pixel per axis, as `render`'s
+    double pathTraceMaxSeconds = 900;
+    /// Reads the path-traced references from PATH-<scene>-<W>x<H>-<spp>spp.exr when present,
+    /// else writes them there: repeated runs skip the reference renders (minutes each). A
+    /// changed scene needs a new PATH.
+    std::string referenceCache;
 };
 
 /// `penumbra bench hifi`: Hardt & Teller 1996 — interpolant build time and triangles,
 /// evaluation frames/s on the offscreen GL pass, and the error of gouraud, epi and
-/// interpolant against the display's reference, per scene.
+/// interpolant against the display's reference, per scene; then the path tracer's time to
+/// the interpolants' error against a path-traced reference, over the interpolants' time
+/// (leaf solve, build and render).
 int runHifiBench(const HifiBenchOptions& options);
 
 struct HolodeckBenchOptions {
