@@ -736,17 +736,27 @@ void ExactIrradiance::addFarField(const Vec3& x, const Vec3& n, int passes, Part
     // E = ∫ (B/π) cos dω: the mean over cosine-distributed rays of what they read. No
     // tolerance: the passes run to `passes` unless one leaves no error (the build's
     // refinement picks the points by their error).
-    const FarFieldEstimate far = estimateFarField(
+    // A pass's rays traced together, in the ray tracer's packets: they share their origin.
+    const FarFieldEstimate far = estimateFarFieldBatched(
         n, seed, plan, 0,
-        [&](const Vec3& d) -> Rgb {
-            const RayTracer::FirstHit hit = mTracer->firstHit(origin, d);
-            if (hit.element < 0 || hit.backFace) return Rgb(0.0);
-            if (mOptions.nearElementRadii > 0) {
-                // What the exact part leaves of the element.
-                const double w = nearElementWeight(hit.element, x);
-                return w < 1 ? (1 - w) * mReflected[hit.element] : Rgb(0.0);
+        [&](const Vec3* dirs, int count, Rgb* out) {
+            thread_local std::vector<Vec3> origins;
+            thread_local std::vector<RayTracer::FirstHit> hits;
+            origins.assign(std::size_t(count), origin);
+            hits.resize(std::size_t(count));
+            mTracer->firstHits(origins.data(), dirs, count, hits.data());
+            for (int k = 0; k < count; ++k) {
+                const RayTracer::FirstHit& hit = hits[std::size_t(k)];
+                out[k] = Rgb(0.0);
+                if (hit.element < 0 || hit.backFace) continue;
+                if (mOptions.nearElementRadii > 0) {
+                    // What the exact part leaves of the element.
+                    const double w = nearElementWeight(hit.element, x);
+                    if (w < 1) out[k] = (1 - w) * mReflected[hit.element];
+                } else if (!nearPatch(hit.patch, x)) {
+                    out[k] = mReflected[hit.element];
+                }
             }
-            return nearPatch(hit.patch, x) ? Rgb(0.0) : mReflected[hit.element];
         },
         &from);
     parts.farField = far.value;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "core/math.h"
 #include "core/random.h"
@@ -11,6 +12,18 @@ namespace penumbra {
 FarFieldEstimate estimateFarField(const Vec3& n, std::uint64_t seed, const FarFieldRays& rays,
                                   double gathered, const std::function<Rgb(const Vec3&)>& read,
                                   const FarFieldEstimate* from) {
+    return estimateFarFieldBatched(
+        n, seed, rays, gathered,
+        [&](const Vec3* dirs, int count, Rgb* out) {
+            for (int k = 0; k < count; ++k) out[k] = read(dirs[k]);
+        },
+        from);
+}
+
+FarFieldEstimate estimateFarFieldBatched(const Vec3& n, std::uint64_t seed,
+                                         const FarFieldRays& rays, double gathered,
+                                         const FarFieldBatchRead& read,
+                                         const FarFieldEstimate* from) {
     // An even side, so that the four subgrids hold the same number of strata.
     const int side0 = std::max(
         2, 2 * static_cast<int>(std::lround(0.5 * std::sqrt(double(std::max(1, rays.perPass))))));
@@ -33,16 +46,24 @@ FarFieldEstimate estimateFarField(const Vec3& n, std::uint64_t seed, const FarFi
     }
     for (int pass = first, side = side0 << first; pass < maxPasses; ++pass, side *= 2) {
         SplitMix random(pass == 0 ? seed : hashPair(seed, static_cast<std::uint64_t>(pass)));
-        Rgb sub[4] = {Rgb(0.0), Rgb(0.0), Rgb(0.0), Rgb(0.0)};
+        // The pass's directions, stratum (i, k) at i·side + k, read at once.
+        thread_local std::vector<Vec3> dirs;
+        thread_local std::vector<Rgb> found;
+        dirs.resize(std::size_t(side) * side);
+        found.resize(dirs.size());
         for (int i = 0; i < side; ++i)
             for (int k = 0; k < side; ++k) {
                 // Malley: a stratified point of the disc lifted to the hemisphere.
                 const double u = (i + random.next()) / side, v = (k + random.next()) / side;
                 const double r = std::sqrt(u), phi = 2 * M_PI * v;
-                const Vec3 d = r * std::cos(phi) * t + r * std::sin(phi) * b +
-                               std::sqrt(std::max(0.0, 1 - u)) * n;
-                sub[(i & 1) * 2 + (k & 1)] += read(d);
+                dirs[std::size_t(i) * side + k] = r * std::cos(phi) * t + r * std::sin(phi) * b +
+                                                  std::sqrt(std::max(0.0, 1 - u)) * n;
             }
+        read(dirs.data(), static_cast<int>(dirs.size()), found.data());
+        Rgb sub[4] = {Rgb(0.0), Rgb(0.0), Rgb(0.0), Rgb(0.0)};
+        for (int i = 0; i < side; ++i)
+            for (int k = 0; k < side; ++k)
+                sub[(i & 1) * 2 + (k & 1)] += found[std::size_t(i) * side + k];
         const double count = double(side) * side;
         const Rgb value = (sub[0] + sub[1] + sub[2] + sub[3]) / count;
         // The pass's standard error from its four subgrids' means (each over count / 4 rays):

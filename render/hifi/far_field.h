@@ -54,4 +54,14 @@ FarFieldEstimate estimateFarField(const Vec3& n, std::uint64_t seed, const FarFi
                                   double gathered, const std::function<Rgb(const Vec3&)>& read,
                                   const FarFieldEstimate* from = nullptr);
 
+/// What the rays in unit directions dirs[0, count) find, into out[0, count).
+using FarFieldBatchRead = std::function<void(const Vec3* dirs, int count, Rgb* out)>;
+
+/// estimateFarField with each pass's rays read at once (a ray tracer's packets): the same
+/// directions, sums and estimate.
+FarFieldEstimate estimateFarFieldBatched(const Vec3& n, std::uint64_t seed,
+                                         const FarFieldRays& rays, double gathered,
+                                         const FarFieldBatchRead& read,
+                                         const FarFieldEstimate* from = nullptr);
+
 }  // namespace penumbra
