@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "render/display/parallel_indices.h"
 #include "render/display/render_cache.h"
 
 namespace penumbra {
@@ -24,19 +25,10 @@ std::size_t RenderCache::dropIf(Drop drop) {
     // reprojection and replacement resolve by index stay deterministic. A pending screen
     // point list reads points by index: renumbered (renumberPendingScreen).
     const std::size_t before = mPoints.size();
-    constexpr std::size_t kChunk = 8192;
-    const std::size_t chunks = (before + kChunk - 1) / kChunk;
-    mDropFlags.resize(before);
-    std::vector<std::vector<int>> goneIn(chunks);
-    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
-        for (std::size_t i = c * kChunk; i < std::min(before, (c + 1) * kChunk); ++i) {
-            const bool d = drop(mPoints[i]);
-            mDropFlags[i] = d ? 1 : 0;
-            if (d) goneIn[c].push_back(static_cast<int>(i));
-        }
-    });
-    std::vector<int> gone;
-    for (const auto& g : goneIn) gone.insert(gone.end(), g.begin(), g.end());
+    const std::vector<int> gone =
+        indicesWhere(before, [&](std::size_t i) { return drop(mPoints[i]); });
+    mDropFlags.assign(before, 0);
+    for (int i : gone) mDropFlags[i] = 1;
     if (gone.empty()) return 0;
     const std::size_t kept = before - gone.size();
     if (mScreenPending) {
