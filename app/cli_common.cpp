@@ -7,9 +7,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <sstream>
 
 #include "core/durable_file.h"
 #include "core/input_error.h"
+#include "render/display/interactive_display.h"
 
 namespace penumbra::cli {
 
@@ -76,6 +78,25 @@ Camera pickCamera(const Scene& scene, const std::string& scenePath, const std::s
 
 std::string defaultHolodeckPath(const std::string& scene) {
     return std::filesystem::path(scene).replace_extension(".hdk").string();
+}
+
+void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPixels) {
+    cmd->add_option("--smooth", smooth,
+                    "epi: edge-free smoothing radius in pixels, 0 = the paper's reconstruction "
+                    "(default " +
+                        std::to_string(displayEpiOptions().smoothRadius) + ")")
+        ->check(CLI::Range(0, 60));
+    std::ostringstream penumbraDefault;
+    penumbraDefault << InteractiveDisplayOptions{}.maxPenumbraPixels;
+    cmd->add_option("--max-penumbra", maxPenumbraPixels,
+                    "epi: soft shadow edges mark the image only where their penumbra is at most "
+                    "this many pixels wide, 0 = every shadow edge as in the paper (default " +
+                        penumbraDefault.str() + ")")
+        ->check(CLI::Range(0.0, 1e6));
+}
+
+std::string siblingExecutable(const std::string& name) {
+    return (std::filesystem::read_symlink("/proc/self/exe").parent_path() / name).string();
 }
 
 }  // namespace penumbra::cli

@@ -1,6 +1,7 @@
 #pragma once
-// What the command line's subcommands share (app/penumbra.cpp, app/holodeck_commands.cpp): the
-// scene and solver options, opening and solving a scene, reports and cameras.
+// What the command lines share (app/penumbra.cpp, app/holodeck_commands.cpp, and
+// app/penumbra_bench.cpp): the scene and solver options, opening and solving a scene, reports,
+// cameras, the display's reconstruction options and the path of a sibling executable.
 
 #include <CLI/CLI.hpp>
 #include <cstdint>
@@ -45,5 +46,11 @@ void writeReport(const std::string& path, const nlohmann::json& report);
 Camera pickCamera(const Scene& scene, const std::string& scenePath, const std::string& name);
 /// The holodeck beside a scene: its path with the extension .hdk.
 std::string defaultHolodeckPath(const std::string& scene);
+/// The EPI reconstruction options `render` and `bench display` share: `--smooth R` and
+/// `--max-penumbra W`.
+void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPixels);
+/// The executable `name` in the folder of the running one (penumbra and penumbra-bench are
+/// built and installed side by side).
+std::string siblingExecutable(const std::string& name);
 
 }  // namespace penumbra::cli

@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <OpenMesh/Core/System/omstream.hh>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -25,8 +26,6 @@
 #include "app/cli_common.h"
 #include "app/holodeck_commands.h"
 #include "app/import_flags.h"
-#include "bench/bench.h"
-#include "bench/display_report.h"
 #include "core/durable_file.h"
 #include "core/input_error.h"
 #include "core/log.h"
@@ -39,6 +38,7 @@
 #include "edit/lit_scene.h"
 #include "edit/replay.h"
 #include "render/camera_rays.h"
+#include "render/display/display_report.h"
 #include "render/display/interactive_display.h"
 #include "render/gl/offscreen_context.h"
 #include "render/gouraud_renderer.h"
@@ -665,39 +665,15 @@ int runReplayCommand(ReplayArgs& a) {
     return 0;
 }
 
-/// The EPI reconstruction options `render` and `bench display` share: `--smooth R` and
-/// `--max-penumbra W`.
-void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPixels) {
-    cmd->add_option("--smooth", smooth,
-                    "epi: edge-free smoothing radius in pixels, 0 = the paper's reconstruction "
-                    "(default " +
-                        std::to_string(displayEpiOptions().smoothRadius) + ")")
-        ->check(CLI::Range(0, 60));
-    std::ostringstream penumbraDefault;
-    penumbraDefault << InteractiveDisplayOptions{}.maxPenumbraPixels;
-    cmd->add_option("--max-penumbra", maxPenumbraPixels,
-                    "epi: soft shadow edges mark the image only where their penumbra is at most "
-                    "this many pixels wide, 0 = every shadow edge as in the paper (default " +
-                        penumbraDefault.str() + ")")
-        ->check(CLI::Range(0.0, 1e6));
-}
-
 /// Every subcommand's options land here; the CLI::App pointers say which one ran.
 struct Commands {
     SolveArgs solve;
     std::string pointsPath;
     RenderArgs render;
     ReplayArgs replay;
-    BenchOptions bench;
-    RedistributionBenchOptions redist;
-    DisplayBenchOptions display;
-    HifiBenchOptions hifi;
     HolodeckCommands holodeck;
-    HolodeckBenchOptions benchHolodeckOptions;
-    CLI::App* benchHolodeck = nullptr;
     CLI::App *solveCmd = nullptr, *probeCmd = nullptr, *exportCmd = nullptr, *renderCmd = nullptr,
-             *replayCmd = nullptr, *benchSolver = nullptr, *benchRedist = nullptr,
-             *benchDisplay = nullptr, *benchHifi = nullptr;
+             *replayCmd = nullptr, *benchCmd = nullptr;
 };
 
 /// solve, probe and export.
@@ -839,115 +815,31 @@ void addReplayCommand(CLI::App& app, Commands& c) {
         ->check(CLI::Range(0.0, 1.0));
 }
 
-void addBenchCommands(CLI::App& app, Commands& c) {
-    CLI::App* benchCmd = app.add_subcommand("bench", "benchmarks (Google Benchmark + tables)");
-    benchCmd->require_subcommand(1);
-    BenchOptions& bench = c.bench;
-    CLI::App* benchSolver = c.benchSolver =
-        benchCmd->add_subcommand("solver", "solver throughput and convergence");
-    benchSolver->add_option("--scenes", bench.scenes, "scene files")
-        ->default_val(std::vector<std::string>{"scenes/cube-room.json", "scenes/cubicles.json",
-                                               "scenes/robot-room.json", "scenes/large.json"});
-    benchSolver->add_option("--max-seconds", bench.maxSecondsPerScene, "solver time cap per scene");
-    benchSolver->add_option("--json", bench.jsonOut, "write every figure as JSON");
-    benchSolver->add_option("--child-scene", bench.childScene, "internal: one scene, JSON out")
-        ->group("");
-    RedistributionBenchOptions& redist = c.redist;
-    CLI::App* benchRedist = c.benchRedist = benchCmd->add_subcommand(
-        "redistribution", "George et al. Figures 6 and 7: error against time after an edit");
-    benchRedist->add_option("--cases", redist.cases, "cube-room and/or robot-room");
-    benchRedist->add_option("--scene-dir", redist.sceneDir, "folder with the scenes");
-    benchRedist->add_option("--reference-eps", redist.referenceEps,
-                            "convergence of the references");
-    benchRedist->add_option("--max-ms", redist.maxMs, "solver time per method");
-    benchRedist->add_option("--plot-dir", redist.plotDir, "write error-vs-time plots (PNG) here");
-    benchRedist->add_option("--json", redist.jsonOut, "write every sample as JSON");
-    benchRedist->add_option("--reference-cache", redist.referenceCache,
-                            "read the converged references from PATH-<scene>, or write them");
-    benchRedist->add_flag("--split", redist.split,
-                          "print the top-1% error on the added objects and on the rest");
-    DisplayBenchOptions& display = c.display;
-    HifiBenchOptions& hifi = c.hifi;
-    CLI::App* benchHifi = c.benchHifi = benchCmd->add_subcommand(
-        "hifi", "Hardt & Teller: interpolant build, evaluation fps, error against reference");
-    benchHifi->add_option("--cases", hifi.cases,
-                          "scenes by name: SCENE-DIR/NAME.json, else SCENE-DIR/gltf/NAME.glb "
-                          "(default: cornell-box cube-room)");
-    benchHifi->add_option("--scene-dir", hifi.sceneDir, "folder with the scenes");
-    benchHifi->add_option("--width", hifi.width)->check(CLI::Range(8, 8192));
-    benchHifi->add_option("--height", hifi.height)->check(CLI::Range(8, 8192));
-    benchHifi->add_option("--frames", hifi.frames)->check(CLI::Range(1, 100000));
-    benchHifi->add_option("--plot-dir", hifi.plotDir, "write the error images there");
-    benchHifi->add_option("--json", hifi.jsonOut, "write every figure as JSON");
-    benchHifi
-        ->add_option("--reference-spp", hifi.referenceSpp,
-                     "paths per pixel of the path-traced reference the path tracer races the "
-                     "interpolants against (0: no race; default 1024)")
-        ->check(CLI::Range(0, 1 << 20));
-    benchHifi->add_option("--compare-width", hifi.compareWidth, "the race's picture size")
-        ->check(CLI::Range(8, 8192));
-    benchHifi->add_option("--compare-height", hifi.compareHeight)->check(CLI::Range(8, 8192));
-    benchHifi
-        ->add_option("--compare-samples", hifi.compareSamples,
-                     "the interpolants' samples per pixel per axis in the race (default 2)")
-        ->check(CLI::Range(1, 16));
-    benchHifi
-        ->add_option("--pathtrace-max-seconds", hifi.pathTraceMaxSeconds,
-                     "stop the path tracer's doubling after this many seconds of tracing")
-        ->check(CLI::Range(0.0, 1e7));
-    benchHifi->add_option("--reference-cache", hifi.referenceCache,
-                          "read the path-traced references from PATH-<scene>-<W>x<H>-<N>spp.exr, "
-                          "or write them there");
+/// bench: penumbra-bench (app/penumbra_bench.cpp) with every argument after `bench`, its own
+/// `--help` included, so the products carry no benchmark code.
+void addBenchCommand(CLI::App& app, Commands& c) {
+    c.benchCmd =
+        app.add_subcommand("bench",
+                           "benchmarks: solver | redistribution | display | hifi | holodeck (runs "
+                           "penumbra-bench; `penumbra bench --help` lists them)");
+    c.benchCmd->prefix_command();
+    c.benchCmd->set_help_flag();
+}
 
-    HolodeckBenchOptions& holo = c.benchHolodeckOptions;
-    CLI::App* benchHolodeck = c.benchHolodeck = benchCmd->add_subcommand(
-        "holodeck",
-        "Ward & Simmons: fill rate, bytes per sample, view samples from disk and memory");
-    benchHolodeck->add_option("--cases", holo.cases,
-                              "scenes by name (default: cube-room robot-room)");
-    benchHolodeck->add_option("--scene-dir", holo.sceneDir, "folder with the scenes");
-    benchHolodeck->add_option("--samples", holo.samples, "samples of the batch fill")
-        ->check(CLI::Range(std::int64_t(1), std::int64_t(1) << 40));
-    benchHolodeck->add_option("--width", holo.width)->check(CLI::Range(8, 8192));
-    benchHolodeck->add_option("--height", holo.height)->check(CLI::Range(8, 8192));
-    benchHolodeck->add_option("--json", holo.jsonOut, "write every figure as JSON");
-
-    CLI::App* benchDisplay = c.benchDisplay = benchCmd->add_subcommand(
-        "display", "Bala et al. Table 2: display stage times, fps, epi vs cache error");
-    benchDisplay->add_option("--cases", display.cases, "robot-room and/or armadillo-field");
-    benchDisplay->add_option("--scene-dir", display.sceneDir, "folder with the scenes");
-    benchDisplay->add_option("--width", display.width)->check(CLI::Range(8, 8192));
-    benchDisplay->add_option("--height", display.height)->check(CLI::Range(8, 8192));
-    benchDisplay->add_option("--frames", display.frames)->check(CLI::Range(2, 100000));
-    benchDisplay->add_option("--sample-fraction", display.sampleFraction)
-        ->check(CLI::Range(0.0, 1.0));
-    benchDisplay->add_option("--warmup", display.warmup)->check(CLI::Range(0.0, 1.0));
-    benchDisplay->add_option("--plot-dir", display.plotDir,
-                             "write display-cache.png / display-epi.png (same samples) here");
-    benchDisplay->add_option("--json", display.jsonOut, "write every frame as JSON");
-    benchDisplay
-        ->add_option("--shadow-refine", display.shadowRefine,
-                     "display shader: adaptive shadow refinement factor (0 = off)")
-        ->check(CLI::Range(0, 64));
-    benchDisplay
-        ->add_option("--shadow-max-refined", display.shadowMaxRefined,
-                     "display shader: refined shadow strata per axis at most")
-        ->check(CLI::Range(1, 256));
-    benchDisplay
-        ->add_option("--shadow-decision", display.shadowDecision,
-                     "display shader: decision shadow rays per axis")
-        ->check(CLI::Range(1, 64));
-    addReconstructionOptions(benchDisplay, display.smoothRadius, display.maxPenumbraPixels);
-    std::ostringstream capacityDefault;
-    capacityDefault << InteractiveDisplayOptions{}.cacheCapacityPerPixel;
-    benchDisplay
-        ->add_option("--cache-capacity", display.cacheCapacity,
-                     "render cache points per pixel (default " + capacityDefault.str() + ")")
-        ->check(CLI::Range(0.1, 16.0));
-    benchDisplay->add_flag("--reference-check", display.referenceCheck,
-                           "render two converged references (different seeds): their noise");
-    benchDisplay->add_flag("--no-converged-reference", display.skipConvergedReference,
-                           "errors against the plain reference only (no converged one)");
+/// Replaces this process with penumbra-bench and the arguments; returns only on failure.
+int runBench(const std::vector<std::string>& arguments, bool verbose) {
+    const std::string path = siblingExecutable("penumbra-bench");
+    std::vector<std::string> args{"penumbra-bench"};
+    if (verbose) args.push_back("--verbose");
+    args.insert(args.end(), arguments.begin(), arguments.end());
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    std::fflush(nullptr);
+    ::execv(path.c_str(), argv.data());
+    std::fprintf(stderr, "penumbra: bench: cannot run %s: %s\n", path.c_str(),
+                 std::strerror(errno));
+    return 2;
 }
 
 }  // namespace
@@ -964,7 +856,7 @@ int main(int argc, char** argv) {
     addSolveCommands(app, c);
     addRenderCommand(app, c);
     addReplayCommand(app, c);
-    addBenchCommands(app, c);
+    addBenchCommand(app, c);
     addHolodeckCommands(app, c.solve, c.holodeck);
 
     try {
@@ -987,11 +879,7 @@ int main(int argc, char** argv) {
         if (*c.exportCmd) return runSolve(c.solve);
         if (*c.renderCmd) return runRender(c.solve, c.render);
         if (*c.replayCmd) return runReplayCommand(c.replay);
-        if (*c.benchSolver) return runSolverBench(c.bench);
-        if (*c.benchRedist) return runRedistributionBench(c.redist);
-        if (*c.benchDisplay) return runDisplayBench(c.display);
-        if (*c.benchHifi) return runHifiBench(c.hifi);
-        if (*c.benchHolodeck) return runHolodeckBench(c.benchHolodeckOptions);
+        if (*c.benchCmd) return runBench(c.benchCmd->remaining(), verbose);
         if (const int status = runHolodeckCommand(c.solve, c.holodeck); status >= 0) return status;
     } catch (const BuildInterrupted&) {
         return 130;  // 128 + SIGINT, as a shell reports a command Ctrl-C ended

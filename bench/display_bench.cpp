@@ -14,11 +14,11 @@
 #include <vector>
 
 #include "bench/bench.h"
-#include "bench/display_report.h"
 #include "core/durable_file.h"
 #include "core/timing.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
+#include "render/display/display_report.h"
 #include "render/display/interactive_display.h"
 #include "render/image.h"
 

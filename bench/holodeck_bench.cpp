@@ -188,11 +188,13 @@ RanksFill runRanksFill(const HolodeckBenchOptions& o, const std::string& name, i
         ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
         ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
     }
-    const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
-    const std::string command = "mpirun -q -np " + std::to_string(ranks) +
-                                " --oversubscribe --bind-to none '" + self + "' holodeck fill '" +
-                                o.sceneDir + "/" + name + ".json' --holodeck '" + file +
-                                "' --samples " + std::to_string(o.samples) + " 2>&1";
+    // The command line, built beside this executable (penumbra-bench).
+    const std::string penumbra =
+        (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "penumbra").string();
+    const std::string command =
+        "mpirun -q -np " + std::to_string(ranks) + " --oversubscribe --bind-to none '" + penumbra +
+        "' holodeck fill '" + o.sceneDir + "/" + name + ".json' --holodeck '" + file +
+        "' --samples " + std::to_string(o.samples) + " 2>&1";
     std::filesystem::remove(file);
     const auto start = Clock::now();
     FILE* pipe = ::popen(command.c_str(), "r");

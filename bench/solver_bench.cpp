@@ -220,7 +220,7 @@ nlohmann::json measureScene(const std::string& path, const BenchOptions& options
     return r;
 }
 
-/// Runs measureScene in a fresh process of this executable (`bench solver --child-scene`),
+/// Runs measureScene in a fresh process of this executable (`penumbra-bench solver --child-scene`),
 /// so its peak memory is its own and oneTBB starts its workers there.
 nlohmann::json measureSceneIsolated(const std::string& path, const BenchOptions& options) {
     int fds[2];
@@ -231,8 +231,8 @@ nlohmann::json measureSceneIsolated(const std::string& path, const BenchOptions&
     posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
     posix_spawn_file_actions_addclose(&actions, fds[1]);
     const std::string maxSeconds = std::to_string(options.maxSecondsPerScene);
-    std::vector<std::string> args{"penumbra", "bench",         "solver",  "--child-scene",
-                                  path,       "--max-seconds", maxSeconds};
+    std::vector<std::string> args{"penumbra-bench", "solver",  "--child-scene", path,
+                                  "--max-seconds",  maxSeconds};
     std::vector<char*> argv;
     for (std::string& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

@@ -26,7 +26,7 @@ set(PENUMBRA_LAYERS
     "render/holodeck|penumbra_holodeck|render/display,render,${PENUMBRA_BELOW_RENDER}"
     "ui|penumbra_ui|${PENUMBRA_BELOW_UI}"
     "bench|penumbra_bench|${PENUMBRA_BELOW_UI}"
-    "app|penumbra_mpi|ui,bench,${PENUMBRA_BELOW_UI}"
+    "app|penumbra_mpi,penumbra_cli|ui,bench,${PENUMBRA_BELOW_UI}"
     "fuzz||${PENUMBRA_BELOW_UI}")
 
 # penumbra_check_link_layers(): every library of the table links only its own module's and the

@@ -97,7 +97,7 @@ TEST_F(RenderModesCli, FramesOverlayAndReport) {
     ASSERT_TRUE(report.contains("frames"));
     ASSERT_EQ(report["frames"].size(), 3u);
     for (const json& f : report["frames"]) {
-        // Every figure of bench/display_report.h's displayFrameJson.
+        // Every figure of render/display/display_report.h's displayFrameJson.
         for (const char* key :
              {"frame", "total_ms", "reconstruct_ms", "new_sample_fraction", "find_edges_ms",
               "silhouette_ms", "shadow_ms", "project_ms", "rasterize_ms", "points_ms",

@@ -1,4 +1,4 @@
-#include "bench/display_report.h"
+#include "render/display/display_report.h"
 
 #include "render/display/interactive_display.h"
 
