@@ -10,7 +10,7 @@ bash scripts/setup.sh
 bash scripts/build.sh build
 ctest --test-dir build --output-on-failure -j2 --timeout 300
 # The sanitizer stage builds only what `ctest -L unit` runs (target unit_tests: the unit test
-# executables, crash_child and penumbra), not the editor or the CLI and display tests.
+# executables), not the command lines, the editor or the CLI, process and display tests.
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DPENUMBRA_SANITIZE=ON >/dev/null
 cmake --build build-asan -j2 --target unit_tests
 ctest --test-dir build-asan --output-on-failure -j2 --timeout 600 -L unit

@@ -372,12 +372,28 @@ private:
     std::vector<ShadeRequest> requestSamplesParallel(const CameraRays& camera, int budget,
                                                      int tier);
     /// Pixel k may not be requested: it holds a fresh point, and the drag asks only for changed
-    /// ones (setRequestChangedOnly) or the point has converged (setRequestConverged).
+    /// ones (setRequestChangedOnly) or the point has converged (setRequestConverged); or the
+    /// drag asks only for changed ones and k is a lone hole among fresh points.
     bool notRequestable(std::size_t k) const {
         const bool fresh = mScreenOfPixel[k] >= 0 && mPixelAge[k] < kStaleAge;
         return (mConvergedTrust && mRequestCap > 0 && mRequestCount[k] >= mRequestCap) ||
                (fresh &&
-                (mRequestChangedOnly || (mConvergedTrust && mConvergedTrust[k] >= mConverged)));
+                (mRequestChangedOnly || (mConvergedTrust && mConvergedTrust[k] >= mConverged))) ||
+               (mRequestChangedOnly && mScreenOfPixel[k] < 0 && loneHole(k));
+    }
+    /// Pixel k's four neighbours (those in the raster) hold fresh points. A still view not yet
+    /// converged has such holes scattered everywhere (the reconstruction interpolates across
+    /// them); what a drag changed (a dropped shadow, where the object was) empties regions.
+    /// Sampling the lone holes while dragging would change pixels in every row, and no frame
+    /// could be reconstructed in windows.
+    bool loneHole(std::size_t k) const {
+        const std::size_t W = static_cast<std::size_t>(mWidth);
+        const std::size_t x = k % W;
+        auto fresh = [&](std::size_t j) {
+            return mScreenOfPixel[j] >= 0 && mPixelAge[j] < kStaleAge;
+        };
+        return (x == 0 || fresh(k - 1)) && (x + 1 == W || fresh(k + 1)) &&
+               (k < W || fresh(k - W)) && (k + W >= mScreenOfPixel.size() || fresh(k + W));
     }
     /// Per pixel: requests since the view, the lighting or the points last changed
     /// (setRequestConverged's cap), saturating.

@@ -709,6 +709,48 @@ TEST(RenderCache, AChangedBudgetGoesToStalePixelsOnTopOfTheBaseBudget) {
     EXPECT_EQ(some.requestSamples(rays, 8, 12).size(), 20u);
 }
 
+TEST(RenderCache, ADragAsksForChangedRegionsButNotForLoneHolesAmongFreshPoints) {
+    // Fresh points in every pixel but a scattered set of lone holes (every 7th pixel of every
+    // 5th row: no two adjacent) and an emptied 6×5 block (what a drag drops). Asked for
+    // changed pixels only, the cache requests the block and none of the lone holes; otherwise
+    // the lone holes are asked for too. Checked against the pixels' own neighbourhoods.
+    const int w = 40, h = 30;
+    const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), w, h);
+    auto lone = [](int x, int y) { return y % 5 == 2 && x % 7 == 3; };
+    auto block = [](int x, int y) { return x >= 20 && x < 26 && y >= 10 && y < 15; };
+    RenderCache cache(w, h, 10000);
+    std::vector<ShadedPoint> points;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            if (!lone(x, y) && !block(x, y))
+                points.push_back(pointOnRay(rays, x + 0.5, y + 0.5, 3.0));
+    cache.insert(points);
+    cache.reproject(rays);
+    int loneHoles = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) loneHoles += lone(x, y) && !block(x, y);
+    ASSERT_GT(loneHoles, 20);
+
+    cache.setRequestChangedOnly(true);
+    const auto dragging = cache.requestSamples(rays, 1000);
+    std::set<std::pair<int, int>> asked;
+    for (const ShadeRequest& r : dragging) {
+        const int x = static_cast<int>(r.pixel.x), y = static_cast<int>(r.pixel.y);
+        EXPECT_TRUE(block(x, y)) << r.toString() << ": only the emptied block is asked for";
+        asked.insert({x, y});
+    }
+    EXPECT_EQ(asked.size(), 30u) << "every pixel of the block";
+
+    RenderCache still(w, h, 10000);
+    still.insert(points);
+    still.reproject(rays);
+    int loneAsked = 0;
+    for (const ShadeRequest& r : still.requestSamples(rays, 2000))
+        loneAsked += lone(static_cast<int>(r.pixel.x), static_cast<int>(r.pixel.y)) &&
+                     !block(static_cast<int>(r.pixel.x), static_cast<int>(r.pixel.y));
+    EXPECT_EQ(loneAsked, loneHoles) << "a still view asks for its lone holes";
+}
+
 TEST(RenderCache, OldPointsAndHighContrastRaisePriority) {
     const CameraRays rays(cameraAt(Vec3(0, 0, 5), Vec3(0, 0, 0)), 16, 16);
     RenderCache cache(16, 16, 1000);
