@@ -51,13 +51,7 @@ std::optional<std::vector<PixelWindow>> InteractiveDisplay::changedWindows() con
     if (!mWindowValid || !mFrameCameraSame) return std::nullopt;
     const int W = mOptions.width, H = mOptions.height;
     const EpiPointArrays points = const_cast<EdgePointImage&>(mEpi).pointArrays();
-    // While an object is dragged, the preview's indirect light moves by a percent or two over
-    // every wall at each step: below dragWindowColourTolerance those pixels wait for the drop.
-    const double colourTolerance =
-        mShader->previewObject() >= 0
-            ? std::max(mOptions.windowColourTolerance, mOptions.dragWindowColourTolerance)
-            : mOptions.windowColourTolerance;
-    const float tolerance = static_cast<float>(colourTolerance);
+    const float tolerance = static_cast<float>(mOptions.windowColourTolerance);
     // Points: per row the first and last pixel whose point differs from what it showed.
     std::vector<std::pair<int, int>> rows(static_cast<std::size_t>(H), {W, -1});
     tbb::parallel_for(tbb::blocked_range<int>(0, H, 8), [&](const tbb::blocked_range<int>& r) {

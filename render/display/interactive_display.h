@@ -186,12 +186,6 @@ struct InteractiveDisplayOptions {
     /// of a percent everywhere would make every frame whole); its pixel shows the change when
     /// next reconstructed. 0: every change counts.
     double windowColourTolerance = 0.005;
-    /// The same while an object is dragged (a preview shown). The preview's indirect light,
-    /// settling by a percent or two over every wall at each drag step, would otherwise make
-    /// every drag frame whole; such pixels show their change when the drag ends (the
-    /// tolerance is windowColourTolerance again) or when a window reaches them. The points'
-    /// colours are exact either way: only the reconstruction waits.
-    double dragWindowColourTolerance = 0.02;
     /// A window larger than this share of the raster is reconstructed whole.
     double windowMaxShare = 0.6;
     /// While an object is dragged (a preview shown), new samples go only to the pixels the
