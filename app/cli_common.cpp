@@ -95,6 +95,18 @@ void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPix
         ->check(CLI::Range(0.0, 1e6));
 }
 
+int parseCommandLine(CLI::App& app, int argc, char** argv, const char* program) {
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        std::fprintf(stderr, "%s: %s\n", program, e.what());
+        return 2;
+    }
+    return -1;
+}
+
 std::string siblingExecutable(const std::string& name) {
     return (std::filesystem::read_symlink("/proc/self/exe").parent_path() / name).string();
 }

@@ -49,6 +49,9 @@ std::string defaultHolodeckPath(const std::string& scene);
 /// The EPI reconstruction options `render` and `bench display` share: `--smooth R` and
 /// `--max-penumbra W`.
 void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPixels);
+/// Parses the command line: −1 when it parsed, else the exit status (0 after --help; 2 after
+/// one error line "PROGRAM: what" on stderr).
+int parseCommandLine(CLI::App& app, int argc, char** argv, const char* program);
 /// The executable `name` in the folder of the running one (penumbra and penumbra-bench are
 /// built and installed side by side).
 std::string siblingExecutable(const std::string& name);

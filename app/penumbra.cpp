@@ -859,14 +859,8 @@ int main(int argc, char** argv) {
     addBenchCommand(app, c);
     addHolodeckCommands(app, c.solve, c.holodeck);
 
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::CallForHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::ParseError& e) {
-        std::fprintf(stderr, "penumbra: %s\n", e.what());
-        return 2;
-    }
+    if (const int status = parseCommandLine(app, argc, argv, "penumbra"); status >= 0)
+        return status;
     initLogging(verbose);
 
     std::optional<tbb::global_control> threads;

@@ -153,14 +153,8 @@ int main(int argc, char** argv) {
     app.add_flag("--verbose", verbose, "debug lines on stderr (what runs, and how long it takes)");
     BenchCommands c;
     addBenchCommands(app, c);
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::CallForHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::ParseError& e) {
-        std::fprintf(stderr, "penumbra bench: %s\n", e.what());
-        return 2;
-    }
+    if (const int status = parseCommandLine(app, argc, argv, "penumbra bench"); status >= 0)
+        return status;
     initLogging(verbose);
     try {
         if (*c.benchSolver) return runSolverBench(c.bench);
