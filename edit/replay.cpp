@@ -51,6 +51,18 @@ double relativeLuminanceError(const Discretization& disc, const std::vector<Rgb>
     return den > 0 ? std::sqrt(num / den) : 0.0;
 }
 
+/// The fraction of `elements` whose luminance changes by no more than the settling estimate's
+/// bound from `current` to `reference`.
+double boundCoverage(const std::vector<Rgb>& reference, const std::vector<Rgb>& current,
+                     const SettlingEstimate& settling, const std::vector<int>& elements) {
+    if (elements.empty()) return 1.0;
+    std::size_t bounded = 0;
+    for (int e : elements)
+        if (std::abs(luminance(reference[e]) - luminance(current[e])) <= settling.bound(e))
+            ++bounded;
+    return static_cast<double>(bounded) / static_cast<double>(elements.size());
+}
+
 std::vector<int> aliveElements(const Discretization& disc) {
     std::vector<int> alive;
     for (std::size_t e = 0; e < disc.elements().size(); ++e)
@@ -164,6 +176,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
     if (options.afterConverge) options.afterConverge(*session);
 
     nlohmann::json editReports = nlohmann::json::array();
+    double estimateTotalMs = 0;
     for (const LoggedEdit& logged : edits) {
         const EditCommand& command = logged.command;
         start = Clock::now();
@@ -189,6 +202,12 @@ nlohmann::json runReplay(const ReplayOptions& options) {
         entry["objects"] = objectChecksums(disc, b);
         entry["unshot_fraction"] = session->solver().unshotFraction();
         entry["pending_changes"] = session->solver().pendingChanges();
+        const auto estimateStart = Clock::now();
+        const SettlingEstimate settling = session->solver().computeSettling();
+        const double estimateMs = msSince(estimateStart);
+        estimateTotalMs += estimateMs;
+        entry["error_estimate"] = settling.relativeRms;
+        entry["estimate_ms"] = estimateMs;
         if (options.reference) {
             const std::vector<int> alive = aliveElements(disc);
             if (result.solutionChanged()) {
@@ -198,6 +217,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
             }
             entry["error_rms"] = relativeLuminanceError(disc, reference, b, alive);
             entry["error_top1"] = relativeLuminanceError(disc, reference, b, topSet);
+            entry["estimate_coverage"] = boundCoverage(reference, b, settling, alive);
         }
         if (options.afterEdit) options.afterEdit(*session, result, entry);
         editReports.push_back(std::move(entry));
@@ -208,6 +228,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
     report["shots"] = totalShots;
     report["rays"] = totalRays;
     report["seconds"] = totalMs / 1000.0;
+    report["estimate_seconds"] = estimateTotalMs / 1000.0;
     report["scene"] = options.scenePath;
     report["log"] = options.logPath;
     report["converge"] = options.converge;

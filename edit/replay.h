@@ -53,7 +53,10 @@ struct ReplayOptions {
 /// time, references excluded), unshot_fraction, elements, patches, and "edits", one object
 /// per log line with "line", "op", "shots", "rays", "ms", "checksum" (Σ Y·A over elements in
 /// the solution after the line), "objects" (the same sum per object id), "unshot_fraction",
-/// and with a reference "error_rms" and
+/// "error_estimate" (ProgressiveSolver::computeSettling's relative RMS: no reference needed),
+/// "estimate_ms" (its time, not in "ms"; the report's "estimate_seconds" sums them), and
+/// with a reference "estimate_coverage" (the fraction of elements whose change to the
+/// reference the estimate bounds), "error_rms" and
 /// "error_top1" (George et al. eq. 7 over all elements in the solution, and over the 1% whose
 /// reference luminance changed most with the last edit that changed the lit scene; 0 before
 /// any such edit; while an object is selected it is out of both the solution and the

@@ -105,6 +105,26 @@ struct SolverStats {
     std::uint64_t redistributionShots = 0;  ///< also counted in `shots`
 };
 
+/// How far the solution is from settled (ProgressiveSolver::computeSettling; docs/solver.md
+/// "Settling"), per element, in luminance (W/m²); 0 for elements not in the solution.
+struct SettlingEstimate {
+    /// How much the element's radiosity may still change from the work the solver holds:
+    /// unshot energy (positive and negative), pending redistribution, and their
+    /// interreflection. 0 once everything has been shot.
+    std::vector<double> change;
+    /// The standard deviation of the stochastic tail's sampling noise in the element's
+    /// radiosity: how far two converged solves may disagree, whatever is left to shoot.
+    std::vector<double> noise;
+    /// George et al. eq. 7 for `change`: sqrt(Σ change² A / Σ Y² A), Y the current luminance.
+    double relativeRms = 0;
+    /// The per-element bound on the change to a converged from-scratch solve: change plus
+    /// kNoiseCover standard deviations of both solves' noise (√2 σ).
+    double bound(std::size_t e) const {
+        return change[e] + kNoiseCover * 1.4142135623730951 * noise[e];
+    }
+    static constexpr double kNoiseCover = 2.0;
+};
+
 /// What the solver is told about an edit. Object indices are Discretization objects
 /// (versions): a move removes the old version and adds a new one.
 struct SceneChange {
@@ -169,6 +189,11 @@ public:
     std::size_t pendingChanges() const;
     /// unshotFraction() ≤ eps and no redistribution pending.
     bool converged(double eps) const;
+    /// Per element, how much its radiosity can still change (SettlingEstimate), from the
+    /// unshot energy, the pending redistribution and unoccluded form factors; it traces rays
+    /// only against the changed objects of pending edits, toward their strongest shooters,
+    /// never in the scene. O(elements × (strong shooters + pending edits)).
+    SettlingEstimate computeSettling() const;
 
     /// Drag preview (George et al.: "while the object is selected, radiosity that is
     /// redistributed to adjust for changes of the object is stored separately, added to the

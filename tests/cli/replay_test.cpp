@@ -110,11 +110,11 @@ protected:
     fs::path mDir;
 };
 
-/// The report without wall-clock fields ("ms", "seconds"), which vary between runs.
+/// The report without wall-clock fields ("ms", "seconds", and the settling estimate's
+/// "estimate_ms", "estimate_seconds"), which vary between runs.
 json withoutTimes(json j) {
     if (j.is_object()) {
-        j.erase("ms");
-        j.erase("seconds");
+        for (const char* key : {"ms", "seconds", "estimate_ms", "estimate_seconds"}) j.erase(key);
         for (auto& [key, value] : j.items()) value = withoutTimes(value);
     } else if (j.is_array()) {
         for (auto& value : j) value = withoutTimes(value);
@@ -143,9 +143,11 @@ TEST_F(ReplayCli, ReportHasOneEntryPerLineWithTheFields) {
         const json& e = report["edits"][i];
         EXPECT_EQ(e["line"], i + 1);
         EXPECT_EQ(e["op"], ops[i]);
-        for (const char* key : {"shots", "rays", "ms", "checksum", "error_rms", "error_top1"})
+        for (const char* key : {"shots", "rays", "ms", "checksum", "error_rms", "error_top1",
+                                "error_estimate", "estimate_ms", "estimate_coverage"})
             EXPECT_TRUE(e.contains(key)) << "line " << i + 1 << ": " << key;
         EXPECT_GE(e["error_rms"].get<double>(), 0.0);
+        EXPECT_GE(e["error_estimate"].get<double>(), 0.0);
         if (e["op"] != "solve" && e["op"] != "converge") {
             EXPECT_GE(e["shots"].get<int>(), 3) << "the budget is spent after every edit line";
         }

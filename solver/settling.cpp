@@ -1,0 +1,335 @@
+// The settling estimate (docs/solver.md "Settling"): per element, how much the radiosity can
+// still change before the solution converges, from the work the solver still holds (unshot
+// energy, pending redistribution) and point form factors, without tracing a ray.
+//
+// Index: point form factors · the estimate (first order, interreflection, noise)
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "solver/form_factor.h"
+#include "solver/progressive_solver.h"
+#include "solver/progressive_solver_internal.h"
+
+namespace penumbra {
+
+using namespace solver_detail;
+
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Point form factors (no visibility: an upper estimate where something blocks).
+
+/// Unoccluded form factor from a differential area at x (unit normal n) to patch P: exact for
+/// a planar patch (Lambert's contour integral, clipped to the horizon); for a curved one George
+/// et al.'s point estimate A cosθ cosθ′ / (πr² + A), the receiver's cosine taking the patch's
+/// extent as slack (a patch partly above the horizon still sends light) and the patch counted
+/// as facing the receiver (a sphere lamp's patch faces every way).
+double pointFormFactor(const Vec3& x, const Vec3& n, const Patch& P) {
+    if (!P.outline.empty()) return polygonFormFactor(x, n, P.outline);
+    const Vec3 d = P.centroid - x;
+    const double r2 = glm::dot(d, d);
+    if (!(r2 > 0)) return 0;
+    const double r = std::sqrt(r2), slack = P.radius / r;
+    const double cosi = std::clamp(glm::dot(n, d) / r + slack, 0.0, 1.0);
+    if (cosi == 0) return 0;
+    const double cosj =
+        P.outline.empty() ? 1.0 : std::clamp(-glm::dot(P.normal, d) / r + slack, 0.0, 1.0);
+    return P.area * cosi * cosj / (M_PI * r2 + P.area);
+}
+
+/// Form factor from a differential area at x (unit normal n) to a sphere (c, rs): sin²α cosθ
+/// for a sphere wholly above the horizon, α its angular radius; the horizon's cut is taken
+/// as slack (cosθ + sinα, clamped), and a receiver inside the sphere sees it whole.
+double sphereFormFactor(const Vec3& x, const Vec3& n, const Vec3& c, double rs) {
+    const Vec3 d = c - x;
+    const double d2 = glm::dot(d, d);
+    if (d2 <= rs * rs) return 1.0;
+    const double dist = std::sqrt(d2), sinA = rs / dist;
+    const double cosT = std::clamp(glm::dot(n, d) / dist + sinA, 0.0, 1.0);
+    return std::min(1.0, sinA * sinA * cosT);
+}
+
+/// Whether the sphere (c, r) can meet a segment from x to a point within pr of p (the shaft
+/// test of redistribution.cpp's sphereMeetsCone, repeated: it is local there).
+bool sphereNearSegment(const Vec3& x, const Vec3& p, double pr, const Vec3& c, double r) {
+    const Vec3 d = p - x;
+    const double l2 = glm::dot(d, d);
+    if (l2 <= pr * pr) return true;
+    const Vec3 w = x - c;
+    const double k = glm::dot(w, d);
+    const double t0 = -k / l2;
+    const double q2 = std::max(0.0, glm::dot(w, w) - k * k / l2);
+    const double reach = r + std::max(pr, 0.0);
+    if (reach < 0 || q2 >= reach * reach) return false;
+    const double s = pr * std::sqrt(q2) / (std::sqrt(l2) * std::sqrt(l2 - pr * pr));
+    const double t = std::clamp(t0 + s, 0.0, 1.0);
+    return std::sqrt(l2 * (t - t0) * (t - t0) + q2) - pr * t < r;
+}
+
+Rgb absRgb(const Rgb& c) { return Rgb(std::abs(c.x), std::abs(c.y), std::abs(c.z)); }
+
+/// Shooters weighed one by one: the strongest kExplicit of each kind; the rest are spread.
+constexpr std::size_t kExplicitUnshot = 16;
+constexpr std::size_t kExplicitPending = 8;
+
+/// One pending edit as the estimate sees it.
+struct PendingEdit {
+    const ChangeEntry* entry = nullptr;
+    std::vector<int> top;  ///< its strongest pending shooters (not on removed objects)
+    /// Irradiance (W/m², per channel) a surface of the changed objects gets from the other
+    /// pending shooters on average over its orientations: what the objects block or, added,
+    /// receive from them.
+    Rgb restFacing{0.0};
+    /// The same, from the pending shooters that have not gathered to the added objects.
+    Rgb restFacingUngathered{0.0};
+    /// Per channel, how much the radiosity a receiver sees in the changed objects' direction
+    /// may change: the larger of the light they block and their own radiosity once lit, plus
+    /// the radiosity of removed objects, cancelled.
+    Rgb surround{0.0};
+};
+
+PendingEdit describePending(const ChangeEntry& c, const Discretization& disc) {
+    PendingEdit p;
+    p.entry = &c;
+    const auto& patches = disc.patches();
+    std::vector<char> changed(disc.objects().size(), 0);
+    for (int o : c.added) changed[o] = 1;
+    for (int o : c.removed) changed[o] = 2;
+    double changedArea = 0;
+    Rgb addedRho(0.0), removedShot(0.0);
+    for (std::size_t j = 0; j < patches.size(); ++j) {
+        const char kind = changed[patches[j].object];
+        if (!kind) continue;
+        changedArea += patches[j].area;
+        if (kind == 1)
+            addedRho = glm::max(addedRho, disc.patchMaterial(static_cast<int>(j)).reflectance);
+    }
+    // Facing irradiance of each pending shooter: its importance is S_j · F̄ · (area / 4).
+    std::vector<std::pair<double, int>> ranked;
+    Rgb facing(0.0);
+    std::vector<Rgb> facingOf(patches.size(), Rgb(0.0));
+    for (std::size_t j = 0; j < c.shot.size(); ++j) {
+        const double key = c.pending.key(static_cast<int>(j));
+        if (!(key > 1e-250)) continue;
+        if (changed[patches[j].object] == 2) {
+            removedShot = glm::max(removedShot, absRgb(c.shot[j]));
+            continue;
+        }
+        const double sum = energyKey(c.shot[j], 1.0);
+        if (!(sum > 0) || !(changedArea > 0)) continue;
+        // Σ_j F̄_j over every direction is about 4 (the sphere's solid angle over π), so a
+        // surface oriented one way gets about a quarter of the sum: what restFacing holds.
+        facingOf[j] = absRgb(c.shot[j]) * (key / (sum * changedArea));
+        facing += facingOf[j];
+        ranked.push_back({key, static_cast<int>(j)});
+    }
+    const std::size_t n = std::min(kExplicitPending, ranked.size());
+    std::partial_sort(ranked.begin(), ranked.begin() + n, ranked.end(),
+                      [](const auto& a, const auto& b) {
+                          return a.first != b.first ? a.first > b.first : a.second < b.second;
+                      });
+    std::vector<char> isTop(patches.size(), 0);
+    for (std::size_t k = 0; k < n; ++k)
+        p.top.push_back(ranked[k].second), isTop[ranked[k].second] = 1;
+    for (const auto& [key, j] : ranked) {
+        if (isTop[j]) continue;
+        p.restFacing += facingOf[j];
+        if (!c.isGathered(j)) p.restFacingUngathered += facingOf[j];
+    }
+    // In the changed objects' direction a receiver sees, instead of the light they block
+    // (about restFacing), their own radiosity (ρ times their mean irradiance): the change is
+    // at most the larger.
+    p.surround = glm::max(p.restFacing, addedRho * facing) + removedShot;
+    return p;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// The estimate.
+
+SettlingEstimate ProgressiveSolver::computeSettling() const {
+    const auto& elements = mDisc.elements();
+    const auto& patches = mDisc.patches();
+    const std::size_t ne = elements.size();
+    SettlingEstimate out;
+    out.change.assign(ne, 0.0);
+    out.noise.assign(ne, 0.0);
+    if (mElementB.size() != ne) return out;
+
+    // Unshot energy: the strongest shooters one by one, the rest per object (below).
+    std::vector<std::pair<double, int>> unshot;
+    double totalArea = 0;
+    Rgb rhoArea(0.0), emittedPower(0.0);
+    for (std::size_t j = 0; j < patches.size(); ++j) {
+        if (!mDisc.patchAlive(static_cast<int>(j))) continue;
+        const Material& m = mDisc.patchMaterial(static_cast<int>(j));
+        totalArea += patches[j].area;
+        rhoArea += m.reflectance * patches[j].area;
+        emittedPower += m.emission * patches[j].area;
+        const double key = energyKey(mPatchUnshot[j], patches[j].area);
+        if (key > 0) unshot.push_back({key, static_cast<int>(j)});
+    }
+    if (!(totalArea > 0)) return out;
+    const std::size_t nTop = std::min(kExplicitUnshot, unshot.size());
+    std::partial_sort(unshot.begin(), unshot.begin() + nTop, unshot.end(),
+                      [](const auto& a, const auto& b) {
+                          return a.first != b.first ? a.first > b.first : a.second < b.second;
+                      });
+    // The rest, per object: a diffuse source of its patches' power at their power-weighted
+    // centre, its intensity at most Φ/π (a flat source, seen face on).
+    std::vector<int> topUnshot;
+    struct Source {
+        Rgb power{0.0};
+        Vec3 centre{0.0};
+        double weight = 0, radius2 = 0;
+    };
+    std::vector<Source> sources(mDisc.objects().size());
+    for (std::size_t k = 0; k < unshot.size(); ++k) {
+        const int j = unshot[k].second;
+        if (k < nTop) {
+            topUnshot.push_back(j);
+            continue;
+        }
+        Source& s = sources[patches[j].object];
+        s.power += absRgb(mPatchUnshot[j]) * patches[j].area;
+        s.centre += unshot[k].first * patches[j].centroid;
+        s.weight += unshot[k].first;
+    }
+    std::vector<Source> restSources;
+    for (std::size_t o = 0; o < sources.size(); ++o) {
+        Source s = sources[o];
+        if (!(s.weight > 0)) continue;
+        s.centre /= s.weight;
+        for (const Vec3& w : mDisc.objects()[o].worldPositions)
+            s.radius2 = std::max(s.radius2, glm::dot(w - s.centre, w - s.centre));
+        restSources.push_back(s);
+    }
+
+    std::vector<PendingEdit> pending;
+    for (const ChangeEntry& c : mImpl->changes) pending.push_back(describePending(c, mDisc));
+
+    // A strong shooter's shadow: rays from the receiver to points of the patch (the outline's
+    // corners pulled toward the centre, or a few of its elements' centroids) traced against
+    // the changed objects alone; the fraction they block.
+    std::vector<Visibility> changedOnly;
+    for (const PendingEdit& p : pending) changedOnly.push_back(p.entry->changed.visibility());
+    const double lift = 4 * mTracer.epsilon();
+    auto blockedFraction = [&](const Vec3& x, int j, const Visibility& only) {
+        const Patch& P = patches[j];
+        Vec3 to[9];
+        int count = 0;
+        to[count++] = P.centroid;
+        if (!P.outline.empty()) {
+            for (std::size_t k = 0; k < P.outline.size() && count < 9; ++k)
+                to[count++] = P.centroid + 0.9 * (P.outline[k] - P.centroid);
+        } else {
+            const std::size_t m = P.elements.size(), stride = std::max<std::size_t>(1, m / 8);
+            for (std::size_t k = 0; k < m && count < 9; k += stride)
+                to[count++] = elements[P.elements[k]].centroid;
+        }
+        bool blocked[9];
+        mTracer.occludedPacket(x, to, count, blocked, only);
+        int hits = 0;
+        for (int k = 0; k < count; ++k) hits += blocked[k] ? 1 : 0;
+        return static_cast<double>(hits) / count;
+    };
+
+    // First order: the irradiance each element may still gain or lose directly from the
+    // pending work, per channel.
+    std::vector<Rgb> first(ne, Rgb(0.0)), unshotFirst(ne, Rgb(0.0));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ne, 512), [&](const auto& range) {
+        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+            if (!mDisc.elementAlive(static_cast<int>(i))) continue;
+            const Element& el = elements[i];
+            const Vec3& x = el.receiver;
+            const Vec3& n = el.normal;
+            Rgb h(0.0);
+            for (int j : topUnshot)
+                if (j != el.patch) h += absRgb(mPatchUnshot[j]) * pointFormFactor(x, n, patches[j]);
+            for (const Source& s : restSources) {
+                // E = Φ cosθ / (π (d² + r²)), the source's extent r softening it up close.
+                const Vec3 d = s.centre - x;
+                const double d2 = glm::dot(d, d) + s.radius2;
+                const double cosi = std::clamp(
+                    glm::dot(n, d) / std::sqrt(d2) + std::sqrt(s.radius2 / d2), 0.0, 1.0);
+                h += s.power * (cosi / (M_PI * d2));
+            }
+            unshotFirst[i] = h;
+            for (const PendingEdit& p : pending) {
+                const ChangeEntry& c = *p.entry;
+                const bool addedHere =
+                    static_cast<std::size_t>(el.object) < c.before.size() && !c.before[el.object];
+                if (addedHere) {
+                    // A receiver the edit added: all it gets from the pending shooters.
+                    h += p.restFacingUngathered;
+                    for (int j : p.top)
+                        if (!c.isGathered(j))
+                            h += absRgb(c.shot[j]) * pointFormFactor(x, n, patches[j]);
+                    continue;
+                }
+                // Elsewhere: what the changed objects block, reflect or no longer reflect,
+                // within the solid angle they subtend; a strong shooter only where they may
+                // cut its shaft to the receiver.
+                for (const auto& [centre, radius] : c.spheres) {
+                    const double fs = sphereFormFactor(x, n, centre, radius);
+                    if (!(fs > 0)) continue;
+                    h += p.surround * fs;
+                    for (int j : p.top) {
+                        const Patch& P = patches[j];
+                        if (!sphereNearSegment(x, P.centroid, P.radius, centre, radius)) continue;
+                        const double blocked =
+                            blockedFraction(x + n * lift, j, changedOnly[&p - pending.data()]);
+                        if (blocked > 0)
+                            h += absRgb(c.shot[j]) * pointFormFactor(x, n, P) * blocked;
+                    }
+                }
+            }
+            first[i] = h;
+        }
+    });
+
+    // Interreflection: the first-order change, reflected, is unshot energy again; Cohen's
+    // ambient term spreads it, R = 1 / (1 − ρ̄) per channel for the geometric series. Only the
+    // unshot energy's: a redistribution's gains (on the changed objects) and losses (in their
+    // shadows) are about equal, so their reflections cancel but for the reflectances'
+    // contrast, and the changed objects' solid-angle term already covers what sees them.
+    Rgb reflectedPower(0.0);
+    for (std::size_t i = 0; i < ne; ++i) {
+        if (!mDisc.elementAlive(static_cast<int>(i))) continue;
+        reflectedPower += mDisc.elementMaterial(static_cast<int>(i)).reflectance * unshotFirst[i] *
+                          elements[i].area;
+    }
+    const Rgb rhoMean = rhoArea / totalArea;
+    const Rgb series = Rgb(1.0) / glm::max(Rgb(1.0) - rhoMean, Rgb(1e-3));
+    const Rgb interreflected = reflectedPower / totalArea * series;
+
+    // The stochastic tail's sampling noise: a ray carries the emitted power over
+    // raysPerEmittedPower, so an element's tail radiosity T, built of hits worth ρΦ/A, has
+    // variance ρ(Φ/A)·T; T is at most its indirect radiosity ρ(H − H_emission).
+    const bool stochastic = mOptions.stochasticBelow > 0 && mOptions.raysPerEmittedPower > 0;
+    const Rgb rayPower = stochastic ? emittedPower / mOptions.raysPerEmittedPower : Rgb(0.0);
+
+    double num = 0, den = 0;
+    for (std::size_t i = 0; i < ne; ++i) {
+        if (!mDisc.elementAlive(static_cast<int>(i))) continue;
+        const Rgb& rho = mDisc.elementMaterial(static_cast<int>(i)).reflectance;
+        const double area = elements[i].area;
+        out.change[i] = luminance(rho * (first[i] + interreflected));
+        if (stochastic) {
+            const Rgb indirect = glm::max(rho * (mElementH[i] - mElementHEmission[i]), Rgb(0.0));
+            out.noise[i] = std::sqrt(luminance(rho * rayPower / area) * luminance(indirect));
+        }
+        const double y = luminance(mElementB[i]);
+        num += out.change[i] * out.change[i] * area;
+        den += y * y * area;
+    }
+    out.relativeRms = den > 0 ? std::sqrt(num / den) : 0.0;
+    return out;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,67 @@
+// The settling estimate (ProgressiveSolver::computeSettling; docs/solver.md "Settling")
+// against the truth: on a bundled edit log, the from-scratch references `replay --reference`
+// computes say how much each element's radiosity still has to change after each line. The
+// estimate must bound that change for at least 95% of the elements, and while the light is
+// still settling its RMS (George et al. eq. 7) must be within a factor of two of the true RMS
+// error. Once a deterministic solve has converged it is negligible.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include "edit/replay.h"
+#include "solver/discretization.h"
+#include "solver/progressive_solver.h"
+#include "solver/ray_tracer.h"
+#include "test_scenes.h"
+
+namespace penumbra {
+namespace {
+
+constexpr double kEps = 1e-5;
+
+/// A converged lit room (deterministic shots).
+struct Lit {
+    Scene scene = test::makeLitRoom("white");
+    std::unique_ptr<Discretization> disc = std::make_unique<Discretization>(scene);
+    std::unique_ptr<RayTracer> tracer = std::make_unique<RayTracer>(*disc);
+    std::unique_ptr<ProgressiveSolver> solver =
+        std::make_unique<ProgressiveSolver>(*disc, *tracer, SolverOptions{});
+
+    Lit() { solver->converge(kEps, 1000000); }
+};
+
+TEST(Settling, BoundsTheChangeOnTheBundledAddCubeLog) {
+    ReplayOptions options;
+    options.scenePath = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cube-room.json";
+    options.logPath = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/logs/cube-room-add-cube.jsonl";
+    options.reference = true;
+    const nlohmann::json report = runReplay(options);
+    ASSERT_EQ(report["edits"].size(), 2u);
+    for (const nlohmann::json& edit : report["edits"]) {
+        const std::string what = "line " + edit["line"].dump() + " (" +
+                                 edit["op"].get<std::string>() + "): " + edit.dump();
+        EXPECT_GE(edit["estimate_coverage"].get<double>(), 0.95) << what;
+        const double estimated = edit["error_estimate"].get<double>();
+        const double truth = edit["error_rms"].get<double>();
+        // Settling (the add, nothing shot yet): the RMS within a factor of two. Converged: the
+        // truth is the two solves' sampling noise, which the estimate's change part leaves out.
+        if (truth > 0.005) {
+            EXPECT_LE(estimated, 2 * truth) << what;
+            EXPECT_GE(estimated, 0.5 * truth) << what;
+        } else {
+            EXPECT_LT(estimated, 0.005) << what;
+        }
+    }
+}
+
+TEST(Settling, IsNegligibleOnceConverged) {
+    Lit lit;
+    const SettlingEstimate estimate = lit.solver->computeSettling();
+    EXPECT_LT(estimate.relativeRms, 1e-3);
+    for (double n : estimate.noise) EXPECT_EQ(n, 0.0) << "deterministic shots have no noise";
+}
+
+}  // namespace
+}  // namespace penumbra
