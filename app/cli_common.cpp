@@ -107,8 +107,4 @@ int parseCommandLine(CLI::App& app, int argc, char** argv, const char* program) 
     return -1;
 }
 
-std::string siblingExecutable(const std::string& name) {
-    return (std::filesystem::read_symlink("/proc/self/exe").parent_path() / name).string();
-}
-
 }  // namespace penumbra::cli

@@ -1,7 +1,7 @@
 #pragma once
 // What the command lines share (app/penumbra.cpp, app/holodeck_commands.cpp, and
 // app/penumbra_bench.cpp): the scene and solver options, opening and solving a scene, reports,
-// cameras, the display's reconstruction options and the path of a sibling executable.
+// cameras, the display's reconstruction options, parsing.
 
 #include <CLI/CLI.hpp>
 #include <cstdint>
@@ -52,8 +52,5 @@ void addReconstructionOptions(CLI::App* cmd, int& smooth, double& maxPenumbraPix
 /// Parses the command line: −1 when it parsed, else the exit status (0 after --help; 2 after
 /// one error line "PROGRAM: what" on stderr).
 int parseCommandLine(CLI::App& app, int argc, char** argv, const char* program);
-/// The executable `name` in the folder of the running one (penumbra and penumbra-bench are
-/// built and installed side by side).
-std::string siblingExecutable(const std::string& name);
 
 }  // namespace penumbra::cli

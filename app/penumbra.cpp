@@ -27,6 +27,7 @@
 #include "app/holodeck_commands.h"
 #include "app/import_flags.h"
 #include "core/durable_file.h"
+#include "core/file_name.h"
 #include "core/input_error.h"
 #include "core/log.h"
 #include "core/random.h"

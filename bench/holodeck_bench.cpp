@@ -21,6 +21,7 @@
 
 #include "bench/bench.h"
 #include "core/durable_file.h"
+#include "core/file_name.h"
 #include "core/timing.h"
 #include "edit/edit_session.h"
 #include "edit/lit_scene.h"
@@ -188,9 +189,7 @@ RanksFill runRanksFill(const HolodeckBenchOptions& o, const std::string& name, i
         ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
         ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
     }
-    // The command line, built beside this executable (penumbra-bench).
-    const std::string penumbra =
-        (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "penumbra").string();
+    const std::string penumbra = siblingExecutable("penumbra");
     const std::string command =
         "mpirun -q -np " + std::to_string(ranks) + " --oversubscribe --bind-to none '" + penumbra +
         "' holodeck fill '" + o.sceneDir + "/" + name + ".json' --holodeck '" + file +

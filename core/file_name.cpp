@@ -13,4 +13,8 @@ std::string lowerExtension(const std::string& path) {
     return ext;
 }
 
+std::string siblingExecutable(const std::string& name) {
+    return (std::filesystem::read_symlink("/proc/self/exe").parent_path() / name).string();
+}
+
 }  // namespace penumbra

@@ -375,7 +375,7 @@ private:
     /// ones (setRequestChangedOnly) or the point has converged (setRequestConverged); or the
     /// drag asks only for changed ones and k is a lone hole among fresh points.
     bool notRequestable(std::size_t k) const {
-        const bool fresh = mScreenOfPixel[k] >= 0 && mPixelAge[k] < kStaleAge;
+        const bool fresh = freshPixel(k);
         return (mConvergedTrust && mRequestCap > 0 && mRequestCount[k] >= mRequestCap) ||
                (fresh &&
                 (mRequestChangedOnly || (mConvergedTrust && mConvergedTrust[k] >= mConverged))) ||
@@ -389,11 +389,13 @@ private:
     bool loneHole(std::size_t k) const {
         const std::size_t W = static_cast<std::size_t>(mWidth);
         const std::size_t x = k % W;
-        auto fresh = [&](std::size_t j) {
-            return mScreenOfPixel[j] >= 0 && mPixelAge[j] < kStaleAge;
-        };
-        return (x == 0 || fresh(k - 1)) && (x + 1 == W || fresh(k + 1)) &&
-               (k < W || fresh(k - W)) && (k + W >= mScreenOfPixel.size() || fresh(k + W));
+        return (x == 0 || freshPixel(k - 1)) && (x + 1 == W || freshPixel(k + 1)) &&
+               (k < W || freshPixel(k - W)) &&
+               (k + W >= mScreenOfPixel.size() || freshPixel(k + W));
+    }
+    /// Pixel k shows a point that is neither stale nor carried.
+    bool freshPixel(std::size_t k) const {
+        return mScreenOfPixel[k] >= 0 && mPixelAge[k] < kStaleAge;
     }
     /// Per pixel: requests since the view, the lighting or the points last changed
     /// (setRequestConverged's cap), saturating.
