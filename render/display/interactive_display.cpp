@@ -129,7 +129,7 @@ void InteractiveDisplay::startShown() {
     elementShading(mShownTotal, mShownDirect);
     mShownValid.assign(mShownTotal.size(), 0);
     for (std::size_t e = 0; e < mShownValid.size(); ++e)
-        mShownValid[e] = mDisc.elementAlive(static_cast<int>(e)) ? 1 : 0;
+        mShownValid[e] = mDisc.elementAlive(static_cast<int>(e)) ? kShownAll : kShownNone;
     noteAlive();
 }
 
@@ -466,26 +466,24 @@ std::uint64_t InteractiveDisplay::shadingSerial() const { return mShader->stateS
 // ---------------------------------------------------------------------------------------------
 // Edits and solution updates
 
-void InteractiveDisplay::elementShading(std::vector<Rgb>& total,
-                                        std::vector<double>& direct) const {
+void InteractiveDisplay::elementShading(std::vector<Rgb>& total, std::vector<Rgb>& direct) const {
     const std::vector<Rgb> d = mShader->elementDirect();
     const std::vector<Rgb> indirect = mShader->elementIndirect();
     const std::size_t n = mDisc.elements().size();
     total.assign(n, Rgb(0.0));
-    direct.assign(n, 0.0);
+    direct.assign(n, Rgb(0.0));
     const double invPi = 1.0 / M_PI;
     for (std::size_t e = 0; e < n; ++e) {
         const Material& m = mDisc.elementMaterial(static_cast<int>(e));
         const Rgb hd = e < d.size() ? d[e] : Rgb(0.0);
         const Rgb hi = e < indirect.size() ? indirect[e] : Rgb(0.0);
         total[e] = (m.emission + m.reflectance * (hd + hi)) * invPi;
-        direct[e] = luminance(m.reflectance * hd) * invPi;
+        direct[e] = m.reflectance * hd * invPi;
     }
 }
 
 std::size_t InteractiveDisplay::relightChanged() {
-    std::vector<Rgb> total;
-    std::vector<double> direct;
+    std::vector<Rgb> total, direct;
     elementShading(total, direct);
     const std::size_t n = total.size();
     double mean = 0;
@@ -505,11 +503,21 @@ std::size_t InteractiveDisplay::relightChanged() {
         const double scale = std::max({std::abs(before), std::abs(after), 0.01 * mean});
         // Stale when the element's shading moved, or its direct light (a shadow moving across
         // it, which the element's total may hide while the solver catches up).
-        const double change =
-            std::max(std::abs(after - before), std::abs(direct[e] - mShownDirect[e]));
+        const double change = std::max(std::abs(after - before),
+                                       std::abs(luminance(direct[e]) - luminance(mShownDirect[e])));
         stale[e] = change > mOptions.invalidateThreshold * scale;
-        // The element's change, added to its points where they reflect the element's shading.
-        if (mShownValid[e]) delta[e] = total[e] - mShownTotal[e];
+        // The element's change, added to its points where they follow the element's shading.
+        if (mShownValid[e] == kShownAll) {
+            delta[e] = total[e] - mShownTotal[e];
+        } else if (mShownValid[e] == kShownDirect) {
+            // A moved object's points take the change of their direct light from the place
+            // they were shaded at (a shadow they left or entered) once the shader's estimate
+            // for the new place is in; until then they keep what they show.
+            if (mShader->directKnown(mDisc.elements()[e].object))
+                delta[e] = direct[e] - mShownDirect[e];
+            else
+                direct[e] = mShownDirect[e];
+        }
         any = any || stale[e] || delta[e] != Rgb(0.0);
     }
     // Points shaded before this on the elements that went stale are stale when they arrive.
@@ -520,7 +528,7 @@ std::size_t InteractiveDisplay::relightChanged() {
     mShownTotal = std::move(total);
     mShownDirect = std::move(direct);
     // Elements of versions that appeared since: nothing cached reflects them yet.
-    mShownValid.resize(n, 0);
+    mShownValid.resize(n, kShownNone);
     return any ? mCache.relight(delta, stale) : 0;
 }
 
@@ -750,17 +758,18 @@ std::size_t InteractiveDisplay::carryPoints(int from, int to) {
     const int firstB = mDisc.elementRange(to).first;
     const Mat4 toFromFrom = b.worldFromObject * glm::inverse(a.worldFromObject);
     const std::size_t moved = mCache.carry(from, to, toFromFrom, firstB - firstA);
-    // The moved points show what the old elements showed (not the new ones' lighting).
+    // The moved points show what the old elements showed (not the new ones' lighting); the
+    // change of their direct light is added when the shader knows it (relightChanged).
     const std::size_t n = mDisc.elements().size();
     if (mShownTotal.size() < n) {
         mShownTotal.resize(n, Rgb(0.0));
-        mShownDirect.resize(n, 0.0);
-        mShownValid.resize(n, 0);
+        mShownDirect.resize(n, Rgb(0.0));
+        mShownValid.resize(n, kShownNone);
     }
     for (int k = 0; k < countA; ++k) {
         mShownTotal[firstB + k] = mShownTotal[firstA + k];
         mShownDirect[firstB + k] = mShownDirect[firstA + k];
-        mShownValid[firstB + k] = 0;
+        mShownValid[firstB + k] = mShownValid[firstA + k] != kShownNone ? kShownDirect : kShownNone;
     }
     return moved;
 }
@@ -928,7 +937,8 @@ void InteractiveDisplay::trustShown(int object) {
     // changes would darken the moving object by whatever the solver has not yet shot to it.)
     const auto [first, count] = mDisc.elementRange(object);
     for (int k = 0; k < count; ++k)
-        if (static_cast<std::size_t>(first + k) < mShownValid.size()) mShownValid[first + k] = 1;
+        if (static_cast<std::size_t>(first + k) < mShownValid.size())
+            mShownValid[first + k] = kShownAll;
 }
 
 void InteractiveDisplay::noteAlive() {

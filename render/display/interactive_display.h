@@ -355,10 +355,11 @@ public:
 
     // What the cache keeps across a change (the drag issue): a point is dropped only when its
     // surface is gone (a removed object; a version replaced by another shape). A moved
-    // object's points move with it (carryPoints); a point whose element's shading changed
-    // takes the element's change and is marked stale (relightChanged: re-shaded first, shown
-    // meanwhile); points behind a moved or new object are hidden from the frames, not dropped
-    // (setOccluder). Pixels no point reaches take the fallback (fillHoles).
+    // object's points move with it (carryPoints), stale, and take their elements' change of
+    // direct light once the shader has estimated it at the new place; a point whose element's
+    // shading changed takes the element's change and is marked stale (relightChanged: re-shaded
+    // first, shown meanwhile); points behind a moved or new object are hidden from the frames, not
+    // dropped (setOccluder). Pixels no point reaches take the fallback (fillHoles).
 
     /// Takes an edit (EditSession::apply's event; the structure already changed, shader paused
     /// in asynchronous mode): the one way the display learns of edits. Changed → notifyChanged
@@ -482,8 +483,8 @@ private:
     // -- Helpers of the steps and frames -------------------------------------------------------
 
     /// Per element from the shader's snapshots: the radiance (E + ρ·(H_direct + H_indirect))/π
-    /// and the luminance of its direct part ρ·H_direct/π.
-    void elementShading(std::vector<Rgb>& total, std::vector<double>& direct) const;
+    /// and its direct part ρ·H_direct/π.
+    void elementShading(std::vector<Rgb>& total, std::vector<Rgb>& direct) const;
     /// After the shader's lighting changed (a solution, an edit, a preview's estimate): adds
     /// each element's change to the cached points on it (where they reflect the element's
     /// shading) and marks stale those on elements whose shading or direct light moved by more
@@ -570,11 +571,15 @@ private:
     std::vector<std::uint64_t> mChangedAt;
     mutable std::size_t mLastReferenceEdgePixels = 0;
 
-    // What the cached points show, per element (relightChanged): the radiance and direct
-    // luminance they were shaded or relit with, and whether the element's points reflect its
-    // shading (not those moved from another version).
+    // What the cached points show, per element (relightChanged): the radiance and its direct
+    // part they were shaded or relit with, and how far the element's points follow its
+    // shading: kShownNone not at all; kShownAll every change is added to them (an object at
+    // rest); kShownDirect only the changes of the direct part, once the shader has an estimate
+    // for the element where it is (a drag's preview versions: their points were carried from
+    // the place before, and their reflected light lags the moves).
+    static constexpr std::uint8_t kShownNone = 0, kShownAll = 1, kShownDirect = 2;
     std::vector<Rgb> mShownTotal;
-    std::vector<double> mShownDirect;
+    std::vector<Rgb> mShownDirect;
     std::vector<std::uint8_t> mShownValid;
     std::vector<std::uint8_t> mKnownAlive;  ///< per version, at the last noteAlive
     // The object points are hidden behind (setOccluder), and how.

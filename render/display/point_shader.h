@@ -205,6 +205,12 @@ public:
     /// taken), -1 for none: its `previewOnly` subset must stay alive until then, also after a
     /// newer setPreview (which lets the running estimate finish rather than restart it).
     int directJobPreview() const;
+    /// Whether elementDirect() holds an estimate of `object`'s own elements at its current
+    /// place: every object but a preview whose estimate has not come in yet (setPreview with
+    /// backgroundPreview queues it; takeDirectUpdate applies it).
+    bool directKnown(int object) const {
+        return object != previewObject() || mPreviewDirectFor == object;
+    }
 
     // -- Synchronous shading -----------------------------------------------------------------
 
@@ -454,6 +460,8 @@ private:
     /// elements listed in mPreviewElements; written only while paused/idle.
     std::vector<Rgb> mPreviewDirectDelta;
     std::vector<int> mPreviewElements;
+    /// The preview version the applied estimate (mPreviewDirectDelta) is of, -1 for none.
+    int mPreviewDirectFor = -1;
 
     // Queues.
     mutable std::mutex mQueueMutex;

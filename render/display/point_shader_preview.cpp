@@ -162,6 +162,7 @@ std::vector<int> PointShader::applyDirectJob(const DirectJob& job) {
     std::sort(changed.begin(), changed.end());
     mPreviewElements = std::move(touched);
     mPreviewDirectDelta = std::move(delta);
+    mPreviewDirectFor = job.preview;
     return changed;
 }
 
@@ -282,6 +283,7 @@ std::vector<int> PointShader::clearPreview() {
             changed.push_back(e);
     mPreviewElements.clear();
     mPreviewDirectDelta.clear();
+    mPreviewDirectFor = -1;
     auto next = std::make_shared<State>(*state());
     const int old = next->previewObject;
     next->previewObject = -1;
@@ -364,6 +366,7 @@ std::vector<int> PointShader::endDrag(int added) {
     changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
     mPreviewElements.clear();
     mPreviewDirectDelta.clear();
+    mPreviewDirectFor = -1;
     mDragOrigin = -1;
     mOriginOnly = Visibility{};
     auto next = std::make_shared<State>(*state());
@@ -398,6 +401,7 @@ void PointShader::copyDirectFrom(const PointShader& source) {
     mHasSolution = source.mHasSolution;
     mPreviewDirectDelta = source.mPreviewDirectDelta;
     mPreviewElements = source.mPreviewElements;
+    mPreviewDirectFor = source.mPreviewDirectFor;
     mDragOrigin = source.mDragOrigin;
     mOriginOnly = source.mOriginOnly;
     {

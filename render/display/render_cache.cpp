@@ -200,8 +200,8 @@ std::vector<std::uint8_t> RenderCache::mergeIntoPixels(const std::vector<ShadedP
         // A pending screen point list reads the visible points' records: it keeps the
         // reprojection's (the first change of a point is the one recorded).
         if (!built)
-            mPendingOriginals.push_back(
-                {static_cast<std::size_t>(y) * mWidth + x, q.colour, q.position, trustOf(q)});
+            mPendingOriginals.push_back({static_cast<std::size_t>(y) * mWidth + x, q.colour,
+                                         q.position, trustOf(static_cast<std::size_t>(i))});
         touch(static_cast<std::size_t>(i));
         if (q.shading != s.shading) {
             // Shaded under other lighting (a solution update, a drag step): the new sample
@@ -421,8 +421,8 @@ void RenderCache::reprojectSerial(const CameraRays& camera) {
         if (i < 0) continue;
         mVisible[i] = 1;
         mScreenOfPixel[k] = static_cast<int>(mScreen.size());
-        mScreen.push_back(
-            {position[i], depth[i], mPoints[i].colour, pointAge(i), trustOf(mPoints[i])});
+        mScreen.push_back({position[i], depth[i], mPoints[i].colour, pointAge(i),
+                           trustOf(static_cast<std::size_t>(i))});
         mLuminance[k] = mLuminanceHi[k] = luminance(mPoints[i].colour);
         mPixelAge[k] = pointAge(i);
     }

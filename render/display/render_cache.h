@@ -209,9 +209,9 @@ public:
     // same depth replaces it in the z-buffer, so the shader re-shades changed regions first
     // while nothing goes black meanwhile.
 
-    /// Adds delta[e] to the colour of every point on element e (elements beyond delta: none)
-    /// and marks stale the points on the elements with stale[e] != 0. Returns the points
-    /// marked.
+    /// Adds delta[e] to the colour of every point on element e (elements beyond delta: none;
+    /// each channel kept ≥ 0) and marks stale the points on the elements with stale[e] != 0.
+    /// Returns the points marked.
     std::size_t relight(const std::vector<Rgb>& delta, const std::vector<std::uint8_t>& stale);
     /// A rigid move of an object's points: every point on `fromObject` moves by `toFromFrom`
     /// (world to world), now lies on `toObject` and element + elementOffset (the version built
@@ -298,7 +298,7 @@ private:
     ScreenPoint shownPoint(const CameraRays& camera, std::size_t k, int i) const {
         const CachePoint& pt = mPoints[i];
         return {camera.projectAtDepth(pt.position, mPixelDepth[k]), mPixelDepth[k], pt.colour,
-                mPixelAge[k], trustOf(pt)};
+                mPixelAge[k], trustOf(static_cast<std::size_t>(i))};
     }
     /// Pixel (x, y)'s point of the z-buffer `zPoint` (depths in mPixelDepth) after depth
     /// culling: −1 when culled or empty.
@@ -445,8 +445,14 @@ private:
     /// requested before it were shaded for another view, so their pixel's own value is not
     /// known (ScreenPoint::trust 0) until a sample of this view merges into them.
     std::uint64_t mViewFrame = 0;
-    /// ScreenPoint::trust of point p in the current view.
-    std::uint8_t trustOf(const CachePoint& p) const {
+    /// ScreenPoint::trust of point i in the current view: 0 for a stale or carried point, whose
+    /// colour is an estimate or what it showed elsewhere (an own point shown as exact would
+    /// print that estimate pixel by pixel among fresh neighbours: a moved object's old shading
+    /// as grain, its old shadows as blots), so the reconstruction blends it with its neighbours
+    /// until it is re-shaded.
+    std::uint8_t trustOf(std::size_t i) const {
+        const CachePoint& p = mPoints[i];
+        if (mFlags[i] & (kStaleFlag | kCarriedFlag)) return 0;
         return p.frame >= mViewFrame ? epiTrust(p.exact, p.samples) : 0;
     }
     /// Before a reprojection to `camera`: starts a new view when the camera moved.

@@ -84,8 +84,8 @@ void RenderCache::renumberPendingScreen(const std::vector<int>& gone, std::size_
             if (i < 0) continue;
             if (mDropFlags[i]) {
                 const CachePoint& p = mPoints[i];
-                records[c].push_back(
-                    {static_cast<std::size_t>(k), p.colour, p.position, trustOf(p)});
+                records[c].push_back({static_cast<std::size_t>(k), p.colour, p.position,
+                                      trustOf(static_cast<std::size_t>(i))});
                 mScreenOfPixel[k] = 0;
             } else if (static_cast<std::size_t>(i) >= kept) {
                 mScreenOfPixel[k] = newIndex[i - kept];
@@ -146,7 +146,8 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
             if (p.element < 0) continue;
             const auto e = static_cast<std::size_t>(p.element);
             if (e < delta.size() && delta[e] != Rgb(0.0)) {
-                p.colour += delta[e];
+                // No negative radiance where a point was darker than its element's change.
+                p.colour = glm::max(p.colour + delta[e], Rgb(0.0));
                 touchColour(i);
             }
             if (e < stale.size() && stale[e]) {
@@ -184,7 +185,7 @@ std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromF
             if (pending && projectOne(*mScreenCamera, p.position, depth, pixel) &&
                 mScreenOfPixel[pixel] == static_cast<int>(i))
                 originals[c].push_back(
-                    {static_cast<std::size_t>(pixel), p.colour, p.position, trustOf(p)});
+                    {static_cast<std::size_t>(pixel), p.colour, p.position, trustOf(i)});
             p.position = Vec3(toFromFrom * glm::dvec4(p.position, 1.0));
             p.object = toObject;
             p.element += elementOffset;

@@ -147,10 +147,22 @@ TEST(RenderCacheKeep, CarriedThenStalePixelsAreRequestedBeforeAnyOther) {
 
 TEST(RenderCacheKeep, CarryMovesAnObjectsPointsRigidlyOntoItsNewVersion) {
     const CameraRays rays(frontCamera(), 12, 12);
+    // Points shaded for this view (requested in a frame of it): trusted as their pixels' own.
+    auto shadedForView = [&](RenderCache& c, std::vector<ShadedPoint> points) {
+        for (ShadedPoint& p : points) p.frame = c.frame();
+        c.insert(points);
+    };
     RenderCache cache(12, 12, 1024);
-    cache.insert(layer(rays, 4.0, 3, 1000, Rgb(0.4)));  // the object, version 3
-    cache.insert(layer(rays, 6.0, 1, 0, Rgb(0.2)));     // the wall behind it
+    cache.reproject(rays);
+    shadedForView(cache, layer(rays, 4.0, 3, 1000, Rgb(0.4)));  // the object, version 3
+    shadedForView(cache, layer(rays, 6.0, 1, 0, Rgb(0.2)));     // the wall behind it
     const std::vector<CachePoint> before = cache.points();
+    // The trust the wall's points are shown with (the object hides it all before the move).
+    RenderCache wallOnly(12, 12, 1024);
+    wallOnly.reproject(rays);
+    shadedForView(wallOnly, layer(rays, 6.0, 1, 0, Rgb(0.2)));
+    const std::uint8_t wallTrust = wallOnly.reproject(rays).front().trust;
+    ASSERT_GT(wallTrust, 0);
     const Mat4 move = glm::translate(Mat4(1.0), Vec3(0.3, -0.2, 0.5)) *
                       glm::rotate(Mat4(1.0), 0.4, Vec3(0, 1, 0));
     EXPECT_EQ(cache.carry(3, 7, move, 500), 144u);
@@ -171,11 +183,20 @@ TEST(RenderCacheKeep, CarryMovesAnObjectsPointsRigidlyOntoItsNewVersion) {
         EXPECT_EQ(now.colour, was.colour) << "the colour stays until re-shaded";
         EXPECT_TRUE(cache.stale(i));
     }
-    // The reprojection sees the moved points where they are now.
+    // The reprojection sees the moved points where they are now, not trusted as their pixels'
+    // own values (their colour is what they showed where they were); the wall's as before.
     const std::vector<ScreenPoint>& shown = cache.reproject(rays);
-    std::size_t moved = 0;
-    for (const ScreenPoint& p : shown) moved += p.colour.x == 0.4;
+    std::size_t moved = 0, wall = 0;
+    for (const ScreenPoint& p : shown) {
+        if (p.colour.x == 0.4) {
+            ++moved;
+            EXPECT_EQ(p.trust, 0) << p.toString();
+        } else if (p.trust == wallTrust) {
+            ++wall;
+        }
+    }
     EXPECT_GT(moved, 0u);
+    EXPECT_EQ(moved + wall, shown.size());
 }
 
 TEST(RenderCacheKeep, HiddenPointsSkipTheReprojectionAndComeBack) {
