@@ -51,6 +51,7 @@
 #include "render/holodeck/holo_view.h"
 #include "render/image.h"
 #include "render/path_tracer.h"
+#include "render/settling_overlay.h"
 
 using namespace penumbra;
 using namespace penumbra::cli;
@@ -557,6 +558,48 @@ int runInterpolantRender(const SolveArgs& a, const RenderArgs& r) {
     return 0;
 }
 
+/// `render --overlay settling` (Gouraud): the scene solved, then --log's lines applied as
+/// `replay` applies them (solve and converge lines shoot, edits do not), then the picture
+/// with the settling estimate's heat map over it (render/settling_overlay.h). The report adds
+/// "error_estimate" (eq. 7, as replay's), "reflected_estimate" and "settled".
+int runSettlingRender(const SolveArgs& a, const RenderArgs& r) {
+    auto session = EditSession::open(a.scene, solverOptionsOf(a), a.import);
+    std::vector<LoggedEdit> edits;
+    if (!r.log.empty())
+        edits = readEditLog(r.log, std::filesystem::path(a.scene).parent_path().string());
+    const Camera camera = pickCamera(session->scene(), a.scene, r.camera);
+    (void)CameraRays(camera, r.width, r.height);  // validates the camera (std::invalid_argument)
+    session->converge(a.converge, a.maxShots);
+    for (const LoggedEdit& logged : edits)
+        session->apply(logged.command, EditSource{r.log, logged.line});
+
+    const Discretization& disc = session->discretization();
+    const SettlingEstimate settling = session->solver().computeSettling();
+    std::vector<Rgb> change(settling.change.size());
+    double sum = 0;
+    std::size_t n = 0;
+    const std::vector<Rgb>& b = session->solver().radiosity();
+    for (std::size_t e = 0; e < change.size(); ++e) {
+        change[e] = Rgb(settling.change[e]);
+        if (disc.elementAlive(static_cast<int>(e))) sum += luminance(b[e]), ++n;
+    }
+    const Image picture = renderGouraud(disc, session->tracer(), session->displayRadiosity(),
+                                        camera, r.width, r.height, r.samples);
+    const Image changeImage =
+        renderGouraud(disc, session->tracer(), change, camera, r.width, r.height, r.samples);
+    // Dark pixels: relative change measured against a hundredth of the mean radiance.
+    const double floor = n > 0 ? 0.01 * sum / static_cast<double>(n) / M_PI : 0.0;
+    writeImage(blendSettling(picture, changeImage, floor), r.out);
+    nlohmann::json report = session->reportJson();
+    addImageFields(report, r);
+    report["overlay"] = r.overlay;
+    report["error_estimate"] = settling.relativeRms;
+    report["reflected_estimate"] = settling.reflectedRms;
+    report["settled"] = settling.reflectedRms < kSettledRms;
+    writeReport(a.report, report);
+    return 0;
+}
+
 int runRender(const SolveArgs& a, const RenderArgs& r) {
     if (r.mode != "gouraud" && r.mode != "epi" && r.mode != "cache" && r.mode != "reference" &&
         r.mode != "pathtrace" && r.mode != "interpolant")
@@ -566,8 +609,11 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
                              "pathtrace)");
     if (r.mode != "pathtrace" && r.samples > 16)
         throw InputError("--samples", "", "at most 16 per axis outside --mode pathtrace");
-    if (!r.overlay.empty() && r.overlay != "edges")
-        throw InputError("--overlay", "", "unknown overlay '" + r.overlay + "' (available: edges)");
+    if (!r.overlay.empty() && r.overlay != "edges" && r.overlay != "settling")
+        throw InputError("--overlay", "",
+                         "unknown overlay '" + r.overlay + "' (available: edges, settling)");
+    if (r.overlay == "settling" && r.mode != "gouraud")
+        throw InputError("--overlay", "", "settling needs --mode gouraud");
     if (r.rmseFrames != "last" && r.rmseFrames != "all" && r.rmseFrames != "none")
         throw InputError("--rmse", "",
                          "unknown value '" + r.rmseFrames + "' (available: last, all, none)");
@@ -576,6 +622,7 @@ int runRender(const SolveArgs& a, const RenderArgs& r) {
     if (r.mode == "pathtrace") return runPathTraceRender(a, r);
     if (r.mode == "interpolant") return runInterpolantRender(a, r);
     if (r.mode != "gouraud") return runDisplayRender(a, r);
+    if (r.overlay == "settling") return runSettlingRender(a, r);
     auto lit = openAndSolve(a);
     const Camera camera = pickCamera(lit->scene(), a.scene, r.camera);
     Image image =
@@ -744,7 +791,9 @@ void addRenderCommand(CLI::App& app, Commands& c) {
         ->check(CLI::Range(1, 100000));
     renderCmd->add_option("--log", render.log, "replay this edit log, one line per frame");
     renderCmd->add_option("--overlay", render.overlay,
-                          "edges: also write the EPI pixel classes as OUT-edges.png");
+                          "edges (epi, cache): also write the EPI pixel classes as "
+                          "OUT-edges.png; settling (gouraud): the settling estimate as a heat "
+                          "map over the image, after --log's lines");
     renderCmd
         ->add_option("--sample-fraction", render.sampleFraction,
                      "new samples per frame as a fraction of the pixels (default 0.02)")

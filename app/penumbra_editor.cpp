@@ -80,6 +80,13 @@ int main(int argc, char** argv) {
         ->check([](const std::string& name) {
             return penumbra::parseViewMode(name) ? std::string() : "unknown mode '" + name + "'";
         });
+    std::string overlay;
+    app.add_option("--overlay", overlay,
+                   "viewport overlay from the start: settling (View > Overlay > Settling)")
+        ->check([](const std::string& name) {
+            return name == "settling" ? std::string()
+                                      : "unknown overlay '" + name + "' (available: settling)";
+        });
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -89,6 +96,7 @@ int main(int argc, char** argv) {
     if (*interactive && interactiveDivisor != 1)
         spdlog::warn("--interactive-divisor is no longer used: the display keeps its resolution");
     options.mode = *penumbra::parseViewMode(mode);
+    options.settlingOverlay = overlay == "settling";
     if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
     if (!options.benchDrag.empty() || options.benchStill > 0) options.journal = false;
     try {

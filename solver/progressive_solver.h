@@ -117,6 +117,11 @@ struct SettlingEstimate {
     std::vector<double> noise;
     /// George et al. eq. 7 for `change`: sqrt(Σ change² A / Σ Y² A), Y the current luminance.
     double relativeRms = 0;
+    /// The same against the reflected light alone, sqrt(Σ change² A / Σ (Y − E)² A) with E the
+    /// element's emission: the lamps' own brightness, which dominates eq. 7's denominator
+    /// (on cube-room about fifteen times the walls' part), does not dilute it, so it reads as
+    /// the walls' relative change. What the editor's "lighting settled" compares.
+    double reflectedRms = 0;
     /// The per-element bound on the change to a converged from-scratch solve: change plus
     /// kNoiseCover standard deviations of both solves' noise (√2 σ).
     double bound(std::size_t e) const {

@@ -314,7 +314,7 @@ SettlingEstimate ProgressiveSolver::computeSettling() const {
     const bool stochastic = mOptions.stochasticBelow > 0 && mOptions.raysPerEmittedPower > 0;
     const Rgb rayPower = stochastic ? emittedPower / mOptions.raysPerEmittedPower : Rgb(0.0);
 
-    double num = 0, den = 0;
+    double num = 0, den = 0, denReflected = 0;
     for (std::size_t i = 0; i < ne; ++i) {
         if (!mDisc.elementAlive(static_cast<int>(i))) continue;
         const Rgb& rho = mDisc.elementMaterial(static_cast<int>(i)).reflectance;
@@ -325,10 +325,14 @@ SettlingEstimate ProgressiveSolver::computeSettling() const {
             out.noise[i] = std::sqrt(luminance(rho * rayPower / area) * luminance(indirect));
         }
         const double y = luminance(mElementB[i]);
+        const double reflected =
+            luminance(mElementB[i] - mDisc.elementMaterial(static_cast<int>(i)).emission);
         num += out.change[i] * out.change[i] * area;
         den += y * y * area;
+        denReflected += reflected * reflected * area;
     }
     out.relativeRms = den > 0 ? std::sqrt(num / den) : 0.0;
+    out.reflectedRms = denReflected > 0 ? std::sqrt(num / denReflected) : 0.0;
     return out;
 }
 

@@ -9,6 +9,7 @@
 #include "core/log.h"
 #include "core/thread_priority.h"
 #include "core/timing.h"
+#include "render/settling_overlay.h"
 #include "solver/discretization.h"
 
 namespace penumbra {
@@ -212,6 +213,7 @@ bool DisplayProducer::traceImage(const ViewRequest& view, const PublishedLight& 
             if (highlight >= 0)
                 drawSelectionOutline(img.render.rgba, img.render.objectAt, w, h, highlight);
         }
+        overlaySettling(view, light, img);
     } catch (const std::exception& e) {
         mBoard.report(std::string("viewport: ") + e.what());
         return false;
@@ -415,6 +417,7 @@ bool DisplayProducer::renderDisplay(const ViewRequest& view, const PublishedLigh
         img->render.rgba = encodeDisplay(img->render.radiance);
         if (!objectAt.empty()) drawSelectionOutline(img->render.rgba, objectAt, w, h, highlight);
         overlayDisplayMode(view, light, *img);
+        overlaySettling(view, light, *img);
         img->renderMs = (nowSeconds() - r0) * 1e3;
         mFrameMs = mFrameMs > 0 ? 0.7 * mFrameMs + 0.3 * img->renderMs : img->renderMs;
         ++mFrames;
@@ -439,6 +442,32 @@ bool DisplayProducer::renderDisplay(const ViewRequest& view, const PublishedLigh
     handHolodeckPoints(view, light, img->settledFrames, rays);
     mBoard.setImage(std::move(img));
     return true;
+}
+
+void DisplayProducer::overlaySettling(const ViewRequest& view, const PublishedLight& light,
+                                      ViewportImage& img) {
+    if (!view.settlingOverlay) return;
+    const auto settling = coverElements(light.settling, light.previewVersion);
+    if (!settling) return;
+    // The estimate interpolated like the picture, relative to what the picture shows.
+    const Discretization& disc = mShared.read().discretization();
+    const RayTracer& tracer = mShared.read().tracer();
+    const int w = img.render.radiance.width, h = img.render.radiance.height;
+    if (mSettlingChangeOf != light.settling.get() ||
+        mSettlingChangePreview != light.previewVersion || !mSettlingChangeCamera ||
+        !sameCamera(*mSettlingChangeCamera, view.camera) || mSettlingChange.width != w ||
+        mSettlingChange.height != h) {
+        mSettlingChange =
+            renderViewport(disc, tracer, *settling, view.camera, w, h, light.previewVersion)
+                .radiance;
+        mSettlingChangeOf = light.settling.get();
+        mSettlingChangePreview = light.previewVersion;
+        mSettlingChangeCamera = view.camera;
+    }
+    blendSettling(img.render.rgba, img.render.radiance, mSettlingChange,
+                  light.settlingFloor / M_PI);
+    if (!img.note.empty()) img.note += "; ";
+    img.note += "heat: light still to change (yellow 1%, red 30%)";
 }
 
 void DisplayProducer::overlayDisplayMode(const ViewRequest& view, const PublishedLight& light,

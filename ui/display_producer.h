@@ -115,6 +115,9 @@ private:
     bool traceImage(const ViewRequest& view, const PublishedLight& light, int w, int h, int highlight,
                     const HifiMesh* hifi, const std::vector<Rgb>& radiosity,
                     const std::vector<Rgb>* pending, ViewportImage& img);
+    /// View ▸ Overlay ▸ Settling: the published settling estimate as a heat map over the
+    /// image (render/settling_overlay.h), at the image's size.
+    void overlaySettling(const ViewRequest& view, const PublishedLight& light, ViewportImage& img);
     // The display modes.
     InteractiveDisplayOptions displayOptions(const ViewRequest& view) const;
     /// Whether the display exists for `view`'s size; builds the first one in the background
@@ -160,6 +163,12 @@ private:
     /// The selection and its transform in the state being rendered (ViewportImage::dragged).
     std::string mDragged;
     Transform mDraggedTransform;
+    // The settling overlay's change image for the estimate, preview version and view it was
+    // rendered for: rendered again only when one of them changes, not every frame.
+    Image mSettlingChange;
+    const std::vector<Rgb>* mSettlingChangeOf = nullptr;
+    int mSettlingChangePreview = -1;
+    std::optional<Camera> mSettlingChangeCamera;
     Image mReference;  ///< difference mode
     Camera mReferenceCamera;
     std::uint64_t mReferenceDone = 0;

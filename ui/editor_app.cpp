@@ -128,6 +128,7 @@ EditorApp::EditorApp(EditorOptions options) : mOptions(std::move(options)) {
     if (!mPlay.empty() && mRunner) mRunner->setAutoSolve(false);
     if (!mOptions.benchDrag.empty()) mBenchFrame = 0;
     setViewMode(mOptions.mode);
+    mSettlingOverlay = mOptions.settlingOverlay;
 }
 
 void EditorApp::setViewMode(ViewMode mode) {
@@ -440,6 +441,7 @@ bool EditorApp::frame() {
             mDrag.active() || glfwGetTime() - mLastInteraction < kInteractiveSeconds;
         request.mode = mMode;
         request.referenceRequest = mReferenceRequest;
+        request.settlingOverlay = mSettlingOverlay;
         mRunner->setView(request);
     }
 
@@ -740,6 +742,10 @@ void EditorApp::drawMenu() {
         }
         if (ImGui::MenuItem("Compute reference", nullptr, false, mMode == ViewMode::Difference))
             ++mReferenceRequest;
+        if (ImGui::BeginMenu("Overlay")) {
+            ImGui::MenuItem("Settling", nullptr, &mSettlingOverlay);
+            ImGui::EndMenu();
+        }
         ImGui::EndMenu();
     }
     ImGui::EndMainMenuBar();
@@ -1009,6 +1015,19 @@ void EditorApp::drawPopups() {
     }
 }
 
+namespace {
+
+/// The status line's word on the settling estimate: how much is still to change, or that the
+/// lighting settled and how long after the last edit.
+std::string settlingStatus(const SolverSnapshot& s) {
+    if (s.settlingRms < 0) return "";
+    if (!s.settled) return format("lighting settling: %.1f%% still to change", 100 * s.settlingRms);
+    if (s.settleSeconds < 0) return "lighting settled";
+    return format("lighting settled %.1f s after the last edit", s.settleSeconds);
+}
+
+}  // namespace
+
 void EditorApp::drawStatusBar() {
     const ImGuiIO& io = ImGui::GetIO();
     ImGui::SetNextWindowPos(ImVec2(0, io.DisplaySize.y - kStatusHeight));
@@ -1022,7 +1041,12 @@ void EditorApp::drawStatusBar() {
     for (std::size_t i = mStats.workMs.size() - n; i < mStats.workMs.size(); ++i)
         ms += mStats.workMs[i];
     ms = n ? ms / n : 0;
-    std::string text = format("frame %.1f ms (%.0f fps)", ms, io.Framerate);
+    // What a lighting designer waits for first: whether the light has settled.
+    std::string text;
+    if (mRunner)
+        if (const std::string settling = settlingStatus(mRunner->solver()); !settling.empty())
+            text = settling + "   ";
+    text += format("frame %.1f ms (%.0f fps)", ms, io.Framerate);
     if (mShown) {
         text += format("   view %.0fx%.0f in %.0f ms", mShown->render.radiance.width,
                        mShown->render.radiance.height, mShown->renderMs);

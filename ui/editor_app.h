@@ -59,6 +59,8 @@ struct EditorOptions {
     /// viewport shows Gouraud until the display has been built (seconds in large scenes).
     ViewMode mode = ViewMode::EdgeAndPoint;
     int displayDivisor = 1;  ///< display modes render viewport / d pixels (SessionRunnerOptions)
+    /// View ▸ Overlay ▸ Settling on from the start (--overlay settling).
+    bool settlingOverlay = false;
     /// The recovery journal (ui/recovery.h): kept unless `log` names a log of the user's own
     /// or a drag is benchmarked.
     bool journal = true;
@@ -241,6 +243,7 @@ private:
     // Viewport texture.
     ViewMode mMode = ViewMode::EdgeAndPoint;
     std::uint64_t mReferenceRequest = 0;  ///< ViewRequest::referenceRequest
+    bool mSettlingOverlay = false;        ///< View ▸ Overlay ▸ Settling
     unsigned int mTexture = 0;
     int mTextureW = 0, mTextureH = 0;
     std::shared_ptr<const ViewportImage> mShown;

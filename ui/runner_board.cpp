@@ -21,7 +21,8 @@ const ObjectSummary* DocumentSummary::find(const std::string& id) const {
 bool ViewRequest::sameAs(const ViewRequest& o) const {
     return width == o.width && height == o.height && highlight == o.highlight &&
            interactive == o.interactive && mode == o.mode &&
-           referenceRequest == o.referenceRequest && sameCamera(camera, o.camera);
+           referenceRequest == o.referenceRequest && settlingOverlay == o.settlingOverlay &&
+           sameCamera(camera, o.camera);
 }
 
 std::string HolodeckStatus::toString() const {

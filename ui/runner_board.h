@@ -74,6 +74,13 @@ struct SolverSnapshot {
     bool converged = false;                 ///< at the runner's threshold, nothing pending
     bool idle = false;           ///< no solver work happening (converged, paused or auto-solve off)
     std::vector<float> history;  ///< log10 of unshot fraction, sampled about every 100 ms
+    /// SettlingEstimate::reflectedRms of the lighting last published (-1 before the first).
+    double settlingRms = -1;
+    /// settlingRms is below kSettledRms (render/settling_overlay.h) and no object is dragged.
+    bool settled = false;
+    /// Seconds from the last edit until the lighting settled; -1 while it settles, or before
+    /// any edit.
+    double settleSeconds = -1;
     std::size_t undoDepth = 0, redoDepth = 0;
     std::string selected;  ///< EditSession::selected() (the object being dragged)
     int previewVersion = -1;
@@ -113,6 +120,9 @@ struct ViewRequest {
     ViewMode mode = ViewMode::Gouraud;
     /// Difference mode: a new reference is computed whenever this grows.
     std::uint64_t referenceRequest = 0;
+    /// View ▸ Overlay ▸ Settling: the settling estimate as a heat map over any mode's image
+    /// (render/settling_overlay.h).
+    bool settlingOverlay = false;
     std::uint64_t serial = 0;  ///< set by setView
     /// Everything but the serial is equal.
     bool sameAs(const ViewRequest& other) const;
@@ -128,6 +138,12 @@ struct PublishedLight {
     /// Per element: |unshot radiosity| of its patch (pending shooting/redistribution).
     std::shared_ptr<const std::vector<Rgb>> pending;
     double pendingScale = 0;  ///< radiosity luminance that tints fully
+    /// Per element: SettlingEstimate::change (luminance, in every channel), interpolated like
+    /// the image for the settling overlay; refreshed at most every few tenths of a second.
+    std::shared_ptr<const std::vector<Rgb>> settling;
+    /// Luminance below which a pixel's relative change is not measured (dark pixels): a
+    /// hundredth of the mean element luminance.
+    double settlingFloor = 0;
     int previewVersion = -1;
     bool dragging = false;  ///< an object is selected (EditSession::selected())
     /// The display modes' solution: ProgressiveSolver::irradiance(),

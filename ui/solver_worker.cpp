@@ -6,6 +6,7 @@
 
 #include "core/log.h"
 #include "core/timing.h"
+#include "render/settling_overlay.h"
 #include "solver/discretization.h"
 
 namespace penumbra {
@@ -186,6 +187,7 @@ void SolverWorker::applyCommands(std::deque<Queued>& commands) {
     --mShared.editsWaiting;
     for (EditListener* l : mListeners) l->editsBegin();
     const double a1 = nowSeconds();
+    bool edited = false;
     for (Queued& q : commands) {
         try {
             if (q.task) {
@@ -196,6 +198,7 @@ void SolverWorker::applyCommands(std::deque<Queued>& commands) {
             }
             const EditEvent event = mSession.apply(q.make ? q.make(mSession) : q.command, q.source);
             for (EditListener* l : mListeners) l->edited(event);
+            if (event.solutionChanged()) edited = true;
         } catch (const std::exception& e) {
             mBoard.report(e.what());
         }
@@ -203,6 +206,11 @@ void SolverWorker::applyCommands(std::deque<Queued>& commands) {
     for (EditListener* l : mListeners) l->editsEnd();
     // The snapshots only read what this thread alone writes: outside the exclusive section.
     lock.unlock();
+    if (edited) {
+        mLastEditTime = nowSeconds();
+        mSettleSeconds = -1;
+        mLastSettling = -1;  // the next publication estimates again
+    }
     publishDocument();
     publishLight();
     spdlog::debug("apply: waited {:.1f} ms, applied {} in {:.1f} ms", (a1 - a0) * 1e3,
@@ -309,7 +317,41 @@ void SolverWorker::publishLight() {
         light.pending = std::move(pending);
         light.pendingScale = n > 0 ? 0.05 * sum / double(n) : 0.0;
     }
+    updateSettling(light.converged);
+    light.settling = mSettling;
+    light.settlingFloor = mSettlingFloor;
     mBoard.setLight(std::move(light));
+}
+
+void SolverWorker::updateSettling(bool force) {
+    // The estimate costs passes over the elements (on robot-room 20-120 ms, more while much is
+    // unshot): at most every kPeriodSeconds, and no more than kShare of this thread's time, so
+    // the solver keeps shooting.
+    constexpr double kPeriodSeconds = 0.2, kShare = 0.1;
+    const double now = nowSeconds();
+    if (!force && mLastSettling >= 0 &&
+        now - mLastSettling < std::max(kPeriodSeconds, mSettlingCost / kShare))
+        return;
+    // Not while an object is dragged: each step's preview must reach the display at once, and
+    // nobody waits for "settled" in the middle of a drag (the overlay keeps the last estimate).
+    if (!mSession.selected().empty() && mSettling) return;
+    const SettlingEstimate estimate = mSession.solver().computeSettling();
+    mLastSettling = nowSeconds();
+    mSettlingCost = mLastSettling - now;
+    auto values = std::make_shared<std::vector<Rgb>>(estimate.change.size());
+    for (std::size_t e = 0; e < values->size(); ++e) (*values)[e] = Rgb(estimate.change[e]);
+    mSettling = std::move(values);
+    mSettlingRms = estimate.reflectedRms;
+    const Discretization& disc = mSession.discretization();
+    const std::vector<Rgb>& b = mSession.solver().radiosity();
+    double sum = 0;
+    std::size_t n = 0;
+    for (std::size_t e = 0; e < disc.elements().size() && e < b.size(); ++e)
+        if (disc.elementAlive(static_cast<int>(e))) sum += luminance(b[e]), ++n;
+    mSettlingFloor = n > 0 ? 0.01 * sum / static_cast<double>(n) : 0.0;
+    if (mSettlingRms < kSettledRms && mSession.selected().empty() && mLastEditTime >= 0 &&
+        mSettleSeconds < 0)
+        mSettleSeconds = now - mLastEditTime;
 }
 
 void SolverWorker::publishSolver(double solverMs) {
@@ -348,6 +390,9 @@ void SolverWorker::publishSolver(double solverMs) {
         eps = mEps;
     }
     s.converged = solver.converged(eps);
+    s.settlingRms = mSettlingRms;
+    s.settled = mSettlingRms >= 0 && mSettlingRms < kSettledRms && mSession.selected().empty();
+    s.settleSeconds = mSettleSeconds;
     s.idle = mIdle;
     s.history = mHistory;
     s.undoDepth = mSession.undoDepth();

@@ -89,6 +89,9 @@ private:
     std::uint64_t shootForBudget(bool solve, double eps, double t0);
     void publishDocument();
     void publishLight();
+    /// Recomputes the settling estimate when it is older than a few tenths of a second, or
+    /// `force`; notes when the lighting settles after an edit.
+    void updateSettling(bool force);
     void publishSolver(double solverMs);
     void notifyPublished();
 
@@ -116,6 +119,13 @@ private:
     double mLastRateTime = 0, mLastHistoryTime = 0, mShotsPerSecond = 0;
     std::vector<float> mHistory;
     bool mIdle = false;
+    // The settling estimate: when it was last computed, its values, and the edit it follows.
+    double mLastSettling = -1;
+    double mSettlingCost = 0;  ///< seconds the last estimate took
+    std::shared_ptr<const std::vector<Rgb>> mSettling;
+    double mSettlingRms = -1, mSettlingFloor = 0;
+    double mLastEditTime = -1;  ///< when the last edit was applied (-1: none yet)
+    double mSettleSeconds = -1;
     double mSolveEps = 1e-3;  ///< the threshold of the last iteration (PublishedLight::converged)
 };
 

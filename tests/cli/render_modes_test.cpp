@@ -1,7 +1,8 @@
 // The real `penumbra render` with the interactive display modes (DESIGN.md "Command line"):
 // every mode writes a PNG of the requested size; --frames writes one file per frame; --overlay
 // edges writes the EPI's pixel classes; --log replays one line per frame; the report carries
-// "frames" with total_ms, reconstruct_ms, new_sample_fraction and rmse; bad values exit 2 with
+// "frames" with total_ms, reconstruct_ms, new_sample_fraction and rmse; --overlay settling
+// tints where the light may still change and nothing once it settled; bad values exit 2 with
 // one line on stderr.
 
 #include <gtest/gtest.h>
@@ -167,9 +168,50 @@ TEST_F(RenderModesCli, TheInterpolantsNeedNoSolveOfTheSceneButTheLeafSolve) {
                 << "pixel " << i << " channel " << c;
 }
 
+TEST_F(RenderModesCli, SettlingOverlayTintsUnsettledLightAndLeavesSettledLightAlone) {
+    // The same Gouraud picture with and without the overlay, at a loose and a tight
+    // convergence. The heat colour is (255, g, 0) blended over the picture, so wherever the
+    // overlay changed a pixel, red went up or stayed and blue went down or stayed.
+    auto picture = [&](const std::string& converge, bool overlay, const std::string& name) {
+        const fs::path err = mDir / "stderr.txt";
+        const std::string command =
+            "cd '" + std::string(PENUMBRA_SOURCE_DIR) + "' && '" + PENUMBRA_EXE +
+            "' render scenes/cornell-box.json --mode gouraud --width 48 --height 40 --converge " +
+            converge +
+            (overlay ? " --overlay settling --report '" + path(name + ".json") + "'" : "") +
+            " --out '" + path(name + ".png") + "' 2> '" + err.string() + "'";
+        EXPECT_EQ(runShell(command), 0) << readFile(err);
+        return penumbra::readPng(path(name + ".png"));
+    };
+    const penumbra::Image loosePlain = picture("0.3", false, "loose-plain");
+    const penumbra::Image looseHeat = picture("0.3", true, "loose-heat");
+    const json loose = json::parse(readFile(path("loose-heat.json")));
+    EXPECT_GT(loose["error_estimate"].get<double>(), 0.01);
+    EXPECT_FALSE(loose["settled"].get<bool>());
+    ASSERT_EQ(loosePlain.pixels.size(), looseHeat.pixels.size());
+    std::size_t tinted = 0;
+    for (std::size_t i = 0; i < loosePlain.pixels.size(); ++i) {
+        const auto& a = loosePlain.pixels[i];
+        const auto& b = looseHeat.pixels[i];
+        if (a == b) continue;
+        ++tinted;
+        EXPECT_GE(b.x, a.x - 1e-3) << "pixel " << i;
+        EXPECT_LE(b.z, a.z + 1e-3) << "pixel " << i;
+    }
+    EXPECT_GT(tinted, loosePlain.pixels.size() / 4) << "most of a barely solved box is unsettled";
+
+    const penumbra::Image tightPlain = picture("1e-4", false, "tight-plain");
+    const penumbra::Image tightHeat = picture("1e-4", true, "tight-heat");
+    const json tight = json::parse(readFile(path("tight-heat.json")));
+    EXPECT_LT(tight["error_estimate"].get<double>(), 0.01);
+    EXPECT_TRUE(tight["settled"].get<bool>());
+    EXPECT_EQ(tightPlain.pixels, tightHeat.pixels) << "a settled picture carries no heat";
+}
+
 TEST_F(RenderModesCli, BadValuesExitTwoWithOneLine) {
     for (const std::string& args :
          {std::string("--mode sketch"), std::string("--mode epi --overlay normals"),
+          std::string("--mode epi --overlay settling"),
           std::string("--mode epi --sample-fraction 2"),
           std::string("--mode epi --log '") + path("missing.jsonl") + "'"}) {
         RunResult run = render(args + " --out '" + path("bad.png") + "'");

@@ -63,5 +63,30 @@ TEST(Settling, IsNegligibleOnceConverged) {
     for (double n : estimate.noise) EXPECT_EQ(n, 0.0) << "deterministic shots have no noise";
 }
 
+TEST(Settling, AgainstTheReflectedLightTheLampsDoNotDiluteIt) {
+    // A barely started solve of the lit room: the change against the reflected light alone
+    // (recomputed here from the solver's radiosity and the materials' emission) is the
+    // walls' relative change, several times eq. 7's, whose denominator the lamp dominates.
+    Scene scene = test::makeLitRoom("white");
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ProgressiveSolver solver(disc, tracer, SolverOptions{});
+    solver.step(3);
+    const SettlingEstimate estimate = solver.computeSettling();
+    double num = 0, den = 0;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+        if (!disc.elementAlive(static_cast<int>(e))) continue;
+        const double area = disc.elements()[e].area;
+        const double reflected =
+            luminance(solver.radiosity()[e] - disc.elementMaterial(static_cast<int>(e)).emission);
+        num += estimate.change[e] * estimate.change[e] * area;
+        den += reflected * reflected * area;
+    }
+    ASSERT_GT(den, 0);
+    EXPECT_NEAR(estimate.reflectedRms, std::sqrt(num / den), 1e-12 * estimate.reflectedRms);
+    EXPECT_GT(estimate.reflectedRms, 3 * estimate.relativeRms);
+    EXPECT_GT(estimate.reflectedRms, 0.05) << "three shots leave most of the light to come";
+}
+
 }  // namespace
 }  // namespace penumbra
