@@ -445,14 +445,15 @@ private:
     /// requested before it were shaded for another view, so their pixel's own value is not
     /// known (ScreenPoint::trust 0) until a sample of this view merges into them.
     std::uint64_t mViewFrame = 0;
-    /// ScreenPoint::trust of point i in the current view: 0 for a stale or carried point, whose
-    /// colour is an estimate or what it showed elsewhere (an own point shown as exact would
-    /// print that estimate pixel by pixel among fresh neighbours: a moved object's old shading
-    /// as grain, its old shadows as blots), so the reconstruction blends it with its neighbours
-    /// until it is re-shaded.
+    /// ScreenPoint::trust of point i in the current view: 0 for a carried point, whose colour
+    /// is what it showed where it was (up to its elements' change of direct light): shown as
+    /// its pixel's exact value it would print a moved object's old shading pixel by pixel
+    /// among freshly shaded ones, so the reconstruction blends it with its neighbours until it
+    /// is re-shaded. (A stale point in place keeps its trust: its estimate is its own
+    /// element's change, closer than its neighbours across a moving shadow's edge.)
     std::uint8_t trustOf(std::size_t i) const {
         const CachePoint& p = mPoints[i];
-        if (mFlags[i] & (kStaleFlag | kCarriedFlag)) return 0;
+        if (mFlags[i] & kCarriedFlag) return 0;
         return p.frame >= mViewFrame ? epiTrust(p.exact, p.samples) : 0;
     }
     /// Before a reprojection to `camera`: starts a new view when the camera moved.

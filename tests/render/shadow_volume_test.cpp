@@ -321,9 +321,13 @@ TEST(ShadowVolume, TheShadowRegionIsCloserToItsNewStateInTheFramesAfterAMove) {
         std::printf("frame %d after the move: %.4f (keeping the points: %.4f)\n", f + 1,
                     errors[0][f], errors[1][f]);
     }
-    // Three frames after the move, within 1.5 times of where the region settles (its points'
-    // noise against the reference).
-    EXPECT_LT(errors[0][2], 1.5 * errors[0][11]);
+    std::printf("frame 12 after the move: %.4f (keeping the points: %.4f)\n", errors[0][11],
+                errors[1][11]);
+    // From the first frame after the move on, within 1.6 times of where the region settles
+    // (its points' noise against the reference): the moved slab's carried points take their
+    // change of direct light at once, the floor's shadow follows it.
+    EXPECT_LT(errors[0][0], 1.6 * errors[0][11]);
+    EXPECT_LT(errors[0][2], 1.6 * errors[0][11]);
 }
 
 }  // namespace
