@@ -4,7 +4,8 @@
 //   (a) redistribution,
 //   (b) progressive refinement from scratch,
 //   (c) the old solution with the object inserted and only new unshot energy propagated,
-// all on the same discretization, against a converged from-scratch reference.
+// all on the same discretization, against a converged from-scratch reference; and, per sample,
+// the solver's settling estimate of the error next to the true one (issue 44).
 //
 // Index: cases · error · one method run · plot · table
 #include <tbb/global_control.h>
@@ -92,6 +93,9 @@ struct Sample {
     double ms;
     std::uint64_t shots;
     double all, top1;
+    /// The solver's own estimate of `all` without the reference
+    /// (ProgressiveSolver::computeSettling's relativeRms).
+    double estimate;
 };
 
 struct World {
@@ -116,7 +120,8 @@ std::vector<Sample> run(ProgressiveSolver& solver, const World& w, const std::ve
     std::uint64_t shots = 0, next = 1;
     auto record = [&] {
         auto y = luminances(*w.disc, solver.radiosity());
-        out.push_back({ms, shots, eq7(*w.disc, ref, y, {}), eq7(*w.disc, ref, y, top1)});
+        out.push_back({ms, shots, eq7(*w.disc, ref, y, {}), eq7(*w.disc, ref, y, top1),
+                       solver.computeSettling().relativeRms});
         if (split) {
             std::vector<int> on, off;
             for (int e : top1)
@@ -170,8 +175,15 @@ double errorAtShots(const std::vector<Sample>& s, std::uint64_t shots, bool top)
     return v;
 }
 
-/// A log-log plot of top-1% error against milliseconds, one polyline per method.
-void plot(const std::vector<std::vector<Sample>>& runs, const std::string& path) {
+/// A polyline of (milliseconds, error) points and its colour.
+struct Series {
+    std::vector<std::pair<double, double>> points;
+    Rgb colour;
+};
+
+/// A log-log plot of error (1e-3 to 1) against milliseconds (0.1 to 1e5), one polyline per
+/// series, with the 10% goal drawn as a grey line.
+void plotLogLog(const std::vector<Series>& series, const std::string& path) {
     const int W = 640, H = 400, pad = 40;
     Image img(W, H, Rgb(1.0));
     double lo = 0.1, hi = 1e5;  // ms
@@ -197,14 +209,51 @@ void plot(const std::vector<std::vector<Sample>>& runs, const std::string& path)
     for (double d = 0.1; d <= hi; d *= 10) line(px(d), pad, px(d), H - pad, Rgb(0.85));
     for (double e = 1e-3; e <= 1.0; e *= 10) line(pad, py(e), W - pad, py(e), Rgb(0.85));
     line(px(0.1) - 1, py(0.1), W - pad, py(0.1), Rgb(0.6, 0.6, 0.6));  // the 10% goal
-    const Rgb colours[3] = {Rgb(0.8, 0.1, 0.1), Rgb(0.1, 0.2, 0.8), Rgb(0.1, 0.6, 0.1)};
-    for (std::size_t r = 0; r < runs.size(); ++r)
-        for (std::size_t k = 1; k < runs[r].size(); ++k)
-            line(px(runs[r][k - 1].ms), py(runs[r][k - 1].top1), px(runs[r][k].ms),
-                 py(runs[r][k].top1), colours[r % 3]);
+    for (const Series& s : series)
+        for (std::size_t k = 1; k < s.points.size(); ++k)
+            line(px(s.points[k - 1].first), py(s.points[k - 1].second), px(s.points[k].first),
+                 py(s.points[k].second), s.colour);
     // sRGB-encoded values were chosen by eye: convert to linear for writePng.
     for (Rgb& p : img.pixels) p = Rgb(srgbDecode(p.x), srgbDecode(p.y), srgbDecode(p.z));
     writePng(img, path);
+}
+
+/// George et al.'s Figures 6 and 7: the top-1% error of each method (red: redistribution,
+/// blue: from scratch, green: insert only).
+void plot(const std::vector<std::vector<Sample>>& runs, const std::string& path) {
+    const Rgb colours[3] = {Rgb(0.8, 0.1, 0.1), Rgb(0.1, 0.2, 0.8), Rgb(0.1, 0.6, 0.1)};
+    std::vector<Series> series;
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+        series.push_back({{}, colours[r % 3]});
+        for (const Sample& x : runs[r]) series.back().points.push_back({x.ms, x.top1});
+    }
+    plotLogLog(series, path);
+}
+
+/// The settling estimate against the truth after the edit, redistributing: the error over
+/// every element against the reference (red) and the solver's estimate of it (blue).
+void plotSettling(const std::vector<Sample>& run, const std::string& path) {
+    Series truth{{}, Rgb(0.8, 0.1, 0.1)}, estimate{{}, Rgb(0.1, 0.2, 0.8)};
+    for (const Sample& x : run) {
+        truth.points.push_back({x.ms, x.all});
+        estimate.points.push_back({x.ms, x.estimate});
+    }
+    plotLogLog({truth, estimate}, path);
+}
+
+/// The smallest and largest estimate / truth over the samples still settling: the true error
+/// above twice its floor (the last sample's, the converged solution's sampling noise against
+/// the reference, which the estimate's change part leaves out by design).
+std::pair<double, double> estimateRatios(const std::vector<Sample>& run) {
+    double lo = 0, hi = 0;
+    const double floor = run.empty() ? 0.0 : run.back().all;
+    for (const Sample& x : run) {
+        if (!(x.all > 2 * floor)) continue;
+        const double r = x.estimate / x.all;
+        lo = lo > 0 ? std::min(lo, r) : r;
+        hi = std::max(hi, r);
+    }
+    return {lo, hi};
 }
 
 }  // namespace
@@ -312,15 +361,23 @@ int runRedistributionBench(const RedistributionBenchOptions& options) {
                 samples.push_back({{"ms", s.ms},
                                    {"shots", s.shots},
                                    {"error_rms", s.all},
-                                   {"error_top1", s.top1}});
+                                   {"error_top1", s.top1},
+                                   {"error_estimate", s.estimate}});
             report.push_back({{"scene", c.name},
                               {"method", names[method]},
                               {"ms_to_top1_10pct", t},
                               {"samples", samples}});
         }
+        const auto [lo, hi] = estimateRatios(runs[0]);
+        std::printf(
+            "| %s | settling estimate / true error_rms, settling (redistribution) | "
+            "%.2f–%.2f | | | | |\n",
+            c.name.c_str(), lo, hi);
         std::fflush(stdout);
-        if (!options.plotDir.empty())
+        if (!options.plotDir.empty()) {
             plot(runs, options.plotDir + "/redistribution-" + c.name + ".png");
+            plotSettling(runs[0], options.plotDir + "/settling-" + c.name + ".png");
+        }
     }
     if (!options.jsonOut.empty()) writeFileAtomically(options.jsonOut, report.dump(1) + "\n");
     return 0;

@@ -23,22 +23,34 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Point form factors (no visibility: an upper estimate where something blocks).
 
-/// Unoccluded form factor from a differential area at x (unit normal n) to patch P: exact for
-/// a planar patch (Lambert's contour integral, clipped to the horizon); for a curved one George
-/// et al.'s point estimate A cosθ cosθ′ / (πr² + A), the receiver's cosine taking the patch's
-/// extent as slack (a patch partly above the horizon still sends light) and the patch counted
-/// as facing the receiver (a sphere lamp's patch faces every way).
+/// Beyond this many patch radii from a planar patch, a receiver clearly in front of it (both
+/// cosines above the patch's angular radius) takes the point form factor A cosθ cosθ′ / πr²
+/// instead of the contour integral: there the two differ by O((radius / r)²), a few percent,
+/// and the point form costs a fraction of the integral, which most receivers of a room would
+/// otherwise pay for each of the strongest shooters.
+constexpr double kExactWithinRadii = 4.0;
+
+/// Unoccluded form factor from a differential area at x (unit normal n) to patch P: for a
+/// planar patch Lambert's contour integral, clipped to the horizon (or the point form far
+/// from it, above); for a curved one George et al.'s point estimate
+/// A cosθ cosθ′ / (πr² + A), the receiver's cosine taking the patch's extent as slack (a patch
+/// partly above the horizon still sends light) and the patch counted as facing the receiver
+/// (a sphere lamp's patch faces every way).
 double pointFormFactor(const Vec3& x, const Vec3& n, const Patch& P) {
-    if (!P.outline.empty()) return polygonFormFactor(x, n, P.outline);
     const Vec3 d = P.centroid - x;
     const double r2 = glm::dot(d, d);
+    if (!P.outline.empty()) {
+        if (r2 > kExactWithinRadii * kExactWithinRadii * P.radius * P.radius) {
+            const double r = std::sqrt(r2), slack = P.radius / r;
+            const double cosi = glm::dot(n, d) / r, cosj = -glm::dot(P.normal, d) / r;
+            if (cosi >= slack && cosj >= slack) return P.area * cosi * cosj / (M_PI * r2);
+        }
+        return polygonFormFactor(x, n, P.outline);
+    }
     if (!(r2 > 0)) return 0;
     const double r = std::sqrt(r2), slack = P.radius / r;
     const double cosi = std::clamp(glm::dot(n, d) / r + slack, 0.0, 1.0);
-    if (cosi == 0) return 0;
-    const double cosj =
-        P.outline.empty() ? 1.0 : std::clamp(-glm::dot(P.normal, d) / r + slack, 0.0, 1.0);
-    return P.area * cosi * cosj / (M_PI * r2 + P.area);
+    return P.area * cosi / (M_PI * r2 + P.area);
 }
 
 /// Form factor from a differential area at x (unit normal n) to a sphere (c, rs): sin²α cosθ
