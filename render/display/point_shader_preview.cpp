@@ -255,11 +255,45 @@ std::vector<int> PointShader::takeDirectUpdate() {
         wanted = !mJob && mJobWanted;
     }
     std::vector<int> changed;
-    if (done && done->state->previewObject == state()->previewObject) {
+    const int current = state()->previewObject;
+    if (done && done->state->previewObject == current) {
         changed = applyDirectJob(*done);
         if (mHasSolution) rebuildIndirect();
     } else if (done) {
         wanted = true;  // the preview ended or changed object: estimate again
+        if (current >= 0 && done->preview >= 0 && mDisc.sameElements(done->preview, current)) {
+            // Finished for an earlier place of the object dragged now, as a drag's estimates
+            // mostly are (the object moves on while its estimate runs): its own elements' direct
+            // light, moved onto the current version, stands in until the estimate for this
+            // place comes. A step behind is far closer than the light where the drag began,
+            // which the object's carried points would show meanwhile. The rest of the scene
+            // keeps the estimate it has (the moving shadow's points are dropped and re-shaded
+            // by the display instead).
+            const std::size_t n = mDisc.elements().size();
+            DirectJob moved;
+            moved.preview = current;
+            moved.elements = n;
+            moved.kind.assign(n, 0);
+            moved.value.assign(n, Rgb(0.0));
+            const auto [to, count] = mDisc.elementRange(current);
+            const int from = mDisc.elementRange(done->preview).first;
+            for (int e : mPreviewElements)
+                if (e >= 0 && static_cast<std::size_t>(e) < n &&
+                    static_cast<std::size_t>(e) < mPreviewDirectDelta.size() &&
+                    (e < to || e >= to + count) && (e < from || e >= from + count)) {
+                    moved.kind[e] = 2;
+                    moved.value[e] = mPreviewDirectDelta[e];
+                }
+            for (int k = 0; k < count; ++k) {
+                const auto f = static_cast<std::size_t>(from + k);
+                if (f < done->elements && done->kind[f] == 1) {
+                    moved.kind[to + k] = 1;
+                    moved.value[to + k] = done->value[f];
+                }
+            }
+            changed = applyDirectJob(moved);
+            if (mHasSolution) rebuildIndirect();
+        }
     }
     if (wanted && state()->previewObject >= 0) queueDirectJob();
     return changed;
