@@ -568,7 +568,13 @@ double ExactIrradiance::sampledVisibleFraction(const Vec3& x, const Vec3& n,
     const double eps = mTracer->epsilon();
     const Vec3 from = x + eps * n;
     const int m = std::max(1, mOptions.blockedRays);
-    double all = 0, seen = 0;
+    // The points and their weights first, then their shadow rays in packets of 16: the rays
+    // share their start and reach one polygon, the coherent case Embree's packets are for.
+    thread_local std::vector<Vec3> targets;
+    thread_local std::vector<double> weights;
+    targets.clear();
+    weights.clear();
+    double all = 0;
     for (int i = 0; i < m; ++i) {
         const double u = (i + random.next()) / m * total;
         const std::size_t k = std::min<std::size_t>(
@@ -584,7 +590,17 @@ double ExactIrradiance::sampledVisibleFraction(const Vec3& x, const Vec3& n,
             std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(sn, d)) / (r2 * r2);
         if (!(w > 0)) continue;
         all += w;
-        if (!mTracer->occluded(from, y + eps * sn)) seen += w;
+        targets.push_back(y + eps * sn);
+        weights.push_back(w);
+    }
+    double seen = 0;
+    const int count = static_cast<int>(targets.size());
+    for (int first = 0; first < count; first += 16) {
+        const int width = std::min(16, count - first);
+        bool blocked[16];
+        mTracer->occludedPacket(from, targets.data() + first, width, blocked);
+        for (int i = 0; i < width; ++i)
+            if (!blocked[i]) seen += weights[std::size_t(first + i)];
     }
     return all > 0 ? seen / all : 0.0;
 }
@@ -717,7 +733,21 @@ void ExactIrradiance::refineFarField(const Vec3& x, const Vec3& n, int passes, P
     addFarField(x, n, passes, parts);
 }
 
-void ExactIrradiance::addFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts) const {
+int ExactIrradiance::previewFarField(const Vec3& x, const Vec3& n, int rays, Parts& parts) const {
+    if (!sampledFarField() || mReflected.empty()) return 0;
+    Parts preview = parts;
+    preview.farField = Rgb(0.0);
+    preview.farError = 0;
+    preview.farRays = preview.farPasses = 0;
+    addFarField(x, n, 1, preview, std::max(1, rays));
+    parts.farField = preview.farField;
+    parts.farError = preview.farError;
+    parts.farRays = parts.farPasses = 0;
+    return preview.farRays;
+}
+
+void ExactIrradiance::addFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts,
+                                  int perPass) const {
     // Each point's jitter is its own, seeded by its position, so that its value is
     // reproducible and neighbouring points' errors are independent (they average out where
     // the build pools them).
@@ -726,7 +756,7 @@ void ExactIrradiance::addFarField(const Vec3& x, const Vec3& n, int passes, Part
         seed = hashPair(seed, static_cast<std::uint64_t>(std::llround(c * 1e9)));
     const Vec3 origin = x + mTracer->epsilon() * n;
     FarFieldRays plan;
-    plan.perPass = mOptions.farRays;
+    plan.perPass = perPass > 0 ? perPass : mOptions.farRays;
     plan.maxPasses = passes;
     FarFieldEstimate from;
     from.value = parts.farField;

@@ -139,6 +139,9 @@ public:
         int farRays = 0;      ///< rays the far field cast
         int farPasses = 0;    ///< in that many passes (estimateFarField)
         double farError = 0;  ///< the far field's estimated standard error (luminance, W/m²)
+        /// farField is not this point's own estimate but a fit over neighbouring points' rays
+        /// (set by the interpolants' build: HifiOptions::farFieldRecordSpacing).
+        bool farFitted = false;
         Rgb total() const { return gathered + farField; }
     };
     /// `withFarField` false leaves the far field's rays out.
@@ -147,6 +150,10 @@ public:
     /// passes, up to `passes` passes in all whatever their error (the caller chose the point
     /// for its error): farField, farError, farRays and farPasses are updated.
     void refineFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts) const;
+    /// A rough look at the far field of `parts` (irradianceParts at the same x and n without
+    /// it): farField from one pass of `rays` rays, farRays and farPasses left 0, so that
+    /// refineFarField starts the far field's own passes afresh. Returns the rays cast.
+    int previewFarField(const Vec3& x, const Vec3& n, int rays, Parts& parts) const;
 
     std::size_t blockerCount() const { return mBlockers.size(); }
     std::size_t emitterCount() const { return mEmitters.size(); }
@@ -214,8 +221,8 @@ private:
                                   const std::vector<Vec3>& source) const;
     /// The far field's passes at x (estimateFarField, passes of farRays, 4 farRays, ...) up to
     /// `passes` in all, continuing those `parts` holds (none: from the first): farField,
-    /// farError, farRays and farPasses are set.
-    void addFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts) const;
+    /// farError, farRays and farPasses are set. `perPass` rays in the first pass (0: farRays).
+    void addFarField(const Vec3& x, const Vec3& n, int passes, Parts& parts, int perPass = 0) const;
     /// Form factor to the visible part of `source`; `sampled` set when its visibility was
     /// estimated by rays (past maxExactBlockers).
     double formFactor(const Vec3& x, const Vec3& n, const std::vector<Vec3>& source,

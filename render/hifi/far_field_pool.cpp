@@ -123,4 +123,52 @@ PooledFarField poolFarField(const std::vector<FarFieldSample>& samples, double r
     return out;
 }
 
+PooledFarField fitFarField(const std::vector<FarFieldSample>& at,
+                           const std::vector<FarFieldSample>& records,
+                           const std::vector<double>& planeRadius, PoolSearch search) {
+    PooledFarField out;
+    out.value.assign(at.size(), Rgb(0.0));
+    out.fitted.assign(at.size(), 0);
+    auto radiusOf = [&](const FarFieldSample& s) {
+        return s.plane >= 0 && std::size_t(s.plane) < planeRadius.size() ? planeRadius[s.plane]
+                                                                         : 0.0;
+    };
+    auto cellOf = [&](const FarFieldSample& s, double r) {
+        const Vec3 c = glm::floor(s.x / r);
+        return CellKey{s.plane, std::llround(c.x), std::llround(c.y), std::llround(c.z)};
+    };
+    // Each plane's records by cells of its radius: a sample's records are in its 27 cells.
+    std::unordered_map<CellKey, std::vector<int>, CellKeyHash> cells;
+    if (search == PoolSearch::Grid)
+        for (std::size_t i = 0; i < records.size(); ++i) {
+            const double r = radiusOf(records[i]);
+            if (r > 0) cells[cellOf(records[i], r)].push_back(static_cast<int>(i));
+        }
+    tbb::parallel_for(std::size_t(0), at.size(), [&](std::size_t i) {
+        const FarFieldSample& a = at[i];
+        const double r = radiusOf(a);
+        if (!(r > 0)) return;
+        LocalLinearFit fit(a, r);
+        if (search == PoolSearch::Every) {
+            for (const FarFieldSample& o : records)
+                if (o.plane == a.plane) fit.add(o);
+        } else {
+            const CellKey c = cellOf(a, r);
+            for (long long di = -1; di <= 1; ++di)
+                for (long long dj = -1; dj <= 1; ++dj)
+                    for (long long dk = -1; dk <= 1; ++dk) {
+                        const auto it = cells.find({a.plane, c[1] + di, c[2] + dj, c[3] + dk});
+                        if (it == cells.end()) continue;
+                        for (int j : it->second) fit.add(records[j]);
+                    }
+        }
+        Rgb value;
+        if (fit.solve(value)) {
+            out.value[i] = value;
+            out.fitted[i] = 1;
+        }
+    });
+    return out;
+}
+
 }  // namespace penumbra

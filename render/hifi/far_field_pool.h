@@ -4,7 +4,7 @@
 // averages out over a neighbourhood instead of freezing into each triangle's interpolant
 // (HifiOptions::farFieldPoolRadius). Used by HifiMesh's build once every sample is taken.
 //
-// Index: FarFieldSample · PoolSearch · poolFarField
+// Index: FarFieldSample · PoolSearch · poolFarField · fitFarField
 
 #include <cstdint>
 #include <vector>
@@ -45,5 +45,15 @@ struct PooledFarField {
 /// 1/√n of it). A sample with fewer than 8 neighbours, or all of them on a line, is not fitted.
 PooledFarField poolFarField(const std::vector<FarFieldSample>& samples, double radius,
                             double nearRadius, PoolSearch search = PoolSearch::Grid);
+
+/// Per sample of `at`, the same weighted local linear fit (of `indirect`, less the sample's
+/// own `near`) over the samples of `records` with its plane id that lie in its plane within
+/// `planeRadius[plane]` (m) of it: the far field of points that cast no rays of their own
+/// from the records' that did (HifiOptions::farFieldRecordSpacing). A sample with fewer than
+/// 8 records within reach, or all of them on a line, is not fitted.
+PooledFarField fitFarField(const std::vector<FarFieldSample>& at,
+                           const std::vector<FarFieldSample>& records,
+                           const std::vector<double>& planeRadius,
+                           PoolSearch search = PoolSearch::Grid);
 
 }  // namespace penumbra

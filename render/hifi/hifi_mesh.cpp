@@ -555,6 +555,8 @@ struct HifiBuild {
     /// neighbouring samples (poolFarField), and every triangle's interpolant fitted again;
     /// perElementKeys holds each emitted triangle's sample keys, in the order of perElement.
     bool refitFarField = false;
+    /// Samples the pooling serves defer their far field (HifiOptions::farFieldRecordSpacing).
+    bool deferFarField = false;
     std::vector<std::vector<std::array<SampleKey, 6>>> perElementKeys;
     std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
         centreSamples{0};
@@ -811,7 +813,19 @@ private:
         // Evaluated outside any lock; a point two threads reach at once is evaluated
         // twice to the same value.
         mB.samples.fetch_add(1, std::memory_order_relaxed);
-        const ExactIrradiance::Parts value = mB.exact.irradianceParts(x, mEl.normal);
+        ExactIrradiance::Parts value;
+        if (mB.deferFarField && !onContact) {
+            // The far field later, from records (fitDeferredFarFields), where it is smooth.
+            value = mB.exact.irradianceParts(x, mEl.normal, false);
+            if (farFieldSharable(key, value))
+                mB.farRays.fetch_add(
+                    mB.exact.previewFarField(x, mEl.normal, mB.options.farFieldPreviewRays, value),
+                    std::memory_order_relaxed);
+            else
+                mB.exact.refineFarField(x, mEl.normal, 1, value);
+        } else {
+            value = mB.exact.irradianceParts(x, mEl.normal);
+        }
         mB.farRays.fetch_add(value.farRays, std::memory_order_relaxed);
         // The first value stored wins, so every triangle sharing the point sees one.
         SampleCache::accessor stored;
@@ -1022,10 +1036,11 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     b.refitFarField = exact.options().farRays > 0 && exact.tracer() &&
                       (options.farFieldPoolRadius > 0 || options.farFieldRefineBudget > 0);
     if (b.refitFarField) b.perElementKeys.resize(disc.elements().size());
+    b.deferFarField = b.refitFarField && farFieldByRecords(exact, options);
     auto work = [&] { tbb::parallel_for(0, count, [&](int k) { meshElement(b, todo[k]); }); };
     runReportingProgress(work, b.done, count, progress);
     if (b.refitFarField && !b.cancelled.load())
-        b.farRays += finishFarFields(b.cache, b.grid, exact, options, medianElementSize(disc),
+        b.farRays += finishFarFields(b.cache, b.grid, exact, disc, options, medianElementSize(disc),
                                      b.perElement, b.perElementKeys);
     // The elements' triangles in element order: kept ones from this mesh, the rest new.
     std::vector<HifiTriangle> triangles;

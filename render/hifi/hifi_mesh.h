@@ -81,6 +81,19 @@ struct HifiOptions {
     /// passes (farFieldRefineBudget below) hold its noise down instead.
     double farFieldPoolRadius = 2.0;
     double farFieldNearPoolRadius = 0.0;
+    /// With the far field's rays and farFieldPoolRadius: the samples the pooling serves (off
+    /// contact lines, no other surface within the near field's reach) cast no far-field rays of
+    /// their own but `farFieldPreviewRays` for the refinement test's scale. Once every sample
+    /// is taken, per plane one such sample in each cell `farFieldRecordSpacing` × the plane's
+    /// median element size (√area) wide — a record — casts `farFieldRecordPasses` passes
+    /// (farRays, 4 × farRays, ...), and every such sample's far field is the local linear fit
+    /// of the records of its plane within farFieldPoolRadius × that size: the far field's rays
+    /// go by area, not by sample, so a plane refined finely under shadows (a floor beneath
+    /// tessellated meshes) casts no more of them than a plain one. A sample with fewer than 8
+    /// records within reach casts its own rays as before. 0 turns it off.
+    double farFieldRecordSpacing = 0.8;
+    int farFieldRecordPasses = 2;
+    int farFieldPreviewRays = 16;
     /// With the far field's rays: once every sample is taken (before the pooling), the
     /// samples whose far field's estimated standard error exceeds farFieldRefineTolerance of
     /// their whole irradiance — the noise that would show — get the far field's next passes

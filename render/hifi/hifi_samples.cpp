@@ -3,12 +3,14 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <tuple>
 #include <unordered_map>
 
 #include "render/hifi/far_field_pool.h"
+#include "solver/discretization.h"
 
 namespace penumbra {
 
@@ -32,18 +34,15 @@ std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> pooledFarField(const Sample
     std::vector<const SampleKey*> keys;
     std::vector<FarFieldSample> samples;
     // A plane id per object, sheet and normal.
-    std::map<std::tuple<int, int, std::array<long long, 3>>, int> planes;
+    std::map<SamplePlane, int> planes;
     for (const auto& [key, parts] : cache) {
-        if (key.element >= 0) continue;
+        if (key.element >= 0 || parts.farFitted) continue;
         FarFieldSample s;
         s.open = !(parts.nearShare > 0 || parts.nearSurface);
         if (!s.open && !(nearRadius > 0)) continue;
         s.x = key.point(grid);
         s.n = key.unitNormal();
-        s.plane = planes
-                      .emplace(std::make_tuple(key.object, key.sheet, key.normal),
-                               static_cast<int>(planes.size()))
-                      .first->second;
+        s.plane = planes.emplace(planeOf(key), static_cast<int>(planes.size())).first->second;
         s.indirect = parts.farField + parts.nearIndirect;
         s.near = parts.nearIndirect;
         keys.push_back(&key);
@@ -58,10 +57,122 @@ std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> pooledFarField(const Sample
 
 }  // namespace
 
+SamplePlane planeOf(const SampleKey& key) {
+    return std::make_tuple(key.object, key.sheet, key.normal);
+}
+
+std::map<SamplePlane, double> planeElementSizes(const Discretization& disc) {
+    std::map<SamplePlane, std::vector<double>> areas;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+        if (!disc.elementAlive(static_cast<int>(e))) continue;
+        const Element& el = disc.elements()[e];
+        const int sheet = disc.objects()[el.object].isBackFace(el.face) ? 1 : 0;
+        const SampleKey key = SampleKey::at(el.object, sheet, -1, el.centroid, el.normal, 1.0);
+        areas[planeOf(key)].push_back(el.area);
+    }
+    std::map<SamplePlane, double> out;
+    for (auto& [plane, a] : areas) {
+        std::nth_element(a.begin(), a.begin() + a.size() / 2, a.end());
+        out.emplace(plane, std::sqrt(a[a.size() / 2]));
+    }
+    return out;
+}
+
+bool farFieldByRecords(const ExactIrradiance& exact, const HifiOptions& options) {
+    return exact.options().indirect && options.farFieldRecordSpacing > 0 &&
+           options.farFieldPoolRadius > 0;
+}
+
+long long fitDeferredFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
+                               const std::map<SamplePlane, double>& planeSize, double elementSize,
+                               double spacing, double radius, int passes) {
+    // The deferred samples, by plane.
+    std::vector<SampleKey> keys;
+    std::vector<FarFieldSample> samples;
+    std::vector<double> planeScale;  ///< per plane id: its element size (m)
+    std::map<SamplePlane, int> planes;
+    for (const auto& [key, parts] : cache) {
+        if (parts.farPasses > 0 || parts.farFitted || !farFieldSharable(key, parts)) continue;
+        FarFieldSample s;
+        s.x = key.point(grid);
+        s.n = key.unitNormal();
+        const SamplePlane plane = planeOf(key);
+        const auto [it, added] = planes.emplace(plane, static_cast<int>(planes.size()));
+        if (added) {
+            const auto size = planeSize.find(plane);
+            planeScale.push_back(size != planeSize.end() ? size->second : elementSize);
+        }
+        s.plane = it->second;
+        keys.push_back(key);
+        samples.push_back(s);
+    }
+    if (samples.empty()) return 0;
+    // Records: per plane, the sample nearest the centre of each cell (ties to the smaller
+    // position, so the choice does not depend on the cache's order).
+    using Cell = std::array<long long, 4>;
+    std::map<Cell, int> nearest;
+    auto squaredToCentre = [&](int i, const Cell& c) {
+        const double w = spacing * planeScale[samples[i].plane];
+        const Vec3 centre =
+            (Vec3(static_cast<double>(c[1]), static_cast<double>(c[2]), static_cast<double>(c[3])) +
+             0.5) *
+            w;
+        const Vec3 d = samples[i].x - centre;
+        return glm::dot(d, d);
+    };
+    for (int i = 0; i < static_cast<int>(samples.size()); ++i) {
+        const Vec3 g = glm::floor(samples[i].x / (spacing * planeScale[samples[i].plane]));
+        const Cell c{samples[i].plane, std::llround(g.x), std::llround(g.y), std::llround(g.z)};
+        const auto [it, added] = nearest.emplace(c, i);
+        if (added) continue;
+        const double di = squaredToCentre(i, c), dj = squaredToCentre(it->second, c);
+        if (di < dj || (di == dj && keys[i].position < keys[it->second].position)) it->second = i;
+    }
+    std::vector<int> records;
+    records.reserve(nearest.size());
+    for (const auto& entry : nearest) records.push_back(entry.second);
+    // The records' far fields, `passes` passes each.
+    std::atomic<long long> rays{0};
+    std::vector<FarFieldSample> recorded(records.size());
+    tbb::parallel_for(std::size_t(0), records.size(), [&](std::size_t r) {
+        const int i = records[r];
+        SampleCache::accessor found;
+        if (!cache.find(found, keys[i])) return;
+        ExactIrradiance::Parts& parts = found->second;
+        exact.refineFarField(samples[i].x, samples[i].n, passes, parts);
+        rays.fetch_add(parts.farRays, std::memory_order_relaxed);
+        recorded[r] = samples[i];
+        recorded[r].indirect = parts.farField + parts.nearIndirect;
+    });
+    // Every deferred sample's far field from the records of its plane.
+    std::vector<double> planeRadius(planeScale.size());
+    for (std::size_t p = 0; p < planeScale.size(); ++p) planeRadius[p] = radius * planeScale[p];
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        SampleCache::const_accessor found;
+        if (cache.find(found, keys[i])) samples[i].near = found->second.nearIndirect;
+    }
+    const PooledFarField fitted = fitFarField(samples, recorded, planeRadius);
+    tbb::parallel_for(std::size_t(0), samples.size(), [&](std::size_t i) {
+        SampleCache::accessor found;
+        if (!cache.find(found, keys[i])) return;
+        ExactIrradiance::Parts& parts = found->second;
+        if (fitted.fitted[i]) {
+            parts.farField = fitted.value[i];
+            parts.farFitted = true;
+        } else if (parts.farPasses == 0) {
+            // Too few records within reach (a narrow strip of open floor): its own rays.
+            exact.refineFarField(samples[i].x, samples[i].n, 1, parts);
+            rays.fetch_add(parts.farRays, std::memory_order_relaxed);
+        }
+    });
+    return rays.load();
+}
+
 long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
                           double tolerance, double budget, int passes) {
     long long first = 0;
-    for (const auto& entry : cache) first += entry.second.farRays;
+    for (const auto& entry : cache)
+        if (!entry.second.farFitted) first += entry.second.farRays;
     long long allowance = std::llround(budget * double(first)), spent = 0;
     const long long perPass = std::max(1, exact.options().farRays);
     for (int pass = 2; pass <= passes; ++pass) {
@@ -72,7 +183,7 @@ long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance
         // first.
         std::vector<std::pair<double, SampleKey>> todo;
         for (const auto& [key, parts] : cache) {
-            if (parts.farPasses == 0 || parts.farPasses >= pass) continue;
+            if (parts.farPasses == 0 || parts.farPasses >= pass || parts.farFitted) continue;
             const double whole = luminance(parts.total());
             if (whole > 0 && parts.farError > tolerance * whole)
                 todo.emplace_back(parts.farError / whole, key);
@@ -116,14 +227,18 @@ void refitWithPooledFarField(
 }
 
 long long finishFarFields(
-    SampleCache& cache, double grid, const ExactIrradiance& exact, const HifiOptions& options,
-    double elementSize, std::vector<std::vector<HifiTriangle>>& perElement,
+    SampleCache& cache, double grid, const ExactIrradiance& exact, const Discretization& disc,
+    const HifiOptions& options, double elementSize,
+    std::vector<std::vector<HifiTriangle>>& perElement,
     const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys) {
-    const long long rays =
-        options.farFieldRefineBudget > 0
-            ? refineFarFields(cache, grid, exact, options.farFieldRefineTolerance,
-                              options.farFieldRefineBudget, options.farFieldRefinePasses)
-            : 0;
+    long long rays = 0;
+    if (farFieldByRecords(exact, options))
+        rays += fitDeferredFarFields(cache, grid, exact, planeElementSizes(disc), elementSize,
+                                     options.farFieldRecordSpacing, options.farFieldPoolRadius,
+                                     options.farFieldRecordPasses);
+    if (options.farFieldRefineBudget > 0)
+        rays += refineFarFields(cache, grid, exact, options.farFieldRefineTolerance,
+                                options.farFieldRefineBudget, options.farFieldRefinePasses);
     refitWithPooledFarField(cache, grid, perElement, perElementKeys,
                             options.farFieldPoolRadius * elementSize,
                             options.farFieldNearPoolRadius * elementSize);

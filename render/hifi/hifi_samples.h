@@ -4,13 +4,16 @@
 // cache of samples, the far fields' refinement and the refit of the interpolants with the pooled
 // far field. Internal to render/hifi/.
 //
-// Index: SampleKey · SampleCache · refineFarFields · refitWithPooledFarField · finishFarFields
+// Index: SampleKey · SampleCache · planeElementSizes · farFieldByRecords · fitDeferredFarFields ·
+//        refineFarFields · refitWithPooledFarField · finishFarFields
 
 #include <tbb/concurrent_hash_map.h>
 
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <map>
+#include <tuple>
 #include <vector>
 
 #include "core/random.h"
@@ -65,9 +68,39 @@ struct SampleKeyHash {
 
 using SampleCache = tbb::concurrent_hash_map<SampleKey, ExactIrradiance::Parts, SampleKeyHash>;
 
+/// A sample's plane as the far field's fits group samples: object, sheet and SampleKey's normal.
+using SamplePlane = std::tuple<int, int, std::array<long long, 3>>;
+SamplePlane planeOf(const SampleKey& key);
+
+/// Per plane of `disc`'s alive elements, the median element size (√area, m): the scale of the
+/// plane's own mesh, whatever the scene's other surfaces are split into.
+std::map<SamplePlane, double> planeElementSizes(const Discretization& disc);
+
+/// Whether a sample's far field may come from records (fitDeferredFarFields): off contact lines
+/// (key.element -1) and with no other surface within the near field's reach — the samples the
+/// pooling serves, whose far field is smooth.
+inline bool farFieldSharable(const SampleKey& key, const ExactIrradiance::Parts& parts) {
+    return key.element < 0 && !(parts.nearShare > 0 || parts.nearSurface);
+}
+
+/// Whether the build takes the far field of the samples farFieldSharable finds from records
+/// (HifiOptions::farFieldRecordSpacing and farFieldPoolRadius set, and indirect light gathered).
+bool farFieldByRecords(const ExactIrradiance& exact, const HifiOptions& options);
+
+/// The far field of the samples that deferred theirs (farFieldSharable, no passes of their own:
+/// farPasses 0). Per plane, the deferred sample nearest the centre of each cell `spacing` × the
+/// plane's element size (`planeSize`; else `elementSize`) wide is a record and casts `passes`
+/// passes; every deferred sample's far field is then the local linear fit of the records
+/// within `radius` × that size (fitFarField), marked farFitted. One with fewer than 8 records
+/// within reach casts its own first pass instead. Returns the rays cast.
+long long fitDeferredFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
+                               const std::map<SamplePlane, double>& planeSize, double elementSize,
+                               double spacing, double radius, int passes);
+
 /// Continues the far field (ExactIrradiance::refineFarField) of the samples in `cache` whose
 /// estimated error exceeds `tolerance` of their irradiance, the worst first, pass by pass up
 /// to `passes` passes, until `budget` × the rays the cache's far fields cast so far are spent.
+/// Fitted far fields (farFitted) are left as they are and their records' rays not counted.
 /// Returns the rays cast.
 long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
                           double tolerance, double budget, int passes);
@@ -82,13 +115,15 @@ void refitWithPooledFarField(
     const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys, double radius,
     double nearRadius);
 
-/// What the build does once every sample is taken: refineFarFields by `options`'
-/// farFieldRefineTolerance, farFieldRefineBudget and farFieldRefinePasses (budget 0: none), then
-/// refitWithPooledFarField over farFieldPoolRadius and farFieldNearPoolRadius × `elementSize`
-/// (m). Returns the rays the refinement cast.
+/// What the build does once every sample is taken: fitDeferredFarFields by `options`'
+/// farFieldRecordSpacing, farFieldPoolRadius and farFieldRecordPasses (the samples of `disc`'s
+/// planes that deferred their far field), refineFarFields by farFieldRefineTolerance,
+/// farFieldRefineBudget and farFieldRefinePasses (budget 0: none), then refitWithPooledFarField
+/// over farFieldPoolRadius and farFieldNearPoolRadius × `elementSize` (m). Returns the rays
+/// cast.
 long long finishFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
-                          const HifiOptions& options, double elementSize,
-                          std::vector<std::vector<HifiTriangle>>& perElement,
+                          const Discretization& disc, const HifiOptions& options,
+                          double elementSize, std::vector<std::vector<HifiTriangle>>& perElement,
                           const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys);
 
 }  // namespace penumbra

@@ -1,6 +1,7 @@
 // The far field's pooling (render/hifi/far_field_pool.h): the grid of cells per plane finds the
 // same neighbours as testing every sample against every other, and the local linear fit
-// reproduces a linear field exactly.
+// reproduces a linear field exactly; the same for the fit of samples from records
+// (fitFarField).
 
 #include "render/hifi/far_field_pool.h"
 
@@ -88,6 +89,69 @@ TEST(FarFieldPool, ALinearFieldIsFittedExactlyAndParallelFacesDoNotMix) {
                 << "sample " << i << " channel " << c;
     }
     EXPECT_GT(fitted, 2000);
+}
+
+/// A quarter of `samples` (four in every sixteen: one of each plane) as records, and all of
+/// them as the points to fit.
+void splitRecords(const std::vector<FarFieldSample>& samples, std::vector<FarFieldSample>& at,
+                  std::vector<FarFieldSample>& records) {
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        at.push_back(samples[i]);
+        if (i % 16 < 4) records.push_back(samples[i]);
+    }
+}
+
+TEST(FarFieldPool, RecordsFoundThroughTheGridAreThoseTestingEveryRecordFinds) {
+    std::vector<FarFieldSample> at, records;
+    splitRecords(scatteredSamples(0.2, 5), at, records);
+    // A radius per plane, one of them too small for most samples to find 8 records.
+    const std::vector<double> planeRadius = {0.3, 0.45, 0.08, 0.25};
+    const PooledFarField grid = fitFarField(at, records, planeRadius, PoolSearch::Grid);
+    const PooledFarField every = fitFarField(at, records, planeRadius, PoolSearch::Every);
+    // Per plane (the second object's split into its faces at y = 0.3 and, as 4, y = 0), the
+    // samples and how many of them were fitted.
+    int count[5] = {}, fitted[5] = {};
+    for (std::size_t i = 0; i < at.size(); ++i) {
+        ASSERT_EQ(grid.fitted[i], every.fitted[i]) << "sample " << i;
+        const int group = at[i].plane == 1 && at[i].x.y == 0.0 ? 4 : at[i].plane;
+        ++count[group];
+        if (!grid.fitted[i]) continue;
+        ++fitted[group];
+        for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(grid.value[i][c], every.value[i][c], 1e-9 * (1 + every.value[i][c]))
+                << "sample " << i << " channel " << c;
+    }
+    // Records are one in four of each plane's samples (about 47 per m²). The floor's (radius 0.3,
+    // about 13 records in reach) and the raised face's (0.45, about 30) are fitted but near their
+    // edges; the wall's (0.08) reach about one record, so none; the tilted panel's (0.25, about
+    // 9) only where 8 fall in reach. The second object's records are all on its face at
+    // y = 0.3 (i % 16 == 1 is i % 8 == 1), so its face at y = 0 has none in its plane: not one of
+    // its samples is fitted, though records of its plane id lie within reach above it.
+    EXPECT_GT(fitted[0], count[0] * 3 / 4);
+    EXPECT_GT(fitted[1], count[1] * 9 / 10);
+    EXPECT_EQ(fitted[2], 0);
+    EXPECT_GT(fitted[3], count[3] / 4);
+    EXPECT_LT(fitted[3], count[3]);
+    EXPECT_EQ(fitted[4], 0);
+}
+
+TEST(FarFieldPool, RecordsOfALinearFieldGiveItAtEverySample) {
+    // Without noise, a sample's fit from its plane's records is the field at the sample (not at
+    // the records), less its own near part.
+    std::vector<FarFieldSample> at, records;
+    splitRecords(scatteredSamples(0.0, 13), at, records);
+    const std::vector<double> planeRadius(4, 0.4);
+    const PooledFarField fitted = fitFarField(at, records, planeRadius);
+    int count = 0;
+    for (std::size_t i = 0; i < at.size(); ++i) {
+        if (!fitted.fitted[i]) continue;
+        ++count;
+        const Rgb expected = glm::max(at[i].indirect - at[i].near, Rgb(0.0));
+        for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(fitted.value[i][c], expected[c], 1e-9)
+                << "sample " << i << " channel " << c;
+    }
+    EXPECT_GT(count, 2000);
 }
 
 }  // namespace
