@@ -90,8 +90,9 @@ struct HifiOptions {
     /// of the records of its plane within farFieldPoolRadius × that size: the far field's rays
     /// go by area, not by sample, so a plane refined finely under shadows (a floor beneath
     /// tessellated meshes) casts no more of them than a plain one. A sample with fewer than 8
-    /// records within reach casts its own rays as before. 0 turns it off.
-    double farFieldRecordSpacing = 0.8;
+    /// records within reach casts its own rays as before. 0 (the default) turns it off; 0.8 is
+    /// the setting docs/hifi.md measures.
+    double farFieldRecordSpacing = 0.0;
     int farFieldRecordPasses = 2;
     int farFieldPreviewRays = 16;
     /// With the far field's rays: once every sample is taken (before the pooling), the
