@@ -575,20 +575,12 @@ int runSettlingRender(const SolveArgs& a, const RenderArgs& r) {
 
     const Discretization& disc = session->discretization();
     const SettlingEstimate settling = session->solver().computeSettling();
-    std::vector<Rgb> change(settling.change.size());
-    double sum = 0;
-    std::size_t n = 0;
-    const std::vector<Rgb>& b = session->solver().radiosity();
-    for (std::size_t e = 0; e < change.size(); ++e) {
-        change[e] = Rgb(settling.change[e]);
-        if (disc.elementAlive(static_cast<int>(e))) sum += luminance(b[e]), ++n;
-    }
     const Image picture = renderGouraud(disc, session->tracer(), session->displayRadiosity(),
                                         camera, r.width, r.height, r.samples);
-    const Image changeImage =
-        renderGouraud(disc, session->tracer(), change, camera, r.width, r.height, r.samples);
-    // Dark pixels: relative change measured against a hundredth of the mean radiance.
-    const double floor = n > 0 ? 0.01 * sum / static_cast<double>(n) / M_PI : 0.0;
+    const Image changeImage = renderGouraud(disc, session->tracer(), settlingChangeValues(settling),
+                                            camera, r.width, r.height, r.samples);
+    // Radiance: the radiosity floor over π.
+    const double floor = settlingFloorRadiosity(disc, session->solver().radiosity()) / M_PI;
     writeImage(blendSettling(picture, changeImage, floor), r.out);
     nlohmann::json report = session->reportJson();
     addImageFields(report, r);

@@ -8,6 +8,20 @@
 
 namespace penumbra {
 
+std::vector<Rgb> settlingChangeValues(const SettlingEstimate& estimate) {
+    std::vector<Rgb> values(estimate.change.size());
+    for (std::size_t e = 0; e < values.size(); ++e) values[e] = Rgb(estimate.change[e]);
+    return values;
+}
+
+double settlingFloorRadiosity(const Discretization& disc, const std::vector<Rgb>& radiosity) {
+    double sum = 0;
+    std::size_t n = 0;
+    for (std::size_t e = 0; e < disc.elements().size() && e < radiosity.size(); ++e)
+        if (disc.elementAlive(static_cast<int>(e))) sum += luminance(radiosity[e]), ++n;
+    return n > 0 ? 0.01 * sum / static_cast<double>(n) : 0.0;
+}
+
 SettlingHeat settlingHeat(double relativeChange) {
     SettlingHeat h;
     if (!(relativeChange >= kSettledRelative)) return h;

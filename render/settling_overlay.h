@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "render/image.h"
+#include "solver/discretization.h"
+#include "solver/progressive_solver.h"
 
 namespace penumbra {
 
@@ -20,6 +22,13 @@ constexpr double kHotRelative = 0.3;
 /// The lighting counts as settled when the settling estimate's relative RMS against the
 /// reflected light (SettlingEstimate::reflectedRms) is below this.
 constexpr double kSettledRms = 0.01;
+
+/// The estimate's per-element change as values a Gouraud render interpolates (the luminance in
+/// every channel, radiosity units).
+std::vector<Rgb> settlingChangeValues(const SettlingEstimate& estimate);
+/// The radiosity luminance below which a pixel's relative change is not measured: a hundredth
+/// of the alive elements' mean (dark pixels would glow with noise).
+double settlingFloorRadiosity(const Discretization& disc, const std::vector<Rgb>& radiosity);
 
 /// The heat map's colour (linear-free 8-bit sRGB) and opacity in [0, 0.75] for a relative
 /// change: transparent below kSettledRelative, yellow to red on a log scale up to

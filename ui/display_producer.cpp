@@ -453,14 +453,13 @@ void DisplayProducer::overlaySettling(const ViewRequest& view, const PublishedLi
     const Discretization& disc = mShared.read().discretization();
     const RayTracer& tracer = mShared.read().tracer();
     const int w = img.render.radiance.width, h = img.render.radiance.height;
-    if (mSettlingChangeOf != light.settling.get() ||
-        mSettlingChangePreview != light.previewVersion || !mSettlingChangeCamera ||
-        !sameCamera(*mSettlingChangeCamera, view.camera) || mSettlingChange.width != w ||
-        mSettlingChange.height != h) {
+    if (mSettlingChangeOf != light.settling || mSettlingChangePreview != light.previewVersion ||
+        !mSettlingChangeCamera || !sameCamera(*mSettlingChangeCamera, view.camera) ||
+        mSettlingChange.width != w || mSettlingChange.height != h) {
         mSettlingChange =
             renderViewport(disc, tracer, *settling, view.camera, w, h, light.previewVersion)
                 .radiance;
-        mSettlingChangeOf = light.settling.get();
+        mSettlingChangeOf = light.settling;
         mSettlingChangePreview = light.previewVersion;
         mSettlingChangeCamera = view.camera;
     }

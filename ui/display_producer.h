@@ -166,7 +166,7 @@ private:
     // The settling overlay's change image for the estimate, preview version and view it was
     // rendered for: rendered again only when one of them changes, not every frame.
     Image mSettlingChange;
-    const std::vector<Rgb>* mSettlingChangeOf = nullptr;
+    std::shared_ptr<const std::vector<Rgb>> mSettlingChangeOf;
     int mSettlingChangePreview = -1;
     std::optional<Camera> mSettlingChangeCamera;
     Image mReference;  ///< difference mode

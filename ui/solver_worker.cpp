@@ -338,17 +338,10 @@ void SolverWorker::updateSettling(bool force) {
     const SettlingEstimate estimate = mSession.solver().computeSettling();
     mLastSettling = nowSeconds();
     mSettlingCost = mLastSettling - now;
-    auto values = std::make_shared<std::vector<Rgb>>(estimate.change.size());
-    for (std::size_t e = 0; e < values->size(); ++e) (*values)[e] = Rgb(estimate.change[e]);
-    mSettling = std::move(values);
+    mSettling = std::make_shared<const std::vector<Rgb>>(settlingChangeValues(estimate));
     mSettlingRms = estimate.reflectedRms;
-    const Discretization& disc = mSession.discretization();
-    const std::vector<Rgb>& b = mSession.solver().radiosity();
-    double sum = 0;
-    std::size_t n = 0;
-    for (std::size_t e = 0; e < disc.elements().size() && e < b.size(); ++e)
-        if (disc.elementAlive(static_cast<int>(e))) sum += luminance(b[e]), ++n;
-    mSettlingFloor = n > 0 ? 0.01 * sum / static_cast<double>(n) : 0.0;
+    mSettlingFloor =
+        settlingFloorRadiosity(mSession.discretization(), mSession.solver().radiosity());
     if (mSettlingRms < kSettledRms && mSession.selected().empty() && mLastEditTime >= 0 &&
         mSettleSeconds < 0)
         mSettleSeconds = now - mLastEditTime;
