@@ -75,6 +75,33 @@ struct CellKeyHash {
     }
 };
 
+/// The cell of `group`'s grid of cell size r that holds x.
+CellKey cellOf(long long group, const Vec3& x, double r) {
+    const Vec3 c = glm::floor(x / r);
+    return CellKey{group, std::llround(c.x), std::llround(c.y), std::llround(c.z)};
+}
+
+/// Indices of samples by grid cell: a sample's neighbours within its cell size are in the 27
+/// cells around its own.
+class CellGrid {
+public:
+    void insert(const CellKey& key, int index) { mCells[key].push_back(index); }
+    /// f(index) for every index in the 27 cells around `key`.
+    template <class F>
+    void forNeighbours(const CellKey& key, F&& f) const {
+        for (long long di = -1; di <= 1; ++di)
+            for (long long dj = -1; dj <= 1; ++dj)
+                for (long long dk = -1; dk <= 1; ++dk) {
+                    const auto it = mCells.find({key[0], key[1] + di, key[2] + dj, key[3] + dk});
+                    if (it == mCells.end()) continue;
+                    for (int j : it->second) f(j);
+                }
+    }
+
+private:
+    std::unordered_map<CellKey, std::vector<int>, CellKeyHash> mCells;
+};
+
 }  // namespace
 
 PooledFarField poolFarField(const std::vector<FarFieldSample>& samples, double radius,
@@ -84,16 +111,12 @@ PooledFarField poolFarField(const std::vector<FarFieldSample>& samples, double r
     out.value.assign(samples.size(), Rgb(0.0));
     out.fitted.assign(samples.size(), 0);
     auto radiusOf = [&](const FarFieldSample& s) { return s.open ? radius : nearRadius; };
-    auto cellOf = [&](const FarFieldSample& s, double r) {
-        const Vec3 c = glm::floor(s.x / r);
-        return CellKey{groupOf(s), std::llround(c.x), std::llround(c.y), std::llround(c.z)};
-    };
-    // Each group's samples by cells of its radius: a sample's neighbours are in its 27 cells.
-    std::unordered_map<CellKey, std::vector<int>, CellKeyHash> cells;
+    // Each group's samples by cells of its radius.
+    CellGrid cells;
     if (search == PoolSearch::Grid)
         for (int i = 0; i < count; ++i) {
             const double r = radiusOf(samples[i]);
-            if (r > 0) cells[cellOf(samples[i], r)].push_back(i);
+            if (r > 0) cells.insert(cellOf(groupOf(samples[i]), samples[i].x, r), i);
         }
     tbb::parallel_for(0, count, [&](int i) {
         const FarFieldSample& a = samples[i];
@@ -105,14 +128,7 @@ PooledFarField poolFarField(const std::vector<FarFieldSample>& samples, double r
             for (const FarFieldSample& o : samples)
                 if (groupOf(o) == group) fit.add(o);
         } else {
-            const CellKey c = cellOf(a, r);
-            for (long long di = -1; di <= 1; ++di)
-                for (long long dj = -1; dj <= 1; ++dj)
-                    for (long long dk = -1; dk <= 1; ++dk) {
-                        const auto it = cells.find({group, c[1] + di, c[2] + dj, c[3] + dk});
-                        if (it == cells.end()) continue;
-                        for (int j : it->second) fit.add(samples[j]);
-                    }
+            cells.forNeighbours(cellOf(group, a.x, r), [&](int j) { fit.add(samples[j]); });
         }
         Rgb value;
         if (fit.solve(value)) {
@@ -133,16 +149,12 @@ PooledFarField fitFarField(const std::vector<FarFieldSample>& at,
         return s.plane >= 0 && std::size_t(s.plane) < planeRadius.size() ? planeRadius[s.plane]
                                                                          : 0.0;
     };
-    auto cellOf = [&](const FarFieldSample& s, double r) {
-        const Vec3 c = glm::floor(s.x / r);
-        return CellKey{s.plane, std::llround(c.x), std::llround(c.y), std::llround(c.z)};
-    };
-    // Each plane's records by cells of its radius: a sample's records are in its 27 cells.
-    std::unordered_map<CellKey, std::vector<int>, CellKeyHash> cells;
+    // Each plane's records by cells of its radius.
+    CellGrid cells;
     if (search == PoolSearch::Grid)
         for (std::size_t i = 0; i < records.size(); ++i) {
             const double r = radiusOf(records[i]);
-            if (r > 0) cells[cellOf(records[i], r)].push_back(static_cast<int>(i));
+            if (r > 0) cells.insert(cellOf(records[i].plane, records[i].x, r), static_cast<int>(i));
         }
     tbb::parallel_for(std::size_t(0), at.size(), [&](std::size_t i) {
         const FarFieldSample& a = at[i];
@@ -153,14 +165,7 @@ PooledFarField fitFarField(const std::vector<FarFieldSample>& at,
             for (const FarFieldSample& o : records)
                 if (o.plane == a.plane) fit.add(o);
         } else {
-            const CellKey c = cellOf(a, r);
-            for (long long di = -1; di <= 1; ++di)
-                for (long long dj = -1; dj <= 1; ++dj)
-                    for (long long dk = -1; dk <= 1; ++dk) {
-                        const auto it = cells.find({a.plane, c[1] + di, c[2] + dj, c[3] + dk});
-                        if (it == cells.end()) continue;
-                        for (int j : it->second) fit.add(records[j]);
-                    }
+            cells.forNeighbours(cellOf(a.plane, a.x, r), [&](int j) { fit.add(records[j]); });
         }
         Rgb value;
         if (fit.solve(value)) {
