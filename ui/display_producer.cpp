@@ -244,6 +244,8 @@ InteractiveDisplayOptions DisplayProducer::displayOptions(const ViewRequest& vie
     // dragged the shader re-shades only what the drag changed: the drag's frames cost what its
     // object and shadows cover, not the viewport.
     options.windowedFrames = true;
+    // Drag positions and the solver's lighting arrive several times a frame: relit once a frame.
+    options.deferRelight = true;
     options.dragSamplesChangedOnly = true;
     // A converged still view rests: no samples, no reconstruction, until something changes.
     options.restWhenConverged = true;

@@ -194,7 +194,8 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
     // points on elements whose H_direct changed (the moving shadow, a moved lamp's light).
     auto t = Clock::now();
     if (mShader->previewObject() >= 0 || mShader->directUpdatePending())
-        if (!mShader->takeDirectUpdate().empty()) relightChanged();
+        if (!mShader->takeDirectUpdate().empty()) mRelightPending = true;
+    if (mRelightPending) relightChanged();
     st.times.relightMs = msSince(t);
     // A preview left without an object taking its points (a cancelled drag): they go.
     dropLeftPreview();
@@ -450,6 +451,8 @@ std::size_t InteractiveDisplay::warmUp(const CameraRays& camera, double density)
             const glm::dvec2 p(px + unitFromKey(key + 2), py + unitFromKey(key + 3));
             requests.push_back({p, camera.origin(), camera.rayDirection(p.x, p.y), frame});
         }
+    // Shaded from the current lighting: a deferred relight goes to the points before them.
+    if (mRelightPending) relightChanged();
     std::vector<ShadedPoint> done = shadeAll(requests);
     mCache.insert(done);
     mInsertedSinceFrame += done.size();
@@ -457,6 +460,7 @@ std::size_t InteractiveDisplay::warmUp(const CameraRays& camera, double density)
 }
 
 void InteractiveDisplay::insertShaded(const std::vector<ShadedPoint>& points) {
+    if (mRelightPending) relightChanged();
     mCache.insert(points);
     mInsertedSinceFrame += points.size();
 }
@@ -482,7 +486,14 @@ void InteractiveDisplay::elementShading(std::vector<Rgb>& total, std::vector<Rgb
     }
 }
 
+std::size_t InteractiveDisplay::relightOrDefer() {
+    if (!mOptions.deferRelight) return relightChanged();
+    mRelightPending = true;
+    return 0;
+}
+
 std::size_t InteractiveDisplay::relightChanged() {
+    mRelightPending = false;
     std::vector<Rgb> total, direct;
     elementShading(total, direct);
     const std::size_t n = total.size();
@@ -552,7 +563,7 @@ std::size_t InteractiveDisplay::apply(const SolutionView& solution) {
     mShader->updateSolution(*solution.irradiance, *solution.fromEmission, solution.previewRadiosity,
                             solution.previewFromEmission, solution.previewObject,
                             solution.previewComplete);
-    return relightChanged();
+    return relightOrDefer();
 }
 
 std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
@@ -651,15 +662,16 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
         return false;
     };
     const std::vector<CachePoint>& points = mCache.points();
+    const std::vector<std::int32_t>& objectOf = mCache.pointObjects();
+    const std::vector<std::int32_t>& elementOf = mCache.pointElements();
+    const std::vector<Vec3>& positionOf = mCache.pointPositions();
     std::vector<std::uint8_t> drop(points.size(), 0);
     // Dropped points the last frame showed.
     const std::size_t seen = tbb::parallel_reduce(
         tbb::blocked_range<std::size_t>(0, points.size(), 8192), std::size_t{0},
         [&](const tbb::blocked_range<std::size_t>& r, std::size_t count) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                drop[i] = points[i].object >= 0 && shadowed(points[i].element, points[i].position)
-                              ? 1
-                              : 0;
+                drop[i] = objectOf[i] >= 0 && shadowed(elementOf[i], positionOf[i]) ? 1 : 0;
                 count += drop[i] && mCache.visible(i) && !mCache.hidden(i);
             }
             return count;
@@ -697,12 +709,11 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
         // The points to ask about, found in parallel; the requests made in index order.
         const std::vector<int> asked = indicesWhere(points.size(), [&](std::size_t i) {
             // Dropped, seen in the last frame and not now behind the moved object.
-            return (drop[i] && mCache.visible(i) && !mCache.hidden(i)) || points[i].object == now;
+            return (drop[i] && mCache.visible(i) && !mCache.hidden(i)) || objectOf[i] == now;
         });
         for (const int i : asked) {
-            if (drop[i] && mCache.visible(i) && !mCache.hidden(i)) request(points[i].position);
-            if (points[i].object == now)
-                request(Vec3(thenFromNow * glm::dvec4(points[i].position, 1.0)));
+            if (drop[i] && mCache.visible(i) && !mCache.hidden(i)) request(positionOf[i]);
+            if (objectOf[i] == now) request(Vec3(thenFromNow * glm::dvec4(positionOf[i], 1.0)));
         }
     }
     const std::size_t dropped = mCache.invalidatePoints(drop);
@@ -987,7 +998,7 @@ std::size_t InteractiveDisplay::setPreview(int previewVersion, const Visibility&
     if (solver) mShader->updateSolution(*solver);
     // What it hides in this view stays out of the image.
     setOccluder(previewVersion, previewOnly, -1);
-    return changed + relightChanged();
+    return changed + relightOrDefer();
 }
 
 std::size_t InteractiveDisplay::clearPreview(const ProgressiveSolver* solver) {

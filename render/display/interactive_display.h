@@ -173,6 +173,14 @@ struct InteractiveDisplayOptions {
     /// from (a test per element and lamp); false tests every element's probe points, the
     /// reference the culled drop must equal.
     bool shadowDropCull = true;
+    /// Lighting changes from drag positions (apply(EditEvent) of PreviewMoved) and published
+    /// solutions (apply(SolutionView)) are relit once, at the next frame's start, instead of
+    /// at each: a drag's positions and the solver's lighting arrive several times a frame, and
+    /// each relight is a pass over every element and every cached point. The points end with
+    /// the same colours (the changes add up); an element whose change crossed the stale
+    /// threshold only between two frames is not marked stale. Their apply() then returns the
+    /// points carried only. Structural edits (added, removed, dropped objects) relight at once.
+    bool deferRelight = false;
     /// With the camera as in the last frame, a frame rebuilds and reconstructs only the
     /// window of pixels its changes reach (EdgePointImage::reconstructWindow): the pixels
     /// whose point or edges differ from what the last frames reconstructed, grown by the
@@ -491,6 +499,8 @@ private:
     /// than invalidateThreshold (Bala et al. §7.5: they are re-shaded first, and keep the
     /// estimate meanwhile instead of leaving a hole). Returns the points marked.
     std::size_t relightChanged();
+    /// relightChanged() now, or at the next frame's start with deferRelight (returns 0 then).
+    std::size_t relightOrDefer();
     /// Moves the cached points of version `from` onto version `to` of the same object at its
     /// new place (RenderCache::carry); drops them when the two are not the same mesh.
     std::size_t carryPoints(int from, int to);
@@ -532,6 +542,8 @@ private:
     PenumbraOrder mShadowOrder;           ///< mShadowEdges' buckets
     std::vector<WorldEdge> mShadowScratch;
     bool mShadowsStale = true;
+    /// A relight waits for the next frame (InteractiveDisplayOptions::deferRelight).
+    bool mRelightPending = false;
     double mLastShadowUpdateMs = 0;
     std::vector<ScreenEdge> mScreenEdges;  ///< the last frame's edges that may mark the EPI
     /// InteractiveDisplayOptions::windowedFrames: windows covering the pixels whose points or

@@ -53,6 +53,8 @@ RenderCache::RenderCache(int width, int height, std::size_t capacity, RenderCach
     const std::size_t pixels = static_cast<std::size_t>(width) * height;
     mPoints.reserve(capacity);
     mPosition.reserve(capacity);
+    mElementOf.reserve(capacity);
+    mObjectOf.reserve(capacity);
     mBorn.reserve(capacity);
     mVisible.reserve(capacity);
     mFlags.reserve(capacity);
@@ -275,6 +277,8 @@ void RenderCache::insert(const std::vector<ShadedPoint>& all) {
         if (slot < mCapacity) {
             mPoints.push_back(toCache(batch[i]));
             mPosition.emplace_back();
+            mElementOf.emplace_back();
+            mObjectOf.emplace_back();
             mBorn.emplace_back();
             mVisible.emplace_back();
             mFlags.emplace_back();
@@ -285,6 +289,8 @@ void RenderCache::insert(const std::vector<ShadedPoint>& all) {
         }
         touch(slot);
         mPosition[slot] = batch[i].position;
+        mElementOf[slot] = batch[i].element;
+        mObjectOf[slot] = batch[i].object;
         mBorn[slot] = mFrame;  // age 0 in the next reprojection
         mVisible[slot] = 1;    // new points count as visible
         mFlags[slot] = batch[i].stale ? kStaleFlag : 0;

@@ -237,6 +237,11 @@ public:
     static constexpr int kCarriedAge = 2 * kStaleAge;
 
     const std::vector<CachePoint>& points() const { return mPoints; }
+    /// Per point (indices of points()): its element, its object, its position (the records'
+    /// fields, packed for passes over every point).
+    const std::vector<std::int32_t>& pointElements() const { return mElementOf; }
+    const std::vector<std::int32_t>& pointObjects() const { return mObjectOf; }
+    const std::vector<Vec3>& pointPositions() const { return mPosition; }
     /// Frames reprojected since point i was shaded.
     int age(std::size_t i) const { return static_cast<int>(mFrame - mBorn[i]); }
     /// Whether point i survived the last reprojection (new points count as visible).
@@ -427,6 +432,9 @@ private:
     // Per point, beside mPoints: what every reprojection reads or writes, so it streams through
     // 33 bytes a point instead of the whole records.
     std::vector<Vec3> mPosition;         ///< mPoints[i].position
+    /// mPoints[i].element and .object: the passes that pick points by their element or object
+    /// (relight, carry, hiding, a drag's shadow drop) read 8 bytes a point, not the records.
+    std::vector<std::int32_t> mElementOf, mObjectOf;
     std::vector<std::uint64_t> mBorn;    ///< mFrame when inserted: its age is mFrame − this
     std::vector<std::uint8_t> mVisible;  ///< survived the last reprojection
     /// Age during the current reprojection (mFrame already counts it), as the frame's screen

@@ -46,6 +46,8 @@ std::size_t RenderCache::dropIf(Drop drop) {
     }
     mPoints.resize(kept);
     mPosition.resize(kept);
+    mElementOf.resize(kept);
+    mObjectOf.resize(kept);
     mBorn.resize(kept);
     mVisible.resize(kept);
     mFlags.resize(kept);
@@ -99,6 +101,8 @@ void RenderCache::renumberPendingScreen(const std::vector<int>& gone, std::size_
 void RenderCache::movePoint(std::size_t from, std::size_t to) {
     mPoints[to] = std::move(mPoints[from]);
     mPosition[to] = mPosition[from];
+    mElementOf[to] = mElementOf[from];
+    mObjectOf[to] = mObjectOf[from];
     mBorn[to] = mBorn[from];
     mVisible[to] = mVisible[from];
     mFlags[to] = mFlags[from];
@@ -142,11 +146,11 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
     tbb::parallel_for(std::size_t(0), counts.size(), [&](std::size_t c) {
         std::size_t changed = 0;
         for (std::size_t i = c * 8192; i < std::min(n, (c + 1) * 8192); ++i) {
-            CachePoint& p = mPoints[i];
-            if (p.element < 0) continue;
-            const auto e = static_cast<std::size_t>(p.element);
+            if (mElementOf[i] < 0) continue;
+            const auto e = static_cast<std::size_t>(mElementOf[i]);
             if (e < delta.size() && delta[e] != Rgb(0.0)) {
                 // No negative radiance where a point was darker than its element's change.
+                CachePoint& p = mPoints[i];
                 p.colour = glm::max(p.colour + delta[e], Rgb(0.0));
                 touchColour(i);
             }
@@ -178,8 +182,8 @@ std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromF
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
         std::size_t here = 0;
         for (std::size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i) {
+            if (mObjectOf[i] != fromObject) continue;
             CachePoint& p = mPoints[i];
-            if (p.object != fromObject) continue;
             double depth = 0;
             int pixel = -1;
             if (pending && projectOne(*mScreenCamera, p.position, depth, pixel) &&
@@ -190,6 +194,8 @@ std::size_t RenderCache::carry(int fromObject, int toObject, const Mat4& toFromF
             p.object = toObject;
             p.element += elementOffset;
             mPosition[i] = p.position;
+            mObjectOf[i] = toObject;
+            mElementOf[i] = p.element;
             mFlags[i] |= kStaleFlag | kCarriedFlag;
             touch(i);
             ++here;
@@ -225,7 +231,7 @@ std::size_t RenderCache::setHidden(
     tbb::parallel_for(std::size_t(0), counts.size(), [&](std::size_t c) {
         std::size_t here = 0;
         for (std::size_t i = c * 4096; i < std::min(n, (c + 1) * 4096); ++i) {
-            const bool h = hidden && hidden(mPosition[i], mPoints[i].object);
+            const bool h = hidden && hidden(mPosition[i], mObjectOf[i]);
             if (h != ((mFlags[i] & kHiddenFlag) != 0)) touch(i);
             mFlags[i] =
                 static_cast<std::uint8_t>((mFlags[i] & ~kHiddenFlag) | (h ? kHiddenFlag : 0));
