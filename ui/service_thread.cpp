@@ -1,5 +1,7 @@
 #include "ui/service_thread.h"
 
+#include <tbb/task_arena.h>
+
 #include "core/thread_priority.h"
 
 namespace penumbra {
@@ -16,8 +18,13 @@ void ServiceThread::start(const char* name, int nice, std::chrono::milliseconds 
     mThread = std::thread([this, name, nice, idle, iterate = std::move(iterate)] {
         nameThisThread(name);
         lowerThreadPriority(nice);
+        // A background thread's parallel work (oneTBB) runs in a low-priority arena: the
+        // worker threads all services share take the render thread's work first.
+        tbb::task_arena arena(
+            tbb::task_arena::automatic, 1,
+            nice > 0 ? tbb::task_arena::priority::low : tbb::task_arena::priority::normal);
         for (;;) {
-            const bool worked = iterate();
+            const bool worked = arena.execute([&] { return iterate(); });
             std::unique_lock<std::mutex> lock(mMutex);
             if (mStop) return;
             if (!worked) mWake.wait_for(lock, idle, [&] { return mStop || mWoken; });

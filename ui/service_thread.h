@@ -20,6 +20,9 @@ public:
 
     /// Runs `iterate` on a thread named `name` (core/thread_priority.h) at `nice`; after an
     /// iteration that returns false it sleeps until wake() or for `idle`. Nothing when running.
+    /// At a positive nice (a background service: the solver, the holodeck) the iteration's
+    /// parallel work runs in a low-priority oneTBB arena, so the worker threads every service
+    /// shares serve the render thread's frames first.
     void start(const char* name, int nice, std::chrono::milliseconds idle,
                std::function<bool()> iterate);
     /// Lets the iteration in progress finish and joins the thread.

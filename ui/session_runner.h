@@ -63,8 +63,10 @@ struct SessionRunnerOptions {
     /// 0 leaves a thread level with it). The window and the viewport's lit images come first:
     /// the render thread, which makes them, runs at renderNice (0: level with the UI thread);
     /// the work behind them yields to both: the display's shading workers, the solver, the
-    /// holodeck and the interpolant builds run at backgroundNice. On a busy machine a drag so
-    /// gets its frames ahead of the solver's shots.
+    /// holodeck and the interpolant builds run at backgroundNice, and the solver's and the
+    /// holodeck's parallel work in low-priority oneTBB arenas (ServiceThread), so the shared
+    /// worker threads take a frame's parallel stages first. On a busy machine a drag so gets
+    /// its frames ahead of the solver's shots.
     int renderNice = 0;
     int backgroundNice = 5;
     /// The holodeck file (docs/holodeck.md) the display modes start their views from and store
