@@ -1,11 +1,13 @@
 // penumbra-editor [SCENE] [--emission-scale S] [--light-size R] [--units mm|cm|m] [--log LOG]
 // [--play LOG] [--screenshot PNG --frames N] [--mode NAME] [--recover] [--no-journal]
 //                 [--display-divisor N]
-//                 [--holodeck FILE | --no-holodeck]
+//                 [--holodeck FILE | --no-holodeck] [--script FILE]
 //                 [--bench-drag ID [--frames N] [--record DIR] [--no-references]]
 //                 [--bench-still S [--record DIR]]
-// The GUI (ui/editor_app.h). Exit status: 0 success; 1 the screenshot could not be written;
-// 2 bad input or no display, with one line on stderr.
+// The GUI (ui/editor_app.h). --script plays an input script (ui/input_script.h); the benchmarks
+// drive the editor through scripts of their own (ui/editor_benches.h). Exit status: 0 success;
+// 1 the screenshot could not be written; 2 bad input (a malformed script, an object it names
+// that the scene lacks) or no display, with one line on stderr.
 
 #include <CLI/CLI.hpp>
 #include <OpenMesh/Core/System/omstream.hh>
@@ -18,6 +20,8 @@
 #include "core/log.h"
 #include "render/holodeck/holo_file.h"
 #include "ui/editor_app.h"
+#include "ui/editor_benches.h"
+#include "ui/input_script.h"
 
 int main(int argc, char** argv) {
     // OpenMesh reports non-manifold faces it cannot link (which the edge finder handles by
@@ -25,6 +29,9 @@ int main(int argc, char** argv) {
     // in the status bar and on stderr (as `penumbra` does).
     omerr().disable();
     penumbra::EditorOptions options;
+    std::string script, benchDrag, record;
+    bool benchReferences = true;
+    double benchStill = 0;
     CLI::App app{"Penumbra editor: interactive radiosity lighting"};
     app.add_option("scene", options.scene, "scene file (*.json, or *.gltf *.glb *.obj to import)");
     addImportFlags(&app, options.import);
@@ -39,16 +46,22 @@ int main(int argc, char** argv) {
     app.add_option("--height", options.height, "window height")->check(CLI::PositiveNumber);
     app.add_option("--play-every", options.playEvery, "frames per replayed log line")
         ->check(CLI::PositiveNumber);
-    app.add_option("--bench-drag", options.benchDrag,
-                   "drag this object in a circle for --frames frames and print frame times");
-    app.add_option("--record", options.record,
+    auto* scripted = app.add_option(
+        "--script", script,
+        "play this input script (select, drag, move, drop, waits: docs/architecture.md)");
+    app.add_option("--bench-drag", benchDrag,
+                   "drag this object in a circle for --frames frames and print frame times")
+        ->excludes(scripted);
+    app.add_option("--record", record,
                    "with --bench-drag: write every image shown, its edit line and the "
-                   "references into this folder");
-    app.add_option("--bench-still", options.benchStill,
+                   "references into this folder (--bench-still: the images, the reference and "
+                   "Gouraud)");
+    app.add_option("--bench-still", benchStill,
                    "keep the view still for S seconds, then print how far the viewport was from "
                    "a reference render at 1, 2, 5, 10 ... s, and Gouraud's error (JSON)")
-        ->check(CLI::PositiveNumber);
-    app.add_flag("!--no-references", options.benchReferences,
+        ->check(CLI::PositiveNumber)
+        ->excludes(scripted);
+    app.add_flag("!--no-references", benchReferences,
                  "with --bench-drag: skip the reference renders (errors against references)");
     app.add_flag("--recover", options.recover,
                  "replay the edits an earlier session on SCENE left unsaved without asking");
@@ -97,9 +110,23 @@ int main(int argc, char** argv) {
         spdlog::warn("--interactive-divisor is no longer used: the display keeps its resolution");
     options.mode = *penumbra::parseViewMode(mode);
     options.settlingOverlay = overlay == "settling";
-    if (!options.benchDrag.empty() && options.frames <= 0) options.frames = 300;
-    if (!options.benchDrag.empty() || options.benchStill > 0) options.journal = false;
     try {
+        // What drives the editor from outside: an input script, or a benchmark playing its own.
+        if (!script.empty()) {
+            options.driver =
+                std::make_shared<penumbra::InputScript>(penumbra::InputScript::load(script));
+        } else if (!benchDrag.empty()) {
+            penumbra::DragBenchDriverOptions drag;
+            drag.object = benchDrag;
+            drag.frames = options.frames > 0 ? options.frames : 300;
+            drag.recordDir = record;
+            drag.references = benchReferences;
+            options.driver = std::make_shared<penumbra::DragBenchDriver>(drag);
+        } else if (benchStill > 0) {
+            options.driver = std::make_shared<penumbra::StillBenchDriver>(
+                options.scene, options.import, benchStill, record, options.quiet);
+        }
+        if (options.driver) options.journal = false;
         // A holodeck named on the command line is checked like the other inputs (bad: one line,
         // exit 2); the one found beside a scene only warns when it cannot be used.
         if (!options.holodeck.empty() && std::filesystem::exists(options.holodeck))

@@ -1,6 +1,6 @@
 // Index: window and GL setup · scene · frame loop · input (viewport pointer, keys) · panels
 //        (menu, solver, object and material, scene, popups, status bar) · viewport texture ·
-//        screenshot (the benchmarks it can drive: editor_benches.cpp)
+//        driven input (EditorControls) · screenshot. The Add menu's placement: editor_add.cpp.
 
 #include "ui/editor_app.h"
 
@@ -126,7 +126,6 @@ EditorApp::EditorApp(EditorOptions options) : mOptions(std::move(options)) {
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
 
     if (!mPlay.empty() && mRunner) mRunner->setAutoSolve(false);
-    if (!mOptions.benchDrag.empty()) mBenchFrame = 0;
     setViewMode(mOptions.mode);
     mSettlingOverlay = mOptions.settlingOverlay;
 }
@@ -176,7 +175,7 @@ void EditorApp::openScene(const std::string& path) {
     // Runs that do not wait for the user (a screenshot, a played log, a benchmark) keep no
     // journal and leave an earlier one as it is, unless told to recover it.
     const bool waitsForUser =
-        mOptions.screenshot.empty() && mOptions.play.empty() && mOptions.benchDrag.empty();
+        mOptions.screenshot.empty() && mOptions.play.empty() && !mOptions.driver;
     if (mOptions.journal && mOptions.log.empty() && (waitsForUser || mOptions.recover)) {
         try {
             const std::string journal = recoveryJournalPath(scenePath);
@@ -315,8 +314,8 @@ bool EditorApp::needsFrame() {
     if (ImGui::IsAnyMouseDown()) return true;
     for (bool down : ImGui::GetIO().KeysDown)
         if (down) return true;
-    if (playing() || mBenchPhase == 1 || mBenchPhase == 6 || !mOptions.screenshot.empty() ||
-        mCaptureNow)
+    if (playing() || (mOptions.driver && mOptions.driver->wantsFrames()) ||
+        !mOptions.screenshot.empty() || mCaptureNow)
         return true;
     if (!mRunner) return now - mLastDrawn > kIdleRedrawSeconds;
     if (mRunner->image() != mShown || mRunner->hasMessages()) return true;
@@ -336,10 +335,9 @@ int EditorApp::run() {
             ++mFrame;
             mDrawnLast = false;
             mStats.tick(glfwGetTime());
-            if (mBenchFrame >= 0) stepBenchmark();
-            stepStillBench();
-            if (mBenchPhase == 4) break;
-            if (mOptions.screenshot.empty() && mOptions.benchDrag.empty() && mOptions.frames > 0 &&
+            if (mOptions.driver) mOptions.driver->tick(*this, glfwGetTime());
+            if (mQuit) break;
+            if (mOptions.screenshot.empty() && !mOptions.driver && mOptions.frames > 0 &&
                 mFrame >= mOptions.frames)
                 break;
             glfwWaitEventsTimeout(1.0 / std::max(mOptions.maxFps, 1.0));
@@ -379,14 +377,12 @@ int EditorApp::run() {
                 mCaptureNow = true;
             }
         }
-        if (mBenchPhase == 4) break;
-        if (mOptions.screenshot.empty() && mOptions.benchDrag.empty() && mOptions.frames > 0 &&
+        if (mOptions.screenshot.empty() && !mOptions.driver && mOptions.frames > 0 &&
             mFrame >= mOptions.frames)
             break;
     }
-    if (mStillBench) std::cout << mStillBench->analyse().dump() << std::endl;
-    if (!mOptions.benchDrag.empty() && mBench) printDragBenchReport();
-    return status;
+    if (mOptions.driver) mOptions.driver->finished(*this);
+    return status != 0 ? status : mExitStatus;
 }
 
 bool EditorApp::frame() {
@@ -418,10 +414,9 @@ bool EditorApp::frame() {
             mStatus = m;
             if (!mOptions.quiet) std::cerr << "penumbra-editor: " << m << "\n";
         }
-    if (mBenchFrame >= 0) stepBenchmark();
+    if (mOptions.driver) mOptions.driver->tick(*this, glfwGetTime());
 
     uploadImage();
-    stepStillBench();
     drawMenu();
     drawViewport();
     drawPanels();
@@ -598,82 +593,6 @@ void EditorApp::frameSelection() {
     const double aspect = mViewportH > 0 ? double(mViewportW) / mViewportH : 1.0;
     mView.frame(0.5 * (lo + hi), std::max(0.5 * glm::length(hi - lo), 0.05), aspect);
     mLastInteraction = glfwGetTime();
-}
-
-// ---------------------------------------------------------------------------------------------
-// Add: the library of primitives and meshes (ui/mesh_library.h).
-
-void EditorApp::refreshMeshLibrary() {
-    namespace fs = std::filesystem;
-    std::string source = findSourceDir(fs::current_path().string());
-    if (source.empty() && !mScenePath.empty()) source = findSourceDir(mScenePath);
-    mMeshLibrary = listMeshes(meshLibraryRoots(mScenePath, source));
-}
-
-PlacementTarget EditorApp::addTarget() {
-    Vec3 origin = mView.position(), direction = mView.forward();
-    std::optional<Vec3> hit, right, down;
-    if (mRunner && mViewportW > 0 && mViewportH > 0) {
-        const Camera camera = mView.toCamera();
-        const double cx = 0.5 * mViewportW, cy = 0.5 * mViewportH;
-        const double step = std::max(2.0, 0.01 * mViewportH);
-        const Ray ray = pixelRay(camera, mViewportW, mViewportH, cx, cy);
-        origin = ray.origin, direction = ray.direction;
-        const Pick centre = mRunner->pick(camera, mViewportW, mViewportH, cx, cy);
-        if (centre.hit()) {
-            hit = centre.position;
-            // Neighbours on the same object give the surface's plane.
-            const Pick r = mRunner->pick(camera, mViewportW, mViewportH, cx + step, cy);
-            const Pick d = mRunner->pick(camera, mViewportW, mViewportH, cx, cy + step);
-            if (r.hit() && r.id == centre.id) right = r.position;
-            if (d.hit() && d.id == centre.id) down = d.position;
-        }
-    }
-    return placementTarget(origin, direction, hit, right, down, std::max(mView.distance, 0.5));
-}
-
-std::string EditorApp::addFromLibrary(const LibraryEntry& entry) {
-    if (!mRunner || mDrag.active()) return "";
-    const auto doc = mRunner->document();
-    if (!doc) return "";
-    const std::string material = defaultMaterial(doc->materials);
-    const std::string id = uniqueObjectId(
-        entry.type == ShapeType::Mesh ? entry.path : entry.label, [&](const std::string& name) {
-            // Ids given out but not yet in the document (a queued add) count.
-            return doc->find(name) != nullptr || mIssuedIds.count(name) > 0;
-        });
-    mIssuedIds.insert(id);
-    const PlacementTarget target = addTarget();
-    if (entry.type != ShapeType::Mesh) {
-        if (material.empty()) {
-            mStatus = "the scene has no material for a new object";
-            return "";
-        }
-        SceneObject o;
-        o.id = id;
-        o.shape = makePrimitive(entry.type, kPrimitiveSize);
-        o.material = material;
-        o.transform = placeInBox(shapeBounds(o.shape), kPrimitiveSize, target);
-        submit(AddCommand{o});
-    } else {
-        // Loaded on the solver thread (a large mesh takes a while), named relative to the
-        // scene file as scene files and logs name meshes.
-        const std::string file = entry.path;
-        const std::string relative = sceneRelativePath(file, mScenePath);
-        mRunner->submitMade([id, file, relative, material, target](EditSession&) -> EditCommand {
-            SceneObject o;
-            o.id = id;
-            o.shape.type = ShapeType::Mesh;
-            o.shape.file = relative;
-            o.shape.mesh = loadMeshFile(file);
-            if (o.shape.mesh.triangleMaterial.empty()) o.material = material;
-            o.transform = placeInBox(shapeBounds(o.shape), kMeshSize, target);
-            return AddCommand{std::move(o)};
-        });
-    }
-    mSelection = id;
-    mStatus = "added " + id;
-    return id;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1182,17 +1101,34 @@ void EditorApp::uploadImage() {
     }
     mShown = img;
     ++mStats.imagesShown;
-    if (mBenchPhase == 6) ++mBenchSelectedImages;
-    if (mBench && (mBenchPhase == 1 || mBenchPhase == 2))
-        // Full resolution: the viewport's, or its --display-divisor share.
-        mBench->shown(img, glfwGetTime(), mViewportW / std::max(1, mOptions.displayDivisor),
-                      mViewportH / std::max(1, mOptions.displayDivisor));
-    if (mBenchFrame > 0 && mStats.dragStartFrames < 0 && img->previewVersion >= 0 &&
-        img->previewVersion != mBenchOrigin) {
-        mStats.dragStartFrames = mBenchFrame;
-        mStats.dragStartMs = (glfwGetTime() - mBenchStart) * 1e3;
-    }
     mStats.imageMs.push_back(img->renderMs);
+    if (mOptions.driver) mOptions.driver->shown(*this, img, glfwGetTime());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Driven input (EditorControls): the gizmo's press, positions and release without a pointer.
+
+bool EditorApp::beginDrag() {
+    if (!mRunner || mDrag.active() || mSelection.empty()) return false;
+    const auto doc = mRunner->document();
+    const ObjectSummary* o = doc ? doc->find(mSelection) : nullptr;
+    if (!o) return false;
+    for (const EditCommand& c : mDrag.begin(o->id, o->transform)) submit(c);
+    mLastInteraction = glfwGetTime();
+    return true;
+}
+
+void EditorApp::dragTo(const Transform& to) {
+    if (!mRunner || !mDrag.active()) return;
+    if (auto c = mDrag.update(to)) mRunner->submitCoalescing(*c);
+    mLastInteraction = glfwGetTime();
+}
+
+Transform EditorApp::endDrag() {
+    const Transform final = mDrag.current();
+    if (mDrag.active())
+        for (const EditCommand& c : mDrag.end()) submit(c);
+    return final;
 }
 
 // ---------------------------------------------------------------------------------------------

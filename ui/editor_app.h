@@ -2,12 +2,14 @@
 // The editor window: GLFW + Dear ImGui 1.86 (OpenGL3 backend over the glad loader), a viewport
 // showing the lit scene as a texture, the gizmo, panels (solver, object and material,
 // cameras, scene), menus (open, save, export, undo/redo), a status bar; `--play` replays an
-// edit log live and `--screenshot` saves the window after `--frames` frames.
+// edit log live, `--screenshot` saves the window after `--frames` frames, and a driver
+// (ui/editor_driver.h: an input script, a benchmark) plays input from outside.
 //
 // The window reads the document and lighting only through SessionRunner's snapshots and
 // changes them only by submitting edit commands (docs/style.md: the UI emits commands and keeps
 // no copy of the model).
 
+#include <algorithm>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -19,14 +21,13 @@
 
 #include "edit/edit_log.h"
 #include "edit/io/scene_import.h"
-#include "ui/drag_bench.h"
 #include "ui/drag_controller.h"
+#include "ui/editor_driver.h"
 #include "ui/file_dialog.h"
 #include "ui/gizmo.h"
 #include "ui/mesh_library.h"
 #include "ui/recovery.h"
 #include "ui/session_runner.h"
-#include "ui/still_bench.h"
 #include "ui/view_camera.h"
 
 struct GLFWwindow;
@@ -46,14 +47,10 @@ struct EditorOptions {
     /// The cap under a software GL (Mesa's llvmpipe, as under Xvfb): there the window's own
     /// drawing runs on the CPU cores the display and the solver need.
     double softwareGlMaxFps = 40;
-    std::string benchDrag;  ///< object id: drag it in a circle for `frames` frames, print timings
-    /// --bench-drag: write every image shown (and the references) with its edit line here.
-    std::string record;
-    /// --bench-drag: reference renders of a few images' states (seconds each); off: none.
-    bool benchReferences = true;
-    /// Seconds: keep the camera and the scene still, then compare what the viewport showed at
-    /// 1, 2, 5, 10 … s with a reference render and with Gouraud (ui/still_bench.h); 0: none.
-    double benchStill = 0;
+    /// Plays input from outside the editor (ui/editor_driver.h): an input script (--script),
+    /// a benchmark (--bench-drag, --bench-still). A driven editor keeps no recovery journal,
+    /// never asks about one, and runs until its driver quits or the window closes.
+    std::shared_ptr<EditorDriver> driver;
     bool quiet = false;
     /// The viewport's initial display mode (View ▸ Mode). Edge-and-point by default; the
     /// viewport shows Gouraud until the display has been built (seconds in large scenes).
@@ -65,7 +62,7 @@ struct EditorOptions {
     /// or a drag is benchmarked.
     bool journal = true;
     /// Unsaved edits an earlier editor run left: replayed at once (--recover) instead of asked
-    /// about. Runs that do not wait for the user (--screenshot, --play, --bench-drag) never ask.
+    /// about. Runs that do not wait for the user (--screenshot, --play, a driver) never ask.
     bool recover = false;
     /// The holodeck (docs/holodeck.md) the display modes start a view from and store their
     /// converged points in: `holodeck` for the scene named in `scene` (created when missing);
@@ -109,41 +106,55 @@ struct FrameStats {
     }
     double seconds() const { return firstTick < 0 ? 0.0 : lastTick - firstTick; }
     std::vector<double> imageMs;  ///< per uploaded image: its render time on the render thread
-    /// Drag benchmark: frames and ms from the select to the first image that shows the object
-    /// moved (a preview version other than the selected one), -1 if none came.
-    int dragStartFrames = -1;
-    double dragStartMs = -1;
 };
 
-class EditorApp {
+class EditorApp : public EditorControls {
 public:
     /// Opens the window and the scene (InputError for a bad scene or log; DisplayError when no
     /// window can be opened).
     explicit EditorApp(EditorOptions options);
-    ~EditorApp();
+    ~EditorApp() override;
     EditorApp(const EditorApp&) = delete;
     EditorApp& operator=(const EditorApp&) = delete;
 
-    /// Runs frames until the window closes, the screenshot is written or the benchmark ends.
-    /// Returns the exit status (0; 1 when the screenshot could not be written).
+    /// Runs frames until the window closes, the screenshot is written or the driver quits.
+    /// Returns the exit status (0; 1 when the screenshot could not be written; the driver's).
     int run();
     /// One frame. False when the editor should stop.
     bool frame();
     /// Whether run() draws a frame now, or only ticks (events, the drag benchmark): true for
     /// half a second after any input event and while a button or key is held, a drag or camera
-    /// move is on, a log replays, a screenshot is due, a new viewport image or message waits;
+    /// move is on, a log replays, the driver plays input, a screenshot is due, a new viewport
+    /// image or message waits;
     /// otherwise only to refresh the status bar (every 0.25 s while the light changes, every
     /// second when idle). An unchanged window is not redrawn: under a software rasterizer the
     /// swap alone costs about a core at the frame cap, which the solver and display need.
     bool needsFrame();
 
-    // For tests and benchmarks.
-    SessionRunner* runner() { return mRunner.get(); }
+    // EditorControls: what a driver (and a test) does as a user would.
+    SessionRunner* runner() override { return mRunner.get(); }
+    void select(const std::string& id) override { mSelection = id; }
+    bool beginDrag() override;
+    Transform dragStart() const override { return mDrag.start(); }
+    void dragTo(const Transform& to) override;
+    Transform endDrag() override;
+    std::shared_ptr<const ViewportImage> shownImage() const override { return mShown; }
+    const FrameStats& frameStats() const override { return mStats; }
+    void resetFrameStats() override { mStats = FrameStats{}; }
+    int viewportWidth() const override { return mViewportW; }
+    int viewportHeight() const override { return mViewportH; }
+    int displayDivisor() const override { return std::max(1, mOptions.displayDivisor); }
+    ViewMode viewMode() const override { return mMode; }
+    const std::string& scenePath() const override { return mScenePath; }
+    void quit(int status) override {
+        mQuit = true;
+        mExitStatus = status;
+    }
+
+    // For tests.
     void queuePointer(const PointerInput& input) { mScripted.push_back(input); }
     std::size_t pendingPointer() const { return mScripted.size(); }
     const ViewCamera& viewCamera() const { return mView; }
-    int viewportWidth() const { return mViewportW; }
-    int viewportHeight() const { return mViewportH; }
     const std::string& selection() const { return mSelection; }
     /// The gizmo as drawn for the selection now (none without a selection).
     std::optional<Gizmo> gizmo() const;
@@ -158,16 +169,7 @@ public:
     /// File ▸ Save (Ctrl+S) when `path` is the scene's, Save as otherwise: written by the
     /// solver thread in order with the edits; the recovery journal then starts again.
     void saveScene(const std::string& path);
-    const FrameStats& frameStats() const { return mStats; }
-    /// --bench-drag: the images seen so far (nullptr before the select), and whether the
-    /// benchmark has its settled image (run() then prints DragBench::analyse()).
-    DragBench* dragBench() { return mBench.get(); }
-    bool dragBenchDone() const { return mBenchPhase == 4; }
-    /// --bench-still: the bench (nullptr before the first frame or without it), and whether its
-    /// time is over.
-    StillBench* stillBench() { return mStillBench.get(); }
-    bool stillBenchDone() const { return mStillDone; }
-    ViewMode viewMode() const { return mMode; }
+
     /// Switches the viewport's display mode (View ▸ Mode); difference mode asks for a reference.
     void setViewMode(ViewMode mode);
     /// Writes the window's back buffer as PNG (call after the frame was drawn).
@@ -215,9 +217,6 @@ private:
     void uploadImage();
     void submit(const EditCommand& c);
     void frameSelection();
-    void stepBenchmark();
-    /// --bench-drag: the frame figures and DragBench::analyse() as one JSON line on stdout.
-    void printDragBenchReport();
 
     EditorOptions mOptions;
     GLFWwindow* mWindow = nullptr;
@@ -266,6 +265,7 @@ private:
     std::set<std::string> mIssuedIds;  ///< ids addFromLibrary gave out
     std::string mStatus;
     bool mQuit = false;
+    int mExitStatus = 0;  ///< quit()'s
 
     // Frames: drawn on demand (needsFrame), the loop ticking at maxFps.
     static void wake(GLFWwindow* window);         ///< GLFW input callbacks: counts the event
@@ -286,23 +286,6 @@ private:
     int mFrame = 0;
     bool mCaptureNow = false;
     double mCaptureWaitStart = -1;
-    int mBenchFrame = -1;
-    /// --bench-drag: 0 waits for the scene to settle, 6 has selected the object and waits for
-    /// images showing it selected (as a user clicks, sees the outline, then drags), 1 drags,
-    /// 2 the window after the drop, 3 waits for the settled image, 5 a second one, 4 done.
-    int mBenchPhase = 0;
-    int mBenchSelectedImages = 0;  ///< images shown since the select (phase 6)
-    double mBenchSettleStart = 0;
-    std::unique_ptr<DragBench> mBench;
-    FrameStats mBenchWindowStats;  ///< frame figures from the select to the window's end
-    int mBenchOrigin = -1;         ///< the dragged object's version at the select
-    double mBenchStart = 0;        ///< glfwGetTime() at the select
-    /// --bench-still: the bench, and glfwGetTime() when the frame loop started.
-    std::unique_ptr<StillBench> mStillBench;
-    double mStillStart = 0;
-    bool mStillDone = false;
-    /// --bench-still: hands the shown image to the bench; quits when its time is over.
-    void stepStillBench();
 };
 
 }  // namespace penumbra

@@ -1,141 +1,117 @@
-// The benchmarks the editor drives through its own frame loop: --bench-drag (ui/drag_bench.h)
-// and --bench-still (ui/still_bench.h). EditorApp's members; the measuring itself is in those
-// classes.
-//
-// Index: still view · drag (stepping, report)
-
-#include <GLFW/glfw3.h>
+#include "ui/editor_benches.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
-#include <nlohmann/json.hpp>
+#include <sstream>
 #include <vector>
 
-#include "ui/drag_bench.h"
-#include "ui/editor_app.h"
-#include "ui/still_bench.h"
+#include "ui/session_runner.h"
 
 namespace penumbra {
 
 // ---------------------------------------------------------------------------------------------
-// Still view
+// Drag: the object circles 0.3 m about where it starts, one gizmo position a tick.
 
-void EditorApp::stepStillBench() {
-    if (mOptions.benchStill <= 0 || mStillDone) return;
-    const double now = glfwGetTime();
-    if (!mStillBench) {
-        StillBenchOptions still;
-        // The file as opened (an imported scene's Penumbra path exists only once saved).
-        still.scene = mOptions.scene;
-        still.import = mOptions.import;
-        still.seconds = mOptions.benchStill;
-        still.recordDir = mOptions.record;
-        mStillBench = std::make_unique<StillBench>(still);
-        mStillStart = now;
-    }
-    if (!mStillBench->begun()) {
-        // From the moment the lighting settled (at most 120 s after the start), as a user
-        // who waits for the scene to light up and then looks.
-        const bool settled = mRunner && mRunner->quiescent();
-        if (!settled && now - mStillStart < 120) return;
-        if (!settled) std::cerr << "penumbra-editor: --bench-still: not settled after 120 s\n";
-        if (!mOptions.quiet)
-            std::cerr << "penumbra-editor: --bench-still: settled after " << now - mStillStart
-                      << " s\n";
-        mStillBench->begin(now);
-    }
-    mStillBench->shown(mShown, now);
-    if (mStillBench->done(now)) {
-        mStillDone = true;
-        mQuit = true;
-    }
+namespace {
+
+/// The gizmo's offset from where the drag began at position k (120 positions a circle).
+Vec3 circleOffset(int k) {
+    const double a = 2.0 * M_PI * k / 120.0;
+    return {0.3 * std::sin(a), 0.0, 0.3 * (1.0 - std::cos(a))};
 }
 
-// ---------------------------------------------------------------------------------------------
-// Drag benchmark: the object circles about where it starts, one position per frame, through
-// the same path as a gizmo drag (select, coalesced transforms, unselect).
+}  // namespace
 
-void EditorApp::stepBenchmark() {
-    if (!mRunner) return;
-    const double now = glfwGetTime();
-    const auto doc = mRunner->document();
-    const ObjectSummary* o = doc ? doc->find(mOptions.benchDrag) : nullptr;
-    if (mBenchPhase == 0) {
-        // Start once the scene is lit (at most 120 s), as a user would.
-        if (o && !mRunner->quiescent() && now < 120) return;
-        if (!o) {
-            std::cerr << "penumbra-editor: --bench-drag: unknown object '" << mOptions.benchDrag
-                      << "'\n";
-            mQuit = true;
-            return;
-        }
-        mSelection = o->id;
-        mBenchSelectedImages = 0;
-        mBenchSettleStart = now;
-        mBenchPhase = 6;
-        return;
+std::string DragBenchDriver::script(const std::string& object, int frames) {
+    std::ostringstream s;
+    s.precision(17);
+    // Once the scene is lit, as a user would; select, and wait for the outline (the view
+    // request naming the selection reaches the render thread with the first image at the
+    // latest) before pressing the gizmo.
+    s << "wait-lit 120\nselect " << object << "\nwait-images 2 10\nmark drag\ndrag\n";
+    for (int k = 1; k <= frames; ++k) {
+        const Vec3 d = circleOffset(k);
+        s << "move " << d.x << ' ' << d.y << ' ' << d.z << '\n';
     }
-    if (mBenchPhase == 6) {
-        // The second image after the select has the outline (the view request naming the
-        // selection reaches the render thread with the first at the latest).
-        if (!o || (mBenchSelectedImages < 2 && now - mBenchSettleStart < 10)) return;
-        for (const EditCommand& c : mDrag.begin(o->id, o->transform)) submit(c);
-        mStats = FrameStats{};
-        mBenchOrigin = o->version;
-        mBenchStart = now;
+    // The window after the drop, then the settled image (lighting converged, the display's
+    // cache full) and the same state a second later (the display's noise floor).
+    s << "drop\nmark dropped\nwait 2\nmark window-end\nwait-settled 60\nmark settled\nwait 1\n"
+         "mark settled-again\nquit\n";
+    return s.str();
+}
+
+DragBenchDriver::DragBenchDriver(DragBenchDriverOptions options)
+    : mOptions(std::move(options)),
+      mScript(InputScript::parse(script(mOptions.object, mOptions.frames), "--bench-drag")) {
+    mScript.onMark = [this](const std::string& name, double now) {
+        if (mEditor) mark(*mEditor, name, now);
+    };
+}
+
+void DragBenchDriver::tick(EditorControls& editor, double now) {
+    mEditor = &editor;
+    mScript.tick(editor, now);
+    mEditor = nullptr;
+}
+
+void DragBenchDriver::mark(EditorControls& editor, const std::string& name, double now) {
+    SessionRunner* runner = editor.runner();
+    const auto doc = runner ? runner->document() : nullptr;
+    const ObjectSummary* o = doc ? doc->find(mOptions.object) : nullptr;
+    if (name == "drag" && o) {
+        editor.resetFrameStats();
+        mOrigin = o->version;
+        mStart = now;
         DragBenchOptions bench;
-        bench.scene = mScenePath;
+        bench.scene = editor.scenePath();
         bench.object = o->id;
-        bench.recordDir = mOptions.record;
-        if (!mOptions.benchReferences) bench.dragReferences = 0, bench.scene.clear();
+        bench.recordDir = mOptions.recordDir;
+        if (!mOptions.references) bench.dragReferences = 0, bench.scene.clear();
         mBench = std::make_unique<DragBench>(bench);
         mBench->started(now, o->transform);
-        mBenchPhase = 1;
-    }
-    if (mBenchPhase == 1) {
-        ++mBenchFrame;
-        Transform t = mDrag.start();
-        const double a = 2.0 * M_PI * mBenchFrame / 120.0;
-        t.translate += Vec3(0.3 * std::sin(a), 0.0, 0.3 * (1.0 - std::cos(a)));
-        if (auto c = mDrag.update(t)) mRunner->submitCoalescing(*c);
-        mLastInteraction = now;
-        if (mBenchFrame >= mOptions.frames) {
-            const Transform final = mDrag.current();
-            for (const EditCommand& c : mDrag.end()) submit(c);
-            mBench->dropped(now, final);
-            mBenchPhase = 2;
-        }
-    } else if (mBenchPhase == 2) {
-        if (mBench->afterDropDone(now)) {
-            mBench->windowDone();
-            mBenchWindowStats = mStats;
-            mBenchSettleStart = now;
-            mBenchPhase = 3;
-        }
-    } else if (mBenchPhase == 3) {
-        // The settled image: lighting converged and the display's cache full (at most 60 s).
-        const bool settled = mRunner->quiescent() && mShown && mShown == mRunner->image();
-        if (settled || now - mBenchSettleStart > 60) {
-            if (!settled) std::cerr << "penumbra-editor: --bench-drag: not settled after 60 s\n";
-            mBench->settled(mShown);
-            mBenchSettleStart = now;
-            mBenchPhase = 5;
-        }
-    } else if (mBenchPhase == 5) {
-        // One second later, the same state again: the display's noise floor.
-        if (now - mBenchSettleStart > 1.0 && mShown) {
-            mBench->settledAgain(mShown);
-            mBenchPhase = 4;
-        }
+        mPhase = Phase::Dragging;
+    } else if (!mBench) {
+        return;
+    } else if (name == "dropped") {
+        Transform final = editor.dragStart();
+        final.translate += circleOffset(mOptions.frames);
+        mBench->dropped(now, final);
+        mPhase = Phase::AfterDrop;
+    } else if (name == "window-end") {
+        mBench->windowDone();
+        mWindow = editor.frameStats();
+        mWindowDone = true;
+        mPhase = Phase::Settling;
+    } else if (name == "settled") {
+        // (wait-settled warned when it gave up: the image shown then stands in.)
+        mBench->settled(editor.shownImage());
+    } else if (name == "settled-again") {
+        if (editor.shownImage()) mBench->settledAgain(editor.shownImage());
+        mPhase = Phase::Done;
     }
 }
 
-void EditorApp::printDragBenchReport() {
-    // Frame-time figures from the select to the end of the window after the drop, then
-    // what the images showed.
-    const FrameStats& stats = mBenchPhase >= 3 ? mBenchWindowStats : mStats;
+void DragBenchDriver::shown(EditorControls& editor,
+                            const std::shared_ptr<const ViewportImage>& image, double now) {
+    mScript.shown(editor, image, now);
+    if (mBench && (mPhase == Phase::Dragging || mPhase == Phase::AfterDrop)) {
+        // Full resolution: the viewport's, or its --display-divisor share.
+        const int d = std::max(1, editor.displayDivisor());
+        mBench->shown(image, now, editor.viewportWidth() / d, editor.viewportHeight() / d);
+    }
+    if (mPhase == Phase::Dragging && mDragStartFrames < 0 && image->previewVersion >= 0 &&
+        image->previewVersion != mOrigin) {
+        mDragStartFrames = mScript.moves();
+        mDragStartMs = (now - mStart) * 1e3;
+    }
+}
+
+nlohmann::json DragBenchDriver::report(EditorControls& editor) {
+    // Frame-time figures from the drag to the end of the window after the drop, then what
+    // the images showed.
+    const FrameStats& stats = mWindowDone ? mWindow : editor.frameStats();
     std::vector<double> w = stats.workMs, p = stats.periodMs, im = stats.imageMs;
     std::sort(im.begin(), im.end());
     std::sort(w.begin(), w.end());
@@ -155,15 +131,57 @@ void EditorApp::printDragBenchReport() {
         {"viewport_images", stats.imagesShown},
         {"viewport_images_per_s", stats.seconds() > 0 ? stats.imagesShown / stats.seconds() : 0.0},
         {"frames_drawn_share", stats.ticks > 0 ? double(w.size()) / stats.ticks : 0.0},
-        {"mode", toString(mMode)},
-        {"viewport", {mViewportW, mViewportH}},
+        {"mode", toString(editor.viewMode())},
+        {"viewport", {editor.viewportWidth(), editor.viewportHeight()}},
         {"image_ms_median", at(im, 0.5)},
         {"image_ms_p95", at(im, 0.95)},
-        {"drag_start_frames", stats.dragStartFrames},
-        {"drag_start_ms", stats.dragStartMs}};
-    report.update(mBench->analyse());
-    std::printf("%s\n", report.dump().c_str());
+        {"drag_start_frames", mDragStartFrames},
+        {"drag_start_ms", mDragStartMs}};
+    if (mBench) report.update(mBench->analyse());
+    return report;
+}
+
+void DragBenchDriver::finished(EditorControls& editor) {
+    if (!mBench) return;
+    std::printf("%s\n", report(editor).dump().c_str());
     std::fflush(stdout);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Still view
+
+StillBenchDriver::StillBenchDriver(std::string scene, ImportOptions import, double seconds,
+                                   std::string recordDir, bool quiet)
+    : mQuiet(quiet),
+      // From the moment the lighting settled, as a user who waits for the scene to light up
+      // and then looks.
+      mScript(InputScript::parse("wait-lit 120\nmark begin\n", "--bench-still")) {
+    mOptions.scene = std::move(scene);
+    mOptions.import = std::move(import);
+    mOptions.seconds = seconds;
+    mOptions.recordDir = std::move(recordDir);
+    mBench = std::make_unique<StillBench>(mOptions);
+    mScript.onMark = [this](const std::string&, double now) {
+        if (!mQuiet)
+            std::cerr << "penumbra-editor: --bench-still: settled after " << now - mStart << " s\n";
+        mBench->begin(now);
+    };
+}
+
+void StillBenchDriver::tick(EditorControls& editor, double now) {
+    if (mDone) return;
+    if (mStart < 0) mStart = now;
+    mScript.tick(editor, now);
+    if (!mBench->begun()) return;
+    mBench->shown(editor.shownImage(), now);
+    if (mBench->done(now)) {
+        mDone = true;
+        editor.quit(0);
+    }
+}
+
+void StillBenchDriver::finished(EditorControls&) {
+    std::cout << mBench->analyse().dump() << std::endl;
 }
 
 }  // namespace penumbra

@@ -16,6 +16,7 @@
 #include "editor_test_support.h"
 #include "ui/drag_bench.h"
 #include "ui/editor_app.h"
+#include "ui/editor_benches.h"
 #include "ui/session_runner.h"
 #include "ui/still_bench.h"
 #include "ui/view_mode.h"
@@ -42,14 +43,17 @@ nlohmann::json dragAndCheck(const std::string& scene, const std::string& object,
     options.scene = kSource + "/scenes/" + scene;
     options.quiet = true;
     options.displayDivisor = 2;  // keeps the test short under sanitizers
-    options.benchDrag = object;
-    options.frames = frames;
-    options.benchReferences = kReferences;
+    DragBenchDriverOptions dragOptions;
+    dragOptions.object = object;
+    dragOptions.frames = frames;
+    dragOptions.references = kReferences;
+    const auto driver = std::make_shared<DragBenchDriver>(dragOptions);
+    options.driver = driver;
     EditorApp app(options);
     EXPECT_TRUE(test::runUntil(
-        app, [&] { return app.dragBenchDone(); }, 240, 40))
+        app, [&] { return driver->done(); }, 240, 40))
         << "the drag did not settle";
-    DragBench* bench = app.dragBench();
+    DragBench* bench = driver->bench();
     if (!bench) return {};
     const nlohmann::json report = bench->analyse();
     std::size_t drag = 0;
@@ -108,8 +112,11 @@ TEST(EditorDragDisplay, DefaultViewIsEdgeAndPointAndADragShowsTheMoveWithinFewFr
     options.scene = kSource + "/scenes/cube-room.json";
     options.quiet = true;
     options.displayDivisor = 2;
-    options.benchDrag = "table-top";
-    options.frames = 1 << 20;  // the drag lasts until the test ends
+    DragBenchDriverOptions drag;
+    drag.object = "table-top";
+    drag.frames = 20000;  // the drag lasts until the test ends
+    const auto driver = std::make_shared<DragBenchDriver>(drag);
+    options.driver = driver;
     EditorApp app(options);
     SessionRunner& runner = *app.runner();
 
@@ -126,12 +133,12 @@ TEST(EditorDragDisplay, DefaultViewIsEdgeAndPointAndADragShowsTheMoveWithinFewFr
     EXPECT_NE(first->note.find("loading"), std::string::npos) << first->note;
 
     const bool moved = test::runUntil(
-        app, [&] { return app.frameStats().dragStartFrames >= 0; }, 240);
+        app, [&] { return driver->dragStartFrames() >= 0; }, 240);
     ASSERT_TRUE(moved) << "no image of the moved table";
     const FrameStats& stats = app.frameStats();
-    std::printf("drag start: %d frames, %.0f ms; %d images in %d frames\n", stats.dragStartFrames,
-                stats.dragStartMs, stats.imagesShown, stats.frames);
-    EXPECT_GT(stats.dragStartFrames, 0);
+    std::printf("drag start: %d frames, %.0f ms; %d images in %d frames\n",
+                driver->dragStartFrames(), driver->dragStartMs(), stats.imagesShown, stats.frames);
+    EXPECT_GT(driver->dragStartFrames(), 0);
     ASSERT_NE(runner.image(), nullptr);
     EXPECT_EQ(runner.image()->mode, ViewMode::EdgeAndPoint);
     EXPECT_GE(runner.image()->previewVersion, 0);
@@ -195,13 +202,14 @@ TEST(EditorStillView, TheViewportAtRestIsComparedWithAReferenceAndGouraud) {
     options.scene = kSource + "/scenes/cube-room.json";
     options.quiet = true;
     options.journal = false;
-    options.benchStill = 2;
+    const auto driver =
+        std::make_shared<StillBenchDriver>(options.scene, ImportOptions{}, 2.0, "", true);
+    options.driver = driver;
     EditorApp app(options);
     ASSERT_TRUE(test::runUntil(
-        app, [&] { return app.stillBenchDone(); }, 240, 40))
+        app, [&] { return driver->done(); }, 240, 40))
         << "the lighting did not settle";
-    ASSERT_NE(app.stillBench(), nullptr);
-    const nlohmann::json report = app.stillBench()->analyse();
+    const nlohmann::json report = driver->bench()->analyse();
     ASSERT_TRUE(report.contains("checkpoints")) << report.dump();
     const double gouraud = report["gouraud_error"].get<double>();
     EXPECT_GT(gouraud, 0.0);
