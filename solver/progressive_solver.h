@@ -298,9 +298,15 @@ private:
     ChangeEntry makeChangeEntry(const SceneChange& change) const;
     /// Builds entry's before and after worlds as instance scenes (no history filter).
     void buildWorldScenes(ChangeEntry& entry) const;
-    /// Irradiance each element receives when shooter j of entry c redistributes.
-    void redistributionDelta(const ChangeEntry& c, int j, bool preview,
-                             std::vector<Rgb>& delta) const;
+    /// Irradiance each element receives when shooter j of entry c redistributes: every
+    /// receiver it still owes, or with `addedOnly` only the added objects' elements (an
+    /// emitter's light on them, ahead of its shadows: dueAddedFirst).
+    void redistributionDelta(const ChangeEntry& c, int j, bool preview, std::vector<Rgb>& delta,
+                             bool addedOnly = false) const;
+    /// The emitters of entry c whose light on the added objects goes next, ahead of every full
+    /// shot (ChangeEntry::addedFirst): those still pending, due a deterministic shot and not
+    /// yet sent to them, most important first.
+    std::vector<int> dueAddedFirst(const ChangeEntry& c) const;
     /// Whether entry c's world after the edit is the current scene (no later edit, no
     /// preview): its queries can skip the history filter.
     bool afterIsCurrentScene(const ChangeEntry& c, bool preview) const;

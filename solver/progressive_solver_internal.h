@@ -321,6 +321,22 @@ struct ChangeEntry {
     bool isGathered(int j) const {
         return j >= 0 && static_cast<std::size_t>(j) < gathered.size() && gathered[j];
     }
+    /// The most important pending emitters (at most kAddedFirst) of an edit that adds objects,
+    /// most important first. Their light on the added objects' elements goes ahead of every
+    /// full shot, in the gather's step or a shot of its own (the added elements change most,
+    /// and that part costs only their receivers); the rest of each one's shot, its shadows,
+    /// keeps its place in `pending`.
+    std::vector<int> addedFirst;
+    static constexpr std::size_t kAddedFirst = 8;
+    /// Per patch: its light on the added objects' elements was sent ahead (addedFirst); the
+    /// rest of its shot skips those receivers. Empty until the first such shot.
+    std::vector<std::uint8_t> addedShot;
+    /// Whether shooter j has already sent the added objects' elements what it owes them, by
+    /// the gather or a shot ahead: its later shots and batches skip them.
+    bool reachedAdded(int j) const {
+        return isGathered(j) ||
+               (j >= 0 && static_cast<std::size_t>(j) < addedShot.size() && addedShot[j]);
+    }
     /// A coarse gather's second pass, pending (SolverOptions::gatherCoarseBlock).
     struct GatherRefinement {
         std::vector<int> receivers;      ///< the added objects' elements, ascending

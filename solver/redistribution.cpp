@@ -169,7 +169,15 @@ ChangeEntry ProgressiveSolver::makeChangeEntry(const SceneChange& change) const 
         if (!(importance[j] > 0)) continue;
         entry.pending.update(static_cast<int>(j), importance[j]);
         entry.totalPending += importance[j];
+        // An addition's emitters light the added objects first (dueAddedFirst).
+        if (!entry.added.empty() && !changed[patches[j].object] &&
+            mDisc.patchMaterial(static_cast<int>(j)).isEmitter())
+            entry.addedFirst.push_back(static_cast<int>(j));
     }
+    std::stable_sort(entry.addedFirst.begin(), entry.addedFirst.end(),
+                     [&](int a, int b) { return importance[a] > importance[b]; });
+    if (entry.addedFirst.size() > ChangeEntry::kAddedFirst)
+        entry.addedFirst.resize(ChangeEntry::kAddedFirst);
     return entry;
 }
 
@@ -316,8 +324,20 @@ bool ProgressiveSolver::afterIsCurrentScene(const ChangeEntry& c, bool preview) 
     return true;
 }
 
+std::vector<int> ProgressiveSolver::dueAddedFirst(const ChangeEntry& c) const {
+    std::vector<int> due;
+    for (int j : c.addedFirst) {
+        const double key = c.pending.key(j);
+        // Not shot in full already, nor weak enough for the stochastic tail's rays.
+        if (key > 0 && !c.reachedAdded(j) &&
+            !(mOptions.stochasticBelow > 0 && key < mOptions.stochasticBelow * mEmittedEnergy))
+            due.push_back(j);
+    }
+    return due;
+}
+
 void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool preview,
-                                            std::vector<Rgb>& delta) const {
+                                            std::vector<Rgb>& delta, bool addedOnly) const {
     const Rgb shot = c.shot[j];
     const Patch& P = mDisc.patches()[j];
     const bool shooterRemoved =
@@ -338,7 +358,7 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
                                    : c.added.empty() ? ChangedObjectsIn::Before
                                                      : ChangedObjectsIn::Either;
     const double margin = 4 * mTracer.epsilon();
-    const bool gathered = c.isGathered(j);
+    const bool reachedAdded = c.reachedAdded(j);
 
     // Haines–Wallace style shaft: which changed objects (bits of `mask`, those past the 64th
     // sharing the last) can meet a segment from a receiver within the ball (x, a) to the
@@ -405,13 +425,14 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
         const int root = o < bounds.roots.size() ? bounds.roots[o] : -1;
         if (root < 0) continue;
         const bool receiverAdded = !c.before[o];
+        if (addedOnly && (shooterRemoved || !receiverAdded)) continue;
         if (shooterRemoved || receiverAdded) {
             // Cancel what a removed patch shot: −F(t−1) (George et al.: "energy that was
-            // distributed by patches on the dynamic object is canceled"). A gathered
-            // shooter's light on added receivers came with gatherToAdded.
-            // Every element receives: the object's tree in pieces of a few patches, so one
-            // large object (robot-room's head is 1,456 elements) is not one thread's work.
-            if (shooterRemoved ? receiverAdded : gathered) continue;
+            // distributed by patches on the dynamic object is canceled"). A shooter's light
+            // on added receivers that came with gatherToAdded, or in a shot ahead, is not sent
+            // again. Every element receives: the object's tree in pieces of a few patches, so
+            // one large object (robot-room's head is 1,456 elements) is not one thread's work.
+            if (shooterRemoved ? receiverAdded : reachedAdded) continue;
             stack.assign(1, {root, 0});
             while (!stack.empty()) {
                 const int index = stack.back().first;
@@ -647,7 +668,7 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
     // Emitters keep their shots: a gather would see a small bright light with few rays.
     double gatheredImportance = 0;
     for (std::size_t j = 0; j < np; ++j)
-        if (c.pending.key(static_cast<int>(j)) > 0 &&
+        if (c.pending.key(static_cast<int>(j)) > 0 && !c.reachedAdded(static_cast<int>(j)) &&
             !mDisc.patchMaterial(static_cast<int>(j)).isEmitter()) {
             c.gathered[j] = 1;
             gatheredImportance += c.pending.key(static_cast<int>(j));
@@ -782,26 +803,43 @@ bool ProgressiveSolver::shootRedistribution() {
     }
     const unsigned long long raysBefore = mTracer.rayCount();
     auto& delta = mImpl->delta;
-    Rgb share(0.0);  // gathered shooters are not emitters: no emission share
+    // What delta holds, with its emission share.
+    auto receiveDelta = [&](const Rgb& share) {
+        for (std::size_t e = 0; e < delta.size(); ++e)
+            if (!isZero(delta[e])) {
+                receive(static_cast<int>(e), delta[e], share);
+                touchElement(static_cast<int>(e));
+            }
+    };
+    // The emitters' light on the added objects goes ahead of every full shot: with the
+    // gather, so the added objects have all their light after one step, or in a shot of its
+    // own.
+    const std::vector<int> addedFirst = refine ? std::vector<int>{} : dueAddedFirst(c);
     if (gather) {
         // The added objects' elements gather what the weak shooters would send them: far
-        // less noise than the same rays shot, and the edit's most changed elements.
+        // less noise than the same rays shot, and the edit's most changed elements. Gathered
+        // shooters are not emitters: no emission share.
         gatherToAdded(c, false, delta);
+        receiveDelta(Rgb(0.0));
     } else if (refine) {
         // The coarse gather's other strata: the added objects' light to its full precision.
         refineGather(c, false, delta);
-    } else {
+        receiveDelta(Rgb(0.0));
+    } else if (addedFirst.empty()) {
         const int j = c.pending.top();
         c.totalPending -= c.pending.key(j);
         c.pending.update(j, 0.0);
         redistributionDelta(c, j, false, delta);
-        share = c.shotEmissionShare[j];
+        receiveDelta(c.shotEmissionShare[j]);
     }
-    for (std::size_t e = 0; e < delta.size(); ++e)
-        if (!isZero(delta[e])) {
-            receive(static_cast<int>(e), delta[e], share);
-            touchElement(static_cast<int>(e));
-        }
+    // Each emitter's shot to the added objects alone; the rest of it, its shadows, keeps its
+    // place in the heap.
+    if (!addedFirst.empty()) c.addedShot.resize(c.shot.size(), 0);
+    for (int j : addedFirst) {
+        redistributionDelta(c, j, false, delta, true);
+        c.addedShot[j] = 1;
+        receiveDelta(c.shotEmissionShare[j]);
+    }
     updateTouchedPriorities();
 
     if (c.bestPending() <= 0) mImpl->changes.erase(mImpl->changes.begin() + k);
@@ -990,7 +1028,7 @@ void ProgressiveSolver::shootRedistributionBatch(int k) {
                 out[2 * r] = {eb, el.patch, el.area, -carried / el.area, j};
             }
             if (ea >= 0 && receives(ea) &&
-                !(c.isGathered(j) && !c.before[mDisc.elements()[ea].object])) {
+                !(c.reachedAdded(j) && !c.before[mDisc.elements()[ea].object])) {
                 const Element& el = mDisc.elements()[ea];
                 out[2 * r + 1] = {ea, el.patch, el.area, carried / el.area, j};
             }

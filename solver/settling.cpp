@@ -96,7 +96,8 @@ struct PendingEdit {
     /// pending shooters on average over its orientations: what the objects block or, added,
     /// receive from them.
     Rgb restFacing{0.0};
-    /// The same, from the pending shooters that have not gathered to the added objects.
+    /// The same, from the pending shooters that have not yet reached the added objects (by
+    /// the gather or a shot ahead: ChangeEntry::reachedAdded).
     Rgb restFacingUngathered{0.0};
     /// Per channel, how much the radiosity a receiver sees in the changed objects' direction
     /// may change: the larger of the light they block and their own radiosity once lit, plus
@@ -150,7 +151,7 @@ PendingEdit describePending(const ChangeEntry& c, const Discretization& disc) {
     for (const auto& [key, j] : ranked) {
         if (isTop[j]) continue;
         p.restFacing += facingOf[j];
-        if (!c.isGathered(j)) p.restFacingUngathered += facingOf[j];
+        if (!c.reachedAdded(j)) p.restFacingUngathered += facingOf[j];
     }
     // In the changed objects' direction a receiver sees, instead of the light they block
     // (about restFacing), their own radiosity (ρ times their mean irradiance): the change is
@@ -280,7 +281,7 @@ SettlingEstimate ProgressiveSolver::computeSettling() const {
                     // A receiver the edit added: all it gets from the pending shooters.
                     h += p.restFacingUngathered;
                     for (int j : p.top)
-                        if (!c.isGathered(j))
+                        if (!c.reachedAdded(j))
                             h += absRgb(c.shot[j]) * pointFormFactor(x, n, patches[j]);
                     continue;
                 }
