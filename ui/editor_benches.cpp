@@ -45,16 +45,12 @@ std::string DragBenchDriver::script(const std::string& object, int frames) {
 DragBenchDriver::DragBenchDriver(DragBenchDriverOptions options)
     : mOptions(std::move(options)),
       mScript(InputScript::parse(script(mOptions.object, mOptions.frames), "--bench-drag")) {
-    mScript.onMark = [this](const std::string& name, double now) {
-        if (mEditor) mark(*mEditor, name, now);
+    mScript.onMark = [this](EditorControls& editor, const std::string& name, double now) {
+        mark(editor, name, now);
     };
 }
 
-void DragBenchDriver::tick(EditorControls& editor, double now) {
-    mEditor = &editor;
-    mScript.tick(editor, now);
-    mEditor = nullptr;
-}
+void DragBenchDriver::tick(EditorControls& editor, double now) { mScript.tick(editor, now); }
 
 void DragBenchDriver::mark(EditorControls& editor, const std::string& name, double now) {
     SessionRunner* runner = editor.runner();
@@ -161,7 +157,7 @@ StillBenchDriver::StillBenchDriver(std::string scene, ImportOptions import, doub
     mOptions.seconds = seconds;
     mOptions.recordDir = std::move(recordDir);
     mBench = std::make_unique<StillBench>(mOptions);
-    mScript.onMark = [this](const std::string&, double now) {
+    mScript.onMark = [this](EditorControls&, const std::string&, double now) {
         if (!mQuiet)
             std::cerr << "penumbra-editor: --bench-still: settled after " << now - mStart << " s\n";
         mBench->begin(now);

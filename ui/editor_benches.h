@@ -60,7 +60,6 @@ private:
 
     DragBenchDriverOptions mOptions;
     InputScript mScript;
-    EditorControls* mEditor = nullptr;  ///< during tick, for the marks
     Phase mPhase = Phase::Waiting;
     std::unique_ptr<DragBench> mBench;
     int mOrigin = -1;    ///< the object's version when the drag began

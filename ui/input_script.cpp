@@ -166,7 +166,7 @@ bool InputScript::step(const Command& c, EditorControls& editor, double now) {
     }
     if (c.verb == "wait") return waited >= c.values[0];
     if (c.verb == "mark") {
-        if (onMark) onMark(c.name, now);
+        if (onMark) onMark(editor, c.name, now);
         return true;
     }
     if (c.verb == "quit") {

@@ -38,8 +38,8 @@ public:
     /// Reads and parses the file (InputError when it cannot be read).
     static InputScript load(const std::string& path);
 
-    /// Called at each `mark NAME` with the name and the time.
-    std::function<void(const std::string& name, double now)> onMark;
+    /// Called at each `mark NAME` with the editor, the name and the time.
+    std::function<void(EditorControls& editor, const std::string& name, double now)> onMark;
 
     void tick(EditorControls& editor, double now) override;
     void shown(EditorControls& editor, const std::shared_ptr<const ViewportImage>& image,

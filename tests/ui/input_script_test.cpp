@@ -88,7 +88,9 @@ TEST(InputScript, PlaysADragOnePositionATickAndHoldsAtItsWaits) {
         "wait 0.5\nwait-images 2 10\nmark end\nquit\n",
         "s.txt");
     std::vector<std::pair<std::string, double>> marks;
-    script.onMark = [&](const std::string& name, double now) { marks.emplace_back(name, now); };
+    script.onMark = [&](EditorControls&, const std::string& name, double now) {
+        marks.emplace_back(name, now);
+    };
     RecordingControls editor;
     editor.start.translate = Vec3(1, 2, 3);
 
@@ -131,7 +133,7 @@ TEST(InputScript, PlaysADragOnePositionATickAndHoldsAtItsWaits) {
 TEST(InputScript, WaitsGiveUpAtTheirLimitAndAMissingObjectEndsTheEditorWithStatus2) {
     InputScript waits = InputScript::parse("wait-images 5 1\nmark after\n", "s.txt");
     bool after = false;
-    waits.onMark = [&](const std::string&, double) { after = true; };
+    waits.onMark = [&](EditorControls&, const std::string&, double) { after = true; };
     RecordingControls editor;
     waits.tick(editor, 10.0);
     waits.tick(editor, 10.5);
