@@ -53,7 +53,7 @@ struct ReplayOptions {
 /// time, references excluded), unshot_fraction, elements, patches, and "edits", one object
 /// per log line with "line", "op", "shots", "rays", "ms", "checksum" (Σ Y·A over elements in
 /// the solution after the line), "objects" (the same sum per object id), "unshot_fraction",
-/// "error_estimate" (ProgressiveSolver::computeSettling's relative RMS: no reference needed),
+/// "error_estimate" (ProgressiveSolver::computeSettlingSummary: no reference needed),
 /// "estimate_ms" (its time, not in "ms"; the report's "estimate_seconds" sums them), and
 /// with a reference "estimate_coverage" (the fraction of elements whose change to the
 /// reference the estimate bounds), "error_rms" and

@@ -199,6 +199,16 @@ public:
     /// only against the changed objects of pending edits, toward their strongest shooters,
     /// never in the scene. O(elements × (strong shooters + pending edits)).
     SettlingEstimate computeSettling() const;
+    /// relativeRms and reflectedRms alone (change and noise empty). With more than
+    /// kSettlingSummaryFullBelow alive elements, from a stratified sample of about one element
+    /// in kSettlingSummaryStride of each object, each standing for its share of the object's
+    /// area: the sums are area integrals of a field that varies smoothly over large surfaces,
+    /// so the sample costs about 1/stride of the full pass and reads within a few percent of
+    /// it. Below, the full pass (a small scene's change can sit on a handful of elements, and
+    /// the pass is cheap). What `replay` reports per edit.
+    SettlingEstimate computeSettlingSummary() const;
+    static constexpr int kSettlingSummaryStride = 8;
+    static constexpr std::size_t kSettlingSummaryFullBelow = 16384;
 
     /// Drag preview (George et al.: "while the object is selected, radiosity that is
     /// redistributed to adjust for changes of the object is stored separately, added to the
@@ -242,6 +252,11 @@ public:
     const Discretization& discretization() const { return mDisc; }
 
 private:
+    /// computeSettling's pass over `receivers` (alive elements), each standing for its area
+    /// times weights[k] in the sums; change and noise per element only when perElement.
+    SettlingEstimate estimateSettling(const std::vector<int>& receivers,
+                                      const std::vector<double>& weights, bool perElement) const;
+
     struct Impl;
     void shootPatch(int patch);
     void initialize();

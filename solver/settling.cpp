@@ -166,13 +166,59 @@ PendingEdit describePending(const ChangeEntry& c, const Discretization& disc) {
 // The estimate.
 
 SettlingEstimate ProgressiveSolver::computeSettling() const {
+    // Every alive element, standing for itself.
+    std::vector<int> receivers;
+    receivers.reserve(mDisc.elements().size());
+    for (std::size_t i = 0; i < mDisc.elements().size(); ++i)
+        if (mDisc.elementAlive(static_cast<int>(i))) receivers.push_back(static_cast<int>(i));
+    return estimateSettling(receivers, std::vector<double>(receivers.size(), 1.0), true);
+}
+
+SettlingEstimate ProgressiveSolver::computeSettlingSummary() const {
+    // Per object, one alive element in kSettlingSummaryStride (at least one), evenly spaced
+    // over its faces (neighbours in the mesh), weighted so that the sample's area is the
+    // object's.
+    std::vector<int> receivers, alive;
+    std::vector<double> weights;
+    const auto& elements = mDisc.elements();
+    for (std::size_t i = 0; i < elements.size(); ++i)
+        if (mDisc.elementAlive(static_cast<int>(i))) receivers.push_back(static_cast<int>(i));
+    if (receivers.size() <= kSettlingSummaryFullBelow)
+        return estimateSettling(receivers, std::vector<double>(receivers.size(), 1.0), false);
+    receivers.clear();
+    for (const ObjectSurface& object : mDisc.objects()) {
+        alive.clear();
+        double area = 0;
+        for (int e : object.faceElement)
+            if (e >= 0 && mDisc.elementAlive(e)) alive.push_back(e), area += elements[e].area;
+        if (alive.empty()) continue;
+        const std::size_t n = alive.size();
+        const std::size_t m = (n + kSettlingSummaryStride - 1) / kSettlingSummaryStride;
+        double sampled = 0;
+        for (std::size_t k = 0; k < m; ++k) {
+            const int e = alive[(2 * k + 1) * n / (2 * m)];
+            receivers.push_back(e);
+            sampled += elements[e].area;
+        }
+        const double w = sampled > 0 ? area / sampled : 0.0;
+        weights.resize(receivers.size(), w);
+    }
+    return estimateSettling(receivers, weights, false);
+}
+
+SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& receivers,
+                                                     const std::vector<double>& weights,
+                                                     bool perElement) const {
     const auto& elements = mDisc.elements();
     const auto& patches = mDisc.patches();
     const std::size_t ne = elements.size();
     SettlingEstimate out;
-    out.change.assign(ne, 0.0);
-    out.noise.assign(ne, 0.0);
+    if (perElement) {
+        out.change.assign(ne, 0.0);
+        out.noise.assign(ne, 0.0);
+    }
     if (mElementB.size() != ne) return out;
+    const std::size_t nr = receivers.size();
 
     // Unshot energy: the strongest shooters one by one, the rest per object (below).
     std::vector<std::pair<double, int>> unshot;
@@ -254,11 +300,10 @@ SettlingEstimate ProgressiveSolver::computeSettling() const {
 
     // First order: the irradiance each element may still gain or lose directly from the
     // pending work, per channel.
-    std::vector<Rgb> first(ne, Rgb(0.0)), unshotFirst(ne, Rgb(0.0));
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ne, 512), [&](const auto& range) {
-        for (std::size_t i = range.begin(); i != range.end(); ++i) {
-            if (!mDisc.elementAlive(static_cast<int>(i))) continue;
-            const Element& el = elements[i];
+    std::vector<Rgb> first(nr, Rgb(0.0)), unshotFirst(nr, Rgb(0.0));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nr, 512), [&](const auto& range) {
+        for (std::size_t r = range.begin(); r != range.end(); ++r) {
+            const Element& el = elements[receivers[r]];
             const Vec3& x = el.receiver;
             const Vec3& n = el.normal;
             Rgb h(0.0);
@@ -272,7 +317,7 @@ SettlingEstimate ProgressiveSolver::computeSettling() const {
                     glm::dot(n, d) / std::sqrt(d2) + std::sqrt(s.radius2 / d2), 0.0, 1.0);
                 h += s.power * (cosi / (M_PI * d2));
             }
-            unshotFirst[i] = h;
+            unshotFirst[r] = h;
             for (const PendingEdit& p : pending) {
                 const ChangeEntry& c = *p.entry;
                 const bool addedHere =
@@ -302,7 +347,7 @@ SettlingEstimate ProgressiveSolver::computeSettling() const {
                     }
                 }
             }
-            first[i] = h;
+            first[r] = h;
         }
     });
 
@@ -312,10 +357,10 @@ SettlingEstimate ProgressiveSolver::computeSettling() const {
     // shadows) are about equal, so their reflections cancel but for the reflectances'
     // contrast, and the changed objects' solid-angle term already covers what sees them.
     Rgb reflectedPower(0.0);
-    for (std::size_t i = 0; i < ne; ++i) {
-        if (!mDisc.elementAlive(static_cast<int>(i))) continue;
-        reflectedPower += mDisc.elementMaterial(static_cast<int>(i)).reflectance * unshotFirst[i] *
-                          elements[i].area;
+    for (std::size_t r = 0; r < nr; ++r) {
+        const int i = receivers[r];
+        reflectedPower +=
+            mDisc.elementMaterial(i).reflectance * unshotFirst[r] * (elements[i].area * weights[r]);
     }
     const Rgb rhoMean = rhoArea / totalArea;
     const Rgb series = Rgb(1.0) / glm::max(Rgb(1.0) - rhoMean, Rgb(1e-3));
@@ -328,19 +373,23 @@ SettlingEstimate ProgressiveSolver::computeSettling() const {
     const Rgb rayPower = stochastic ? emittedPower / mOptions.raysPerEmittedPower : Rgb(0.0);
 
     double num = 0, den = 0, denReflected = 0;
-    for (std::size_t i = 0; i < ne; ++i) {
-        if (!mDisc.elementAlive(static_cast<int>(i))) continue;
-        const Rgb& rho = mDisc.elementMaterial(static_cast<int>(i)).reflectance;
-        const double area = elements[i].area;
-        out.change[i] = luminance(rho * (first[i] + interreflected));
-        if (stochastic) {
-            const Rgb indirect = glm::max(rho * (mElementH[i] - mElementHEmission[i]), Rgb(0.0));
-            out.noise[i] = std::sqrt(luminance(rho * rayPower / area) * luminance(indirect));
+    for (std::size_t r = 0; r < nr; ++r) {
+        const int i = receivers[r];
+        const Rgb& rho = mDisc.elementMaterial(i).reflectance;
+        const double area = elements[i].area * weights[r];
+        const double change = luminance(rho * (first[r] + interreflected));
+        if (perElement) {
+            out.change[i] = change;
+            if (stochastic) {
+                const Rgb indirect =
+                    glm::max(rho * (mElementH[i] - mElementHEmission[i]), Rgb(0.0));
+                out.noise[i] =
+                    std::sqrt(luminance(rho * rayPower / elements[i].area) * luminance(indirect));
+            }
         }
         const double y = luminance(mElementB[i]);
-        const double reflected =
-            luminance(mElementB[i] - mDisc.elementMaterial(static_cast<int>(i)).emission);
-        num += out.change[i] * out.change[i] * area;
+        const double reflected = luminance(mElementB[i] - mDisc.elementMaterial(i).emission);
+        num += change * change * area;
         den += y * y * area;
         denReflected += reflected * reflected * area;
     }

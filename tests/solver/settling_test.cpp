@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 
+#include "edit/edit_session.h"
 #include "edit/replay.h"
 #include "solver/discretization.h"
 #include "solver/progressive_solver.h"
@@ -86,6 +87,51 @@ TEST(Settling, AgainstTheReflectedLightTheLampsDoNotDiluteIt) {
     EXPECT_NEAR(estimate.reflectedRms, std::sqrt(num / den), 1e-12 * estimate.reflectedRms);
     EXPECT_GT(estimate.reflectedRms, 3 * estimate.relativeRms);
     EXPECT_GT(estimate.reflectedRms, 0.05) << "three shots leave most of the light to come";
+}
+
+TEST(SettlingSummary, ReadsAsTheFullPassOnTheRobotRoomLog) {
+    // robot-room (46,000 elements, over the full-pass limit): after each of the log's lines, the
+    // stratified sample's eq. 7 and reflected RMS against the full pass over every element.
+#if defined(__SANITIZE_ADDRESS__)
+    GTEST_SKIP() << "a robot-room replay takes minutes under the sanitizers";
+#endif
+    ReplayOptions options;
+    options.scenePath = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/robot-room-empty.json";
+    options.logPath = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/logs/robot-room-add-robot.jsonl";
+    int compared = 0;
+    options.afterEdit = [&](EditSession& session, const EditEvent&, nlohmann::json& entry) {
+        const ProgressiveSolver& solver = session.solver();
+        std::size_t alive = 0;
+        for (std::size_t e = 0; e < session.discretization().elements().size(); ++e)
+            alive += session.discretization().elementAlive(static_cast<int>(e)) ? 1 : 0;
+        ASSERT_GT(alive, ProgressiveSolver::kSettlingSummaryFullBelow) << "not sampled";
+        const SettlingEstimate summary = solver.computeSettlingSummary();
+        const SettlingEstimate full = solver.computeSettling();
+        EXPECT_TRUE(summary.change.empty());
+        EXPECT_DOUBLE_EQ(entry["error_estimate"].get<double>(), summary.relativeRms)
+            << "replay reports the summary";
+        const std::string what = "line " + entry["line"].dump();
+        EXPECT_NEAR(summary.relativeRms, full.relativeRms, 0.03 * full.relativeRms) << what;
+        EXPECT_NEAR(summary.reflectedRms, full.reflectedRms, 0.03 * full.reflectedRms) << what;
+        EXPECT_GT(full.relativeRms, 0.0) << what;
+        ++compared;
+    };
+    runReplay(options);
+    EXPECT_EQ(compared, 7);
+}
+
+TEST(SettlingSummary, IsTheFullPassOnASmallScene) {
+    // Under the limit the summary is the full pass's sums, exactly.
+    Scene scene = test::makeLitRoom("white");
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ProgressiveSolver solver(disc, tracer, SolverOptions{});
+    solver.step(3);
+    const SettlingEstimate summary = solver.computeSettlingSummary();
+    const SettlingEstimate full = solver.computeSettling();
+    EXPECT_GT(full.relativeRms, 0.0);
+    EXPECT_EQ(summary.relativeRms, full.relativeRms);
+    EXPECT_EQ(summary.reflectedRms, full.reflectedRms);
 }
 
 }  // namespace
