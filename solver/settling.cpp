@@ -19,7 +19,6 @@ namespace penumbra {
 using namespace solver_detail;
 
 namespace {
-
 // ---------------------------------------------------------------------------------------------
 // Point form factors (no visibility: an upper estimate where something blocks).
 
@@ -100,9 +99,12 @@ struct PendingEdit {
     /// the gather or a shot ahead: ChangeEntry::reachedAdded).
     Rgb restFacingUngathered{0.0};
     /// Per channel, how much the radiosity a receiver sees in the changed objects' direction
-    /// may change: the larger of the light they block and their own radiosity once lit, plus
-    /// the radiosity of removed objects, cancelled.
+    /// may change: the largest of the light they block, their own radiosity once lit and the
+    /// radiosity of removed objects, cancelled.
     Rgb surround{0.0};
+    /// The edit removes an emitter (and adds none): the light it had sent is taken back with
+    /// no gain to cancel it, so its reflections are lost too (the interreflection term).
+    bool removesEmitter = false;
 };
 
 PendingEdit describePending(const ChangeEntry& c, const Discretization& disc) {
@@ -114,10 +116,13 @@ PendingEdit describePending(const ChangeEntry& c, const Discretization& disc) {
     for (int o : c.removed) changed[o] = 2;
     double changedArea = 0;
     Rgb addedRho(0.0), removedShot(0.0);
+    bool removesEmitter = false, addsEmitter = false;
     for (std::size_t j = 0; j < patches.size(); ++j) {
         const char kind = changed[patches[j].object];
         if (!kind) continue;
         changedArea += patches[j].area;
+        if (luminance(disc.patchMaterial(static_cast<int>(j)).emission) > 0)
+            (kind == 2 ? removesEmitter : addsEmitter) = true;
         if (kind == 1)
             addedRho = glm::max(addedRho, disc.patchMaterial(static_cast<int>(j)).reflectance);
     }
@@ -154,9 +159,12 @@ PendingEdit describePending(const ChangeEntry& c, const Discretization& disc) {
         if (!c.reachedAdded(j)) p.restFacingUngathered += facingOf[j];
     }
     // In the changed objects' direction a receiver sees, instead of the light they block
-    // (about restFacing), their own radiosity (ρ times their mean irradiance): the change is
-    // at most the larger.
-    p.surround = glm::max(p.restFacing, addedRho * facing) + removedShot;
+    // (about restFacing), their own radiosity (ρ times their mean irradiance), or, where an
+    // object was removed, what was behind it instead of the removed object's radiosity: the
+    // change, a difference of two of these, is at most the largest.
+    p.surround = glm::max(glm::max(p.restFacing, addedRho * facing), removedShot);
+    // A moved emitter's new place is lit by its unshot emission: gain and loss cancel there.
+    p.removesEmitter = removesEmitter && !addsEmitter;
     return p;
 }
 
@@ -243,7 +251,7 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
     // centre, its intensity at most Φ/π (a flat source, seen face on).
     std::vector<int> topUnshot;
     struct Source {
-        Rgb power{0.0};
+        Rgb powerPos{0.0}, powerNeg{0.0};  ///< of its positive and of its negative unshot energy
         Vec3 centre{0.0};
         double weight = 0, radius2 = 0;
     };
@@ -255,7 +263,8 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
             continue;
         }
         Source& s = sources[patches[j].object];
-        s.power += absRgb(mPatchUnshot[j]) * patches[j].area;
+        s.powerPos += glm::max(mPatchUnshot[j], Rgb(0.0)) * patches[j].area;
+        s.powerNeg += glm::max(-mPatchUnshot[j], Rgb(0.0)) * patches[j].area;
         s.centre += unshot[k].first * patches[j].centroid;
         s.weight += unshot[k].first;
     }
@@ -300,23 +309,33 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
 
     // First order: the irradiance each element may still gain or lose directly from the
     // pending work, per channel.
-    std::vector<Rgb> first(nr, Rgb(0.0)), unshotFirst(nr, Rgb(0.0));
+    // unshotFirst: the unshot energy's part of `first`; lostFirst: the part of edits that
+    // remove emitters. Both are reflected again (the interreflection term below).
+    std::vector<Rgb> first(nr, Rgb(0.0)), unshotFirst(nr, Rgb(0.0)), lostFirst(nr, Rgb(0.0));
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nr, 512), [&](const auto& range) {
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
             const Element& el = elements[receivers[r]];
             const Vec3& x = el.receiver;
             const Vec3& n = el.normal;
-            Rgb h(0.0);
+            // The positive and the negative unshot energy's irradiance apart: the change is at
+            // most the larger of the two (a gain and a loss at the same receiver cancel).
+            Rgb hPos(0.0), hNeg(0.0);
             for (int j : topUnshot)
-                if (j != el.patch) h += absRgb(mPatchUnshot[j]) * pointFormFactor(x, n, patches[j]);
+                if (j != el.patch) {
+                    const double f = pointFormFactor(x, n, patches[j]);
+                    hPos += glm::max(mPatchUnshot[j], Rgb(0.0)) * f;
+                    hNeg += glm::max(-mPatchUnshot[j], Rgb(0.0)) * f;
+                }
             for (const Source& s : restSources) {
                 // E = Φ cosθ / (π (d² + r²)), the source's extent r softening it up close.
                 const Vec3 d = s.centre - x;
                 const double d2 = glm::dot(d, d) + s.radius2;
                 const double cosi = std::clamp(
                     glm::dot(n, d) / std::sqrt(d2) + std::sqrt(s.radius2 / d2), 0.0, 1.0);
-                h += s.power * (cosi / (M_PI * d2));
+                hPos += s.powerPos * (cosi / (M_PI * d2));
+                hNeg += s.powerNeg * (cosi / (M_PI * d2));
             }
+            Rgb h = glm::max(hPos, hNeg);
             unshotFirst[r] = h;
             for (const PendingEdit& p : pending) {
                 const ChangeEntry& c = *p.entry;
@@ -333,6 +352,7 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
                 // Elsewhere: what the changed objects block, reflect or no longer reflect,
                 // within the solid angle they subtend; a strong shooter only where they may
                 // cut its shaft to the receiver.
+                const Rgb before = h;
                 for (const auto& [centre, radius] : c.spheres) {
                     const double fs = sphereFormFactor(x, n, centre, radius);
                     if (!(fs > 0)) continue;
@@ -346,21 +366,23 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
                             h += absRgb(c.shot[j]) * pointFormFactor(x, n, P) * blocked;
                     }
                 }
+                if (p.removesEmitter) lostFirst[r] += h - before;
             }
             first[r] = h;
         }
     });
 
     // Interreflection: the first-order change, reflected, is unshot energy again; Cohen's
-    // ambient term spreads it, R = 1 / (1 − ρ̄) per channel for the geometric series. Only the
-    // unshot energy's: a redistribution's gains (on the changed objects) and losses (in their
-    // shadows) are about equal, so their reflections cancel but for the reflectances'
-    // contrast, and the changed objects' solid-angle term already covers what sees them.
+    // ambient term spreads it, R = 1 / (1 − ρ̄) per channel for the geometric series. The
+    // unshot energy's, and that of edits removing an emitter (a pure loss); not the other
+    // edits': a redistribution's gains (on the changed objects) and losses (in their shadows)
+    // are about equal, so their reflections cancel but for the reflectances' contrast, and the
+    // changed objects' solid-angle term already covers what sees them.
     Rgb reflectedPower(0.0);
     for (std::size_t r = 0; r < nr; ++r) {
         const int i = receivers[r];
-        reflectedPower +=
-            mDisc.elementMaterial(i).reflectance * unshotFirst[r] * (elements[i].area * weights[r]);
+        reflectedPower += mDisc.elementMaterial(i).reflectance * (unshotFirst[r] + lostFirst[r]) *
+                          (elements[i].area * weights[r]);
     }
     const Rgb rhoMean = rhoArea / totalArea;
     const Rgb series = Rgb(1.0) / glm::max(Rgb(1.0) - rhoMean, Rgb(1e-3));

@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 
@@ -87,6 +89,39 @@ TEST(Settling, AgainstTheReflectedLightTheLampsDoNotDiluteIt) {
     EXPECT_NEAR(estimate.reflectedRms, std::sqrt(num / den), 1e-12 * estimate.reflectedRms);
     EXPECT_GT(estimate.reflectedRms, 3 * estimate.relativeRms);
     EXPECT_GT(estimate.reflectedRms, 0.05) << "three shots leave most of the light to come";
+}
+
+TEST(Settling, BoundsTheLossOfARemovedLampAndItsReflections) {
+    // cube-room with a second lamp, converged, then the lamp removed with nothing shot yet:
+    // every element loses the lamp's direct light and its reflections, a pure loss with no
+    // gain to cancel it. The bound must hold for 95% of the elements and the RMS be within a
+    // factor of two of the truth.
+    const std::filesystem::path log =
+        std::filesystem::temp_directory_path() / "penumbra-settling-remove-lamp.jsonl";
+    {
+        std::ofstream out(log);
+        out << R"({"op":"add","object":{"id":"lamp2","shape":{"type":"sphere","radius":0.1,)"
+               R"("segments":12},"material":"lamp","transform":{"translate":[-1.2,2.2,1.0]}}})"
+            << "\n"
+            << R"({"op":"converge","threshold":0.01})"
+            << "\n"
+            << R"({"op":"remove","id":"lamp2"})"
+            << "\n";
+    }
+    ReplayOptions options;
+    options.scenePath = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cube-room.json";
+    options.logPath = log.string();
+    options.reference = true;
+    const nlohmann::json report = runReplay(options);
+    std::filesystem::remove(log);
+    ASSERT_EQ(report["edits"].size(), 3u);
+    const nlohmann::json& removed = report["edits"][2];
+    const double estimated = removed["error_estimate"].get<double>();
+    const double truth = removed["error_rms"].get<double>();
+    ASSERT_GT(truth, 0.005) << "the removal must leave light to settle: " << removed.dump();
+    EXPECT_LE(estimated, 2 * truth) << removed.dump();
+    EXPECT_GE(estimated, 0.5 * truth) << removed.dump();
+    EXPECT_GE(removed["estimate_coverage"].get<double>(), 0.95) << removed.dump();
 }
 
 TEST(SettlingSummary, ReadsAsTheFullPassOnTheRobotRoomLog) {
