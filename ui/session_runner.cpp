@@ -71,7 +71,10 @@ void SessionRunner::submitMade(std::function<EditCommand(EditSession&)> make) {
     mSolver->submitMade(std::move(make));
 }
 
-void SessionRunner::setView(const ViewRequest& request) { mDisplay->setView(request); }
+void SessionRunner::setView(const ViewRequest& request) {
+    mSolver->setSettlingMap(request.settlingOverlay);
+    mDisplay->setView(request);
+}
 
 void SessionRunner::setPaused(bool paused) { mSolver->setPaused(paused); }
 

@@ -131,6 +131,8 @@ public:
 
     std::shared_ptr<const ViewportImage> image() const { return mBoard.image(); }
     SolverSnapshot solver() const { return mBoard.solver(); }
+    /// The lighting the solver worker last published (what the display services read).
+    PublishedLight light() const { return mBoard.light(); }
     std::shared_ptr<const DocumentSummary> document() const { return mBoard.document(); }
     /// Error and status lines since the last call.
     std::vector<std::string> takeMessages() { return mBoard.takeMessages(); }

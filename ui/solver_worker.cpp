@@ -329,22 +329,31 @@ void SolverWorker::updateSettling(bool force) {
     // the solver keeps shooting.
     constexpr double kPeriodSeconds = 0.2, kShare = 0.1;
     const double now = nowSeconds();
+    // The map only for the overlay; asked for since the last estimate, at once.
+    const bool map = mSettlingMapWanted.load(std::memory_order_relaxed);
+    if (map && !mSettling) force = true;
     if (!force && mLastSettling >= 0 &&
         now - mLastSettling < std::max(kPeriodSeconds, mSettlingCost / kShare))
         return;
     // Not while an object is dragged: each step's preview must reach the display at once, and
     // nobody waits for "settled" in the middle of a drag (the overlay keeps the last estimate).
-    if (!mSession.selected().empty() && mSettling) return;
-    const SettlingEstimate estimate = mSession.solver().computeSettling();
+    if (!mSession.selected().empty() && mSettlingRms >= 0 && (mSettling || !map)) return;
+    const SettlingEstimate estimate =
+        map ? mSession.solver().computeSettling() : mSession.solver().computeSettlingSummary();
     mLastSettling = nowSeconds();
     mSettlingCost = mLastSettling - now;
-    mSettling = std::make_shared<const std::vector<Rgb>>(settlingChangeValues(estimate));
+    mSettling =
+        map ? std::make_shared<const std::vector<Rgb>>(settlingChangeValues(estimate)) : nullptr;
     mSettlingRms = estimate.reflectedRms;
     mSettlingFloor =
         settlingFloorRadiosity(mSession.discretization(), mSession.solver().radiosity());
     if (mSettlingRms < kSettledRms && mSession.selected().empty() && mLastEditTime >= 0 &&
         mSettleSeconds < 0)
         mSettleSeconds = now - mLastEditTime;
+}
+
+void SolverWorker::setSettlingMap(bool wanted) {
+    mSettlingMapWanted.store(wanted, std::memory_order_relaxed);
 }
 
 void SolverWorker::publishSolver(double solverMs) {

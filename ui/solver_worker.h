@@ -7,6 +7,7 @@
 //
 // Index: queue and settings · iteration · publishing
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -64,6 +65,10 @@ public:
     void setStrategy(RedistributionStrategy strategy, double threshold);
     RedistributionStrategy strategy() const;
     double redistributionThreshold() const;
+    /// Whether the settling overlay is shown (ViewRequest::settlingOverlay): the estimate's
+    /// per-element map (ProgressiveSolver::computeSettling) is computed only then; otherwise
+    /// the status line's figure comes from the cheaper sampled sums (computeSettlingSummary).
+    void setSettlingMap(bool wanted);
     /// Commands queued or being applied.
     std::size_t queued() const;
 
@@ -122,7 +127,8 @@ private:
     // The settling estimate: when it was last computed, its values, and the edit it follows.
     double mLastSettling = -1;
     double mSettlingCost = 0;  ///< seconds the last estimate took
-    std::shared_ptr<const std::vector<Rgb>> mSettling;
+    std::shared_ptr<const std::vector<Rgb>> mSettling;  ///< null while no map is wanted
+    std::atomic<bool> mSettlingMapWanted{false};
     double mSettlingRms = -1, mSettlingFloor = 0;
     double mLastEditTime = -1;  ///< when the last edit was applied (-1: none yet)
     double mSettleSeconds = -1;

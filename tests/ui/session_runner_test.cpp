@@ -1,7 +1,8 @@
 // SessionRunner's runtime strategy switch (George et al.'s strategy one/two and threshold):
 // the setter validates, the getter answers at once, and the solver thread applies the switch
 // to the session's ProgressiveSolver between shots (seen through SolverSnapshot, which reads
-// the solver's own options).
+// the solver's own options). And the settling estimate's per-element map, computed only for
+// the overlay.
 
 #include "ui/session_runner.h"
 
@@ -75,6 +76,38 @@ TEST(SessionRunnerStrategy, ThreadedRunnerAppliesTheSwitch) {
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
     EXPECT_EQ(runner.solver().strategy, RedistributionStrategy::Interleave);
     EXPECT_EQ(runner.solver().redistributionThreshold, 0.5);
+}
+
+TEST(SessionRunnerSettling, ThePerElementMapIsComputedOnlyForTheOverlay) {
+    // The status line's "settled" needs the estimate's sums alone; its per-element map
+    // (ProgressiveSolver::computeSettling) is computed only while View ▸ Overlay ▸ Settling
+    // is on, and dropped once it is off again.
+    SessionRunnerOptions options;
+    options.threaded = false;
+    options.solveBudgetMs = 1;
+    SessionRunner runner(litRoomSession(), options);
+    runner.pump();
+    EXPECT_GE(runner.solver().settlingRms, 0.0) << "the status figure";
+    EXPECT_EQ(runner.light().settling, nullptr) << "no map without the overlay";
+
+    ViewRequest view;
+    view.width = view.height = 16;
+    view.mode = ViewMode::Gouraud;
+    view.settlingOverlay = true;
+    runner.setView(view);
+    runner.pump();
+    const PublishedLight on = runner.light();
+    ASSERT_NE(on.settling, nullptr) << "the overlay's map at its first publication";
+    EXPECT_EQ(on.settling->size(), on.radiosity->size());
+
+    view.settlingOverlay = false;
+    runner.setView(view);
+    for (int k = 0; k < 4 && runner.light().settling; ++k) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(250));
+        runner.pump();
+    }
+    EXPECT_EQ(runner.light().settling, nullptr) << "the map dropped with the overlay";
+    EXPECT_GE(runner.solver().settlingRms, 0.0);
 }
 
 }  // namespace
