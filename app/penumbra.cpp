@@ -167,6 +167,7 @@ nlohmann::json hifiReport(const HifiMesh& mesh) {
             {"buried_elements", st.buriedElements},
             {"capped_elements", st.cappedElements},
             {"single_sample_elements", st.singleSampleElements},
+            {"derived_far_fields", st.derivedFarFields},
             {"build_seconds", st.seconds}};
 }
 

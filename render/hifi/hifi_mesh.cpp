@@ -557,11 +557,15 @@ struct HifiBuild {
     bool refitFarField = false;
     /// Samples the pooling serves defer their far field (HifiOptions::farFieldRecordSpacing).
     bool deferFarField = false;
+    /// Samples off their element's base triangles take its far field from them
+    /// (HifiOptions::farFieldFromBase); `derived` says how, for the refit.
+    bool deriveFarField = false;
+    DerivedFarFields derived;
     std::vector<std::vector<std::array<SampleKey, 6>>> perElementKeys;
     std::atomic<int> done{0}, meshed{0}, shadowSegs{0}, contactSegs{0}, samples{0},
         centreSamples{0};
     std::atomic<bool> cancelled{false};
-    std::atomic<int> covered{0}, buried{0}, cappedElements{0}, singleSample{0};
+    std::atomic<int> covered{0}, buried{0}, cappedElements{0}, singleSample{0}, derivedSamples{0};
     std::atomic<long long> farRays{0};
 
     /// Whether the point x of element `el`'s plane lies inside another object that bounds a
@@ -734,6 +738,10 @@ public:
     /// than refinement's finest triangle, nothing crossing it) one sample at the element's
     /// centroid serves all six points of each triangle: a constant interpolant.
     void sampleTriangles(const Triangulation2& tri, bool once = false) {
+        // The far field from the element's base triangles, whose samples cast its rays first
+        // (HifiOptions::farFieldFromBase). On a contact line irradiance jumps and the far field
+        // changes fast beside it: such elements cast rays at every sample.
+        if (!once && mB.deriveFarField && mAllContacts.empty()) sampleBase();
         std::deque<Pending> queue;
         std::optional<std::pair<ExactIrradiance::Parts, SampleKey>> single;
         for (const auto& t : tri.triangles) {
@@ -786,6 +794,82 @@ public:
     }
 
 private:
+    /// A base triangle of the far field: the element's fan, counter-clockwise in its frame,
+    /// with its samples' keys and far fields at A, AB, B, BC, C, CA.
+    struct Base {
+        std::array<glm::dvec2, 3> p;
+        std::array<SampleKey, 6> k;
+        std::array<Rgb, 6> far;
+    };
+
+    /// Samples the element's base triangles (its fan, as an element nothing crosses is
+    /// meshed), each point with its own far field; the element's other samples derive theirs
+    /// from them afterwards.
+    void sampleBase() {
+        std::vector<Base> bases;
+        const auto& poly = mG.poly2;
+        for (std::size_t k = 1; k + 1 < poly.size(); ++k) {
+            Base base;
+            base.p = {poly[0], poly[k], poly[k + 1]};
+            const glm::dvec2 e1 = base.p[1] - base.p[0], e2 = base.p[2] - base.p[0];
+            const double cross = e1.x * e2.y - e1.y * e2.x;
+            if (std::abs(cross) <= 1e-14 * mSize * mSize) continue;  // degenerate
+            if (cross < 0) std::swap(base.p[1], base.p[2]);
+            const glm::dvec2 centre = (base.p[0] + base.p[1] + base.p[2]) / 3.0;
+            const glm::dvec2 at[6] = {base.p[0], 0.5 * (base.p[0] + base.p[1]),
+                                      base.p[1], 0.5 * (base.p[1] + base.p[2]),
+                                      base.p[2], 0.5 * (base.p[0] + base.p[2])};
+            for (int v = 0; v < 6; ++v) base.far[v] = sampleAt(at[v], centre, base.k[v]).farField;
+            bases.push_back(base);
+        }
+        // Only now: while the base is sampled, every point casts its own rays.
+        mBase = std::move(bases);
+    }
+
+    /// Whether `key` is one of the base triangles' samples.
+    bool isBase(const SampleKey& key) const {
+        for (const Base& base : mBase)
+            for (const SampleKey& k : base.k)
+                if (k == key) return true;
+        return false;
+    }
+
+    /// How the far field at q (in the element's frame) follows from the base triangle that
+    /// holds it (the one it is deepest inside): the quadratic's basis functions there. `far`
+    /// (optional) receives that far field from the base samples' values as they stand.
+    DerivedFarField derivationAt(const glm::dvec2& q, Rgb* far = nullptr) const {
+        const Base* from = nullptr;
+        DerivedFarField d;
+        d.element = mE;
+        double deepest = -1e300;
+        for (const Base& base : mBase) {
+            const glm::dvec2 e1 = base.p[1] - base.p[0], e2 = base.p[2] - base.p[0];
+            const glm::dvec2 r = q - base.p[0];
+            const double det = e1.x * e2.y - e1.y * e2.x;
+            const double s = (r.x * e2.y - r.y * e2.x) / det, t = (e1.x * r.y - e1.y * r.x) / det;
+            const double u = 1 - s - t;
+            const double inside = std::min({u, s, t});
+            if (!(inside > deepest)) continue;
+            deepest = inside;
+            from = &base;
+            d.base = base.k;
+            d.weight = {u * (2 * u - 1), 4 * u * s,       s * (2 * s - 1),
+                        4 * s * t,       t * (2 * t - 1), 4 * t * u};
+        }
+        if (far) {
+            *far = Rgb(0.0);
+            if (from)
+                for (int k = 0; k < 6; ++k) *far += d.weight[k] * from->far[k];
+        }
+        return d;
+    }
+
+    /// Files the derivation of `key`'s far field; the smallest element's stands.
+    void recordDerivation(const SampleKey& key, const DerivedFarField& d) {
+        DerivedFarFields::accessor entry;
+        if (mB.derived.insert(entry, key) || d.element < entry->second.element) entry->second = d;
+    }
+
     /// A triangle (counter-clockwise, in the element's frame) with its samples at A, AB, B,
     /// BC, C, CA and its refinement depth.
     struct Pending {
@@ -806,15 +890,28 @@ private:
             }
         const Vec3 x = mG.frame.to3(onContact ? q + 1e-4 * (centre - q) : q);
         key = SampleKey::at(mEl.object, mSheet, onContact ? mE : -1, x, mEl.normal, mB.grid);
+        // Off the base triangles' samples the far field is theirs (farFieldFromBase). The
+        // derivation is filed also where another element took the point first, so that the
+        // refit's value does not depend on which did.
+        const bool derive = !mBase.empty() && !onContact && !isBase(key);
         {
             SampleCache::const_accessor found;
-            if (mB.cache.find(found, key)) return found->second;
+            if (mB.cache.find(found, key)) {
+                if (derive) recordDerivation(key, derivationAt(q));
+                return found->second;
+            }
         }
         // Evaluated outside any lock; a point two threads reach at once is evaluated
         // twice to the same value.
         mB.samples.fetch_add(1, std::memory_order_relaxed);
         ExactIrradiance::Parts value;
-        if (mB.deferFarField && !onContact) {
+        if (derive) {
+            value = mB.exact.irradianceParts(x, mEl.normal, false);
+            const DerivedFarField d = derivationAt(q, &value.farField);
+            value.farFitted = true;
+            recordDerivation(key, d);
+            mB.derivedSamples.fetch_add(1, std::memory_order_relaxed);
+        } else if (mB.deferFarField && !onContact) {
             // The far field later, from records (fitDeferredFarFields), where it is smooth.
             value = mB.exact.irradianceParts(x, mEl.normal, false);
             if (farFieldSharable(key, value))
@@ -914,6 +1011,7 @@ private:
     const std::vector<std::pair<glm::dvec2, glm::dvec2>>& mAllContacts;
     std::vector<HifiTriangle>& mOut;
     const int mSheet;  ///< 1 on a back face's element, else 0 (part of the sample key)
+    std::vector<Base> mBase;  ///< farFieldFromBase: the element's base triangles (else none)
 };
 
 /// The element's squared bounding radius about `centre` (m²).
@@ -1037,11 +1135,13 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
                       (options.farFieldPoolRadius > 0 || options.farFieldRefineBudget > 0);
     if (b.refitFarField) b.perElementKeys.resize(disc.elements().size());
     b.deferFarField = b.refitFarField && farFieldByRecords(exact, options);
+    b.deriveFarField = b.refitFarField && !b.deferFarField && options.farFieldFromBase;
     auto work = [&] { tbb::parallel_for(0, count, [&](int k) { meshElement(b, todo[k]); }); };
     runReportingProgress(work, b.done, count, progress);
     if (b.refitFarField && !b.cancelled.load())
         b.farRays += finishFarFields(b.cache, b.grid, exact, disc, options, medianElementSize(disc),
-                                     b.perElement, b.perElementKeys);
+                                     b.perElement, b.perElementKeys,
+                                     b.deriveFarField ? &b.derived : nullptr);
     // The elements' triangles in element order: kept ones from this mesh, the rest new.
     std::vector<HifiTriangle> triangles;
     std::vector<int> first(std::size_t(elementCount) + 1, 0);
@@ -1068,6 +1168,7 @@ void HifiMesh::mesh(const Discretization& disc, const ExactIrradiance& exact,
     mStats.buriedElements = b.buried.load();
     mStats.cappedElements = b.cappedElements.load();
     mStats.singleSampleElements = b.singleSample.load();
+    mStats.derivedFarFields = b.derivedSamples.load();
     mStats.samples = b.samples.load();
     mStats.centreSamples = b.centreSamples.load();
     mStats.farRays = b.farRays.load();

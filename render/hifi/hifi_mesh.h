@@ -105,6 +105,16 @@ struct HifiOptions {
     double farFieldRefineTolerance = 0.01;
     double farFieldRefineBudget = 1.0;
     int farFieldRefinePasses = 3;
+    /// With the far field's rays and the refit they bring (farFieldPoolRadius or
+    /// farFieldRefineBudget set): on an element no contact line touches, only the samples of
+    /// its base triangles — the element's own fan, the triangles an element nothing crosses is
+    /// meshed into — cast the far field's rays; every other sample there (the vertices and
+    /// midpoints of shadow discontinuities' triangles, refinement's midpoints) takes the far
+    /// field from the quadratic through its base triangle's six samples, as an element nothing
+    /// crosses shows it. The far field is smooth over an element (its sources are at least
+    /// the near field's reach away) while shadows split it finely, so the rays follow the
+    /// elements, not the discontinuities; the gathered part stays exact at every sample.
+    bool farFieldFromBase = true;
     /// Polled once per element: when it returns true the build stops early and the mesh is
     /// left incomplete (HifiStats::cancelled). The editor cancels a build an edit outdates.
     std::function<bool()> cancelled;
@@ -139,6 +149,9 @@ struct HifiStats {
     /// square of 4^−maxRefineDepth of the area-weighted median element's area) and crossed by
     /// no segment: sampled once, at the centroid, with a constant interpolant.
     int singleSampleElements = 0;
+    /// Samples whose far field came from their element's base triangles
+    /// (HifiOptions::farFieldFromBase), not rays of their own.
+    int derivedFarFields = 0;
 };
 
 /// Built once for a scene state; rebuild after an edit.

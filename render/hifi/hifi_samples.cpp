@@ -169,8 +169,8 @@ long long fitDeferredFarFields(SampleCache& cache, double grid, const ExactIrrad
 }
 
 long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
-                          double tolerance, double budget, int passes) {
-    long long first = 0;
+                          double tolerance, double budget, int passes, long long derived) {
+    long long first = derived * std::max(1, exact.options().farRays);
     for (const auto& entry : cache)
         if (!entry.second.farFitted) first += entry.second.farRays;
     long long allowance = std::llround(budget * double(first)), spent = 0;
@@ -204,11 +204,61 @@ long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance
     return spent;
 }
 
+namespace {
+
+/// The far field of every sample in `derived`: its base samples' far field after the pooling
+/// (`pooled` where fitted, else their own), weighted as the derivation says. A base sample may
+/// be derived itself (an element's corner on the edge of a larger neighbour, which derives
+/// it): such chains are followed for a few rounds, each from the one before, so the result
+/// depends on the derivations alone.
+std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> derivedFarFieldValues(
+    const SampleCache& cache, const std::unordered_map<SampleKey, Rgb, SampleKeyStdHash>& pooled,
+    const DerivedFarFields& derived) {
+    std::vector<const SampleKey*> keys;
+    std::vector<const DerivedFarField*> how;
+    std::unordered_map<SampleKey, int, SampleKeyStdHash> index;
+    for (const auto& [key, d] : derived) {
+        index.emplace(key, static_cast<int>(keys.size()));
+        keys.push_back(&key);
+        how.push_back(&d);
+    }
+    // The far field of the samples that are not derived, as the pooling left it.
+    auto own = [&](const SampleKey& key) {
+        const auto it = pooled.find(key);
+        if (it != pooled.end()) return it->second;
+        SampleCache::const_accessor found;
+        return cache.find(found, key) ? found->second.farField : Rgb(0.0);
+    };
+    std::vector<Rgb> value(keys.size(), Rgb(0.0)), next(keys.size());
+    for (int round = 0; round < 3; ++round) {
+        tbb::parallel_for(std::size_t(0), keys.size(), [&](std::size_t i) {
+            Rgb sum(0.0);
+            for (int k = 0; k < 6; ++k) {
+                const SampleKey& base = how[i]->base[std::size_t(k)];
+                const auto it = index.find(base);
+                sum += how[i]->weight[std::size_t(k)] *
+                       (it != index.end() ? value[std::size_t(it->second)] : own(base));
+            }
+            next[i] = sum;
+        });
+        value.swap(next);
+    }
+    std::unordered_map<SampleKey, Rgb, SampleKeyStdHash> out;
+    out.reserve(keys.size());
+    for (std::size_t i = 0; i < keys.size(); ++i) out.emplace(*keys[i], value[i]);
+    return out;
+}
+
+}  // namespace
+
 void refitWithPooledFarField(
     const SampleCache& cache, double grid, std::vector<std::vector<HifiTriangle>>& perElement,
     const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys, double radius,
-    double nearRadius) {
-    const auto pooled = pooledFarField(cache, grid, radius, nearRadius);
+    double nearRadius, const DerivedFarFields* derived) {
+    auto pooled = pooledFarField(cache, grid, radius, nearRadius);
+    if (derived)
+        for (auto& [key, value] : derivedFarFieldValues(cache, pooled, *derived))
+            pooled.insert_or_assign(key, value);
     tbb::parallel_for(0, static_cast<int>(perElement.size()), [&](int e) {
         auto& triangles = perElement[e];
         const auto& keys = perElementKeys[e];
@@ -226,11 +276,18 @@ void refitWithPooledFarField(
     });
 }
 
-long long finishFarFields(
-    SampleCache& cache, double grid, const ExactIrradiance& exact, const Discretization& disc,
-    const HifiOptions& options, double elementSize,
-    std::vector<std::vector<HifiTriangle>>& perElement,
-    const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys) {
+long long finishFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
+                          const Discretization& disc, const HifiOptions& options,
+                          double elementSize, std::vector<std::vector<HifiTriangle>>& perElement,
+                          const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys,
+                          const DerivedFarFields* derived) {
+    // Derived samples cast no rays of their own and feed no pooling, also where another
+    // element reached the point first and cast them.
+    if (derived)
+        for (const auto& entry : *derived) {
+            SampleCache::accessor found;
+            if (cache.find(found, entry.first)) found->second.farFitted = true;
+        }
     long long rays = 0;
     if (farFieldByRecords(exact, options))
         rays += fitDeferredFarFields(cache, grid, exact, planeElementSizes(disc), elementSize,
@@ -238,10 +295,11 @@ long long finishFarFields(
                                      options.farFieldRecordPasses);
     if (options.farFieldRefineBudget > 0)
         rays += refineFarFields(cache, grid, exact, options.farFieldRefineTolerance,
-                                options.farFieldRefineBudget, options.farFieldRefinePasses);
+                                options.farFieldRefineBudget, options.farFieldRefinePasses,
+                                derived ? static_cast<long long>(derived->size()) : 0);
     refitWithPooledFarField(cache, grid, perElement, perElementKeys,
                             options.farFieldPoolRadius * elementSize,
-                            options.farFieldNearPoolRadius * elementSize);
+                            options.farFieldNearPoolRadius * elementSize, derived);
     return rays;
 }
 

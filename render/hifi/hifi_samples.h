@@ -4,8 +4,8 @@
 // cache of samples, the far fields' refinement and the refit of the interpolants with the pooled
 // far field. Internal to render/hifi/.
 //
-// Index: SampleKey · SampleCache · planeElementSizes · farFieldByRecords · fitDeferredFarFields ·
-//        refineFarFields · refitWithPooledFarField · finishFarFields
+// Index: SampleKey · SampleCache · DerivedFarField · planeElementSizes · farFieldByRecords ·
+//        fitDeferredFarFields · refineFarFields · refitWithPooledFarField · finishFarFields
 
 #include <tbb/concurrent_hash_map.h>
 
@@ -68,6 +68,18 @@ struct SampleKeyHash {
 
 using SampleCache = tbb::concurrent_hash_map<SampleKey, ExactIrradiance::Parts, SampleKeyHash>;
 
+/// A sample whose far field is not its own rays' but the quadratic of its element's base
+/// triangles (HifiOptions::farFieldFromBase): the far field at the six samples of the base
+/// triangle that holds it (vertices and edge midpoints, A, AB, B, BC, C, CA), weighted by the
+/// quadratic's basis functions at the sample. Where elements share a point, the smallest
+/// element's derivation stands, so the value does not depend on which element reached it first.
+struct DerivedFarField {
+    int element = -1;
+    std::array<SampleKey, 6> base;
+    std::array<double, 6> weight{};
+};
+using DerivedFarFields = tbb::concurrent_hash_map<SampleKey, DerivedFarField, SampleKeyHash>;
+
 /// A sample's plane as the far field's fits group samples: object, sheet and SampleKey's normal.
 using SamplePlane = std::tuple<int, int, std::array<long long, 3>>;
 SamplePlane planeOf(const SampleKey& key);
@@ -100,30 +112,35 @@ long long fitDeferredFarFields(SampleCache& cache, double grid, const ExactIrrad
 /// Continues the far field (ExactIrradiance::refineFarField) of the samples in `cache` whose
 /// estimated error exceeds `tolerance` of their irradiance, the worst first, pass by pass up
 /// to `passes` passes, until `budget` × the rays the cache's far fields cast so far are spent.
-/// Fitted far fields (farFitted) are left as they are and their records' rays not counted.
-/// Returns the rays cast.
+/// Fitted far fields (farFitted) are left as they are and their records' rays not counted;
+/// `derived` samples (DerivedFarField) count as the first pass they did not cast: the rays
+/// they save go to refining the samples they take their far field from. Returns the rays cast.
 long long refineFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
-                          double tolerance, double budget, int passes);
+                          double tolerance, double budget, int passes, long long derived = 0);
 
 /// Fits every triangle's interpolant again (`perElement`, each triangle's six sample keys in
 /// `perElementKeys`, in the same order) with the far field of every sample in `cache` off
 /// contact lines pooled over its neighbours (poolFarField, render/hifi/far_field_pool.h) in place
 /// of its own: over `radius` among samples with no other surface within the near field's reach,
 /// over `nearRadius` (0: none) among the others. `grid` is the cache's position grid (m).
+/// Samples in `derived` take the far field of their base samples as it stands after the pooling
+/// (the pooled value where there is one), weighted as the derivation says.
 void refitWithPooledFarField(
     const SampleCache& cache, double grid, std::vector<std::vector<HifiTriangle>>& perElement,
     const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys, double radius,
-    double nearRadius);
+    double nearRadius, const DerivedFarFields* derived = nullptr);
 
 /// What the build does once every sample is taken: fitDeferredFarFields by `options`'
 /// farFieldRecordSpacing, farFieldPoolRadius and farFieldRecordPasses (the samples of `disc`'s
 /// planes that deferred their far field), refineFarFields by farFieldRefineTolerance,
 /// farFieldRefineBudget and farFieldRefinePasses (budget 0: none), then refitWithPooledFarField
-/// over farFieldPoolRadius and farFieldNearPoolRadius × `elementSize` (m). Returns the rays
-/// cast.
+/// over farFieldPoolRadius and farFieldNearPoolRadius × `elementSize` (m). The samples in
+/// `derived` (optional) are marked fitted first, so that they cast no rays and feed no pooling,
+/// and take their base samples' far field in the refit. Returns the rays cast.
 long long finishFarFields(SampleCache& cache, double grid, const ExactIrradiance& exact,
                           const Discretization& disc, const HifiOptions& options,
                           double elementSize, std::vector<std::vector<HifiTriangle>>& perElement,
-                          const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys);
+                          const std::vector<std::vector<std::array<SampleKey, 6>>>& perElementKeys,
+                          const DerivedFarFields* derived = nullptr);
 
 }  // namespace penumbra

@@ -37,13 +37,16 @@ Camera lookingAt(const Vec3& position, const Vec3& target, double fovDeg) {
 }
 
 /// Interpolants of a converged solution as the command line builds them (the far field's
-/// rays), with the far field pooled (`pool` true: the default) or each sample's own.
+/// rays), with the far field pooled (`pool` true: the default) or each sample's own, and taken
+/// from the elements' base triangles off them (`fromBase` true: the default) or cast at every
+/// sample.
 HifiMesh buildInterpolants(const Discretization& disc, const RayTracer& tracer,
-                           const ProgressiveSolver& solver, bool pool) {
+                           const ProgressiveSolver& solver, bool pool, bool fromBase = true) {
     ExactIrradiance exact(disc, ExactIrradianceOptions::forInterpolants(256), &tracer);
     exact.setReflected(reflectedRadiosity(disc, solver));
     HifiOptions options;
     if (!pool) options.farFieldPoolRadius = 0;
+    options.farFieldFromBase = fromBase;
     HifiMesh mesh;
     mesh.build(disc, exact, options);
     return mesh;
@@ -131,6 +134,45 @@ TEST(HifiFarField, CornellWindowsOfFlatFacesFollowTheExactGather) {
         ASSERT_GT(w.windows, 10) << view.name << ": " << w.toString();
         EXPECT_LE(w.maxStd, 0.01) << view.name << ": " << w.toString();
     }
+}
+
+TEST(HifiFarField, FarFieldFromBaseTrianglesFollowsTheExactGather) {
+    Scene scene = loadScene(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json");
+    Discretization disc(scene);
+    RayTracer tracer(disc);
+    ProgressiveSolver solver(disc, tracer, SolverOptions{});
+    solver.converge(1e-3, 1000000);
+    // The floor between the boxes and their shadows: elements split by shadow discontinuities
+    // and refined, whose samples off the base triangles take the far field from them.
+    const CameraRays rays(lookingAt({0.0, 0.9, 0.9}, {0.0, 0.0, -0.1}, 50), 64, 64);
+    const Image reference = exactGather(disc, tracer, solver, rays);
+    const std::vector<std::uint64_t> faces = flatFaceKeys(disc, tracer, rays);
+    const HifiMesh own = buildInterpolants(disc, tracer, solver, true, false);
+    const HifiMesh derived = buildInterpolants(disc, tracer, solver, true, true);
+    EXPECT_EQ(own.stats().derivedFarFields, 0);
+    EXPECT_GT(derived.stats().derivedFarFields, derived.stats().samples / 10) << derived.toString();
+    // The rays the derived samples do not cast go to refining their base samples, within the
+    // same budget: fewer in all.
+    EXPECT_LT(derived.stats().farRays, own.stats().farRays)
+        << "own rays " << own.stats().farRays << ", derived " << derived.stats().farRays;
+    // Against the exact gather (no rays): as close as every sample's own rays, and as smooth
+    // (the floor's open parts between the boxes are narrow in this view: 16 × 16 windows).
+    const Image ownImage = renderInterpolants(disc, tracer, own, rays, 1);
+    const Image image = renderInterpolants(disc, tracer, derived, rays, 1);
+    const double ownError = relativeRmse(ownImage, reference);
+    const double derivedError = relativeRmse(image, reference);
+    EXPECT_LE(derivedError, ownError * 1.1 + 0.001)
+        << "relative RMSE against the exact gather: own rays " << ownError << ", from the base "
+        << derivedError;
+    const WindowErrors ownWindows = flatWindowErrors(ownImage, reference, faces, 16, 4);
+    const WindowErrors w = flatWindowErrors(image, reference, faces, 16, 4);
+    RecordProperty("own", ownWindows.toString());
+    RecordProperty("derived", w.toString());
+    ASSERT_GT(w.windows, 10) << w.toString();
+    EXPECT_LE(w.meanStd, ownWindows.meanStd * 1.1 + 0.0005)
+        << "own rays " << ownWindows.toString() << ", from the base " << w.toString();
+    EXPECT_LE(w.maxStd, ownWindows.maxStd * 1.1 + 0.001)
+        << "own rays " << ownWindows.toString() << ", from the base " << w.toString();
 }
 
 }  // namespace
