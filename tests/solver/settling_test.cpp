@@ -35,6 +35,16 @@ struct Lit {
     Lit() { solver->converge(kEps, 1000000); }
 };
 
+/// The lit room three shots into its solve: most of its light still to come.
+struct BarelySolved {
+    Scene scene = test::makeLitRoom("white");
+    Discretization disc{scene};
+    RayTracer tracer{disc};
+    ProgressiveSolver solver{disc, tracer, SolverOptions{}};
+
+    BarelySolved() { solver.step(3); }
+};
+
 TEST(Settling, BoundsTheChangeOnTheBundledAddCubeLog) {
     ReplayOptions options;
     options.scenePath = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cube-room.json";
@@ -70,11 +80,9 @@ TEST(Settling, AgainstTheReflectedLightTheLampsDoNotDiluteIt) {
     // A barely started solve of the lit room: the change against the reflected light alone
     // (recomputed here from the solver's radiosity and the materials' emission) is the
     // walls' relative change, several times eq. 7's, whose denominator the lamp dominates.
-    Scene scene = test::makeLitRoom("white");
-    Discretization disc(scene);
-    RayTracer tracer(disc);
-    ProgressiveSolver solver(disc, tracer, SolverOptions{});
-    solver.step(3);
+    BarelySolved lit;
+    const Discretization& disc = lit.disc;
+    const ProgressiveSolver& solver = lit.solver;
     const SettlingEstimate estimate = solver.computeSettling();
     double num = 0, den = 0;
     for (std::size_t e = 0; e < disc.elements().size(); ++e) {
@@ -157,13 +165,9 @@ TEST(SettlingSummary, ReadsAsTheFullPassOnTheRobotRoomLog) {
 
 TEST(SettlingSummary, IsTheFullPassOnASmallScene) {
     // Under the limit the summary is the full pass's sums, exactly.
-    Scene scene = test::makeLitRoom("white");
-    Discretization disc(scene);
-    RayTracer tracer(disc);
-    ProgressiveSolver solver(disc, tracer, SolverOptions{});
-    solver.step(3);
-    const SettlingEstimate summary = solver.computeSettlingSummary();
-    const SettlingEstimate full = solver.computeSettling();
+    BarelySolved lit;
+    const SettlingEstimate summary = lit.solver.computeSettlingSummary();
+    const SettlingEstimate full = lit.solver.computeSettling();
     EXPECT_GT(full.relativeRms, 0.0);
     EXPECT_EQ(summary.relativeRms, full.relativeRms);
     EXPECT_EQ(summary.reflectedRms, full.reflectedRms);

@@ -104,12 +104,21 @@ struct CornellView {
     Camera camera;
 };
 
-TEST(HifiFarField, CornellWindowsOfFlatFacesFollowTheExactGather) {
+/// The bundled Cornell box, converged.
+struct ConvergedCornell {
     Scene scene = loadScene(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json");
-    Discretization disc(scene);
-    RayTracer tracer(disc);
-    ProgressiveSolver solver(disc, tracer, SolverOptions{});
-    solver.converge(1e-3, 1000000);
+    Discretization disc{scene};
+    RayTracer tracer{disc};
+    ProgressiveSolver solver{disc, tracer, SolverOptions{}};
+
+    ConvergedCornell() { solver.converge(1e-3, 1000000); }
+};
+
+TEST(HifiFarField, CornellWindowsOfFlatFacesFollowTheExactGather) {
+    ConvergedCornell cornell;
+    const Discretization& disc = cornell.disc;
+    const RayTracer& tracer = cornell.tracer;
+    const ProgressiveSolver& solver = cornell.solver;
     // Faces lit mostly by reflected light, where the far field's noise shows most, each filling
     // its view: the back wall above the boxes; the short box's front face (normal
     // (−0.29, 0, 0.96)) above its lower third, where the floor's contact bends the light faster
@@ -137,11 +146,10 @@ TEST(HifiFarField, CornellWindowsOfFlatFacesFollowTheExactGather) {
 }
 
 TEST(HifiFarField, FarFieldFromBaseTrianglesFollowsTheExactGather) {
-    Scene scene = loadScene(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json");
-    Discretization disc(scene);
-    RayTracer tracer(disc);
-    ProgressiveSolver solver(disc, tracer, SolverOptions{});
-    solver.converge(1e-3, 1000000);
+    ConvergedCornell cornell;
+    const Discretization& disc = cornell.disc;
+    const RayTracer& tracer = cornell.tracer;
+    const ProgressiveSolver& solver = cornell.solver;
     // The floor between the boxes and their shadows: elements split by shadow discontinuities
     // and refined, whose samples off the base triangles take the far field from them.
     const CameraRays rays(lookingAt({0.0, 0.9, 0.9}, {0.0, 0.0, -0.1}, 50), 64, 64);
