@@ -63,13 +63,6 @@ double boundCoverage(const std::vector<Rgb>& reference, const std::vector<Rgb>& 
     return static_cast<double>(bounded) / static_cast<double>(elements.size());
 }
 
-std::vector<int> aliveElements(const Discretization& disc) {
-    std::vector<int> alive;
-    for (std::size_t e = 0; e < disc.elements().size(); ++e)
-        if (disc.elementAlive(static_cast<int>(e))) alive.push_back(static_cast<int>(e));
-    return alive;
-}
-
 /// The 1% of `alive` (at least one) whose reference luminance changed most from `before`
 /// to `after` (elements new since `before` count from zero). Ties go to the lower index.
 std::vector<int> mostChanged(const std::vector<int>& alive, const std::vector<Rgb>& before,
@@ -209,7 +202,7 @@ nlohmann::json runReplay(const ReplayOptions& options) {
         entry["error_estimate"] = settling.relativeRms;
         entry["estimate_ms"] = estimateMs;
         if (options.reference) {
-            const std::vector<int> alive = aliveElements(disc);
+            const std::vector<int> alive = disc.aliveElements();
             if (result.solutionChanged()) {
                 std::vector<Rgb> after = solveReference(*session, options);
                 topSet = mostChanged(alive, reference, after);

@@ -91,6 +91,13 @@ int Discretization::addObject(const Scene& scene, const SceneObject& object) {
     return static_cast<int>(mObjects.size()) - 1;
 }
 
+std::vector<int> Discretization::aliveElements() const {
+    std::vector<int> alive;
+    for (std::size_t e = 0; e < mElements.size(); ++e)
+        if (elementAlive(static_cast<int>(e))) alive.push_back(static_cast<int>(e));
+    return alive;
+}
+
 void Discretization::setAlive(int object, bool alive) {
     if (mObjects[object].alive == alive) return;
     mObjects[object].alive = alive;

@@ -106,6 +106,8 @@ public:
     /// Marks an object removed (or restored). Indices stay valid.
     void setAlive(int object, bool alive);
     bool elementAlive(int element) const { return mObjects[mElements[element].object].alive; }
+    /// The alive elements' indices, ascending.
+    std::vector<int> aliveElements() const;
     /// Moves the receiver of every alive element whose centroid lies inside another object's
     /// solid (every ray of a small fan about its normal meets that object from inside) to the
     /// point of the element in the open nearest the mean of its open sample points; the

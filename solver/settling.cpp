@@ -19,6 +19,7 @@ namespace penumbra {
 using namespace solver_detail;
 
 namespace {
+
 // ---------------------------------------------------------------------------------------------
 // Point form factors (no visibility: an upper estimate where something blocks).
 
@@ -175,10 +176,7 @@ PendingEdit describePending(const ChangeEntry& c, const Discretization& disc) {
 
 SettlingEstimate ProgressiveSolver::computeSettling() const {
     // Every alive element, standing for itself.
-    std::vector<int> receivers;
-    receivers.reserve(mDisc.elements().size());
-    for (std::size_t i = 0; i < mDisc.elements().size(); ++i)
-        if (mDisc.elementAlive(static_cast<int>(i))) receivers.push_back(static_cast<int>(i));
+    const std::vector<int> receivers = mDisc.aliveElements();
     return estimateSettling(receivers, std::vector<double>(receivers.size(), 1.0), true);
 }
 
@@ -186,14 +184,12 @@ SettlingEstimate ProgressiveSolver::computeSettlingSummary() const {
     // Per object, one alive element in kSettlingSummaryStride (at least one), evenly spaced
     // over its faces (neighbours in the mesh), weighted so that the sample's area is the
     // object's.
-    std::vector<int> receivers, alive;
-    std::vector<double> weights;
-    const auto& elements = mDisc.elements();
-    for (std::size_t i = 0; i < elements.size(); ++i)
-        if (mDisc.elementAlive(static_cast<int>(i))) receivers.push_back(static_cast<int>(i));
+    std::vector<int> receivers = mDisc.aliveElements(), alive;
     if (receivers.size() <= kSettlingSummaryFullBelow)
         return estimateSettling(receivers, std::vector<double>(receivers.size(), 1.0), false);
     receivers.clear();
+    std::vector<double> weights;
+    const auto& elements = mDisc.elements();
     for (const ObjectSurface& object : mDisc.objects()) {
         alive.clear();
         double area = 0;

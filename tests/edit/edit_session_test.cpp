@@ -104,13 +104,6 @@ Comparison compare(const Discretization& disc, const std::vector<Rgb>& current,
     return c;
 }
 
-std::vector<int> aliveElements(const Discretization& disc) {
-    std::vector<int> alive;
-    for (std::size_t e = 0; e < disc.elements().size(); ++e)
-        if (disc.elementAlive(static_cast<int>(e))) alive.push_back(static_cast<int>(e));
-    return alive;
-}
-
 void expectTolerances(const Comparison& c, const std::string& what) {
     EXPECT_LE(c.rms, 0.01) << what << ": " << c.toString();
     EXPECT_LE(c.worst, 0.05) << what << ": " << c.toString();
@@ -122,7 +115,7 @@ void expectMatchesFromScratch(EditSession& session, const std::string& what) {
     session.apply(ConvergeCommand{kEps});
     ASSERT_TRUE(session.solver().converged(kEps)) << what << ": did not converge";
     const std::vector<Rgb> reference = solveFromScratch(session);
-    const std::vector<int> alive = aliveElements(session.discretization());
+    const std::vector<int> alive = session.discretization().aliveElements();
     expectTolerances(
         compare(session.discretization(), session.solver().radiosity(), alive, reference, alive),
         what + " vs from-scratch (" + session.toString() + ")");

@@ -63,13 +63,6 @@ double relativeRms(const std::vector<Rgb>& a, const std::vector<Rgb>& reference,
     return std::sqrt(sum / double(elements.size())) / mean;
 }
 
-std::vector<int> aliveElements(const Discretization& disc) {
-    std::vector<int> out;
-    for (std::size_t e = 0; e < disc.elements().size(); ++e)
-        if (disc.elementAlive(static_cast<int>(e))) out.push_back(static_cast<int>(e));
-    return out;
-}
-
 /// The editor's select of `id` and move to `place`: the display takes each edit's event (the
 /// select: beginDrag, nothing recomputed; each position: setPreview).
 struct Drag {
@@ -191,7 +184,7 @@ TEST(InteractiveDisplayDrag, OriginRelativeDirectLightMatchesRecomputation) {
     InteractiveDisplay recomputed(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
     recomputed.apply(test::previewMovedEvent(drag.origin, drag.preview),
                      {Visibility{}, drag.previewSubset.visibility()});
-    const std::vector<int> alive = aliveElements(disc);
+    const std::vector<int> alive = disc.aliveElements();
     const std::vector<Rgb> mine = display.shader().elementDirect();
     const std::vector<Rgb> theirs = recomputed.shader().elementDirect();
     const double moved = relativeRms(atStart, theirs, alive);
@@ -204,7 +197,7 @@ TEST(InteractiveDisplayDrag, OriginRelativeDirectLightMatchesRecomputation) {
     display.apply(drag.session->apply(UnselectCommand{}),
                   {drag.originSubset.visibility(), drag.previewSubset.visibility()});
     InteractiveDisplay fresh(disc, drag.session->tracer(), SolverOptions{}, displayOptions());
-    const std::vector<int> after = aliveElements(disc);
+    const std::vector<int> after = disc.aliveElements();
     const double dropError =
         relativeRms(display.shader().elementDirect(), fresh.shader().elementDirect(), after);
     std::printf("slab drop: H_direct rel. RMS vs fresh %.4f\n", dropError);
