@@ -34,6 +34,7 @@ SolverOptions interactiveSolverOptions() {
     o.gatherRayBudget = 1e5;
     o.gatherBelow = 1.0;
     o.gatherCoarseBlock = 2;
+    o.previewShadowRayBudget = 6e4;
     return o;
 }
 

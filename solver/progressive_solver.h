@@ -82,6 +82,11 @@ struct SolverOptions {
     /// the edit's strong shooters have shot, traces the other strata and corrects each element
     /// to exactly the one-pass gather. 1: one pass.
     int gatherCoarseBlock = 1;
+    /// > 0: a drag preview, once its object has gathered its light, gathers the object's
+    /// shadow in the light of the pending shooters that do not emit, casting about this many
+    /// rays in all (gatherPreviewShadow), instead of leaving it to those shooters' shots (the
+    /// hundreds of weak shooters, which a drag step never finishes). 0: shots only.
+    double previewShadowRayBudget = 0;
     RedistributionStrategy strategy = RedistributionStrategy::RedistributeFirst;
     /// Strategy one redistributes first while the most important pending redistribution
     /// carries more than this fraction of the emitted power (0: all of it first).
@@ -338,6 +343,18 @@ private:
     /// first pass left, and per element the correction from the first pass's estimate to the
     /// whole gather's. Writes irradiance per element.
     void refineGather(ChangeEntry& c, bool preview, std::vector<Rgb>& delta);
+    /// A preview's shadow in the light of the pending shooters that do not emit, gathered in
+    /// one pass instead of their shots (SolverOptions::previewShadowRayBudget): every element
+    /// near the previewed object samples its bounding sphere's cone (the hemisphere, inside
+    /// the sphere); where the ray meets the object, the element loses the shot radiosity of
+    /// the pending patch the ray meets without it and gains the object's reflected radiosity.
+    /// Those shooters are then done (their light on elements far from the object, where it
+    /// subtends little, is left out). Writes per element the change of irradiance from the
+    /// buffer's current state: the gathered shadow less the one carried from the drag's last
+    /// position (setPreview).
+    void gatherPreviewShadow(ChangeEntry& c, std::vector<Rgb>& delta);
+    /// No gathered preview shadow to carry to the next preview (a drag begins or ends).
+    void forgetPreviewShadow();
     /// Best pending redistribution importance (W), and which edit holds it.
     double bestRedistribution(int* entry) const;
     void subdivideSteepElements();

@@ -350,6 +350,12 @@ struct ChangeEntry {
         double importance = 0;   ///< W: the gathered shooters' share still to trace
     } refinement;
     bool refinementPending() const { return !refinement.receivers.empty(); }
+    /// A preview's gather of the shadow its object casts in the light of the pending shooters
+    /// that do not emit (gatherPreviewShadow) has run; their shots are then done.
+    bool shadowGathered = false;
+    /// The preview's buffer started with the shadow gathered at the drag's last position
+    /// (Impl::previewShadow), which its own gather replaces.
+    bool shadowCarried = false;
     /// The entry's standing: its strongest pending shooter's importance, or while only a
     /// gather's second pass is left, that pass's importance; 0 when nothing is left.
     double bestPending() const {
@@ -367,6 +373,12 @@ struct ProgressiveSolver::Impl {
     std::vector<int> previewEmitters;  ///< emitter patches of the preview not yet shot
     std::vector<Rgb> temp;             ///< per element radiosity, display only
     std::vector<Rgb> tempEmission;     ///< the part of temp straight from emission
+    /// The last gathered preview shadow (irradiance per element, gatherPreviewShadow) and the
+    /// object version it was gathered for (-1: none). A drag's next position starts its
+    /// buffer from it, so every published buffer holds the moving object's shadow in the
+    /// reflected light, one position late until its own gather has run.
+    std::vector<Rgb> previewShadow;
+    int previewShadowOf = -1;
     IndexedMaxHeap queue;
     std::vector<Rgb> delta;  ///< per element, radiosity received in the current shot
     std::vector<std::uint8_t> patchReceived;  ///< per patch: received in the current shot
