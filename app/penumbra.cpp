@@ -317,22 +317,25 @@ public:
         : mFile(path, holodeckSections(session.scene().settings, session.discretization())),
           mServer(mFile, nullptr) {}
 
-    /// Puts the holodeck's samples of the view into the display. Returns the milliseconds.
-    double seedView(InteractiveDisplay& display, EditSession& session, const CameraRays& rays,
-                    int width, int height) {
+    /// Puts the holodeck's samples of the view into the display: those of every beam whose
+    /// hits the view can see, whichever views or fill stored them (the index of the beams'
+    /// hits is built at the first view). Returns the milliseconds.
+    double seedView(InteractiveDisplay& display, EditSession& session, const CameraRays& rays) {
         const auto start = std::chrono::steady_clock::now();
-        const auto view = viewRequests(mFile.sections(), rays, std::max(1, width / 4),
-                                       std::max(1, height / 4), 1.0);
+        if (!mIndex) mIndex.emplace(mServer);
         const std::vector<ShadedPoint> points =
-            holodeckViewPoints(mServer, view, session.discretization(), session.tracer(), rays,
+            mIndex->viewPoints(session.discretization(), session.tracer(), rays,
                                display.cache().frame(), display.shadingSerial());
         display.insertShaded(points);
         for (const ShadedPoint& p : points) mFromHolodeck.insert(positionKey(p.position));
-        mSamples = std::int64_t(points.size());
+        mLastSamples = std::int64_t(points.size());
+        if (mViews++ == 0) mSamples = mLastSamples;
         return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
             .count();
     }
+    /// The points the first view took; the last view's.
     std::int64_t samples() const { return mSamples; }
+    std::int64_t lastSamples() const { return mLastSamples; }
 
     /// Stores the points the display shaded itself (not those the holodeck brought).
     void storeShaded(const InteractiveDisplay& display, EditSession& session, const Vec3& eye) {
@@ -358,6 +361,9 @@ private:
 
     HoloFile mFile;
     HoloServer mServer;
+    std::optional<HoloHitIndex> mIndex;
+    int mViews = 0;
+    std::int64_t mLastSamples = 0;
     std::unordered_set<std::uint64_t> mFromHolodeck;
     std::int64_t mSamples = 0, mStored = 0;
 };
@@ -419,17 +425,18 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
         if (reference) {
             image = referenceFrame(display, *rays, r.samples, k, entry);
         } else {
-            const double holodeckMs =
-                k == 0 && holodeck ? holodeck->seedView(display, *session, *rays, r.width, r.height)
-                                   : 0.0;
+            // Each view of a walkthrough takes its points from the holodeck first.
+            const bool seed = holodeck && (k == 0 || (r.log.empty() && r.orbitDeg != 0));
+            const double holodeckMs = seed ? holodeck->seedView(display, *session, *rays) : 0.0;
             // The warm-up shades what the holodeck did not bring.
             const double warmPoints = r.warmup * r.width * r.height;
             const double brought = holodeck ? double(holodeck->samples()) : 0.0;
             if (k == 0 && r.warmup > 0 && brought < warmPoints) display.warmUp(*rays, r.warmup);
             image = display.renderFrame(*rays, r.mode == "epi");
             entry.update(displayFrameJson(display.lastFrame()));
-            if (k == 0 && holodeck) {
+            if (seed) {
                 entry["holodeck_ms"] = holodeckMs;
+                entry["holodeck_samples"] = holodeck->lastSamples();
                 entry["total_ms"] = entry["total_ms"].get<double>() + holodeckMs;
             }
             if (r.rmseFrames == "all" || (r.rmseFrames == "last" && k == frames - 1)) {

@@ -100,6 +100,11 @@ void addBenchCommands(CLI::App& app, BenchCommands& c) {
         ->check(CLI::Range(std::int64_t(1), std::int64_t(1) << 40));
     benchHolodeck->add_option("--width", holo.width)->check(CLI::Range(8, 8192));
     benchHolodeck->add_option("--height", holo.height)->check(CLI::Range(8, 8192));
+    benchHolodeck
+        ->add_option("--generic-seconds", holo.genericSeconds,
+                     "fill a holodeck for no view this long, then open nine views from it "
+                     "(default 60; 0: skip)")
+        ->check(CLI::Range(0.0, 1e6));
     benchHolodeck->add_option("--json", holo.jsonOut, "write every figure as JSON");
 
     CLI::App* benchDisplay = c.benchDisplay = app.add_subcommand(

@@ -121,11 +121,15 @@ struct HolodeckBenchOptions {
     /// `mpirun -np K penumbra holodeck fill` of `samples` for each K (empty: none), timed as a
     /// subprocess of this binary.
     std::vector<int> ranks{1, 2};
+    /// A holodeck filled for no view this long (every beam in proportion to its volume), then
+    /// nine views of the room opened from it (0: none).
+    double genericSeconds = 60;
     std::string jsonOut;
 };
 /// `penumbra bench holodeck`: fill rate and bytes per sample of a batch fill; a view's samples
 /// read back from disk and from memory, against shading them (Ward & Simmons 1999); the batch
-/// fill's rate under mpirun with each of `ranks` processes.
+/// fill's rate under mpirun with each of `ranks` processes; a holodeck filled for no view,
+/// then nine views opened from it.
 int runHolodeckBench(const HolodeckBenchOptions& options);
 
 }  // namespace penumbra

@@ -3,6 +3,9 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
+#include <atomic>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -26,6 +29,30 @@ bool seen(const RayTracer& tracer, const Vec3& eye, const Vec3& point) {
     const double length = glm::length(d);
     if (!(length > 1e-6)) return false;
     return !tracer.occluded(eye, point - d * std::min(1e-3 / length, 1e-3));
+}
+
+/// A unit vector in two 16-bit numbers (the octahedral map: the sphere onto the octahedron
+/// |x| + |y| + |z| = 1, its lower half folded over the upper), within about 1e-4 rad.
+std::array<std::int16_t, 2> encodeDirection(const Vec3& d) {
+    const double l1 = std::abs(d.x) + std::abs(d.y) + std::abs(d.z);
+    double u = d.x / l1, v = d.y / l1;
+    if (d.z < 0) {
+        const double fu = (1 - std::abs(v)) * (u >= 0 ? 1 : -1);
+        v = (1 - std::abs(u)) * (v >= 0 ? 1 : -1);
+        u = fu;
+    }
+    return {std::int16_t(std::lround(u * 32767)), std::int16_t(std::lround(v * 32767))};
+}
+
+Vec3 decodeDirection(const std::array<std::int16_t, 2>& e) {
+    const double u = e[0] / 32767.0, v = e[1] / 32767.0;
+    Vec3 d(u, v, 1 - std::abs(u) - std::abs(v));
+    if (d.z < 0) {
+        const double fu = (1 - std::abs(v)) * (u >= 0 ? 1 : -1);
+        d.y = (1 - std::abs(u)) * (v >= 0 ? 1 : -1);
+        d.x = fu;
+    }
+    return glm::normalize(d);
 }
 
 }  // namespace
@@ -54,40 +81,40 @@ std::vector<HoloSection> holodeckSections(const Settings& settings, const Discre
     return sections;
 }
 
-std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
-                                            const std::vector<BeamRequest>& view,
-                                            const Discretization& disc, const RayTracer& tracer,
-                                            const CameraRays& camera, std::uint64_t frame,
-                                            std::uint64_t shading) {
-    const std::vector<HoloSection>& sections = server.file().sections();
-    // The beams' samples (read on this thread: the server is not thread-safe), then the rays.
-    std::vector<DecodedSample> samples;
-    std::vector<double> stored;
-    for (const BeamRequest& r : view)
-        for (const HoloSample& sample : server.beam(r.section, r.beam)) {
-            if (sample.distance == 0xffff) continue;  // a miss: nothing to show
-            samples.push_back(
-                decodeSample(sample, sections[r.section], r.beam, server.distanceCode(r.section)));
-            const double d = server.distanceCode(r.section).decode(sample.distance);
-            stored.push_back(std::max(sections[r.section].diagonal() / 4096, d / 4096) * 1.01 +
-                             1e-6 * d);
-        }
-    std::vector<ShadedPoint> points(samples.size());
-    std::vector<std::uint8_t> keep(samples.size(), 0);
-    tbb::parallel_for(std::size_t(0), samples.size(), [&](std::size_t i) {
-        const DecodedSample& s = samples[i];
+namespace {
+
+/// The points of the chosen stored samples (holodeckViewPoints): `sampleOf(i)` the decoded
+/// sample i and the distance within which its ray must still end at its stored hit (the
+/// distance code's resolution). The sample's ray is traced again: a sample whose ray now ends
+/// elsewhere (geometry moved into it, or its surface moved) is stale. Then the eye's ray
+/// towards the hit must end there, on the side of the surface the sample saw (a batch fill's
+/// rays also start inside solids and see their insides). Otherwise the sample gives no point.
+template <class SampleOf>
+std::vector<ShadedPoint> tracedPoints(const std::vector<std::int64_t>& chosen,
+                                      const SampleOf& sampleOf, const Discretization& disc,
+                                      const RayTracer& tracer, const CameraRays& camera,
+                                      std::uint64_t frame, std::uint64_t shading) {
+    const int w = camera.width(), h = camera.height();
+    const Vec3 eye = camera.origin();
+    std::vector<ShadedPoint> points(chosen.size());
+    std::vector<std::uint8_t> keep(chosen.size(), 0);
+    tbb::parallel_for(std::size_t(0), chosen.size(), [&](std::size_t c) {
+        const auto [s, tolerance] = sampleOf(std::size_t(chosen[c]));
         const RayTracer::FirstHit hit = tracer.firstHit(s.entry, s.direction);
         if (hit.element < 0) return;
         const Vec3 position = s.entry + double(hit.t) * s.direction;
-        // Stale: the ray ends elsewhere than when it was shaded.
-        if (glm::length(position - s.hit) > stored[i]) return;
-        if (!seen(tracer, camera.origin(), position)) return;
-        const auto pixel = camera.projectToPixel(position);
-        if (!pixel || pixel->x < 0 || pixel->y < 0 || pixel->x >= camera.width() ||
-            pixel->y >= camera.height())
+        if (glm::length(position - s.hit) > tolerance) return;
+        const Vec3 toPoint = position - eye;
+        const double length = glm::length(toPoint);
+        if (!(length > 1e-6)) return;
+        const RayTracer::FirstHit seen = tracer.firstHit(eye, toPoint / length);
+        if (seen.element != hit.element || seen.backFace != hit.backFace ||
+            std::abs(double(seen.t) - length) > std::max(1e-3, 1e-6 * length))
             return;
+        const auto pixel = camera.projectToPixel(position);
+        if (!pixel || pixel->x < 0 || pixel->y < 0 || pixel->x >= w || pixel->y >= h) return;
         const Element& e = disc.elements()[std::size_t(hit.element)];
-        ShadedPoint& p = points[i];
+        ShadedPoint& p = points[c];
         p.pixel = *pixel;
         p.position = position;
         p.normal = hit.backFace ? -e.normal : e.normal;
@@ -96,30 +123,229 @@ std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
         p.element = hit.element;
         p.frame = frame;
         p.shading = shading;
-        keep[i] = 1;
+        keep[c] = 1;
     });
-    // One point per pixel, the nearest its centre: a holodeck filled in batch holds many
-    // samples per pixel of a view, and a display's cache keeps a few points per pixel (a
-    // larger batch would evict the warm-up's points and keep its own last ones, not an even
-    // spread).
-    const int w = camera.width(), h = camera.height();
-    std::vector<int> best(static_cast<std::size_t>(w) * h, -1);
-    auto offCentre = [](const ShadedPoint& p) {
-        const double dx = p.pixel.x - std::floor(p.pixel.x) - 0.5;
-        const double dy = p.pixel.y - std::floor(p.pixel.y) - 0.5;
+    // A traced point may land a pixel beside the one its stored hit chose (the hit is decoded
+    // to a few millimetres): one point a pixel still, the nearer its centre.
+    auto offCentre = [](const glm::dvec2& p) {
+        const double dx = p.x - std::floor(p.x) - 0.5, dy = p.y - std::floor(p.y) - 0.5;
         return dx * dx + dy * dy;
     };
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        if (!keep[i]) continue;
-        const int x = static_cast<int>(points[i].pixel.x), y = static_cast<int>(points[i].pixel.y);
-        int& b = best[static_cast<std::size_t>(y) * w + x];
-        if (b < 0 || offCentre(points[i]) < offCentre(points[std::size_t(b)]))
-            b = static_cast<int>(i);
+    std::vector<int> taken(static_cast<std::size_t>(w) * h, -1);
+    for (std::size_t c = 0; c < points.size(); ++c) {
+        if (!keep[c]) continue;
+        int& t = taken[static_cast<std::size_t>(points[c].pixel.y) * w +
+                       static_cast<std::size_t>(points[c].pixel.x)];
+        if (t >= 0 && offCentre(points[std::size_t(t)].pixel) <= offCentre(points[c].pixel)) {
+            keep[c] = 0;
+            continue;
+        }
+        if (t >= 0) keep[std::size_t(t)] = 0;
+        t = static_cast<int>(c);
     }
     std::vector<ShadedPoint> out;
-    for (int b : best)
-        if (b >= 0) out.push_back(points[std::size_t(b)]);
+    out.reserve(points.size());
+    for (std::size_t c = 0; c < points.size(); ++c)
+        if (keep[c]) out.push_back(points[c]);
     return out;
+}
+
+/// Per pixel of `camera` the stored sample to show: of the samples whose stored hit projects
+/// into it, those within 2% of the nearest depth stand (a batch-filled holodeck holds many per
+/// pixel, of the surface the pixel sees and of those behind it), and of those the one nearest
+/// the pixel's centre, the lower index on a tie (the same choice on any number of threads);
+/// first among those whose ray went the way the eye's does (dot > 0: they came from the side
+/// of the surface the eye sees, where a sample from its other side shows its back).
+/// `forEach(body)` calls body(i, hit, direction) for every candidate sample, from oneTBB's
+/// threads. Returns the chosen indices in pixel order.
+template <class ForEach>
+std::vector<std::int64_t> choosePerPixel(const CameraRays& camera, const ForEach& forEach) {
+    const int w = camera.width(), h = camera.height();
+    const std::size_t pixels = static_cast<std::size_t>(w) * h;
+    // Depths are positive: their float bits order as they do.
+    std::vector<std::atomic<std::uint32_t>> front(pixels);
+    for (auto& f : front) f.store(0x7f800000u, std::memory_order_relaxed);  // +infinity
+    auto project = [&](const Vec3& hit, float& depth, glm::dvec2& at) {
+        const double d = glm::dot(hit - camera.origin(), camera.forward());
+        if (!(d > 0)) return -1;
+        at = camera.projectAtDepth(hit, d);
+        if (at.x < 0 || at.y < 0 || at.x >= w || at.y >= h) return -1;
+        depth = float(d);
+        return static_cast<int>(at.y) * w + static_cast<int>(at.x);
+    };
+    auto atomicMin = [](auto& slot, auto value) {
+        auto old = slot.load(std::memory_order_relaxed);
+        while (value < old && !slot.compare_exchange_weak(old, value, std::memory_order_relaxed)) {
+        }
+    };
+    forEach([&](std::size_t, const Vec3& hit, const Vec3&) {
+        float depth;
+        glm::dvec2 at;
+        const int k = project(hit, depth, at);
+        if (k >= 0) atomicMin(front[k], std::bit_cast<std::uint32_t>(depth));
+    });
+    std::vector<std::atomic<std::uint64_t>> best(pixels);
+    for (auto& b : best) b.store(~std::uint64_t(0), std::memory_order_relaxed);
+    forEach([&](std::size_t i, const Vec3& hit, const Vec3& direction) {
+        float depth;
+        glm::dvec2 at;
+        const int k = project(hit, depth, at);
+        if (k < 0 || depth > std::bit_cast<float>(front[k].load(std::memory_order_relaxed)) * 1.02f)
+            return;
+        const double dx = at.x - std::floor(at.x) - 0.5, dy = at.y - std::floor(at.y) - 0.5;
+        // Whether the ray went against the eye's in the top bit, off-centre squared (at most
+        // 0.5) in the next 23, the index in the low 40.
+        const std::uint64_t against = glm::dot(direction, hit - camera.origin()) <= 0 ? 1 : 0;
+        const auto off = static_cast<std::uint64_t>((dx * dx + dy * dy) * 2 * 0x7fffff);
+        atomicMin(best[k], (against << 63) | (off << 40) | std::uint64_t(i));
+    });
+    std::vector<std::int64_t> chosen;
+    for (const auto& b : best) {
+        const std::uint64_t key = b.load(std::memory_order_relaxed);
+        if (key != ~std::uint64_t(0)) chosen.push_back(std::int64_t(key & ((1ull << 40) - 1)));
+    }
+    return chosen;
+}
+
+/// How far from its stored hit a sample's ray may now end and still be the same: the distance
+/// code's resolution at its distance, and a little.
+double hitTolerance(const HoloSection& section, const DistanceCode& code, const HoloSample& s) {
+    const double d = code.decode(s.distance);
+    return std::max(section.diagonal() / 4096, d / 4096) * 1.01 + 1e-6 * d;
+}
+
+}  // namespace
+
+HoloHitIndex::HoloHitIndex(HoloServer& server) : mSections(server.file().sections()) {
+    for (std::size_t s = 0; s < mSections.size(); ++s)
+        mCodes.push_back(server.distanceCode(int(s)));
+    // Read on this thread (the server is not thread-safe), misses left out; decoded in
+    // parallel.
+    std::vector<Bounds> bounds;
+    for (const auto& [section, beam] : server.file().storedBeams()) {
+        Bounds b;
+        b.section = section;
+        b.beam = beam;
+        b.first = mSamples.size();
+        for (const HoloSample& sample : server.beam(section, beam))
+            if (sample.distance != 0xffff) mSamples.push_back(sample);
+        b.count = mSamples.size() - b.first;
+        if (b.count > 0) mBeams.push_back(b);
+    }
+    mHits.resize(mSamples.size());
+    mDirections.resize(mSamples.size());
+    tbb::parallel_for(std::size_t(0), mBeams.size(), [&](std::size_t k) {
+        Bounds& b = mBeams[k];
+        glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-lo);
+        for (std::size_t i = b.first; i < b.first + b.count; ++i) {
+            const DecodedSample d =
+                decodeSample(mSamples[i], mSections[b.section], b.beam, mCodes[b.section]);
+            mHits[i] = glm::vec3(d.hit);
+            mDirections[i] = encodeDirection(d.direction);
+            lo = glm::min(lo, mHits[i]);
+            hi = glm::max(hi, mHits[i]);
+        }
+        b.lo = lo;
+        b.hi = hi;
+    });
+}
+
+bool HoloHitIndex::meets(const Bounds& b, const CameraRays& camera) const {
+    // The frustum's side planes through the eye, normals inward, and the eye's plane. Outside
+    // when the box's farthest corner along a normal lies behind a plane (a box's tolerance of a
+    // millimetre: hit points are decoded to about that).
+    const int w = camera.width(), h = camera.height();
+    const std::array<Vec3, 4> corner = {camera.rayDirection(0, 0), camera.rayDirection(w, 0),
+                                        camera.rayDirection(w, h), camera.rayDirection(0, h)};
+    const Vec3 eye = camera.origin();
+    const Vec3 lo = Vec3(b.lo) - Vec3(1e-3), hi = Vec3(b.hi) + Vec3(1e-3);
+    auto behind = [&](const Vec3& n) {
+        const Vec3 far(n.x > 0 ? hi.x : lo.x, n.y > 0 ? hi.y : lo.y, n.z > 0 ? hi.z : lo.z);
+        return glm::dot(far - eye, n) < 0;
+    };
+    if (behind(camera.forward())) return false;
+    for (int k = 0; k < 4; ++k) {
+        Vec3 n = glm::cross(corner[k], corner[(k + 1) % 4]);
+        if (glm::dot(n, camera.forward()) < 0) n = -n;
+        if (behind(n)) return false;
+    }
+    return true;
+}
+
+std::vector<BeamRequest> HoloHitIndex::beamsSeenBy(const CameraRays& camera) const {
+    std::vector<BeamRequest> seen;
+    for (const Bounds& b : mBeams)
+        if (meets(b, camera)) seen.push_back({b.section, b.beam, double(b.count)});
+    return seen;
+}
+
+std::vector<ShadedPoint> HoloHitIndex::viewPoints(const Discretization& disc,
+                                                  const RayTracer& tracer, const CameraRays& camera,
+                                                  std::uint64_t frame,
+                                                  std::uint64_t shading) const {
+    std::vector<std::size_t> seen;  // the beams the view can see
+    for (std::size_t k = 0; k < mBeams.size(); ++k)
+        if (meets(mBeams[k], camera)) seen.push_back(k);
+    const std::vector<std::int64_t> chosen = choosePerPixel(camera, [&](const auto& body) {
+        tbb::parallel_for(std::size_t(0), seen.size(), [&](std::size_t s) {
+            const Bounds& b = mBeams[seen[s]];
+            for (std::size_t i = b.first; i < b.first + b.count; ++i)
+                body(i, Vec3(mHits[i]), decodeDirection(mDirections[i]));
+        });
+    });
+    return tracedPoints(
+        chosen,
+        [&](std::size_t i) {
+            // The beam holding sample i: the last whose first sample is at most i.
+            const auto after = std::upper_bound(
+                mBeams.begin(), mBeams.end(), i,
+                [](std::size_t index, const Bounds& b) { return index < b.first; });
+            const Bounds& b = *std::prev(after);
+            const HoloSample& s = mSamples[i];
+            return std::pair(decodeSample(s, mSections[b.section], b.beam, mCodes[b.section]),
+                             hitTolerance(mSections[b.section], mCodes[b.section], s));
+        },
+        disc, tracer, camera, frame, shading);
+}
+
+std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
+                                            const std::vector<BeamRequest>& view,
+                                            const Discretization& disc, const RayTracer& tracer,
+                                            const CameraRays& camera, std::uint64_t frame,
+                                            std::uint64_t shading) {
+    const std::vector<HoloSection>& sections = server.file().sections();
+    // The beams' samples (read on this thread: the server is not thread-safe), decoded.
+    struct Stored {
+        int section = 0;
+        std::int64_t beam = 0;
+        HoloSample sample;
+    };
+    std::vector<Stored> stored;
+    for (const BeamRequest& r : view)
+        for (const HoloSample& sample : server.beam(r.section, r.beam))
+            if (sample.distance != 0xffff)  // a miss: nothing to show
+                stored.push_back({r.section, r.beam, sample});
+    std::vector<DecodedSample> samples(stored.size());
+    tbb::parallel_for(std::size_t(0), stored.size(), [&](std::size_t i) {
+        const Stored& s = stored[i];
+        samples[i] =
+            decodeSample(s.sample, sections[s.section], s.beam, server.distanceCode(s.section));
+    });
+    const std::vector<std::int64_t> chosen = choosePerPixel(camera, [&](const auto& body) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, samples.size(), 4096),
+                          [&](const auto& r) {
+                              for (std::size_t i = r.begin(); i != r.end(); ++i)
+                                  body(i, samples[i].hit, samples[i].direction);
+                          });
+    });
+    return tracedPoints(
+        chosen,
+        [&](std::size_t i) {
+            const Stored& s = stored[i];
+            return std::pair(samples[i], hitTolerance(sections[s.section],
+                                                      server.distanceCode(s.section), s.sample));
+        },
+        disc, tracer, camera, frame, shading);
 }
 
 namespace {

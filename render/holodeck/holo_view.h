@@ -5,6 +5,7 @@
 // from: a stored sample becomes a point of the view when the eye sees its hit point, whichever
 // eye the sample was shaded for.
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <utility>
@@ -29,12 +30,52 @@ std::pair<Vec3, Vec3> surfaceBounds(const Discretization& disc);
 /// (layoutSection). Throws std::invalid_argument when the scene has no surfaces.
 std::vector<HoloSection> holodeckSections(const Settings& settings, const Discretization& disc);
 
-/// The samples of `view`'s beams (viewRequests) as shaded points of `camera`: each sample's ray
-/// is traced again in the scene as it is (a sample whose ray now ends elsewhere is stale and
-/// left out), its hit must be seen from the eye (one occlusion ray) and inside the raster.
-/// Of the samples in a pixel, the one nearest its centre is taken (a batch-filled holodeck
-/// holds many per pixel; more than one a pixel only crowds the display's cache). Points carry
-/// `frame` and `shading` (PointShader::stateSerial) like points shaded now.
+/// Where the stored beams' samples hit, so that any view takes every stored sample it can see,
+/// whichever views or fill stored them (Ward & Simmons fill a holodeck once for walkthroughs
+/// anywhere inside its sections). Built by reading every stored beam once: each sample's
+/// decoded hit point beside the sample, grouped by beam, and per beam the bounding box of its
+/// hit points, so a view reads only the beams whose box meets its frustum, from memory.
+class HoloHitIndex {
+public:
+    explicit HoloHitIndex(HoloServer& server);
+    /// The beams whose hit points' box meets `camera`'s view frustum (in front of the eye,
+    /// within the raster's four side planes), in section and beam order; each desired as
+    /// many samples as it holds.
+    std::vector<BeamRequest> beamsSeenBy(const CameraRays& camera) const;
+    /// The stored samples as shaded points of `camera`, chosen as holodeckViewPoints chooses
+    /// them, from the beams beamsSeenBy finds.
+    std::vector<ShadedPoint> viewPoints(const Discretization& disc, const RayTracer& tracer,
+                                        const CameraRays& camera, std::uint64_t frame,
+                                        std::uint64_t shading) const;
+    std::size_t beams() const { return mBeams.size(); }
+    std::int64_t hits() const { return std::int64_t(mHits.size()); }
+
+private:
+    struct Bounds {
+        int section = 0;
+        std::int64_t beam = 0;
+        std::size_t first = 0, count = 0;  ///< its samples in mHits and mSamples
+        glm::vec3 lo{0.0f}, hi{0.0f};
+    };
+    bool meets(const Bounds& b, const CameraRays& camera) const;
+    std::vector<HoloSection> mSections;
+    std::vector<DistanceCode> mCodes;
+    std::vector<Bounds> mBeams;
+    std::vector<glm::vec3> mHits;  ///< decoded hit points, misses left out
+    /// Their rays' directions, octahedral in two 16-bit numbers (choosing a pixel's sample
+    /// prefers those that came from the eye's side).
+    std::vector<std::array<std::int16_t, 2>> mDirections;
+    std::vector<HoloSample> mSamples;  ///< the samples they are of
+};
+
+/// The samples of `view`'s beams (viewRequests, or HoloHitIndex::beamsSeenBy) as shaded points
+/// of `camera`. Each sample's stored hit point is projected; per pixel only the nearest depth's
+/// samples stand (within 2%: the rest lie behind a surface the pixel sees), and of those the one
+/// nearest the pixel's centre is taken (a batch-filled holodeck holds many per pixel; more than
+/// one a pixel only crowds the display's cache). That sample's ray is traced again in the scene
+/// as it is (a sample whose ray now ends elsewhere is stale and left out) and its hit must be
+/// seen from the eye (one occlusion ray) and inside the raster. Points carry `frame` and
+/// `shading` (PointShader::stateSerial) like points shaded now.
 std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
                                             const std::vector<BeamRequest>& view,
                                             const Discretization& disc, const RayTracer& tracer,
