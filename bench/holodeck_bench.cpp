@@ -71,6 +71,27 @@ std::int64_t readView(HoloServer& server, const std::vector<HoloSection>& sectio
     return std::int64_t(out.size());
 }
 
+/// The display without the holodeck on `rays`' view: its warm-up and first frame, then 30
+/// frames; their errors against the converged reference it returns.
+struct DisplayAlone {
+    Image reference;
+    double firstError = 0, error30 = 0;
+};
+
+DisplayAlone displayAlone(const EditSession& session, const SolverOptions& options,
+                          const InteractiveDisplayOptions& displayOptions, const CameraRays& rays) {
+    DisplayAlone d;
+    InteractiveDisplay display(session.discretization(), session.tracer(), options, displayOptions);
+    display.apply(SolutionView::of(session.solver()));
+    display.warmUp(rays);
+    Image image = display.renderFrame(rays);
+    d.reference = display.renderReference(rays, 2);
+    d.firstError = displayRmse(image, d.reference);
+    for (int k = 1; k < 30; ++k) image = display.renderFrame(rays);
+    d.error30 = displayRmse(image, d.reference);
+    return d;
+}
+
 /// The view reopened from the holodeck, as `penumbra render --mode epi --holodeck` does: a
 /// new display, the holodeck's points of the view, one frame; against the display without
 /// the holodeck (its warm-up, then 30 frames of the same view), all against one reference.
@@ -80,17 +101,10 @@ void measureFirstFrame(EditSession& session, const SolverOptions& options, const
     displayOptions.width = rays.width();
     displayOptions.height = rays.height();
     const Discretization& disc = session.discretization();
-    Image reference;
-    {
-        InteractiveDisplay display(disc, session.tracer(), options, displayOptions);
-        display.apply(SolutionView::of(session.solver()));
-        display.warmUp(rays);
-        Image image = display.renderFrame(rays);
-        reference = display.renderReference(rays, 2);
-        c.displayFirstError = displayRmse(image, reference);
-        for (int k = 1; k < 30; ++k) image = display.renderFrame(rays);
-        c.display30Error = displayRmse(image, reference);
-    }
+    const DisplayAlone alone = displayAlone(session, options, displayOptions, rays);
+    const Image& reference = alone.reference;
+    c.displayFirstError = alone.firstError;
+    c.display30Error = alone.error30;
     InteractiveDisplay display(disc, session.tracer(), options, displayOptions);
     display.apply(SolutionView::of(session.solver()));
     const auto start = Clock::now();
@@ -245,17 +259,10 @@ nlohmann::json runGeneric(const HolodeckBenchOptions& o, const std::string& name
         const CameraRays rays(viewCamera, o.width, o.height);
         GenericView v;
         v.name = viewName;
-        Image reference;
-        {
-            InteractiveDisplay display(disc, session->tracer(), options, displayOptions);
-            display.apply(SolutionView::of(session->solver()));
-            display.warmUp(rays);
-            Image image = display.renderFrame(rays);
-            reference = display.renderReference(rays, 2);
-            v.displayFirstError = displayRmse(image, reference);
-            for (int k = 1; k < 30; ++k) image = display.renderFrame(rays);
-            v.display30Error = displayRmse(image, reference);
-        }
+        const DisplayAlone alone = displayAlone(*session, options, displayOptions, rays);
+        const Image& reference = alone.reference;
+        v.displayFirstError = alone.firstError;
+        v.display30Error = alone.error30;
         InteractiveDisplay display(disc, session->tracer(), options, displayOptions);
         display.apply(SolutionView::of(session->solver()));
         const auto start = Clock::now();

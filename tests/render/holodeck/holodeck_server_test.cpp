@@ -9,6 +9,7 @@
 #include <filesystem>
 
 #include "core/random.h"
+#include "holo_test_support.h"
 #include "render/display/point_shader.h"
 #include "render/holodeck/holo_server.h"
 #include "solver/discretization.h"
@@ -22,12 +23,7 @@ namespace {
 namespace fs = std::filesystem;
 
 std::string tempFile(const std::string& name) {
-    const fs::path dir =
-        fs::temp_directory_path() / ("penumbra_holo_server_test_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    const fs::path file = dir / name;
-    fs::remove(file);
-    return file.string();
+    return test::holoTempFile("holo_server_test", name);
 }
 
 HoloSample marked(std::uint64_t beam, std::size_t i) {
@@ -66,22 +62,7 @@ TEST(HoloServer, TheCacheStaysWithinItsBudgetAndEvictedBeamsComeBackUnchanged) {
     EXPECT_EQ(reopened.info().samples, 60 * 12);
 }
 
-/// makeLitRoom solved, and a synchronous point shader over it.
-struct LitRoom {
-    Scene scene = test::makeLitRoom("red");
-    Discretization disc{scene};
-    RayTracer tracer{disc};
-    SolverOptions options;
-    ProgressiveSolver solver{disc, tracer, options};
-    std::unique_ptr<PointShader> shader;
-    LitRoom() {
-        solver.converge(1e-3, 100000);
-        PointShaderOptions o;
-        o.threads = 0;
-        shader = std::make_unique<PointShader>(disc, tracer, options, o);
-        shader->updateSolution(solver);
-    }
-};
+using test::LitRoom;
 
 TEST(HoloServer, FilledSamplesAreWhatTheShaderSeesAlongTheirRays) {
     LitRoom room;

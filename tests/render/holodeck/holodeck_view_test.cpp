@@ -4,11 +4,10 @@
 // view's own beams hold.
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
-#include <filesystem>
 #include <set>
 
+#include "holo_test_support.h"
 #include "render/camera_rays.h"
 #include "render/display/point_shader.h"
 #include "render/holodeck/holo_server.h"
@@ -21,37 +20,17 @@
 namespace penumbra {
 namespace {
 
-namespace fs = std::filesystem;
+std::string tempFile(const std::string& name) { return test::holoTempFile("holo_view_test", name); }
 
-std::string tempFile(const std::string& name) {
-    const fs::path dir =
-        fs::temp_directory_path() / ("penumbra_holo_view_test_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    const fs::path file = dir / name;
-    fs::remove(file);
-    return file.string();
-}
-
-/// makeLitRoom solved, a synchronous point shader over it, and a holodeck of one interior
-/// section batch-filled (every beam in proportion to its volume: no view). The section is a
-/// little larger than the room (walls at ±1.5), as one laid over a scene's bounds may be: some
-/// of its rays start outside the room and see the walls' backs, black.
-struct FilledRoom {
-    Scene scene = test::makeLitRoom("red");
-    Discretization disc{scene};
-    RayTracer tracer{disc};
-    SolverOptions options;
-    ProgressiveSolver solver{disc, tracer, options};
-    std::unique_ptr<PointShader> shader;
+/// makeLitRoom solved with a point shader (LitRoom), and a holodeck of one interior section
+/// batch-filled (every beam in proportion to its volume: no view). The section's floor lies
+/// below the room's (walls at ±1.5), as one laid over a scene's bounds may: the rays starting
+/// there see the floor's back, black.
+struct FilledRoom : test::LitRoom {
     HoloSection section{Vec3(-1.45, -1.55, -1.45), Vec3(2.9, 3.0, 2.9), {4, 4, 4}};
     std::unique_ptr<HoloFile> file;
     std::unique_ptr<HoloServer> server;
     explicit FilledRoom(std::int64_t samples) {
-        solver.converge(1e-3, 100000);
-        PointShaderOptions o;
-        o.threads = 0;
-        shader = std::make_unique<PointShader>(disc, tracer, options, o);
-        shader->updateSolution(solver);
         file = std::make_unique<HoloFile>(tempFile("filled.hdk"), std::vector{section});
         HoloServerOptions so;
         so.packet = 2;
