@@ -265,6 +265,7 @@ void DisplayProducer::startDisplay(const ViewRequest& view, std::uint64_t holoRe
                               : mHolodeck.requestView(view.camera, mDisplay->width(),
                                                       mDisplay->height());
     mHoloReadTime = nowSeconds();
+    mHoloCamera = view.camera;
 }
 
 bool DisplayProducer::displayLanded(const ViewRequest& view) {
@@ -383,8 +384,10 @@ bool DisplayProducer::renderDisplay(const ViewRequest& view, const PublishedLigh
     } catch (const std::exception& e) {
         mBoard.report(std::string("display: ") + e.what());
     }
-    // A new display's first frame starts from the holodeck's points of its view.
+    // A new display's first frame starts from the holodeck's points of its view; a moved
+    // camera's view takes them as they come.
     if (!takeHolodeckPoints()) return false;
+    requestMovedView(view);
     const int w = display.width(), h = display.height();
     const CameraRays rays(view.camera, w, h);
     int shownPreview = -1;
@@ -606,9 +609,29 @@ bool DisplayProducer::takeHolodeckPoints() {
         mHoloPositions.push_back(p.position);
     }
     d.insertShaded(*answer);
-    mHoloPoints = std::int64_t(answer->size());
+    mHoloPoints += std::int64_t(answer->size());
     mHoloRead = 0;
+    // The positions of points brought or stored keep later stores off their pixels; a long
+    // walk keeps the latest, about a view's worth.
+    const std::size_t keep = static_cast<std::size_t>(d.width()) * d.height();
+    if (mHoloPositions.size() > 2 * keep)
+        mHoloPositions.erase(mHoloPositions.begin(),
+                             mHoloPositions.end() - static_cast<std::ptrdiff_t>(keep));
     return true;
+}
+
+void DisplayProducer::requestMovedView(const ViewRequest& view) {
+    if (!mHolodeck.enabled() || mHoloRead != 0 || mFrames == 0) return;
+    const Camera& c = view.camera;
+    if (mHoloCamera && mHoloCamera->position == c.position && mHoloCamera->lookAt == c.lookAt &&
+        mHoloCamera->up == c.up && mHoloCamera->fovDeg == c.fovDeg)
+        return;
+    mHoloCamera = c;
+    // At half the resolution: the cache's points, reprojected, already cover most of a moved
+    // view; a sample in every 2 × 2 pixels fills what they leave, in a quarter of the time.
+    mHoloRead = mHolodeck.requestView(c, std::max(1, mDisplay->width() / 2),
+                                      std::max(1, mDisplay->height() / 2));
+    mHoloReadTime = nowSeconds();
 }
 
 void DisplayProducer::handHolodeckPoints(const ViewRequest& view, const PublishedLight& light,

@@ -139,6 +139,9 @@ private:
     /// Puts the holodeck's answer into the display when it came; false while the first frame
     /// should still wait for it.
     bool takeHolodeckPoints();
+    /// Asks the holodeck for the points of `view` when its camera moved since the last read
+    /// and that read was answered (a walk or an orbit takes each view's stored points).
+    void requestMovedView(const ViewRequest& view);
     /// Once the view rested on the converged light, hands the display's points shaded from it
     /// (and not from the holodeck), at most one per pixel the holodeck does not show yet, to
     /// the holodeck to store.
@@ -189,6 +192,8 @@ private:
     /// `mConvergedLight`; the view and light it last handed points of.
     std::uint64_t mHoloRead = 0;
     double mHoloReadTime = 0;
+    /// The camera of the last read: a display whose camera moved asks for its new view's.
+    std::optional<Camera> mHoloCamera;
     std::int64_t mHoloPoints = 0;
     std::vector<Vec3> mHoloPositions;
     std::uint64_t mConvergedLight = 0, mConvergedFrame = 0;

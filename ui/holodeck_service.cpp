@@ -145,8 +145,22 @@ bool HolodeckService::iterate() {
     bool dirty = edits > mInvalidatedEdits;
     const bool converged =
         light.converged && light.convergedRadiosity && light.serial >= editLight;
+    // The index, once a view was read from the view's own beams (the first read does not wait
+    // for it), reads the file alone: built before the structure is taken.
+    if (mIndexWanted && !read && mServer && !dirty && !mIndex) {
+        const auto t0 = Clock::now();
+        try {
+            mIndex.emplace(*mServer);
+            spdlog::debug("holodeck: hit index of {} samples in {:.1f} ms", mIndex->hits(),
+                          msSince(t0));
+        } catch (const std::exception& e) {
+            report(e.what());
+        }
+        mIndexWanted = false;
+        publishStatus();
+    }
     // The tracer and the discretization are read with the structure shared: an edit waits for
-    // this iteration's work.
+    // this iteration's work (a read gives way to it).
     std::shared_lock<std::shared_mutex> structure(mShared.structure, std::defer_lock);
     if (mServer && (worked || (converged && (dirty || mLuminance.empty())))) structure.lock();
     if (mServer && converged) {
@@ -178,11 +192,22 @@ std::vector<ShadedPoint> HolodeckService::viewPoints(const Read& read) {
     const auto t0 = Clock::now();
     try {
         const CameraRays rays(read.camera, read.width, read.height);
-        const auto view = viewRequests(mFile->sections(), rays, std::max(1, read.width / 4),
-                                       std::max(1, read.height / 4), 1.0);
         const EditSession& session = mShared.read();
-        std::vector<ShadedPoint> points = holodeckViewPoints(
-            *mServer, view, session.discretization(), session.tracer(), rays, 0, 0);
+        std::vector<ShadedPoint> points;
+        if (mIndex) {
+            // Every stored sample the view can see; an edit waiting for the structure ends the
+            // read (no points).
+            points = mIndex->viewPoints(session.discretization(), session.tracer(), rays, 0, 0,
+                                        [this] { return mShared.editsWaiting.load() > 0; });
+        } else {
+            // The view's own beams, at once; the index follows for the next views.
+            const auto view = viewRequests(mFile->sections(), rays, std::max(1, read.width / 4),
+                                           std::max(1, read.height / 4), 1.0);
+            points = holodeckViewPoints(*mServer, view, session.discretization(), session.tracer(),
+                                        rays, 0, 0);
+            mIndexWanted = true;
+            mThread.wake();
+        }
         spdlog::debug("holodeck: {} points of a {}x{} view in {:.1f} ms", points.size(),
                       read.width, read.height, msSince(t0));
         return points;
@@ -202,6 +227,7 @@ void HolodeckService::invalidate(bool everyElement, std::vector<double> now) {
     try {
         const Invalidation result = mServer->invalidate(mShared.read().tracer(), changed);
         mServer->flush();
+        if (result.samples > 0) mIndex.reset();
         mStatus.invalidated += result.samples;
         mStatus.samples = mFile->info().samples;
         spdlog::debug("holodeck: edits took {} samples from {} beams ({} kept) in {:.1f} ms",

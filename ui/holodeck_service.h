@@ -21,6 +21,7 @@
 #include "render/display/render_cache.h"
 #include "render/holodeck/holo_file.h"
 #include "render/holodeck/holo_server.h"
+#include "render/holodeck/holo_view.h"
 #include "ui/runner_board.h"
 #include "ui/service_thread.h"
 #include "ui/shared_session.h"
@@ -118,6 +119,12 @@ private:
     // The service's own (its thread's, or the destructor's once it joined).
     std::optional<HoloFile> mFile;
     std::unique_ptr<HoloServer> mServer;
+    /// Where its samples hit, so a view takes every stored sample it can see, not only its
+    /// own beams'. Built after the first read, which takes its own beams at once (without
+    /// holding the structure: it reads the file alone), and again after an invalidation;
+    /// samples stored since join at the next build.
+    std::optional<HoloHitIndex> mIndex;
+    bool mIndexWanted = false;
     HolodeckStatus mStatus;
     bool mTried = false;
     /// Edits the last invalidation covered (mEdits beyond it: the holodeck is behind).

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <set>
@@ -93,12 +94,17 @@ template <class SampleOf>
 std::vector<ShadedPoint> tracedPoints(const std::vector<std::int64_t>& chosen,
                                       const SampleOf& sampleOf, const Discretization& disc,
                                       const RayTracer& tracer, const CameraRays& camera,
-                                      std::uint64_t frame, std::uint64_t shading) {
+                                      std::uint64_t frame, std::uint64_t shading,
+                                      const std::function<bool()>& cancelled = {}) {
     const int w = camera.width(), h = camera.height();
     const Vec3 eye = camera.origin();
     std::vector<ShadedPoint> points(chosen.size());
     std::vector<std::uint8_t> keep(chosen.size(), 0);
+    std::atomic<bool> stop{false};
     tbb::parallel_for(std::size_t(0), chosen.size(), [&](std::size_t c) {
+        // Asked once a block of 4,096 points.
+        if (cancelled && c % 4096 == 0 && cancelled()) stop.store(true, std::memory_order_relaxed);
+        if (stop.load(std::memory_order_relaxed)) return;
         const auto [s, tolerance] = sampleOf(std::size_t(chosen[c]));
         const RayTracer::FirstHit hit = tracer.firstHit(s.entry, s.direction);
         if (hit.element < 0) return;
@@ -125,6 +131,7 @@ std::vector<ShadedPoint> tracedPoints(const std::vector<std::int64_t>& chosen,
         p.shading = shading;
         keep[c] = 1;
     });
+    if (stop.load()) return {};
     // A traced point may land a pixel beside the one its stored hit chose (the hit is decoded
     // to a few millimetres): one point a pixel still, the nearer its centre.
     auto offCentre = [](const glm::dvec2& p) {
@@ -281,11 +288,12 @@ std::vector<BeamRequest> HoloHitIndex::beamsSeenBy(const CameraRays& camera) con
 
 std::vector<ShadedPoint> HoloHitIndex::viewPoints(const Discretization& disc,
                                                   const RayTracer& tracer, const CameraRays& camera,
-                                                  std::uint64_t frame,
-                                                  std::uint64_t shading) const {
+                                                  std::uint64_t frame, std::uint64_t shading,
+                                                  const std::function<bool()>& cancelled) const {
     std::vector<std::size_t> seen;  // the beams the view can see
     for (std::size_t k = 0; k < mBeams.size(); ++k)
         if (meets(mBeams[k], camera)) seen.push_back(k);
+    if (cancelled && cancelled()) return {};
     const std::vector<std::int64_t> chosen = choosePerPixel(camera, [&](const auto& body) {
         tbb::parallel_for(std::size_t(0), seen.size(), [&](std::size_t s) {
             const Bounds& b = mBeams[seen[s]];
@@ -305,7 +313,7 @@ std::vector<ShadedPoint> HoloHitIndex::viewPoints(const Discretization& disc,
             return std::pair(decodeSample(s, mSections[b.section], b.beam, mCodes[b.section]),
                              hitTolerance(mSections[b.section], mCodes[b.section], s));
         },
-        disc, tracer, camera, frame, shading);
+        disc, tracer, camera, frame, shading, cancelled);
 }
 
 std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,

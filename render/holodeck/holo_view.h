@@ -43,10 +43,12 @@ public:
     /// many samples as it holds.
     std::vector<BeamRequest> beamsSeenBy(const CameraRays& camera) const;
     /// The stored samples as shaded points of `camera`, chosen as holodeckViewPoints chooses
-    /// them, from the beams beamsSeenBy finds.
+    /// them, from the beams beamsSeenBy finds. `cancelled` (may be empty), asked between
+    /// blocks of work, ends the read early with no points (an edit waits for the tracer).
     std::vector<ShadedPoint> viewPoints(const Discretization& disc, const RayTracer& tracer,
                                         const CameraRays& camera, std::uint64_t frame,
-                                        std::uint64_t shading) const;
+                                        std::uint64_t shading,
+                                        const std::function<bool()>& cancelled = {}) const;
     std::size_t beams() const { return mBeams.size(); }
     std::int64_t hits() const { return std::int64_t(mHits.size()); }
 

@@ -122,6 +122,46 @@ TEST_F(RunnerHolodeck, FirstFrameStartsFromTheHolodeckAndIsNoWorse) {
                 static_cast<long long>(points[1]), errors[1], errors[0]);
 }
 
+TEST_F(RunnerHolodeck, AMovedCameraTakesItsViewFromAHolodeckFilledForNoView) {
+    // A batch fill: every beam in proportion to its volume, no camera.
+    {
+        auto session = converged();
+        PointShaderOptions shading = InteractiveDisplayOptions{}.shader;
+        shading.threads = 0;
+        PointShader shader(session->discretization(), session->tracer(), interactiveSolverOptions(),
+                           shading);
+        shader.updateSolution(session->solver());
+        HoloFile file(holodeck(),
+                      holodeckSections(session->scene().settings, session->discretization()));
+        HoloServer server(file, &shader);
+        server.fill(server.batchRequests(4e5), 400000, 0);
+    }
+    auto session = converged();
+    const Camera start = camera(*session);
+    auto r = runner(std::move(session), holodeck());
+    const auto first = firstFrame(*r);
+    ASSERT_TRUE(first && first->mode == ViewMode::EdgeAndPoint);
+    // The first view took its own beams' samples at once; the index of every beam's hits is
+    // built after it. A camera turned by 3 degrees (further, it leaves the room) then takes its
+    // view's from every beam, at half the display's resolution: most of its 80 x 60 pixels.
+    const std::int64_t before = first->holodeckPoints;
+    // (The index is built before the rested view's points are stored.)
+    test::pumpUntil(*r, 30, [&](const ViewportImage&) { return r->solver().holodeck.stored > 0; });
+    ViewRequest turned;
+    turned.camera = orbitCamera(start, 3);
+    turned.width = kWidth;
+    turned.height = kHeight;
+    turned.mode = ViewMode::EdgeAndPoint;
+    r->setView(turned);
+    const auto img = test::pumpUntil(*r, 60, [&](const ViewportImage& i) {
+        return i.holodeckPoints > before + (kWidth / 2) * (kHeight / 2) / 2;
+    });
+    ASSERT_TRUE(img);
+    EXPECT_GT(img->holodeckPoints, before + (kWidth / 2) * (kHeight / 2) / 2)
+        << "first view " << before;
+    EXPECT_TRUE(r->takeMessages().empty());
+}
+
 TEST_F(RunnerHolodeck, AnEditForgetsWhatItChangedAndKeepsTheRest) {
     fill(60000);
     const std::int64_t before = HoloFile::openReadOnly(holodeck()).info().samples;
