@@ -266,6 +266,7 @@ void DisplayProducer::startDisplay(const ViewRequest& view, std::uint64_t holoRe
                                                       mDisplay->height());
     mHoloReadTime = nowSeconds();
     mHoloCamera = view.camera;
+    mHoloIndexBuilds = mHolodeck.indexBuilds();
 }
 
 bool DisplayProducer::displayLanded(const ViewRequest& view) {
@@ -623,10 +624,12 @@ bool DisplayProducer::takeHolodeckPoints() {
 void DisplayProducer::requestMovedView(const ViewRequest& view) {
     if (!mHolodeck.enabled() || mHoloRead != 0 || mFrames == 0) return;
     const Camera& c = view.camera;
+    const std::uint64_t builds = mHolodeck.indexBuilds();
     if (mHoloCamera && mHoloCamera->position == c.position && mHoloCamera->lookAt == c.lookAt &&
-        mHoloCamera->up == c.up && mHoloCamera->fovDeg == c.fovDeg)
+        mHoloCamera->up == c.up && mHoloCamera->fovDeg == c.fovDeg && builds == mHoloIndexBuilds)
         return;
     mHoloCamera = c;
+    mHoloIndexBuilds = builds;
     // At half the resolution: the cache's points, reprojected, already cover most of a moved
     // view; a sample in every 2 × 2 pixels fills what they leave, in a quarter of the time.
     mHoloRead = mHolodeck.requestView(c, std::max(1, mDisplay->width() / 2),

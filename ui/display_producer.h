@@ -140,7 +140,8 @@ private:
     /// should still wait for it.
     bool takeHolodeckPoints();
     /// Asks the holodeck for the points of `view` when its camera moved since the last read
-    /// and that read was answered (a walk or an orbit takes each view's stored points).
+    /// and that read was answered (a walk or an orbit takes each view's stored points), or
+    /// when the holodeck's index came since (the first read took only the view's own beams).
     void requestMovedView(const ViewRequest& view);
     /// Once the view rested on the converged light, hands the display's points shaded from it
     /// (and not from the holodeck), at most one per pixel the holodeck does not show yet, to
@@ -192,8 +193,10 @@ private:
     /// `mConvergedLight`; the view and light it last handed points of.
     std::uint64_t mHoloRead = 0;
     double mHoloReadTime = 0;
-    /// The camera of the last read: a display whose camera moved asks for its new view's.
+    /// The camera of the last read and the holodeck's index builds then: a display whose
+    /// camera moved, or whose view was read before the index came, asks again.
     std::optional<Camera> mHoloCamera;
+    std::uint64_t mHoloIndexBuilds = 0;
     std::int64_t mHoloPoints = 0;
     std::vector<Vec3> mHoloPositions;
     std::uint64_t mConvergedLight = 0, mConvergedFrame = 0;

@@ -151,6 +151,7 @@ bool HolodeckService::iterate() {
         const auto t0 = Clock::now();
         try {
             mIndex.emplace(*mServer);
+            mIndexBuilds.fetch_add(1, std::memory_order_release);
             spdlog::debug("holodeck: hit index of {} samples in {:.1f} ms", mIndex->hits(),
                           msSince(t0));
         } catch (const std::exception& e) {

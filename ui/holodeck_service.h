@@ -9,6 +9,7 @@
 // or saved there). It hears of edits and saves as an EditListener and reads the lighting from
 // the board; it reads the structure holding it shared.
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <memory>
@@ -63,6 +64,9 @@ public:
     /// The answer to request `id` once it came: points stamped with frame and shading 0 (the
     /// display stamps its own); empty when the holodeck could not serve the view.
     std::optional<std::vector<ShadedPoint>> takeView(std::uint64_t id);
+    /// How many hit indexes were built: a view read before the last one took only its own
+    /// beams' samples, and may ask again.
+    std::uint64_t indexBuilds() const { return mIndexBuilds.load(std::memory_order_acquire); }
     /// Points a display shaded from the converged light `lightSerial`, seen from `eye`: stored
     /// when that is still the latest light and the document is the scene file's.
     void store(std::vector<CachePoint> points, const Vec3& eye, std::uint64_t lightSerial);
@@ -125,6 +129,7 @@ private:
     /// samples stored since join at the next build.
     std::optional<HoloHitIndex> mIndex;
     bool mIndexWanted = false;
+    std::atomic<std::uint64_t> mIndexBuilds{0};
     HolodeckStatus mStatus;
     bool mTried = false;
     /// Edits the last invalidation covered (mEdits beyond it: the holodeck is behind).
