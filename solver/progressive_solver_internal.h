@@ -68,6 +68,15 @@ inline void frameAround(const Vec3& z, Vec3& tx, Vec3& ty) {
     ty = Vec3(b, sign + z.y * z.y * a, -z.y);
 }
 
+/// A gather's ray for stratum k of nx × ny over (φ, sin²θ) about the frame (tx, ty, n), with
+/// its two numbers (ru, rv) within the stratum: a cosine-distributed direction.
+inline Vec3 gatherDirection(int k, int nx, int ny, double ru, double rv, const Vec3& tx,
+                            const Vec3& ty, const Vec3& n) {
+    const double u = (k % nx + ru) / nx, v = (k / nx + rv) / ny;
+    const double phi = 2 * M_PI * u, rr = std::sqrt(v);
+    return rr * std::cos(phi) * tx + rr * std::sin(phi) * ty + std::sqrt(std::max(0.0, 1 - v)) * n;
+}
+
 /// A cosine-distributed direction about unit normal n, whose frame (tx, ty, n) is given
 /// (Malley's method: a uniform point of the unit disk, by rejection from its square, lifted to
 /// the hemisphere).
