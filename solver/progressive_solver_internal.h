@@ -1,8 +1,9 @@
 #pragma once
-// The progressive solver's internals, shared by its two source files and by nothing else:
+// The progressive solver's internals, shared by its three source files and by nothing else:
 // progressive_solver.cpp (propagation: Cohen et al. 1988's shots, the stochastic tail,
-// adaptive subdivision, queries) and redistribution.cpp (George et al. 1990's change log,
-// redistribution shots and the drag preview's temporary buffer).
+// adaptive subdivision, queries), redistribution.cpp (George et al. 1990's change log and
+// redistribution shots) and drag_preview.cpp (the drag preview's temporary buffer and its
+// gathered shadow).
 //
 // Index: sampling helpers · receiver bounds · ChangeEntry · ProgressiveSolver::Impl
 
