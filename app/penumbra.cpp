@@ -780,8 +780,9 @@ void addRenderCommand(CLI::App& app, Commands& c) {
     renderCmd->add_option("--compare", render.compare,
                           "report the relative RMSE against this EXR (lamps left out)");
     renderCmd->add_option("--holodeck", render.holodeck,
-                          "epi, cache: start the first frame from this holodeck's samples of the "
-                          "view and store the shaded points in it (created when missing)");
+                          "epi, cache: start the first frame (every frame of an orbit) from "
+                          "the stored samples its view can see, and store the shaded points in "
+                          "it (created when missing)");
     renderCmd->add_option("--out", render.out, "image (.png or .exr)")->required();
     renderCmd->add_option("--report", solve.report, "write a JSON report");
     renderCmd
