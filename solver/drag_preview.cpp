@@ -149,9 +149,7 @@ void ProgressiveSolver::gatherPreviewShadow(ChangeEntry& c, std::vector<Rgb>& de
                     dir = gatherDirection(k, nx, ny, ru, rv, tx, ty, axis);
                     weight = 1.0;
                 } else {
-                    const double cosT = 1 - v * (1 - cosMax), sinT = std::sqrt(1 - cosT * cosT);
-                    const double phi = 2 * M_PI * u;
-                    dir = sinT * std::cos(phi) * tx + sinT * std::sin(phi) * ty + cosT * axis;
+                    dir = coneDirection(axis, tx, ty, cosMax, u, v);
                     const double cosN = glm::dot(dir, el.normal);
                     if (cosN <= 0) continue;
                     weight = omega * cosN / M_PI;

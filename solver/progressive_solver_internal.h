@@ -78,6 +78,17 @@ inline Vec3 gatherDirection(int k, int nx, int ny, double ru, double rv, const V
     return rr * std::cos(phi) * tx + rr * std::sin(phi) * ty + std::sqrt(std::max(0.0, 1 - v)) * n;
 }
 
+/// A direction in the cone of half-angle acos(cosMax) about unit `axis`, whose frame (tx, ty,
+/// axis) is given, uniform in solid angle for (u, v) uniform in [0, 1)²: φ = 2πu,
+/// cos θ = 1 − v (1 − cosMax).
+inline Vec3 coneDirection(const Vec3& axis, const Vec3& tx, const Vec3& ty, double cosMax, double u,
+                          double v) {
+    const double cosT = 1 - v * (1 - cosMax);
+    const double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+    const double phi = 2 * M_PI * u;
+    return sinT * std::cos(phi) * tx + sinT * std::sin(phi) * ty + cosT * axis;
+}
+
 /// A cosine-distributed direction about unit normal n, whose frame (tx, ty, n) is given
 /// (Malley's method: a uniform point of the unit disk, by rejection from its square, lifted to
 /// the hemisphere).

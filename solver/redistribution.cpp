@@ -905,12 +905,10 @@ bool sampleRedistributionDirection(const std::vector<std::pair<Vec3, double>>& s
     std::size_t k = 0;
     while (k + 1 < nCones && pickCone > cones[k].solidAngle) pickCone -= cones[k++].solidAngle;
     const Cone& cone = cones[k];
-    double cosT = 1 - rng.next() * (1 - cone.cosMax);
-    double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
-    double phi = 2 * M_PI * rng.next();
+    const double v = rng.next(), u = rng.next();  // in this order: cos θ's number first
     Vec3 coneX, coneY;
     frameAround(cone.axis, coneX, coneY);
-    dir = sinT * std::cos(phi) * coneX + sinT * std::sin(phi) * coneY + cosT * cone.axis;
+    dir = coneDirection(cone.axis, coneX, coneY, cone.cosMax, u, v);
     double cosSrc = glm::dot(dir, nz);
     if (cosSrc <= 0) return false;
     int holding = 0;

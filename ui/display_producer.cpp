@@ -24,10 +24,6 @@ constexpr double kLoadingImageMs = 250;
 /// A new display's first frame waits at most this long for the holodeck's points of its view.
 constexpr double kHolodeckWaitMs = 500;
 
-bool sameCamera(const Camera& a, const Camera& b) {
-    return a.position == b.position && a.lookAt == b.lookAt && a.up == b.up && a.fovDeg == b.fovDeg;
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -625,9 +621,7 @@ void DisplayProducer::requestMovedView(const ViewRequest& view) {
     if (!mHolodeck.enabled() || mHoloRead != 0 || mFrames == 0) return;
     const Camera& c = view.camera;
     const std::uint64_t builds = mHolodeck.indexBuilds();
-    if (mHoloCamera && mHoloCamera->position == c.position && mHoloCamera->lookAt == c.lookAt &&
-        mHoloCamera->up == c.up && mHoloCamera->fovDeg == c.fovDeg && builds == mHoloIndexBuilds)
-        return;
+    if (mHoloCamera && sameCamera(*mHoloCamera, c) && builds == mHoloIndexBuilds) return;
     mHoloCamera = c;
     mHoloIndexBuilds = builds;
     // At half the resolution: the cache's points, reprojected, already cover most of a moved

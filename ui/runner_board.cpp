@@ -4,13 +4,9 @@
 
 namespace penumbra {
 
-namespace {
-
 bool sameCamera(const Camera& a, const Camera& b) {
     return a.position == b.position && a.lookAt == b.lookAt && a.up == b.up && a.fovDeg == b.fovDeg;
 }
-
-}  // namespace
 
 const ObjectSummary* DocumentSummary::find(const std::string& id) const {
     for (const ObjectSummary& o : objects)

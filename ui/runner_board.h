@@ -111,6 +111,9 @@ struct DocumentSummary {
     const ObjectSummary* find(const std::string& id) const;
 };
 
+/// The same view of the scene: eye, look-at point, up and field of view (the name aside).
+bool sameCamera(const Camera& a, const Camera& b);
+
 /// What the viewport wants rendered.
 struct ViewRequest {
     Camera camera;

@@ -32,28 +32,34 @@ bool seen(const RayTracer& tracer, const Vec3& eye, const Vec3& point) {
     return !tracer.occluded(eye, point - d * std::min(1e-3 / length, 1e-3));
 }
 
+/// The octahedral map's fold of its lower half over the upper (its own inverse): (u, v) of a
+/// point with z < 0 to the square's corner triangle it covers.
+void octahedralFold(double& u, double& v) {
+    const double fu = (1 - std::abs(v)) * (u >= 0 ? 1 : -1);
+    v = (1 - std::abs(u)) * (v >= 0 ? 1 : -1);
+    u = fu;
+}
+
 /// A unit vector in two 16-bit numbers (the octahedral map: the sphere onto the octahedron
 /// |x| + |y| + |z| = 1, its lower half folded over the upper), within about 1e-4 rad.
 std::array<std::int16_t, 2> encodeDirection(const Vec3& d) {
     const double l1 = std::abs(d.x) + std::abs(d.y) + std::abs(d.z);
     double u = d.x / l1, v = d.y / l1;
-    if (d.z < 0) {
-        const double fu = (1 - std::abs(v)) * (u >= 0 ? 1 : -1);
-        v = (1 - std::abs(u)) * (v >= 0 ? 1 : -1);
-        u = fu;
-    }
+    if (d.z < 0) octahedralFold(u, v);
     return {std::int16_t(std::lround(u * 32767)), std::int16_t(std::lround(v * 32767))};
 }
 
 Vec3 decodeDirection(const std::array<std::int16_t, 2>& e) {
-    const double u = e[0] / 32767.0, v = e[1] / 32767.0;
-    Vec3 d(u, v, 1 - std::abs(u) - std::abs(v));
-    if (d.z < 0) {
-        const double fu = (1 - std::abs(v)) * (u >= 0 ? 1 : -1);
-        d.y = (1 - std::abs(u)) * (v >= 0 ? 1 : -1);
-        d.x = fu;
-    }
-    return glm::normalize(d);
+    double u = e[0] / 32767.0, v = e[1] / 32767.0;
+    const double z = 1 - std::abs(u) - std::abs(v);
+    if (z < 0) octahedralFold(u, v);
+    return glm::normalize(Vec3(u, v, z));
+}
+
+/// Squared distance of pixel coordinates from their pixel's centre.
+double offCentre(const glm::dvec2& p) {
+    const double dx = p.x - std::floor(p.x) - 0.5, dy = p.y - std::floor(p.y) - 0.5;
+    return dx * dx + dy * dy;
 }
 
 }  // namespace
@@ -134,10 +140,6 @@ std::vector<ShadedPoint> tracedPoints(const std::vector<std::int64_t>& chosen,
     if (stop.load()) return {};
     // A traced point may land a pixel beside the one its stored hit chose (the hit is decoded
     // to a few millimetres): one point a pixel still, the nearer its centre.
-    auto offCentre = [](const glm::dvec2& p) {
-        const double dx = p.x - std::floor(p.x) - 0.5, dy = p.y - std::floor(p.y) - 0.5;
-        return dx * dx + dy * dy;
-    };
     std::vector<int> taken(static_cast<std::size_t>(w) * h, -1);
     for (std::size_t c = 0; c < points.size(); ++c) {
         if (!keep[c]) continue;
@@ -199,11 +201,10 @@ std::vector<std::int64_t> choosePerPixel(const CameraRays& camera, const ForEach
         const int k = project(hit, depth, at);
         if (k < 0 || depth > std::bit_cast<float>(front[k].load(std::memory_order_relaxed)) * 1.02f)
             return;
-        const double dx = at.x - std::floor(at.x) - 0.5, dy = at.y - std::floor(at.y) - 0.5;
         // Whether the ray went against the eye's in the top bit, off-centre squared (at most
         // 0.5) in the next 23, the index in the low 40.
         const std::uint64_t against = glm::dot(direction, hit - camera.origin()) <= 0 ? 1 : 0;
-        const auto off = static_cast<std::uint64_t>((dx * dx + dy * dy) * 2 * 0x7fffff);
+        const auto off = static_cast<std::uint64_t>(offCentre(at) * 2 * 0x7fffff);
         atomicMin(best[k], (against << 63) | (off << 40) | std::uint64_t(i));
     });
     std::vector<std::int64_t> chosen;
@@ -228,7 +229,6 @@ HoloHitIndex::HoloHitIndex(HoloServer& server) : mSections(server.file().section
         mCodes.push_back(server.distanceCode(int(s)));
     // Read on this thread (the server is not thread-safe), misses left out; decoded in
     // parallel.
-    std::vector<Bounds> bounds;
     for (const auto& [section, beam] : server.file().storedBeams()) {
         Bounds b;
         b.section = section;
@@ -257,32 +257,36 @@ HoloHitIndex::HoloHitIndex(HoloServer& server) : mSections(server.file().section
     });
 }
 
-bool HoloHitIndex::meets(const Bounds& b, const CameraRays& camera) const {
-    // The frustum's side planes through the eye, normals inward, and the eye's plane. Outside
-    // when the box's farthest corner along a normal lies behind a plane (a box's tolerance of a
-    // millimetre: hit points are decoded to about that).
+std::vector<std::size_t> HoloHitIndex::seenBeams(const CameraRays& camera) const {
+    // The frustum's side planes through the eye, normals inward, and the eye's plane. A box is
+    // outside when its farthest corner along a normal lies behind a plane (a box's tolerance
+    // of a millimetre: hit points are decoded to about that).
     const int w = camera.width(), h = camera.height();
     const std::array<Vec3, 4> corner = {camera.rayDirection(0, 0), camera.rayDirection(w, 0),
                                         camera.rayDirection(w, h), camera.rayDirection(0, h)};
-    const Vec3 eye = camera.origin();
-    const Vec3 lo = Vec3(b.lo) - Vec3(1e-3), hi = Vec3(b.hi) + Vec3(1e-3);
-    auto behind = [&](const Vec3& n) {
-        const Vec3 far(n.x > 0 ? hi.x : lo.x, n.y > 0 ? hi.y : lo.y, n.z > 0 ? hi.z : lo.z);
-        return glm::dot(far - eye, n) < 0;
-    };
-    if (behind(camera.forward())) return false;
+    std::array<Vec3, 5> normals;
+    normals[4] = camera.forward();
     for (int k = 0; k < 4; ++k) {
-        Vec3 n = glm::cross(corner[k], corner[(k + 1) % 4]);
-        if (glm::dot(n, camera.forward()) < 0) n = -n;
-        if (behind(n)) return false;
+        normals[k] = glm::cross(corner[k], corner[(k + 1) % 4]);
+        if (glm::dot(normals[k], camera.forward()) < 0) normals[k] = -normals[k];
     }
-    return true;
+    const Vec3 eye = camera.origin();
+    std::vector<std::size_t> seen;
+    for (std::size_t k = 0; k < mBeams.size(); ++k) {
+        const Vec3 lo = Vec3(mBeams[k].lo) - Vec3(1e-3), hi = Vec3(mBeams[k].hi) + Vec3(1e-3);
+        const bool outside = std::any_of(normals.begin(), normals.end(), [&](const Vec3& n) {
+            const Vec3 far(n.x > 0 ? hi.x : lo.x, n.y > 0 ? hi.y : lo.y, n.z > 0 ? hi.z : lo.z);
+            return glm::dot(far - eye, n) < 0;
+        });
+        if (!outside) seen.push_back(k);
+    }
+    return seen;
 }
 
 std::vector<BeamRequest> HoloHitIndex::beamsSeenBy(const CameraRays& camera) const {
     std::vector<BeamRequest> seen;
-    for (const Bounds& b : mBeams)
-        if (meets(b, camera)) seen.push_back({b.section, b.beam, double(b.count)});
+    for (std::size_t k : seenBeams(camera))
+        seen.push_back({mBeams[k].section, mBeams[k].beam, double(mBeams[k].count)});
     return seen;
 }
 
@@ -290,9 +294,7 @@ std::vector<ShadedPoint> HoloHitIndex::viewPoints(const Discretization& disc,
                                                   const RayTracer& tracer, const CameraRays& camera,
                                                   std::uint64_t frame, std::uint64_t shading,
                                                   const std::function<bool()>& cancelled) const {
-    std::vector<std::size_t> seen;  // the beams the view can see
-    for (std::size_t k = 0; k < mBeams.size(); ++k)
-        if (meets(mBeams[k], camera)) seen.push_back(k);
+    const std::vector<std::size_t> seen = seenBeams(camera);
     if (cancelled && cancelled()) return {};
     const std::vector<std::int64_t> chosen = choosePerPixel(camera, [&](const auto& body) {
         tbb::parallel_for(std::size_t(0), seen.size(), [&](std::size_t s) {

@@ -59,7 +59,8 @@ private:
         std::size_t first = 0, count = 0;  ///< its samples in mHits and mSamples
         glm::vec3 lo{0.0f}, hi{0.0f};
     };
-    bool meets(const Bounds& b, const CameraRays& camera) const;
+    /// The indices in mBeams of the beams whose box meets `camera`'s frustum.
+    std::vector<std::size_t> seenBeams(const CameraRays& camera) const;
     std::vector<HoloSection> mSections;
     std::vector<DistanceCode> mCodes;
     std::vector<Bounds> mBeams;
