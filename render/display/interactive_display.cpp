@@ -65,7 +65,7 @@ std::string InteractiveDisplayOptions::toString() const {
       << sampleFraction << ", " << (synchronous ? "synchronous" : "asynchronous") << ", cache "
       << cacheCapacityPerPixel << "/pixel, near " << nearPlane << ", shadows "
       << (shadowEdges ? "on" : "off") << ", invalidate " << invalidateThreshold << ", "
-      << epi.toString() << "}";
+      << epi.toString() << ", moving dense " << movingDenseComplexLimit << "}";
     return s.str();
 }
 
@@ -182,6 +182,9 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
     mFrame = DisplayFrameStats{};
     DisplayFrameStats& st = mFrame;
     st.usedEdges = useEdges;
+    // The first frame counts as still: a view just opened is looked at.
+    mCameraMoving = mPreviousCamera && !(*mPreviousCamera == camera);
+    if (!mPreviousCamera || mCameraMoving) mPreviousCamera = camera;
     // A windowed frame needs the camera and the mode of the last reconstruction.
     if (mOptions.windowedFrames) {
         mFrameCameraSame = mWindowValid && mWindowUseEdges == useEdges && mWindowCamera &&
@@ -293,6 +296,12 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
 Image InteractiveDisplay::reconstructFrame() {
     // The edge-and-point image and its reconstruction (§4–5): the EPI's own arrays only.
     const auto t = Clock::now();
+    // A moving camera's frame filters fewer complex pixels (movingDenseComplexLimit); only a
+    // frame filtered as `epi` says can seed the windowed frames that follow it.
+    const int denseLimit = mCameraMoving && mOptions.movingDenseComplexLimit > 0
+                               ? mOptions.movingDenseComplexLimit
+                               : mOptions.epi.denseComplexLimit;
+    mEpi.setDenseComplexLimit(denseLimit);
     const std::optional<std::vector<PixelWindow>> windows =
         mOptions.windowedFrames ? changedWindows() : std::nullopt;
     Image image;
@@ -331,7 +340,7 @@ Image InteractiveDisplay::reconstructFrame() {
             mShownImage = image;
             noteShown({0, 0, mOptions.width, mOptions.height});
             noteShownEdges();
-            mWindowValid = true;
+            mWindowValid = denseLimit == mOptions.epi.denseComplexLimit;
             mWindowUseEdges = mFrame.usedEdges;
         }
     }

@@ -249,6 +249,14 @@ struct InteractiveDisplayOptions {
     /// The display's EPI: the paper's, plus edge-free smoothing of radius 6
     /// (EpiOptions::smoothRadius).
     EpiOptions epi = displayEpiOptions();
+    /// While the camera moves (a frame whose camera differs from the last frame's), complex
+    /// pixels with at least this many complex pixels in their 3×3 keep their estimate
+    /// instead of going through the subpixel filter (EpiOptions::denseComplexLimit for that
+    /// frame). The filter costs about a microsecond a complex pixel, and dense clusters of
+    /// them (fine meshes' far silhouettes) are where it gains least; a still camera's frames,
+    /// from the first after the camera stops, filter every complex pixel. 0: every frame
+    /// filters as `epi` says.
+    int movingDenseComplexLimit = 3;
     std::string toString() const;
 };
 
@@ -566,6 +574,8 @@ private:
     bool mLastWindowed = false;  ///< the EPI's whole build is older than the last frame
     std::optional<CameraRays> mWindowCamera;
     bool mFrameCameraSame = false;  ///< beginFrame's camera is mWindowCamera
+    std::optional<CameraRays> mPreviousCamera;  ///< the last frame's camera
+    bool mCameraMoving = false;  ///< beginFrame's camera differs from the last frame's
     Image mShownImage;
     std::vector<double> mShownDepth;
     std::vector<glm::vec3> mShownColour;

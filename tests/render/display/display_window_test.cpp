@@ -206,5 +206,58 @@ TEST(DisplayWindow, AConvergedStillViewRests) {
     std::printf("converged after %d frames\n", frames);
 }
 
+TEST(DisplayWindow, AMovingCameraFiltersDenseClustersLessAndTheNextStillFrameFiltersAll) {
+    // InteractiveDisplayOptions::movingDenseComplexLimit: a frame whose camera moved leaves
+    // the complex pixels of dense clusters at their estimate; the next frame of the same
+    // camera filters every complex pixel, as a display that never takes the shortcut does,
+    // and a windowed display reconstructs that frame whole (the moving frame cannot seed its
+    // windows), then nothing.
+    // A small raster, so that the room's edges crowd into clusters of complex pixels.
+    constexpr int kSmall = 40;
+    EditSession session(test::makeLitRoom("red"), SolverOptions{});
+    session.converge(1e-3);
+    InteractiveDisplayOptions fast = test::litRoomDisplayOptions(kSmall);
+    fast.sampleFraction = 0;  // no new samples: the frames differ only by their filtering
+    ASSERT_GT(fast.movingDenseComplexLimit, 0);
+    InteractiveDisplayOptions full = fast, windowed = fast;
+    full.movingDenseComplexLimit = 0;
+    windowed.windowedFrames = true;
+    windowed.windowColourTolerance = 0;
+    InteractiveDisplay f(session.discretization(), session.tracer(), SolverOptions{}, full);
+    InteractiveDisplay m(session.discretization(), session.tracer(), SolverOptions{}, fast);
+    InteractiveDisplay w(session.discretization(), session.tracer(), SolverOptions{}, windowed);
+    const CameraRays still(test::litRoomTopCamera(), kSmall, kSmall);
+    Camera turned = test::litRoomTopCamera();
+    turned.lookAt += Vec3(0.08, 0.0, 0.0);
+    const CameraRays moved(turned, kSmall, kSmall);
+    for (InteractiveDisplay* d : {&f, &m, &w}) {
+        d->apply(SolutionView::of(session.solver()));
+        d->warmUp(still, 1.0);
+    }
+    // The first frame counts as still.
+    const Image f0 = f.renderFrame(still);
+    EXPECT_LT(largestDifference(m.renderFrame(still), f0), 1e-9);
+    EXPECT_LT(largestDifference(w.renderFrame(still), f0), 1e-9);
+
+    // The camera moves: the shortcut changes some complex pixels and nothing else.
+    const Image f1 = f.renderFrame(moved), m1 = m.renderFrame(moved), w1 = w.renderFrame(moved);
+    EXPECT_LT(largestDifference(w1, m1), 1e-9);
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < f1.pixels.size(); ++i)
+        differing += glm::length(f1.pixels[i] - m1.pixels[i]) > 1e-9;
+    EXPECT_GT(differing, 0u) << "no dense cluster of complex pixels in the moved view";
+    EXPECT_LE(differing, m.lastFrame().complexPixels);
+
+    // It stops: every complex pixel filtered again, the windowed display whole, then idle.
+    const Image f2 = f.renderFrame(moved);
+    EXPECT_LT(largestDifference(m.renderFrame(moved), f2), 1e-9);
+    EXPECT_LT(largestDifference(w.renderFrame(moved), f2), 1e-9);
+    EXPECT_EQ(w.lastFrame().reconstructedPixels, std::size_t(kSmall * kSmall));
+    EXPECT_LT(largestDifference(w.renderFrame(moved), f.renderFrame(moved)), 1e-9);
+    EXPECT_EQ(w.lastFrame().reconstructedPixels, 0u);
+    std::printf("moving frame: %zu of %zu complex pixels kept their estimate\n", differing,
+                m.lastFrame().complexPixels);
+}
+
 }  // namespace
 }  // namespace penumbra
