@@ -625,9 +625,13 @@ Image EdgePointImage::reconstruct(bool useEdges) {
 }
 
 void EdgePointImage::markHoles(bool useEdges) {
-    // A pixel has a value from the points when its filter reached one (its own, or the plain
-    // 5×5 estimate that interpolatePrimary and the complex filter fall back to), or when the
-    // smoothing wrote it (mHole 1 on entry); the rest is a hole. A pixel of a simple pixel's
+    // A pixel has a value from the points when its filter reached one (its own, or for a
+    // complex pixel the plain 5×5 estimate the complex filter starts from), or when the
+    // smoothing wrote it (mHole 1 on entry); the rest is a hole, which the display fills from
+    // the surface its eye ray meets. A pixel whose reachable neighbourhood holds no point
+    // while points lie across its edges (an object's silhouette over what a drag just
+    // uncovered) is a hole too: the plain estimate interpolatePrimary leaves it would show the
+    // other side's colours, a ragged band along the edge. A pixel of a simple pixel's
     // secondary region takes a neighbour's colour only through anti-aliasing, which mixes it
     // with the primary: with neither weight it is a hole too.
     std::vector<size_t> rowHoles(static_cast<size_t>(mHeight), 0);
@@ -636,7 +640,9 @@ void EdgePointImage::markHoles(bool useEdges) {
         for (int x = 0; x < mWidth; ++x) {
             const size_t i = index(x, y);
             const bool reached =
-                mWeight[i] > 0.0f || (useEdges && mPlainWeight[i] > 0.0f) || mHole[i] != 0;
+                mWeight[i] > 0.0f ||
+                (useEdges && mPlainWeight[i] > 0.0f && mEdgeCode[i] == kEdgeCodeComplex) ||
+                mHole[i] != 0;
             mHole[i] = reached ? 0 : 1;
             holes += reached ? 0 : 1;
         }
