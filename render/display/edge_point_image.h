@@ -262,8 +262,8 @@ public:
 
     const EpiStageTimes& stageTimes() const { return mTimes; }
     const EpiOptions& options() const { return mOptions; }
-    /// EpiOptions::denseComplexLimit from the next build() on (a display's moving frames keep
-    /// dense clusters' estimates; InteractiveDisplayOptions::movingDenseComplexLimit).
+    /// EpiOptions::denseComplexLimit from the next reconstruct() on (a display's moving frames
+    /// keep dense clusters' estimates; InteractiveDisplayOptions::movingDenseComplexLimit).
     void setDenseComplexLimit(int limit) { mOptions.denseComplexLimit = limit; }
     int width() const { return mWidth; }
     int height() const { return mHeight; }
