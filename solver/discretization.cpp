@@ -144,7 +144,7 @@ void Discretization::finishElement(int e) {
         total += a;
     }
     el.centroid = total > 0 ? c / total : poly[0];
-    el.receiver = el.centroid;
+    if (static_cast<std::size_t>(e) < mReceivers.size()) mReceivers[e] = el.centroid;
 }
 
 int Discretization::placeReceivers(const RayTracer& tracer) {
@@ -169,9 +169,10 @@ int Discretization::placeReceivers(const RayTracer& tracer) {
         }
         return true;
     };
+    std::vector<Vec3> placed(mElements.size());
     tbb::parallel_for(std::size_t(0), mElements.size(), [&](std::size_t e) {
-        Element& el = mElements[e];
-        el.receiver = el.centroid;
+        const Element& el = mElements[e];
+        placed[e] = el.centroid;
         if (!elementAlive(static_cast<int>(e)) || !insideSolid(el, el.centroid)) return;
         // Sample points of the element: per fan triangle, its centroid and the points a
         // third of the way from it to each corner.
@@ -187,12 +188,15 @@ int Discretization::placeReceivers(const RayTracer& tracer) {
         Vec3 mean(0.0);
         for (const Vec3& p : open) mean += p;
         mean /= static_cast<double>(open.size());
-        el.receiver = *std::min_element(open.begin(), open.end(), [&](const Vec3& a, const Vec3& b) {
+        placed[e] = *std::min_element(open.begin(), open.end(), [&](const Vec3& a, const Vec3& b) {
             return glm::length(a - mean) < glm::length(b - mean);
         });
     });
     int moved = 0;
-    for (const Element& el : mElements) moved += el.receiver != el.centroid;
+    for (std::size_t e = 0; e < mElements.size(); ++e) moved += placed[e] != mElements[e].centroid;
+    // Every receiver at its centroid: receiver() needs no table.
+    if (moved == 0) placed = {};
+    mReceivers = std::move(placed);
     return moved;
 }
 

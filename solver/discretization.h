@@ -58,10 +58,6 @@ struct Element {
     double area = 0;
     Vec3 centroid{0};
     Vec3 normal{0};
-    /// Where the solver takes the light it receives: its centroid, or, when the centroid lies
-    /// inside a solid resting on it (a floor element a box's foot crosses), a point of the
-    /// element in the open (Discretization::placeReceivers).
-    Vec3 receiver{0};
     std::vector<int> vertices;
     std::string toString() const;
 };
@@ -114,6 +110,13 @@ public:
     /// others receive at their centroids (SolverOptions::placeReceivers). Returns how many
     /// receivers are not at their centroids.
     int placeReceivers(const RayTracer& tracer);
+    /// Where the solver takes the light element e receives: its centroid, or, when the
+    /// centroid lies inside a solid resting on it (a floor element a box's foot crosses), the
+    /// point of the element in the open that placeReceivers chose.
+    const Vec3& receiver(int e) const {
+        return static_cast<std::size_t>(e) < mReceivers.size() ? mReceivers[e]
+                                                               : mElements[e].centroid;
+    }
     bool patchAlive(int patch) const { return mObjects[mPatches[patch].object].alive; }
     /// Replaces the material of every patch of `object` (a material edit).
     void setObjectMaterial(int object, const Material& material);
@@ -174,6 +177,10 @@ private:
 
     std::vector<Patch> mPatches;
     std::vector<Element> mElements;
+    /// Per element, its receiving point (receiver()), held only once placeReceivers has moved
+    /// one off its centroid: most solves never do, and then it holds nothing. Elements past
+    /// its end receive at their centroids.
+    std::vector<Vec3> mReceivers;
     std::vector<ObjectSurface> mObjects;
     std::vector<Material> mMaterials;
     double mTotalArea = 0;

@@ -62,7 +62,7 @@ void ProgressiveSolver::gatherPreviewShadow(ChangeEntry& c, std::vector<Rgb>& de
     for (std::size_t e = 0; e < elements.size(); ++e) {
         const Element& el = elements[e];
         if (el.object == object || !mDisc.elementAlive(static_cast<int>(e))) continue;
-        const Vec3 d = centre - el.receiver;
+        const Vec3 d = centre - mDisc.receiver(static_cast<int>(e));
         const double d2 = glm::dot(d, d);
         if (d2 * kPreviewShadowSin2 > radius * radius) continue;
         const double dist = std::sqrt(d2);
@@ -102,7 +102,7 @@ void ProgressiveSolver::gatherPreviewShadow(ChangeEntry& c, std::vector<Rgb>& de
             for (int i = 0; i < n * n; ++i) {
                 const double ru = rng.next(), rv = rng.next();
                 const RayTracer::FirstHit h =
-                    mTracer.firstHit(el.receiver + el.normal * eps,
+                    mTracer.firstHit(mDisc.receiver(a) + el.normal * eps,
                                      gatherDirection(i, n, n, ru, rv, tx, ty, el.normal), after);
                 if (h.element >= 0 && !h.backFace && elements[h.element].object != object)
                     seen += mImpl->temp[h.element];
@@ -128,7 +128,7 @@ void ProgressiveSolver::gatherPreviewShadow(ChangeEntry& c, std::vector<Rgb>& de
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const int e = receivers[i];
             const Element& el = elements[e];
-            const Vec3 x = el.receiver + el.normal * eps;
+            const Vec3 x = mDisc.receiver(e) + el.normal * eps;
             const Vec3 toCentre = centre - x;
             const double dist = glm::length(toCentre);
             RayRandom rng{hashPair(seed, static_cast<std::uint64_t>(e))};

@@ -315,7 +315,8 @@ void ProgressiveSolver::shootPatch(int shooter) {
                             const int e = els[i];
                             if (!mayReceive(shooter, e, {})) continue;
                             const Element& el = mDisc.elements()[e];
-                            receivers[m] = {el.receiver, el.normal, static_cast<std::uint64_t>(e)};
+                            receivers[m] = {mDisc.receiver(e), el.normal,
+                                            static_cast<std::uint64_t>(e)};
                             receiving[m++] = e;
                         }
                         formFactorsToPatch(mDisc, mTracer, shooter, receivers, m, mOptions.seed,
@@ -350,7 +351,7 @@ bool ProgressiveSolver::mayReceive(int shooter, int e, const Visibility& visibil
         return false;
     // Cull pairs that cannot see each other: receiver behind the shooter's bounding plane or
     // shooter behind the receiver's plane.
-    Vec3 toReceiver = el.receiver - P.centroid;
+    Vec3 toReceiver = mDisc.receiver(e) - P.centroid;
     if (glm::dot(toReceiver, P.normal) < -P.radius) return false;
     if (glm::dot(-toReceiver, el.normal) < -P.radius) return false;
     return true;
@@ -360,7 +361,7 @@ Rgb ProgressiveSolver::irradianceFrom(int shooter, int e, const Rgb& dB,
                                       const Visibility& visibility, int* rays) const {
     if (!mayReceive(shooter, e, visibility)) return Rgb(0.0);
     const Element& el = mDisc.elements()[e];
-    PointToPatch ff = formFactorToPatch(mDisc, mTracer, el.receiver, el.normal, shooter,
+    PointToPatch ff = formFactorToPatch(mDisc, mTracer, mDisc.receiver(e), el.normal, shooter,
                                         static_cast<std::uint64_t>(e), mOptions.seed,
                                         mOptions.maxRaysPerPair, visibility);
     if (rays) *rays += ff.rays;

@@ -184,8 +184,8 @@ private:
     std::vector<double> mCumulative;  ///< doubled area of the patch's triangles up to each
 };
 
-/// Balls holding the receiving points (Element::receiver) of every patch, and per object a
-/// binary tree of balls over its patches (leaves of a few patches): redistribution's shaft
+/// Balls holding the receiving points (Discretization::receiver) of every patch, and per object
+/// a binary tree of balls over its patches (leaves of a few patches): redistribution's shaft
 /// test rejects whole groups of patches before testing patches and elements. Objects appended
 /// since the last update get their trees on the next update; a changed element count of the
 /// objects already there (subdivision) rebuilds everything.
@@ -205,14 +205,6 @@ struct ReceiverBounds {
     std::vector<int> roots;        ///< per object: its root node, -1 without receivers
     std::vector<int> order;        ///< patch indices, each node's contiguous
     std::size_t elementCount = 0;  ///< elements of the objects already built
-    /// Every patch's elements (in Patch::elements order) with their receiving points and
-    /// normals, patch after patch in contiguous arrays, so the shaft tests read them in order
-    /// instead of one element record each: patch p's are [firstReceiver[p], firstReceiver[p +
-    /// 1]).
-    std::vector<int> firstReceiver{0};
-    std::vector<int> receiverElement;
-    std::vector<Vec3> receiverPoint, receiverNormal;
-
     void update(const Discretization& disc) {
         const std::size_t nObjects = disc.objects().size();
         std::size_t built = roots.size(), expected = elementCount;
@@ -225,30 +217,17 @@ struct ReceiverBounds {
             nodes.clear();
             roots.clear();
             order.clear();
-            firstReceiver.assign(1, 0);
-            receiverElement.clear();
-            receiverPoint.clear();
-            receiverNormal.clear();
             built = 0;
         }
         const std::size_t oldPatches = patches.size();
         patches.resize(disc.patches().size());
-        for (std::size_t p = oldPatches; p < disc.patches().size(); ++p) {
-            for (int e : disc.patches()[p].elements) {
-                receiverElement.push_back(e);
-                receiverPoint.push_back(disc.elements()[e].receiver);
-                receiverNormal.push_back(disc.elements()[e].normal);
-            }
-            firstReceiver.push_back(static_cast<int>(receiverElement.size()));
-        }
         std::vector<std::vector<int>> byObject(nObjects);
         for (std::size_t p = oldPatches; p < disc.patches().size(); ++p) {
             const Patch& P = disc.patches()[p];
             Ball& b = patches[p];
             b = Ball{P.centroid, -1};
             for (int e : P.elements)
-                b.radius =
-                    std::max(b.radius, glm::length(disc.elements()[e].receiver - P.centroid));
+                b.radius = std::max(b.radius, glm::length(disc.receiver(e) - P.centroid));
             if (b.radius >= 0 && static_cast<std::size_t>(P.object) >= built)
                 byObject[P.object].push_back(static_cast<int>(p));
         }

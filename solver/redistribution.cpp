@@ -468,17 +468,16 @@ void ProgressiveSolver::redistributionDelta(const ChangeEntry& c, int j, bool pr
     // belong to no other piece).
     delta.assign(mDisc.elements().size(), Rgb(0.0));
     auto receivePatch = [&](int q, std::uint64_t mask) {
-        for (int r = bounds.firstReceiver[q]; r < bounds.firstReceiver[q + 1]; ++r) {
-            const int e = bounds.receiverElement[r];
+        for (int e : mDisc.patches()[q].elements) {
             if (mask == 0) {
                 delta[e] = shooterRemoved ? -irradianceFrom(j, e, shot, before)
                                           : irradianceFrom(j, e, shot, after);
                 continue;
             }
-            const Vec3& x = bounds.receiverPoint[r];
+            const Vec3& x = mDisc.receiver(e);
             if (shaftAndPyramidMask(x, 0, mask))
                 delta[e] = irradianceChange(
-                    j, q, {x, bounds.receiverNormal[r], static_cast<std::uint64_t>(e)}, shot,
+                    j, q, {x, mDisc.elements()[e].normal, static_cast<std::uint64_t>(e)}, shot,
                     before, after, changed, where);
         }
     };
@@ -696,7 +695,7 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
         Vec3 tx, ty;
         frameAround(el.normal, tx, ty);
         const RayTracer::FirstHit h = mTracer.firstHit(
-            el.receiver + el.normal * eps,
+            mDisc.receiver(e) + el.normal * eps,
             gatherDirection(k, strata.nx, strata.ny, ru, rv, tx, ty, el.normal), after);
         if (h.element < 0 || h.backFace) return -1;
         return h.patch == el.patch || !c.isGathered(h.patch) ? -1 : h.patch;
@@ -755,7 +754,7 @@ void ProgressiveSolver::refineGather(ChangeEntry& c, bool preview, std::vector<R
             RayRandom rng{hashPair(seed, static_cast<std::uint64_t>(e))};
             Vec3 tx, ty;
             frameAround(el.normal, tx, ty);
-            const Vec3 origin = el.receiver + el.normal * eps;
+            const Vec3 origin = mDisc.receiver(e) + el.normal * eps;
             strata.choose(seed, e, chosen.data());
             const int* hitOf = &refinement.blockHit[i * static_cast<std::size_t>(blocks)];
             Rgb sum(0.0);

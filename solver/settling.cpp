@@ -311,7 +311,7 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nr, 512), [&](const auto& range) {
         for (std::size_t r = range.begin(); r != range.end(); ++r) {
             const Element& el = elements[receivers[r]];
-            const Vec3& x = el.receiver;
+            const Vec3& x = mDisc.receiver(receivers[r]);
             const Vec3& n = el.normal;
             // The positive and the negative unshot energy's irradiance apart: the change is at
             // most the larger of the two (a gain and a loss at the same receiver cancel).

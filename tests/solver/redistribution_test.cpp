@@ -217,7 +217,8 @@ TEST(Redistribution, AShotChangesEveryElementByItsFormFactorChange) {
                 for (std::size_t k = 0; k < lamps.size(); ++k) {
                     if (el.patch == lamps[k] || (addedOnly && before[el.object])) continue;
                     auto f = [&](const Visibility& v) {
-                        return formFactorToPatch(*lit.disc, *lit.tracer, el.receiver, el.normal,
+                        return formFactorToPatch(*lit.disc, *lit.tracer,
+                                                 lit.disc->receiver(static_cast<int>(e)), el.normal,
                                                  lamps[k], e, 1, 16, v)
                             .visible;
                     };
@@ -637,8 +638,8 @@ TEST(Redistribution, TheGathersFirstPassTracesEachBlockOncePerPatch) {
     for (const Patch* P : patches)
         for (int e : P->elements) {
             const Element& el = lit.disc->elements()[e];
-            const PointToPatch f =
-                formFactorToPatch(*lit.disc, *lit.tracer, el.receiver, el.normal, lamp, e, 1, 16);
+            const PointToPatch f = formFactorToPatch(*lit.disc, *lit.tracer, lit.disc->receiver(e),
+                                                     el.normal, lamp, e, 1, 16);
             lampRays += static_cast<std::uint64_t>(f.rays);
             gathered[e] = h[e] - lampShot * f.visible;
         }
