@@ -94,9 +94,10 @@ TEST(EpiHoles, WithEdgesHolesHaveNoPointWithinReachAndTheRestHaveValues) {
                 EXPECT_EQ(epi.interpolationWeights()[y * kW + x], 0.0f);
                 // No point within 5×5, or only points across an edge (then not a complex
                 // pixel, which keeps the plain estimate for its filter).
-                if (pointsWithin(epi, x, y, 2) > 0)
+                if (pointsWithin(epi, x, y, 2) > 0) {
                     EXPECT_NE(epi.pixelClass(x, y), PixelClass::Complex)
                         << "pixel " << x << ", " << y;
+                }
             } else {
                 EXPECT_GT(luminance(image.at(x, y)), 0.0) << "pixel " << x << ", " << y;
             }
@@ -144,7 +145,9 @@ TEST(EpiHoles, APixelWhosePointsLieAcrossAnEdgeIsAHoleNotTheOtherSidesColour) {
                 EXPECT_TRUE(hole) << "pixel " << x << ", " << y;
             }
             holesBesideTheEdge += hole;
-            if (!hole) EXPECT_LT(image.at(x, y).x, 1e-9) << "pixel " << x << ", " << y;
+            if (!hole) {
+                EXPECT_LT(image.at(x, y).x, 1e-9) << "pixel " << x << ", " << y;
+            }
         }
     EXPECT_GT(holesBesideTheEdge, 0);
 }
