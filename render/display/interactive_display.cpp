@@ -182,15 +182,14 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
     mFrame = DisplayFrameStats{};
     DisplayFrameStats& st = mFrame;
     st.usedEdges = useEdges;
+    const bool sameAsLast = mPreviousCamera && *mPreviousCamera == camera;
     // The first frame counts as still: a view just opened is looked at.
-    mCameraMoving = mPreviousCamera && !(*mPreviousCamera == camera);
-    if (!mPreviousCamera || mCameraMoving) mPreviousCamera = camera;
+    mCameraMoving = mPreviousCamera && !sameAsLast;
+    mPreviousCamera = camera;
     // A windowed frame needs the camera and the mode of the last reconstruction.
     if (mOptions.windowedFrames) {
-        mFrameCameraSame = mWindowValid && mWindowUseEdges == useEdges && mWindowCamera &&
-                           *mWindowCamera == camera;
+        mFrameCameraSame = mWindowValid && mWindowUseEdges == useEdges && sameAsLast;
         if (!mFrameCameraSame) mWindowValid = false;
-        mWindowCamera = camera;
     }
 
     // A finished estimate of the drag preview's direct light (backgroundPreview): drop the

@@ -572,8 +572,7 @@ private:
     bool mWindowValid = false;
     bool mWindowUseEdges = true;
     bool mLastWindowed = false;  ///< the EPI's whole build is older than the last frame
-    std::optional<CameraRays> mWindowCamera;
-    bool mFrameCameraSame = false;  ///< beginFrame's camera is mWindowCamera
+    bool mFrameCameraSame = false;  ///< beginFrame's camera is the last frame's, windows valid
     std::optional<CameraRays> mPreviousCamera;  ///< the last frame's camera
     bool mCameraMoving = false;  ///< beginFrame's camera differs from the last frame's
     Image mShownImage;
