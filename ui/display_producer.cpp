@@ -573,7 +573,11 @@ void DisplayProducer::applyEvent(const EditEvent& event) {
 void DisplayProducer::pruneSubsets() {
     const int jobPreview = mDisplay ? mDisplay->directJobPreview() : -1;
     const int dragOrigin = mDisplay ? mDisplay->dragOrigin() : -1;
-    std::erase_if(mOldSubsets, [&](const VersionSubset& s) { return jobPreview != s.version; });
+    // A frame between its steps fills its holes with the preview it began with.
+    const int framePreview = mDisplay ? mDisplay->framePreview() : -1;
+    std::erase_if(mOldSubsets, [&](const VersionSubset& s) {
+        return jobPreview != s.version && framePreview != s.version;
+    });
     std::erase_if(mOldOrigins, [&](const VersionSubset& s) {
         return dragOrigin != s.version && jobPreview < 0;
     });

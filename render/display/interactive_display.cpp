@@ -182,6 +182,8 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
     mFrame = DisplayFrameStats{};
     DisplayFrameStats& st = mFrame;
     st.usedEdges = useEdges;
+    // The world of this frame's points, for its holes (finishFrame).
+    mFrameShading = mShader->snapshot();
     const bool sameAsLast = mPreviousCamera && *mPreviousCamera == camera;
     // The first frame counts as still: a view just opened is looked at.
     mCameraMoving = mPreviousCamera && !sameAsLast;
@@ -411,6 +413,7 @@ void InteractiveDisplay::finishFrame(const CameraRays& camera, Image& image) {
         st.times.shadeMs = msSince(t);
     }
     mLast = st;
+    mFrameShading = {};
 }
 
 Image InteractiveDisplay::reconstructLast(bool useEdges) {
@@ -430,7 +433,8 @@ void InteractiveDisplay::fillHoles(const CameraRays& camera, Image& image) const
                               for (int x = 0; x < w; ++x)
                                   if (holes[static_cast<std::size_t>(y) * w + x])
                                       image.at(x, y) = mShader->shadeFallback(
-                                          camera.origin(), camera.rayDirection(x + 0.5, y + 0.5));
+                                          mFrameShading, camera.origin(),
+                                          camera.rayDirection(x + 0.5, y + 0.5));
                       });
 }
 

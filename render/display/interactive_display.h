@@ -343,9 +343,14 @@ public:
     /// the stats of lastFrame()) read the structure and the cache like renderFrame and must not
     /// overlap an edit; reconstructFrame (step 4, the EPI's own arrays) may: apply() never
     /// touches the EPI. Call them in order, one frame at a time.
+    /// finishFrame fills the holes in the world beginFrame saw (the preview where the frame's
+    /// points show it), not where edits between the steps moved it: framePreview() is that
+    /// preview's version until finishFrame returns, and its subset must stay alive meanwhile.
     void beginFrame(const CameraRays& camera, bool useEdges = true);
     Image reconstructFrame();
     void finishFrame(const CameraRays& camera, Image& image);
+    /// The preview version of the frame begun and not yet finished, -1 for none.
+    int framePreview() const { return mFrameShading.previewObject(); }
     /// Reconstructs the last frame's EPI again without finding edges or requesting samples:
     /// `useEdges` true or false on exactly the same points and edges (for epi vs cache).
     Image reconstructLast(bool useEdges);
@@ -537,6 +542,8 @@ private:
     std::vector<ShadedPoint> shadeAll(const std::vector<ShadeRequest>& requests) const;
     /// The last reconstruction's holes (EdgePointImage::holes) from the fallback.
     void fillHoles(const CameraRays& camera, Image& image) const;
+    /// The shading state beginFrame saw, until finishFrame (framePreview).
+    PointShader::Snapshot mFrameShading;
 
     const Discretization& mDisc;
     const RayTracer& mTracer;

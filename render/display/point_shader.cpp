@@ -804,8 +804,21 @@ ShadedPoint PointShader::shadeWith(const State& st, const ShadeRequest& request)
     return out;
 }
 
+PointShader::Snapshot PointShader::snapshot() const {
+    Snapshot at;
+    at.mState = state();
+    return at;
+}
+
+int PointShader::Snapshot::previewObject() const { return mState ? mState->previewObject : -1; }
+
 Rgb PointShader::shadeFallback(const Vec3& origin, const Vec3& direction) const {
-    const auto st = state();
+    return shadeFallback(Snapshot{}, origin, direction);
+}
+
+Rgb PointShader::shadeFallback(const Snapshot& at, const Vec3& origin,
+                               const Vec3& direction) const {
+    const auto st = at.mState ? at.mState : state();
     const RayHit hit = traceWith(*st, origin, direction);
     if (hit.object < 0 || hit.element < 0) return Rgb(0.0);
     const Element& el = mDisc.elements()[hit.element];

@@ -223,6 +223,14 @@ public:
     /// edit has just uncovered) the direct light is sampled at the hit as a point's, so an
     /// uncovered surface is not black. Radiance, W/m²/sr; 0 for a miss or a back face.
     Rgb shadeFallback(const Vec3& origin, const Vec3& direction) const;
+    /// The shading state as of now (the lighting and the preview object), kept by a caller
+    /// that shades later against the world it saw then: a frame's holes are filled in the
+    /// world its points were taken from, not the one edits made meanwhile. The preview's
+    /// subset must stay alive while the snapshot is used.
+    class Snapshot;
+    Snapshot snapshot() const;
+    /// shadeFallback in the world and lighting of `at` (the current ones when it is empty).
+    Rgb shadeFallback(const Snapshot& at, const Vec3& origin, const Vec3& direction) const;
     /// Direct irradiance (W/m²) at x with unit normal n on object `receiver` from all lights,
     /// estimated with stratified shadow rays whose pattern depends on `key`:
     /// H = Σ_L E_L·(F_L − (A_L/N)·Σ_i K(x, y_i)·(1 − V(x, y_i))), the analytic unoccluded form
@@ -483,6 +491,19 @@ private:
     mutable tbb::concurrent_unordered_set<ShadowTriple, ShadowTripleHash> mTriples;
     mutable tbb::concurrent_queue<ShadowTriple> mNewTriples;
     mutable std::atomic<std::uint64_t> mShaded{0};
+};
+
+/// PointShader::snapshot's handle on a shading state.
+class PointShader::Snapshot {
+public:
+    Snapshot() = default;
+    bool empty() const { return !mState; }
+    /// Its preview object, -1 for none (or an empty snapshot).
+    int previewObject() const;
+
+private:
+    friend class PointShader;
+    std::shared_ptr<const State> mState;
 };
 
 }  // namespace penumbra

@@ -9,7 +9,8 @@
 //
 // Index: helpers · a dragged lamp lights the scene from its new place · the origin-relative
 //        estimate against recomputation · background estimate = synchronous estimate ·
-//        the dragged object's silhouettes · a dragged object's points leave a shadow they were in
+//        the dragged object's silhouettes · a dragged object's points leave a shadow they were in ·
+//        a frame's holes show the world it began in
 
 #include <gtest/gtest.h>
 
@@ -360,6 +361,52 @@ TEST(InteractiveDisplayDrag, CarriedPointsTakeTheDirectChangeOfTheirElementsAndA
                 now / sum, carried / sum, n);
     EXPECT_GT(carried / sum, 0.25) << "the shade darkened the slab where it rested";
     EXPECT_LT(now, 0.4 * carried);
+}
+
+// ---------------------------------------------------------------------------------------------
+// A frame's holes show the world it began in
+
+TEST(InteractiveDisplayDrag, AFramesHolesShowTheWorldItBeganInNotAMoveMadeMeanwhile) {
+    // The editor lets edits in while a frame is reconstructed (beginFrame, reconstructFrame,
+    // finishFrame). A move of the dragged slab between the steps must not reach the frame's
+    // holes: they are filled in the world its points came from, or the slab shows at its new
+    // place in pixels whose points show it at the old one (the body's colour over what it just
+    // uncovered). Reference: a second display given the same frame with no move in between.
+    Drag drag;
+    drag.session = std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{});
+    drag.session->converge(1e-3);
+    InteractiveDisplayOptions options = displayOptions();
+    options.sampleFraction = 0;  // no points: every pixel of the first frame is a hole
+    InteractiveDisplay moved(drag.session->discretization(), drag.session->tracer(),
+                             SolverOptions{}, options);
+    InteractiveDisplay still(drag.session->discretization(), drag.session->tracer(),
+                             SolverOptions{}, options);
+    const EditEvent began = drag.session->apply(SelectCommand{"slab"});
+    drag.origin = began.origin;
+    drag.originSubset = RayTracer::SubsetHandle(drag.session->tracer(), {drag.origin});
+    drag.previewSubset = RayTracer::SubsetHandle(drag.session->tracer(), {drag.origin});
+    for (InteractiveDisplay* d : {&moved, &still}) {
+        d->apply(SolutionView::of(drag.session->solver()));
+        d->apply(began, {drag.originSubset.visibility(), drag.previewSubset.visibility()});
+    }
+    const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
+    moved.beginFrame(rays);
+    still.beginFrame(rays);
+    EXPECT_EQ(moved.framePreview(), drag.origin);
+    Image a = moved.reconstructFrame(), b = still.reconstructFrame();
+    // The slab moves while the frame is reconstructed; the first display takes the event.
+    RayTracer::SubsetHandle keep = std::move(drag.previewSubset);
+    move(drag, moved, "slab", kNewPlace);
+    moved.finishFrame(rays, a);
+    still.finishFrame(rays, b);
+    EXPECT_EQ(moved.framePreview(), -1) << "the frame is finished";
+    ASSERT_GT(moved.lastFrame().unsampledPixels, std::size_t(kSize * kSize / 2));
+    EXPECT_LT(displayRmse(a, b), 1e-12) << "the move reached the frame's holes";
+    // The move is visible to the fallback: the next frame's holes show the slab moved.
+    moved.beginFrame(rays);
+    Image next = moved.reconstructFrame();
+    moved.finishFrame(rays, next);
+    EXPECT_GT(displayRmse(next, b), 0.01);
 }
 
 }  // namespace
