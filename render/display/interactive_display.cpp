@@ -616,9 +616,9 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
         }
         return total > 0 ? change / total : 0.0;
     };
-    // Per element: whether the change exceeds kShadowChange of its light at the centroid or at
-    // a corner (pulled in a little: a shadow's edge may cross a large element anywhere).
-    constexpr double kShadowChange = 0.1;
+    // Per element: whether the change exceeds shadowDropChange of its light at the centroid or
+    // at a corner (pulled in a little: a shadow's edge may cross a large element anywhere).
+    const double minChange = mOptions.shadowDropChange;
     const std::size_t elements = mDisc.elements().size();
     std::vector<std::uint8_t> changed(elements, 0);
     // Whether some probe point of an element (all within its radius r of the centroid c) can
@@ -652,12 +652,12 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
                               if (!mDisc.objects()[el.object].alive) continue;
                               const auto& world = mDisc.objects()[el.object].worldPositions;
                               if (mOptions.shadowDropCull && !mayChange(el, world)) continue;
-                              bool any = shadowChange(el.centroid, el.normal) > kShadowChange;
+                              bool any = shadowChange(el.centroid, el.normal) > minChange;
                               for (std::size_t k = 0; !any && k < el.vertices.size(); ++k)
                                   any =
                                       shadowChange(world[el.vertices[k]] +
                                                        0.1 * (el.centroid - world[el.vertices[k]]),
-                                                   el.normal) > kShadowChange;
+                                                   el.normal) > minChange;
                               changed[e] = any ? 1 : 0;
                           }
                       });

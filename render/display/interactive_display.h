@@ -161,6 +161,11 @@ struct InteractiveDisplayOptions {
     /// shadow volumes) at the next frame; false keeps them with the element-level estimate of
     /// the change (PointShader's preview job) until they are re-shaded.
     bool followShadows = true;
+    /// An element's points are tested against the shadow volumes when the move changed the
+    /// share of the lamps' light it receives by more than this at its centre or a corner; on
+    /// the other elements the points keep their element's change of direct light (constant
+    /// over the element: blocks in a soft shadow's penumbra, up to this share of the light).
+    double shadowDropChange = 0.03;
     /// Of the pixels a move emptied (the dropped points', and those the object uncovered), one
     /// in each square of shadowReshadeCell² is re-shaded at once, in the frame (synchronously,
     /// oneTBB), so the frame shows the shadow where the object is from sparse points and the
