@@ -218,9 +218,12 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
         st.times.shadowDropMs = msSince(dropStart);
     }
     if (!mOptions.synchronous) {
-        // Requested before the dragged object moved on: a hit on a version no longer shown
-        // goes (the rest of the scene is as it was; its light changes come as relights).
+        // Requested before the dragged object moved on: a hit on an earlier place of the
+        // dragged object moves with it, as its cached points did (carryPoints), and is re-shaded
+        // first; a hit on another version no longer shown goes (the rest of the scene is as it
+        // was; its light changes come as relights).
         const int preview = mShader->previewObject();
+        if (preview >= 0) carryResults(done, preview);
         std::erase_if(done, [&](const ShadedPoint& p) {
             return p.object >= 0 && p.object != preview && !mDisc.objects()[p.object].alive;
         });
@@ -795,6 +798,28 @@ std::size_t InteractiveDisplay::carryPoints(int from, int to) {
         mShownValid[firstB + k] = mShownValid[firstA + k] != kShownNone ? kShownDirect : kShownNone;
     }
     return moved;
+}
+
+void InteractiveDisplay::carryResults(std::vector<ShadedPoint>& results, int preview) const {
+    const ObjectSurface& now = mDisc.objects()[preview];
+    const int firstNow = mDisc.elementRange(preview).first;
+    for (ShadedPoint& p : results) {
+        if (p.object < 0 || p.object == preview || mDisc.objects()[p.object].alive ||
+            mDisc.objects()[p.object].id != now.id || !mDisc.sameElements(p.object, preview))
+            continue;
+        // Shaded at an earlier place of the drag: its light is that place's, a step or two
+        // behind, which the element-level change (relightChanged) then follows; it is
+        // re-shaded first (stale), and never an exact own point.
+        const Mat4 toNow =
+            now.worldFromObject * glm::inverse(mDisc.objects()[p.object].worldFromObject);
+        p.position = Vec3(toNow * glm::dvec4(p.position, 1.0));
+        p.normal =
+            glm::normalize(Vec3(glm::transpose(glm::inverse(toNow)) * glm::dvec4(p.normal, 0.0)));
+        p.element += firstNow - mDisc.elementRange(p.object).first;
+        p.object = preview;
+        p.stale = true;
+        p.exact = false;
+    }
 }
 
 void InteractiveDisplay::setOccluder(int version, const Visibility& only, int frames) {

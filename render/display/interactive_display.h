@@ -545,6 +545,11 @@ private:
     /// Frames an added or dropped object hides what it covers while its own points arrive.
     static constexpr int kOccluderFrames = 90;
     std::vector<ShadedPoint> shadeAll(const std::vector<ShadeRequest>& requests) const;
+    /// The results shaded on an earlier version of the dragged object (its same mesh at an
+    /// earlier place of the drag) moved onto `preview`, the version shown, as carryPoints moves
+    /// cached points; stale and not exact. Without it every result of a drag's object arrives
+    /// after the next move and goes, and the object shows its shading at the drag's start.
+    void carryResults(std::vector<ShadedPoint>& results, int preview) const;
     /// The last reconstruction's holes (EdgePointImage::holes) from the fallback.
     void fillHoles(const CameraRays& camera, Image& image) const;
     /// The shading state beginFrame saw, until finishFrame (framePreview).

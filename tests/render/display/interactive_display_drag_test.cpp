@@ -10,7 +10,7 @@
 // Index: helpers · a dragged lamp lights the scene from its new place · the origin-relative
 //        estimate against recomputation · background estimate = synchronous estimate ·
 //        the dragged object's silhouettes · a dragged object's points leave a shadow they were in ·
-//        a frame's holes show the world it began in
+//        a frame's holes show the world it began in · results shaded at an earlier place move on
 
 #include <gtest/gtest.h>
 
@@ -407,6 +407,52 @@ TEST(InteractiveDisplayDrag, AFramesHolesShowTheWorldItBeganInNotAMoveMadeMeanwh
     Image next = moved.reconstructFrame();
     moved.finishFrame(rays, next);
     EXPECT_GT(displayRmse(next, b), 0.01);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Results shaded at an earlier place of the drag move on with the object
+
+TEST(InteractiveDisplayDrag, ResultsShadedAtAnEarlierPlaceMoveOnWithTheDraggedObject) {
+    // An asynchronous display's requests are shaded while the drag goes on: the results on the
+    // slab arrive after its next move, on a version no longer shown. They move with it (as its
+    // cached points do), stale, rather than going: otherwise a dragged object shows its
+    // shading from the drag's start for the whole drag.
+    Drag drag;
+    drag.session = std::make_unique<EditSession>(test::makeLitRoom("red"), SolverOptions{});
+    drag.session->converge(1e-3);
+    InteractiveDisplayOptions options = displayOptions();
+    options.synchronous = false;
+    options.sampleFraction = 0.5;
+    const Discretization& disc = drag.session->discretization();
+    InteractiveDisplay display(disc, drag.session->tracer(), SolverOptions{}, options);
+    display.apply(SolutionView::of(drag.session->solver()));
+    select(drag, display, "slab");
+    move(drag, display, "slab", 0.5 * kNewPlace);
+    const int earlier = drag.preview;
+    const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
+    display.renderFrame(rays);  // an empty cache: requests over the view, the slab's among them
+    display.shader().waitIdle();
+    move(drag, display, "slab", kNewPlace);
+    ASSERT_NE(drag.preview, earlier);
+    display.renderFrame(rays);  // takes the results shaded at the earlier place
+
+    // Every point on the slab lies on its surface at the new place and waits to be re-shaded.
+    const auto& world = disc.objects()[drag.preview].worldPositions;
+    Vec3 lo = world.front(), hi = world.front();
+    for (const Vec3& p : world) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    const RenderCache& cache = display.cache();
+    int onSlab = 0;
+    for (std::size_t i = 0; i < cache.size(); ++i) {
+        if (cache.pointObjects()[i] != drag.preview) continue;
+        ++onSlab;
+        const Vec3 p = cache.pointPositions()[i];
+        EXPECT_TRUE(glm::all(glm::greaterThanEqual(p, lo - Vec3(1e-6))) &&
+                    glm::all(glm::lessThanEqual(p, hi + Vec3(1e-6))))
+            << "a point off the slab at its new place";
+        EXPECT_TRUE(cache.stale(i));
+        EXPECT_EQ(disc.elements()[cache.pointElements()[i]].object, drag.preview);
+    }
+    EXPECT_GT(onSlab, 20) << "the results on the slab went";
 }
 
 }  // namespace
