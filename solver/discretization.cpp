@@ -82,7 +82,7 @@ std::string Discretization::toString() const {
 // ---------------------------------------------------------------------------------------------
 // Construction
 
-Discretization::Discretization(const Scene& scene) {
+Discretization::Discretization(const Scene& scene, PatchGrouping grouping) : mGrouping(grouping) {
     for (const SceneObject& object : scene.objects) buildObject(scene, object);
 }
 
@@ -306,6 +306,7 @@ struct ShapeFaces {
     double patchSize, elementSize;
     int objectMaterial;  ///< -1: each triangle takes its mesh material
     const std::vector<int>& meshMaterials;
+    bool cellPatches = false;  ///< every grid cell a patch (group) of its own
     int nextGroup = 0;
     std::map<int, std::vector<Vec3>> groupOutline;  ///< per group, its boundary (object space)
     double planned = 0;  ///< elements of the object so far (checkElementCount)
@@ -432,27 +433,39 @@ struct ShapeFaces {
                 else
                     h = builder.addVertex(P(i, j));
             }
+        auto corner = [&](int i, int j) {
+            const auto& q = surface.mesh.point(verts[j * (nu + 1) + i]);
+            return Vec3(q[0], q[1], q[2]);
+        };
+        // The boundary of cells [i0, i1) × [j0, j1), walked along the grid lines.
+        auto outlineCells = [&](int i0, int i1, int j0, int j1) {
+            std::vector<Vec3> outline;
+            for (int i = i0; i < i1; ++i) outline.push_back(corner(i, j0));
+            for (int j = j0; j < j1; ++j) outline.push_back(corner(i1, j));
+            for (int i = i1; i > i0; --i) outline.push_back(corner(i, j1));
+            for (int j = j1; j > j0; --j) outline.push_back(corner(i0, j));
+            return outline;
+        };
+        // Faces in the same order whether cells are patches or not, so both groupings have
+        // the same elements at the same indices.
         for (int b = 0; b < pv; ++b)
             for (int a = 0; a < pu; ++a) {
-                int group = nextGroup++;
-                auto corner = [&](int i, int j) {
-                    const auto& q = surface.mesh.point(verts[j * (nu + 1) + i]);
-                    return Vec3(q[0], q[1], q[2]);
-                };
-                // The boundary of the patch's elements, walked along the grid lines.
-                auto& outline = groupOutline[group];
-                for (int i = a * eu; i < (a + 1) * eu; ++i) outline.push_back(corner(i, b * ev));
+                int group = -1;
+                if (!cellPatches) {
+                    group = nextGroup++;
+                    groupOutline[group] = outlineCells(a * eu, (a + 1) * eu, b * ev, (b + 1) * ev);
+                }
                 for (int j = b * ev; j < (b + 1) * ev; ++j)
-                    outline.push_back(corner((a + 1) * eu, j));
-                for (int i = (a + 1) * eu; i > a * eu; --i)
-                    outline.push_back(corner(i, (b + 1) * ev));
-                for (int j = (b + 1) * ev; j > b * ev; --j) outline.push_back(corner(a * eu, j));
-                for (int j = b * ev; j < (b + 1) * ev; ++j)
-                    for (int i = a * eu; i < (a + 1) * eu; ++i)
+                    for (int i = a * eu; i < (a + 1) * eu; ++i) {
+                        if (cellPatches) {
+                            group = nextGroup++;
+                            groupOutline[group] = outlineCells(i, i + 1, j, j + 1);
+                        }
                         builder.addFace(
                             {verts[j * (nu + 1) + i], verts[j * (nu + 1) + i + 1],
                              verts[(j + 1) * (nu + 1) + i + 1], verts[(j + 1) * (nu + 1) + i]},
                             group, objectMaterial);
+                    }
             }
     }
 
@@ -577,6 +590,9 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
     builder.mirrored = glm::determinant(linear) < 0;
     ShapeFaces faces(builder, linear, patchSize, scene.settings.elementSize, objectMaterial,
                      meshMaterials);
+    // An object's own patch size stands in either grouping (a lamp that shoots as one).
+    const bool leaves = mGrouping == PatchGrouping::Elements && !(obj.patchSize > 0);
+    faces.cellPatches = leaves;
     try {
         faces.addShape(obj.shape);
     } catch (const std::invalid_argument& e) {
@@ -610,7 +626,8 @@ void Discretization::buildObject(const Scene& scene, const SceneObject& obj) {
 
     // Patches, their outlines, the back sheet.
     const std::map<int, int> groupPatch =
-        makePatches(objIdx, firstElement, builder.faceGroup, builder.faceMaterial, patchSize);
+        makePatches(objIdx, firstElement, builder.faceGroup, builder.faceMaterial,
+                    leaves ? std::min(patchSize, scene.settings.elementSize) : patchSize);
     outlinePlanarPatches(groupPatch, faces.groupOutline, M, builder.mirrored);
     addBackSheet(objIdx, firstPatch);
     for (int p = firstPatch; p < static_cast<int>(mPatches.size()); ++p) {

@@ -82,13 +82,28 @@ struct ObjectSurface {
     bool alive = true;
 };
 
+/// How a Discretization groups its elements into patches (shooters). The elements are the
+/// same either way, and so are the faces of each object's front (ObjectSurface::mesh) and
+/// their elements' indices; a two-sided material's back-sheet twins come in the order of
+/// their patches (ObjectSurface::faceTwin finds them).
+enum class PatchGrouping {
+    /// Patches of about the scene's patch_size (an object's own, when it has one).
+    Patches,
+    /// Patches of about one element (the interpolants' leaf solve, in which every element
+    /// shoots its own radiosity): every cell of a gridded shape is a patch of its own, and mesh
+    /// faces grow into patches of about element_size² (faces far smaller, as on a finely
+    /// tessellated mesh, still share one). An object with a patch_size of its own keeps it.
+    Elements,
+};
+
 /// Splits a scene into patches and elements (Cohen et al. 1988 §3.4). Primitives are gridded
 /// parametrically; meshes keep their triangles as elements (split when larger than
 /// element_size) and group them into patches by region growing over OpenMesh adjacency.
 class Discretization {
 public:
     /// Throws std::invalid_argument naming the object when an object has no valid faces.
-    explicit Discretization(const Scene& scene);
+    /// `grouping` holds for the objects added later too.
+    explicit Discretization(const Scene& scene, PatchGrouping grouping = PatchGrouping::Patches);
 
     /// The front elements the constructor would split `scene`'s objects into (before it drops
     /// degenerate faces; back sheets not counted), planned without building them. Throws
@@ -184,6 +199,7 @@ private:
     std::vector<ObjectSurface> mObjects;
     std::vector<Material> mMaterials;
     double mTotalArea = 0;
+    PatchGrouping mGrouping = PatchGrouping::Patches;
 };
 
 }  // namespace penumbra

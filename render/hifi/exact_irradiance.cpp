@@ -6,8 +6,10 @@
 #include <cmath>
 #include <map>
 #include <sstream>
+#include <string>
 #include <tuple>
 
+#include "core/math.h"
 #include "core/random.h"
 #include "solver/discretization.h"
 #include "solver/form_factor.h"
@@ -808,49 +810,188 @@ std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const std::vecto
 
 namespace {
 
-/// Per element of `disc`, the element of `fine` of the same object and orientation whose
-/// centroid is nearest its centroid (-1: none), through a grid of cells `cell` wide.
-std::vector<int> nearestElements(const Discretization& disc, const Discretization& fine,
-                                 double cell) {
-    cell = std::max(cell, 1e-6);
-    using Key = std::tuple<int, long long, long long, long long>;
-    auto cellOf = [&](int object, const Vec3& c) {
-        const Vec3 g = glm::floor(c / cell);
-        return Key(object, std::llround(g.x), std::llround(g.y), std::llround(g.z));
-    };
-    std::map<Key, std::vector<int>> cells;
-    for (std::size_t f = 0; f < fine.elements().size(); ++f)
-        if (fine.elementAlive(static_cast<int>(f)))
-            cells[cellOf(fine.elements()[f].object, fine.elements()[f].centroid)].push_back(
-                static_cast<int>(f));
-    std::vector<int> out(disc.elements().size(), -1);
-    tbb::parallel_for(std::size_t(0), disc.elements().size(), [&](std::size_t e) {
-        if (!disc.elementAlive(static_cast<int>(e))) return;
-        const Element& el = disc.elements()[e];
-        double best = 1e300;
-        auto consider = [&](int f) {
-            const Element& fe = fine.elements()[f];
-            if (glm::dot(fe.normal, el.normal) < 1 - 1e-6) return;
-            const Vec3 d = fe.centroid - el.centroid;
-            const double d2 = glm::dot(d, d);
-            if (d2 < best || (d2 == best && f < out[e])) best = d2, out[e] = f;
+/// The alive objects of `d` by id.
+std::unordered_map<std::string, int> aliveObjectsById(const Discretization& d) {
+    std::unordered_map<std::string, int> byId;
+    for (std::size_t o = 0; o < d.objects().size(); ++o)
+        if (d.objects()[o].alive) byId.emplace(d.objects()[o].id, static_cast<int>(o));
+    return byId;
+}
+
+/// Per element of `disc`, its twin among the leaf solve's elements: the same face of the alive
+/// object of the same id, at the same place (-1: none, as for an element adaptive subdivision
+/// made). PatchGrouping keeps the front faces' order, and a back-sheet face is found through
+/// its front face's twin (ObjectSurface::faceTwin), so a discretization of the same scene has
+/// one.
+std::vector<int> twinElements(const Discretization& disc, const Discretization& leaves) {
+    const std::unordered_map<std::string, int> leafObject = aliveObjectsById(leaves);
+    std::vector<int> twin(disc.elements().size(), -1);
+    for (const ObjectSurface& s : disc.objects()) {
+        const auto it = leafObject.find(s.id);
+        if (!s.alive || it == leafObject.end()) continue;
+        const ObjectSurface& t = leaves.objects()[it->second];
+        // Face f of s as a face of t (-1: none).
+        auto leafFace = [&](int f) {
+            if (!s.isBackFace(f)) return f < t.firstBackFace ? f : -1;
+            const int front = f < static_cast<int>(s.faceTwin.size()) ? s.faceTwin[f] : -1;
+            return front >= 0 && front < static_cast<int>(t.faceTwin.size()) ? t.faceTwin[front]
+                                                                             : -1;
         };
-        const auto [object, i, j, k] = cellOf(el.object, el.centroid);
-        for (long long di = -1; di <= 1; ++di)
-            for (long long dj = -1; dj <= 1; ++dj)
-                for (long long dk = -1; dk <= 1; ++dk) {
-                    const auto it = cells.find(Key(object, i + di, j + dj, k + dk));
-                    if (it != cells.end())
-                        for (int f : it->second) consider(f);
+        for (int f = 0; f < static_cast<int>(s.faceElement.size()); ++f) {
+            const int lf = leafFace(f);
+            if (lf < 0 || lf >= static_cast<int>(t.faceElement.size())) continue;
+            const int e = s.faceElement[f], g = t.faceElement[lf];
+            if (e < 0 || g < 0) continue;
+            const Element& a = disc.elements()[e];
+            const Element& b = leaves.elements()[g];
+            const double tol = 1e-9 * (1 + glm::length(a.centroid));
+            if (glm::length(a.centroid - b.centroid) <= tol &&
+                std::abs(a.area - b.area) <= 1e-9 * a.area &&
+                glm::dot(a.normal, b.normal) > 1 - 1e-9)
+                twin[e] = g;
+        }
+    }
+    return twin;
+}
+
+/// An element's polygon and its radius about its centroid.
+struct ElementShape {
+    std::vector<Vec3> polygon;
+    double radius = 0;
+    ElementShape() = default;
+    ElementShape(const Discretization& d, int e) : polygon(d.elementPolygon(e)) {
+        for (const Vec3& p : polygon)
+            radius = std::max(radius, glm::length(p - d.elements()[e].centroid));
+    }
+};
+
+/// The leaf solve's elements by object and grid cell of their centroids, for carrying their
+/// radiosity to elements they are not twins of.
+class LeafOverlaps {
+public:
+    /// Cells at least as wide as `minCell` and every leaf's radius, so a polygon no wider than
+    /// that meets only leaves of the 5 × 5 × 5 cells about its centroid's.
+    LeafOverlaps(const Discretization& leaves, double minCell) : mLeaves(leaves) {
+        mCell = std::max(minCell, 1e-9);
+        mShapes.resize(leaves.elements().size());
+        for (int g = 0; g < static_cast<int>(mShapes.size()); ++g) {
+            if (!leaves.elementAlive(g)) continue;
+            mShapes[g] = ElementShape(leaves, g);
+            mCell = std::max(mCell, mShapes[g].radius);
+        }
+        for (int g = 0; g < static_cast<int>(mShapes.size()); ++g)
+            if (leaves.elementAlive(g))
+                mCells[cellOf(leaves.elements()[g].object, leaves.elements()[g].centroid)]
+                    .push_back(g);
+    }
+
+    /// The mean of `value` over the leaves of leaf object `object` that face `el`'s way and
+    /// overlap `shape` (its polygon), each weighted by the area of its polygon inside the
+    /// element's prism, measured in the element's plane — the projection of the leaves'
+    /// piecewise-constant radiosity onto the element. Of leaves stacked over one another (a
+    /// thin slab's faces) only the layer nearest the element's plane counts. Where none
+    /// overlaps (a sliver), the nearest such leaf's; `out` stays as it is where there is none.
+    void mean(int object, const Element& el, const ElementShape& shape,
+              const std::vector<Rgb>& value, Rgb& out) const {
+        const std::vector<Vec3>& poly = shape.polygon;
+        const std::size_t n = poly.size();
+        std::vector<Vec3> inward(n);  // the prism's sides, inward
+        for (std::size_t i = 0; i < n; ++i)
+            inward[i] = glm::cross(el.normal, poly[(i + 1) % n] - poly[i]);
+        struct Overlap {
+            int leaf;
+            double area, height;  ///< twice its area; its mean distance from the plane
+        };
+        std::vector<Overlap> overlaps;
+        std::vector<Vec3> clipA, clipB;
+        double nearest2 = HUGE_VAL;
+        int nearest = -1;
+        const auto [o, ci, cj, ck] = cellOf(object, el.centroid);
+        for (long long di = -2; di <= 2; ++di)
+            for (long long dj = -2; dj <= 2; ++dj)
+                for (long long dk = -2; dk <= 2; ++dk) {
+                    const auto it = mCells.find(Key(o, ci + di, cj + dj, ck + dk));
+                    if (it == mCells.end()) continue;
+                    for (int g : it->second) {
+                        // Facing the element's way (not a back sheet or another side of a
+                        // box), and about on its plane.
+                        const Element& f = mLeaves.elements()[g];
+                        const double reach = shape.radius + mShapes[g].radius;
+                        const Vec3 d = f.centroid - el.centroid;
+                        if (glm::dot(f.normal, el.normal) < 0.5 || glm::dot(d, d) > reach * reach ||
+                            std::abs(glm::dot(d, el.normal)) > 0.25 * reach)
+                            continue;
+                        if (glm::dot(d, d) < nearest2) nearest2 = glm::dot(d, d), nearest = g;
+                        clipA = mShapes[g].polygon;
+                        for (std::size_t i = 0; i < n && !clipA.empty(); ++i) {
+                            clipConvex(
+                                clipA,
+                                [&](const Vec3& p) { return glm::dot(p - poly[i], inward[i]); },
+                                clipB);
+                            clipA.swap(clipB);
+                        }
+                        if (clipA.empty()) continue;
+                        double height = 0;
+                        for (const Vec3& p : clipA)
+                            height += std::abs(glm::dot(p - el.centroid, el.normal));
+                        overlaps.push_back({g, std::abs(glm::dot(newellNormal(clipA), el.normal)),
+                                            height / static_cast<double>(clipA.size())});
+                    }
                 }
-        // None within a cell (an element far larger than the element size): every one.
-        if (out[e] < 0)
-            for (std::size_t f = 0; f < fine.elements().size(); ++f)
-                if (fine.elementAlive(static_cast<int>(f)) &&
-                    fine.elements()[f].object == el.object)
-                    consider(static_cast<int>(f));
+        double lowest = HUGE_VAL;
+        for (const Overlap& v : overlaps)
+            if (v.area > 0) lowest = std::min(lowest, v.height);
+        Rgb sum(0.0);
+        double weight = 0;
+        for (const Overlap& v : overlaps)
+            if (v.area > 0 && v.height <= lowest + 0.1 * shape.radius) {
+                sum += v.area * value[v.leaf];
+                weight += v.area;
+            }
+        if (weight > 0)
+            out = sum / weight;
+        else if (nearest >= 0)
+            out = value[nearest];
+    }
+
+private:
+    using Key = std::tuple<int, long long, long long, long long>;
+    Key cellOf(int object, const Vec3& c) const {
+        const Vec3 q = glm::floor(c / mCell);
+        return Key(object, std::llround(q.x), std::llround(q.y), std::llround(q.z));
+    }
+
+    const Discretization& mLeaves;
+    double mCell = 0;
+    std::vector<ElementShape> mShapes;  ///< per leaf (empty for dead ones)
+    std::map<Key, std::vector<int>> mCells;
+};
+
+/// Gives each alive element of `disc` without a twin (`twin` < 0) the leaf solve's radiosity
+/// averaged over it (LeafOverlaps::mean); one whose object has no leaves keeps its value in
+/// `out`.
+void carryOverlappingLeaves(const Discretization& disc, const Discretization& leaves,
+                            const std::vector<int>& twin, const std::vector<Rgb>& leafValue,
+                            std::vector<Rgb>& out) {
+    std::vector<int> orphans;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e)
+        if (twin[e] < 0 && disc.elementAlive(static_cast<int>(e)))
+            orphans.push_back(static_cast<int>(e));
+    if (orphans.empty()) return;
+    std::vector<ElementShape> shapes;
+    double widest = 0;
+    for (int e : orphans) {
+        shapes.emplace_back(disc, e);
+        widest = std::max(widest, shapes.back().radius);
+    }
+    const LeafOverlaps overlaps(leaves, widest);
+    const std::unordered_map<std::string, int> leafObject = aliveObjectsById(leaves);
+    tbb::parallel_for(std::size_t(0), orphans.size(), [&](std::size_t k) {
+        const Element& el = disc.elements()[orphans[k]];
+        const auto object = leafObject.find(disc.objects()[el.object].id);
+        if (object != leafObject.end())
+            overlaps.mean(object->second, el, shapes[k], leafValue, out[orphans[k]]);
     });
-    return out;
 }
 
 /// The leaf solve: `disc`'s elements' reflected radiosity from a solve of `scene` in which every
@@ -863,13 +1004,12 @@ std::vector<Rgb> solveLeaves(const Scene& scene, const Discretization& disc,
                              const std::function<void(double)>& progress) {
     std::vector<Rgb> out =
         solved ? reflectedRadiosity(disc, *solved) : std::vector<Rgb>(disc.elements().size());
-    Scene leafScene = scene;
-    leafScene.settings.patchSize = scene.settings.elementSize;
-    Discretization fine(leafScene);
-    RayTracer tracer(fine);
-    // Receivers in the open (SolverOptions::placeReceivers): with patches already elements,
-    // the solve is needed only when some receiver moves.
-    if (fine.placeReceivers(tracer) == 0 &&
+    // The scene's own elements, each its own shooter.
+    Discretization leaves(scene, PatchGrouping::Elements);
+    RayTracer tracer(leaves);
+    // Receivers in the open (SolverOptions::placeReceivers): with patches already elements
+    // (grouped as the leaves are), the solve is needed only when some receiver moves.
+    if (leaves.placeReceivers(tracer) == 0 &&
         scene.settings.patchSize <= scene.settings.elementSize && solved) {
         if (stats) *stats = {solved->stats(), solved->unshotFraction()};
         return out;
@@ -877,16 +1017,16 @@ std::vector<Rgb> solveLeaves(const Scene& scene, const Discretization& disc,
     // Receivers are placed already: the solver need not place them again.
     SolverOptions leafOptions = options;
     leafOptions.placeReceivers = false;
-    ProgressiveSolver solver(fine, tracer, leafOptions);
+    ProgressiveSolver solver(leaves, tracer, leafOptions);
     solver.converge(eps, maxShots, progress);
     if (stats) *stats = {solver.stats(), solver.unshotFraction()};
-    const std::vector<Rgb> fineReflected = reflectedRadiosity(fine, solver);
-    // Where patches split a surface differently the two discretizations' elements differ;
-    // each element takes the leaf solve's value of the fine element of its object and plane
-    // whose centroid is nearest its own (its own self where the elements are the same).
-    const std::vector<int> nearest = nearestElements(disc, fine, scene.settings.elementSize);
+    const std::vector<Rgb> leafReflected = reflectedRadiosity(leaves, solver);
+    // Each element takes its twin's value; one adaptive subdivision made takes the leaves'
+    // that overlap it.
+    const std::vector<int> twin = twinElements(disc, leaves);
     for (std::size_t e = 0; e < disc.elements().size(); ++e)
-        if (nearest[e] >= 0) out[e] = fineReflected[nearest[e]];
+        if (twin[e] >= 0) out[e] = leafReflected[twin[e]];
+    carryOverlappingLeaves(disc, leaves, twin, leafReflected, out);
     return out;
 }
 

@@ -280,15 +280,15 @@ std::vector<Rgb> reflectedRadiosity(const Discretization& disc, const std::vecto
 /// element is its own shooter (as the paper's hierarchical solution links leaf elements),
 /// converged to `eps` (at most `maxShots`). A patch shoots its mean radiosity, which at a
 /// concave contact (a box on a floor) is not what its elements near the contact send, so a
-/// gather from a coarse-patch solution there comes out low. Elements are matched by object
-/// and centroid; `disc`'s own patches stay the gather's source groups. The second solve
+/// gather from a coarse-patch solution there comes out low. The second solve discretizes
+/// `scene` with PatchGrouping::Elements, so its elements are `disc`'s own: each element takes
+/// its twin's value (the same face of the object of the same id, at the same place); one with
+/// no twin (adaptive subdivision made it) takes the area-weighted mean of the leaf elements
+/// that overlap it. `disc`'s own patches stay the gather's source groups. The second solve
 /// places its receivers in the open (SolverOptions::placeReceivers): a floor element the foot
 /// of a box crosses with its centroid under the box would otherwise send nothing toward the
-/// box's face, whose foot it fills half the view of. Where the patches split a surface
-/// differently from the leaf solve's, so that an element has no twin, it takes the value of the
-/// leaf solve's element of its object and orientation whose centroid is nearest. Returns
-/// `solved`'s reflected radiosity when the patches already are the elements and no receiver
-/// moves.
+/// box's face, whose foot it fills half the view of. Returns `solved`'s reflected radiosity
+/// when the patches already are the elements and no receiver moves.
 std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
                                         const ProgressiveSolver& solved,
                                         const SolverOptions& options, double eps,
@@ -301,8 +301,8 @@ struct LeafSolveStats {
 };
 /// The same without a solution of `disc` (none is needed: the leaf solve replaces it): the
 /// leaf solve always runs, also where it is `disc`'s own (patches already elements). `stats`
-/// (optional)
-/// receives what the leaf solve did; `progress` is the solver's (ProgressiveSolver::converge).
+/// (optional) receives what the leaf solve did; `progress` is the solver's
+/// (ProgressiveSolver::converge).
 std::vector<Rgb> leafReflectedRadiosity(const Scene& scene, const Discretization& disc,
                                         const SolverOptions& options, double eps,
                                         std::uint64_t maxShots, LeafSolveStats* stats = nullptr,

@@ -580,6 +580,85 @@ TEST(Discretization, IcosahedronSplitStaysClosed) {
     checkIcosahedron(Transform{}, 3.0, 1);  // no split
 }
 
+TEST(Discretization, GroupingByElementsKeepsTheElementsOneAPatch) {
+    // Every kind of shape, a two-sided panel and mesh, a lamp with its own patch size, under
+    // patches of 0.5 and elements of 0.12: PatchGrouping::Elements builds the same elements,
+    // the front ones at the same indices, the back sheets' twins of the same fronts; a grid
+    // cell is a patch of its own (planar: outlined by its four corners), mesh faces far
+    // smaller than an element share patches of about one element, and the lamp keeps its one
+    // patch.
+    SceneObject box = makeShape("box", ShapeType::Box);
+    box.shape.size = Vec3(0.9, 0.45, 1.3);
+    box.transform.rotateDeg = Vec3(0, 25, 0);
+    SceneObject ball = makeShape("ball", ShapeType::Sphere);
+    ball.shape.radius = 0.4;
+    ball.shape.segments = 12;
+    ball.transform.translate = Vec3(2, 0, 0);
+    SceneObject ico = makeShape("ico", ShapeType::Mesh);
+    ico.shape.mesh = icosahedron();
+    ico.transform.scale = Vec3(0.5);  // edge 1: split into 9², faces of 0.0053 m²
+    ico.transform.translate = Vec3(-2, 0, 0);
+    ico.material = "both";
+    SceneObject lamp = test::makeQuad("lamp", 0.8, 0.6, "white", {0, 2, 0}, {180, 0, 0});
+    lamp.patchSize = 1.0;
+    SceneObject panel = test::makeQuad("panel", 2.3, 1.1, "both", {0, -1, 0});
+    panel.material = "both";
+    Scene scene = sceneWith({box, ball, ico, lamp, panel}, 0.5, 0.12);
+    test::addMaterial(scene, "both", Rgb(0.5));
+    scene.materials.back().material.twoSided = true;
+    const Discretization patches(scene);
+    const Discretization leaves(scene, PatchGrouping::Elements);
+    ASSERT_EQ(leaves.elements().size(), patches.elements().size());
+    ASSERT_EQ(leaves.objects().size(), patches.objects().size());
+    int backFaces = 0;
+    for (std::size_t o = 0; o < patches.objects().size(); ++o) {
+        const ObjectSurface &s = patches.objects()[o], &t = leaves.objects()[o];
+        ASSERT_EQ(s.faceElement.size(), t.faceElement.size()) << s.id;
+        for (int f = 0; f < static_cast<int>(s.faceElement.size()); ++f) {
+            const bool back = s.isBackFace(f);
+            backFaces += back;
+            const int tf = back ? t.faceTwin.at(s.faceTwin.at(f)) : f;
+            const int e = s.faceElement[f], g = t.faceElement.at(tf);
+            if (!back) {
+                ASSERT_EQ(e, g) << s.id << " face " << f;
+            }
+            const Element &a = patches.elements()[e], &b = leaves.elements()[g];
+            ASSERT_TRUE(a.object == b.object && (back || a.vertices == b.vertices) &&
+                        a.centroid == b.centroid && a.normal == b.normal && a.area == b.area)
+                << s.id << " face " << f << ": " << a.toString() << " vs " << b.toString();
+        }
+    }
+    EXPECT_EQ(backFaces, objectElements(patches, 2) / 2 + objectElements(patches, 4) / 2);
+    checkPatchStructure(leaves);
+    const int icoObject = 2, lampObject = 3;
+    EXPECT_EQ(objectPatches(leaves, lampObject), 1);
+    int gridPatches = 0;
+    for (const Patch& p : leaves.patches()) {
+        if (p.object == icoObject || p.object == lampObject) continue;
+        ++gridPatches;
+        ASSERT_EQ(p.elements.size(), 1u) << p.toString();
+        const Element& el = leaves.elements()[p.elements[0]];
+        if (p.object != 1) {  // the ball's cells are not planar
+            ASSERT_EQ(p.outline.size(), 4u) << p.toString();
+            EXPECT_NEAR(0.5 * glm::length(newellNormal(p.outline)), el.area, kExact)
+                << p.toString();
+        }
+    }
+    EXPECT_EQ(gridPatches, static_cast<int>(leaves.elements().size()) -
+                               objectElements(leaves, icoObject) -
+                               objectElements(leaves, lampObject));
+    // The icosahedron's patches: several faces each, of about one element's area, more of them
+    // than of patch size.
+    const double elementArea = 0.12 * 0.12;
+    for (const Patch& p : leaves.patches()) {
+        if (p.object == icoObject) {
+            EXPECT_LE(p.area, 2 * elementArea) << p.toString();
+        }
+    }
+    EXPECT_LT(objectPatches(leaves, icoObject), objectElements(leaves, icoObject) / 2);
+    EXPECT_GT(objectPatches(leaves, icoObject), 4 * objectPatches(patches, icoObject));
+}
+
 TEST(Discretization, CountElementsPlansWhatTheConstructorBuilds) {
     // Every kind of shape, transformed, one with its own patch size, at three element sizes:
     // the planned count is the number of elements built (one-sided, so no back sheets).

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "closed_forms.h"
@@ -334,6 +335,121 @@ TEST(ExactIrradiance, TheNearFieldHoldsEveryElementWithinItsNearBallAndNoOther) 
             EXPECT_NEAR(gathered[c], expected[c], 1e-9 * expected[c]) << x.x << " " << x.y;
     }
     EXPECT_GT(nearTotal, 3 * static_cast<int>(points.size())) << "near elements were tested";
+}
+
+TEST(LeafReflectedRadiosity, EachElementTakesTheSolveInWhichItShootsOnItsOwn) {
+    // A grey room lit from a lamp low on one wall, a tilted box of 0.6 m on the floor, a ball
+    // of 8 segments and a two-sided triangle mesh in the air. Patches of 0.5 m split the box's
+    // sides into 4 × 4 elements of 0.15 m and the ball into 9 × 4, where patches of one
+    // element (0.25 m) would split them into 3 × 3 and 10 × 6, and group the mesh's back sheet
+    // in another order: the leaf solve's value of each element is its own in a from-scratch
+    // solve of the same elements, each its own shooter (checked here: one element a patch, and
+    // each element of the scene's found in it by object, centroid and facing). Then elements
+    // adaptive subdivision made (a box element split, one piece split again) take the value of
+    // the element they lie in.
+    Scene scene;
+    test::addMaterial(scene, "grey", Rgb(0.5, 0.6, 0.7));
+    test::addMaterial(scene, "lamp", Rgb(0.0), Rgb(20.0));
+    test::addClosedRoom(scene, 2.0, "grey");
+    scene.objects.push_back(
+        test::makeQuad("lamp", 0.5, 0.5, "lamp", {-0.99, -0.5, 0.3}, {0, 0, -90}));
+    SceneObject box;
+    box.id = "box";
+    box.shape.type = ShapeType::Box;
+    box.shape.size = Vec3(0.6, 0.6, 0.6);
+    box.material = "grey";
+    box.transform.translate = Vec3(0.2, -0.7, 0.1);
+    box.transform.rotateDeg = Vec3(0, 20, 0);
+    scene.objects.push_back(box);
+    SceneObject ball;
+    ball.id = "ball";
+    ball.shape.type = ShapeType::Sphere;
+    ball.shape.radius = 0.2;
+    ball.shape.segments = 8;
+    ball.material = "grey";
+    ball.transform.translate = Vec3(-0.4, 0.3, -0.3);
+    scene.objects.push_back(ball);
+    test::addMaterial(scene, "sheet", Rgb(0.7, 0.6, 0.5));
+    scene.materials.back().material.twoSided = true;
+    SceneObject sheet;
+    sheet.id = "sheet";
+    sheet.shape.type = ShapeType::Mesh;
+    sheet.shape.mesh.positions = {{0.6, 0.2, -0.6}, {0.9, 0.2, 0.2}, {0.7, 0.8, -0.2}};
+    sheet.shape.mesh.triangles = {{0, 1, 2}};
+    sheet.material = "sheet";
+    scene.objects.push_back(sheet);
+    scene.settings.patchSize = 0.5;
+    scene.settings.elementSize = 0.25;
+    Discretization disc(scene);
+    const int boxObject = static_cast<int>(disc.objects().size()) - 3, ballObject = boxObject + 1;
+    auto elementsOf = [&](const Discretization& d, int object) {
+        int n = 0;
+        for (const Element& el : d.elements()) n += el.object == object;
+        return n;
+    };
+    Scene elementPatches = scene;
+    elementPatches.settings.patchSize = scene.settings.elementSize;
+    const Discretization byElements(elementPatches);
+    ASSERT_EQ(elementsOf(disc, boxObject), 6 * 16);
+    ASSERT_EQ(elementsOf(byElements, boxObject), 6 * 9);
+    ASSERT_EQ(elementsOf(disc, ballObject), 9 * 4);
+    ASSERT_EQ(elementsOf(byElements, ballObject), 10 * 6);
+
+    const double eps = 1e-6;
+    const std::vector<Rgb> leaf = leafReflectedRadiosity(scene, disc, SolverOptions{}, eps, 100000);
+
+    // The reference: the scene's elements, one a patch (the mesh's faces, smaller than an
+    // element, several), solved from scratch.
+    Discretization refDisc(scene, PatchGrouping::Elements);
+    for (const Patch& p : refDisc.patches()) {
+        if (p.object != boxObject + 2) {
+            ASSERT_EQ(p.elements.size(), 1u) << p.toString();
+        }
+    }
+    ASSERT_EQ(refDisc.elements().size(), disc.elements().size());
+    std::vector<int> same(disc.elements().size(), -1);
+    for (std::size_t e = 0; e < disc.elements().size(); ++e) {
+        const Element& a = disc.elements()[e];
+        for (std::size_t r = 0; r < refDisc.elements().size(); ++r) {
+            const Element& b = refDisc.elements()[r];
+            if (a.object == b.object && glm::length(a.centroid - b.centroid) < 1e-12 &&
+                glm::dot(a.normal, b.normal) > 0) {
+                ASSERT_LT(same[e], 0) << a.toString();
+                same[e] = static_cast<int>(r);
+            }
+        }
+        ASSERT_GE(same[e], 0) << a.toString();
+    }
+    RayTracer refTracer(refDisc);
+    SolverOptions refOptions;
+    refOptions.placeReceivers = true;
+    ProgressiveSolver refSolver(refDisc, refTracer, refOptions);
+    refSolver.converge(eps, 100000);
+    const std::vector<Rgb> ref = reflectedRadiosity(refDisc, refSolver);
+    double largest = 0;
+    for (const Rgb& b : ref) largest = std::max(largest, b.x);
+    for (std::size_t e = 0; e < disc.elements().size(); ++e)
+        for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(leaf[e][c], ref[same[e]][c], 1e-9 * largest)
+                << "element " << e << " " << disc.elements()[e].toString() << " channel " << c;
+
+    // A side of the box: one element split into four, one piece into four again.
+    int side = -1;
+    for (std::size_t e = 0; e < disc.elements().size() && side < 0; ++e)
+        if (disc.elements()[e].object == boxObject && std::abs(disc.elements()[e].normal.y) < 0.5)
+            side = static_cast<int>(e);
+    ASSERT_GE(side, 0);
+    const Rgb whole = leaf[side];
+    std::vector<int> pieces = disc.subdivideElement(side);
+    const std::vector<int> finer = disc.subdivideElement(pieces[1]);
+    pieces.insert(pieces.end(), finer.begin() + 1, finer.end());
+    ASSERT_EQ(pieces.size(), 7u);
+    const std::vector<Rgb> split =
+        leafReflectedRadiosity(scene, disc, SolverOptions{}, eps, 100000);
+    for (int e : pieces)
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(split[e][c], whole[c], 1e-9 * largest)
+                << "piece " << e << " " << disc.elements()[e].toString() << " channel " << c;
 }
 
 }  // namespace
