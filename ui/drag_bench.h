@@ -65,6 +65,8 @@ struct DragBenchImage {
     /// the errors compare, as the user sees it.
     std::shared_ptr<const std::vector<std::uint8_t>> shown;
     double referenceError = -1;  ///< relativeDisplayRmse against its reference, -1: none
+    /// The same without the lamps and their edge pixels (emitterMask), as `render --compare`.
+    double referenceErrorWithoutLamps = -1;
     /// The same over the pixels where the reference shows the dragged object, and how many.
     double objectError = -1;
     std::size_t objectPixels = 0;
