@@ -251,16 +251,53 @@ WedgeIndex::WedgeIndex(const std::vector<Wedge>& wedges, const Discretization& d
     mPad = 1e-6 * diagonal + 1e-12;
     scene.lo -= Vec3(mPad);
     scene.hi += Vec3(mPad);
+    // Slabs eight elements thick, of the element that holds the median square metre (the
+    // size of the surfaces shadows fall on, however many small faces a tessellated mesh adds).
+    std::vector<double> areas;
+    double total = 0;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e)
+        if (disc.elementAlive(static_cast<int>(e))) {
+            areas.push_back(disc.elements()[e].area);
+            total += areas.back();
+        }
+    std::sort(areas.begin(), areas.end());
+    double below = 0, median = 0;
+    for (double a : areas)
+        if ((below += a) >= 0.5 * total) {
+            median = a;
+            break;
+        }
+    const double slab = std::max(8 * std::sqrt(median), 1e-3 * diagonal);
     // Far enough along the rays to leave the box (the rays part by less than 180°).
     const double far = 1e3 * (diagonal + 1);
-    for (const Wedge& w : wedges) {
-        const Vec3 d0 = glm::normalize(w.b[0] - w.a[0]), d1 = glm::normalize(w.b[1] - w.a[1]);
-        Box3 box;
-        for (const Vec3& p :
-             clipToBox({w.b[0], w.b[1], w.b[1] + far * d1, w.b[0] + far * d0}, scene))
-            box.extend(p);
-        if (!box.empty()) box.lo -= Vec3(mPad), box.hi += Vec3(mPad);
-        mBoxes.push_back(box);
+    for (std::size_t w = 0; w < wedges.size(); ++w) {
+        const Wedge& wedge = wedges[w];
+        const Vec3 d0 = glm::normalize(wedge.b[0] - wedge.a[0]);
+        const Vec3 d1 = glm::normalize(wedge.b[1] - wedge.a[1]);
+        const std::vector<Vec3> region = clipToBox(
+            {wedge.b[0], wedge.b[1], wedge.b[1] + far * d1, wedge.b[0] + far * d0}, scene);
+        Box3 whole;
+        for (const Vec3& p : region) whole.extend(p);
+        if (whole.empty()) continue;
+        // Slabs across the region's longest extent, each piece's box padded so that pieces
+        // sharing a slab face overlap.
+        const Vec3 extent = whole.hi - whole.lo;
+        const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0
+                         : extent.y >= extent.z                       ? 1
+                                                                      : 2;
+        const int slabs = std::clamp(static_cast<int>(std::ceil(extent[axis] / slab)), 1, 16);
+        for (int k = 0; k < slabs; ++k) {
+            Box3 cut = whole;
+            cut.lo[axis] = whole.lo[axis] + extent[axis] * k / slabs;
+            cut.hi[axis] =
+                k + 1 == slabs ? whole.hi[axis] : whole.lo[axis] + extent[axis] * (k + 1) / slabs;
+            Box3 box;
+            for (const Vec3& p : slabs == 1 ? region : clipToBox(region, cut)) box.extend(p);
+            if (box.empty()) continue;
+            box.lo -= Vec3(mPad), box.hi += Vec3(mPad);
+            mBoxes.push_back(box);
+            mWedge.push_back(static_cast<int>(w));
+        }
     }
     mTree.build(mBoxes);
 }
@@ -277,9 +314,13 @@ void WedgeIndex::query(const std::vector<Vec3>& poly, std::size_t count,
     box.lo -= Vec3(mPad);
     box.hi += Vec3(mPad);
     mTree.query(box, out);
-    const auto missed = [&](int w) { return !mBoxes[w].overlaps(box); };
-    out.erase(std::remove_if(out.begin(), out.end(), missed), out.end());
+    // The pieces whose own boxes meet the element's, as their wedges, each once.
+    std::size_t kept = 0;
+    for (int piece : out)
+        if (mBoxes[piece].overlaps(box)) out[kept++] = mWedge[piece];
+    out.resize(kept);
     std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
 }
 
 std::vector<Vec3> WedgeIndex::clipToBox(std::vector<Vec3> poly, const Box3& box) {

@@ -42,8 +42,11 @@ bool insideSolid(const Discretization& disc, const RayTracer& tracer,
 
 /// The wedges by where they can cut an element, so that an element tests only the wedges
 /// that may reach it, not every wedge in the scene. A wedge's region beyond its blocker is
-/// the convex part of its plane between its two rays; clipped to the scene's box, it is
-/// bounded by a box, and the boxes by a bounding-volume hierarchy.
+/// the convex part of its plane between its two rays; clipped to the scene's box and cut
+/// into slabs across its longest extent (eight elements thick, at most 16), each piece is bounded
+/// by a box, and the boxes by a bounding-volume hierarchy. One box for the whole region, a
+/// long diagonal strip from a blocker to the far wall, would hold most of the scene's
+/// elements; its slabs' boxes follow the strip.
 class WedgeIndex {
 public:
     /// No index: query() answers every wedge.
@@ -57,7 +60,8 @@ private:
     /// Sutherland–Hodgman against the box's six planes.
     static std::vector<Vec3> clipToBox(std::vector<Vec3> poly, const Box3& box);
 
-    std::vector<Box3> mBoxes;  ///< per wedge (empty: its region misses the scene)
+    std::vector<Box3> mBoxes;  ///< per piece of a wedge's region
+    std::vector<int> mWedge;   ///< per piece, its wedge
     BoxTree mTree;             ///< over mBoxes
     double mPad = 0;
     bool mIndexed = false;
