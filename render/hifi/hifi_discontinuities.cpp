@@ -240,6 +240,23 @@ std::vector<Wedge> allWedges(const Discretization& disc, const std::vector<int>*
     return wedges;
 }
 
+double areaWeightedMedianArea(const Discretization& disc) {
+    std::vector<double> areas;
+    double total = 0;
+    for (std::size_t e = 0; e < disc.elements().size(); ++e)
+        if (disc.elementAlive(static_cast<int>(e))) {
+            areas.push_back(disc.elements()[e].area);
+            total += areas.back();
+        }
+    std::sort(areas.begin(), areas.end());
+    double below = 0;
+    for (double a : areas) {
+        below += a;
+        if (below >= 0.5 * total) return a;
+    }
+    return areas.empty() ? 0 : areas.back();
+}
+
 WedgeIndex::WedgeIndex(const std::vector<Wedge>& wedges, const Discretization& disc)
     : mIndexed(true) {
     Box3 scene;
@@ -253,21 +270,7 @@ WedgeIndex::WedgeIndex(const std::vector<Wedge>& wedges, const Discretization& d
     scene.hi += Vec3(mPad);
     // Slabs eight elements thick, of the element that holds the median square metre (the
     // size of the surfaces shadows fall on, however many small faces a tessellated mesh adds).
-    std::vector<double> areas;
-    double total = 0;
-    for (std::size_t e = 0; e < disc.elements().size(); ++e)
-        if (disc.elementAlive(static_cast<int>(e))) {
-            areas.push_back(disc.elements()[e].area);
-            total += areas.back();
-        }
-    std::sort(areas.begin(), areas.end());
-    double below = 0, median = 0;
-    for (double a : areas)
-        if ((below += a) >= 0.5 * total) {
-            median = a;
-            break;
-        }
-    const double slab = std::max(8 * std::sqrt(median), 1e-3 * diagonal);
+    const double slab = std::max(8 * std::sqrt(areaWeightedMedianArea(disc)), 1e-3 * diagonal);
     // Far enough along the rays to leave the box (the rays part by less than 180°).
     const double far = 1e3 * (diagonal + 1);
     for (std::size_t w = 0; w < wedges.size(); ++w) {

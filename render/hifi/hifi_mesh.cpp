@@ -123,26 +123,6 @@ double smallestRefinedArea(const Discretization& disc, int maxRefineDepth) {
     return areas[areas.size() / 2] * std::pow(0.25, std::max(0, maxRefineDepth));
 }
 
-/// The area of the element that holds the median square metre of surface (elements sorted by
-/// area): the scene's element size as its large surfaces have it, whatever a finely tessellated
-/// mesh adds in number.
-double areaWeightedMedianArea(const Discretization& disc) {
-    std::vector<double> areas;
-    double total = 0;
-    for (std::size_t e = 0; e < disc.elements().size(); ++e)
-        if (disc.elementAlive(static_cast<int>(e))) {
-            areas.push_back(disc.elements()[e].area);
-            total += areas.back();
-        }
-    std::sort(areas.begin(), areas.end());
-    double below = 0;
-    for (double a : areas) {
-        below += a;
-        if (below >= 0.5 * total) return a;
-    }
-    return areas.empty() ? 0 : areas.back();
-}
-
 /// The median alive element's √area (m).
 double medianElementSize(const Discretization& disc) {
     return std::sqrt(smallestRefinedArea(disc, 0));

@@ -40,6 +40,11 @@ std::vector<Wedge> allWedges(const Discretization& disc, const std::vector<int>*
 bool insideSolid(const Discretization& disc, const RayTracer& tracer,
                  const std::vector<std::uint8_t>& sealed, const Vec3& x, const Vec3& dir, int self);
 
+/// The area of the element that holds the median square metre of surface (elements sorted by
+/// area): the scene's element size as its large surfaces have it, whatever a finely tessellated
+/// mesh adds in number.
+double areaWeightedMedianArea(const Discretization& disc);
+
 /// The wedges by where they can cut an element, so that an element tests only the wedges
 /// that may reach it, not every wedge in the scene. A wedge's region beyond its blocker is
 /// the convex part of its plane between its two rays; clipped to the scene's box and cut
