@@ -719,8 +719,7 @@ std::size_t InteractiveDisplay::dropShadowed(std::vector<ShadedPoint>& results,
         // The moved object's own points, where they were when the frame before was drawn:
         // what it uncovered there has no point yet.
         const int now = moved.back();
-        const Mat4 thenFromNow = mDisc.objects()[moved.front()].worldFromObject *
-                                 glm::inverse(mDisc.objects()[now].worldFromObject);
+        const Mat4 thenFromNow = motion(now, moved.front());
         // The points to ask about, found in parallel; the requests made in index order.
         const std::vector<int> asked = indicesWhere(points.size(), [&](std::size_t i) {
             // Dropped, seen in the last frame and not now behind the moved object.
@@ -775,15 +774,12 @@ void InteractiveDisplay::syncEdges() {
 std::size_t InteractiveDisplay::carryPoints(int from, int to) {
     const int objects = static_cast<int>(mDisc.objects().size());
     if (from < 0 || to < 0 || from == to || from >= objects || to >= objects) return 0;
-    const ObjectSurface& a = mDisc.objects()[from];
-    const ObjectSurface& b = mDisc.objects()[to];
     // The same mesh at another place (a move): its points move with it. Otherwise (another
     // shape, or a scale that changed the elements) they go.
     if (!mDisc.sameElements(from, to)) return mCache.invalidateObjects({from});
     const auto [firstA, countA] = mDisc.elementRange(from);
     const int firstB = mDisc.elementRange(to).first;
-    const Mat4 toFromFrom = b.worldFromObject * glm::inverse(a.worldFromObject);
-    const std::size_t moved = mCache.carry(from, to, toFromFrom, firstB - firstA);
+    const std::size_t moved = mCache.carry(from, to, motion(from, to), firstB - firstA);
     // The moved points show what the old elements showed (not the new ones' lighting); the
     // change of their direct light is added when the shader knows it (relightChanged).
     const std::size_t n = mDisc.elements().size();
@@ -800,6 +796,11 @@ std::size_t InteractiveDisplay::carryPoints(int from, int to) {
     return moved;
 }
 
+Mat4 InteractiveDisplay::motion(int from, int to) const {
+    return mDisc.objects()[to].worldFromObject *
+           glm::inverse(mDisc.objects()[from].worldFromObject);
+}
+
 void InteractiveDisplay::carryResults(std::vector<ShadedPoint>& results, int preview) const {
     const ObjectSurface& now = mDisc.objects()[preview];
     const int firstNow = mDisc.elementRange(preview).first;
@@ -810,8 +811,7 @@ void InteractiveDisplay::carryResults(std::vector<ShadedPoint>& results, int pre
         // Shaded at an earlier place of the drag: its light is that place's, a step or two
         // behind, which the element-level change (relightChanged) then follows; it is
         // re-shaded first (stale), and never an exact own point.
-        const Mat4 toNow =
-            now.worldFromObject * glm::inverse(mDisc.objects()[p.object].worldFromObject);
+        const Mat4 toNow = motion(p.object, preview);
         p.position = Vec3(toNow * glm::dvec4(p.position, 1.0));
         p.normal =
             glm::normalize(Vec3(glm::transpose(glm::inverse(toNow)) * glm::dvec4(p.normal, 0.0)));

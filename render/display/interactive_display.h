@@ -550,6 +550,9 @@ private:
     /// cached points; stale and not exact. Without it every result of a drag's object arrives
     /// after the next move and goes, and the object shows its shading at the drag's start.
     void carryResults(std::vector<ShadedPoint>& results, int preview) const;
+    /// The rigid motion that takes object version `from`'s world points onto version `to`'s
+    /// (the same mesh at another place): worldFromObject(to) · worldFromObject(from)⁻¹.
+    Mat4 motion(int from, int to) const;
     /// The last reconstruction's holes (EdgePointImage::holes) from the fallback.
     void fillHoles(const CameraRays& camera, Image& image) const;
     /// The shading state beginFrame saw, until finishFrame (framePreview).
