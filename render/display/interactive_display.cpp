@@ -1098,7 +1098,8 @@ std::string ConvergedReferenceOptions::toString() const {
     std::ostringstream s;
     s << "ConvergedReferenceOptions{seed " << seed << ", " << samplesPerAxis << "x"
       << samplesPerAxis << " samples, edges " << edgeSamplesPerAxis << "x" << edgeSamplesPerAxis
-      << " (spread > " << edgeSpread << (useEpiEdges ? ", EPI edges" : "") << "), strata "
+      << " (spread > " << edgeSpread << (useEpiEdges ? ", EPI edges" : "") << "), above white "
+      << brightEdgeSamplesPerAxis << "x" << brightEdgeSamplesPerAxis << ", strata "
       << maxStrataPerAxis << ", shadow refine " << shadowRefine << " up to "
       << shadowMaxRefinedPerAxis << ", decision " << shadowDecisionPerAxis << "}";
     return s.str();

@@ -276,6 +276,11 @@ struct ConvergedReferenceOptions {
     /// simple or complex and useEpiEdges.
     double edgeSpread = 0.04;
     bool useEpiEdges = true;
+    /// Detail above white (an emitter's outline): a pixel with samples above white and below
+    /// it, and a pixel beside one with a sample above white, take this many per axis instead.
+    /// A sliver of a lamp that a pixel's first samples miss still lights it well past white,
+    /// and each sample that meets the lamp weighs the lamp's radiance, many times white.
+    int brightEdgeSamplesPerAxis = 32;
     /// Shadow sampling of the reference's shader (PointShaderOptions' fields); no clamping of
     /// negative estimates, so the per-pixel means stay unbiased.
     int maxStrataPerAxis = 4;
@@ -692,8 +697,9 @@ PointShaderOptions convergedReferenceShaderOptions(const PointShaderOptions& dis
 /// renderConvergedReference with a given shader (made with convergedReferenceShaderOptions):
 /// options.samplesPerAxis² jittered samples a pixel, and options.edgeSamplesPerAxis² instead on
 /// the pixels whose samples' displayed values spread by more than options.edgeSpread or for
-/// which `edgePixel` (may be empty) holds; their count into `edgePixels` when given.
-/// Deterministic. Throws std::invalid_argument for samples per axis < 1.
+/// which `edgePixel` (may be empty) holds, and options.brightEdgeSamplesPerAxis² on detail
+/// above white (ConvergedReferenceOptions); the count of refined pixels into `edgePixels` when
+/// given. Deterministic. Throws std::invalid_argument for samples per axis < 1.
 Image renderEdgeRefinedReference(const PointShader& shader, const CameraRays& camera,
                                  const ConvergedReferenceOptions& options,
                                  const std::function<bool(int x, int y)>& edgePixel = {},

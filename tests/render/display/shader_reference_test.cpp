@@ -1,11 +1,14 @@
 // renderEdgeRefinedReference: the pixels it refines are those whose samples spread or that the
 // caller marks, and a refined pixel is the same pixel shaded at the edge rate throughout; a
-// converged render of the lit room stays close to the plain 2 × 2 reference away from edges.
+// converged render of the lit room stays close to the plain 2 × 2 reference away from edges;
+// a lamp's outline is refined where the first samples miss it, against brute-force pixels.
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
 
+#include "core/colour.h"
 #include "edit/edit_session.h"
 #include "render/camera_rays.h"
 #include "render/display/interactive_display.h"
@@ -22,6 +25,7 @@ TEST(ShaderReference, EdgePixelsTakeTheEdgeRateAndNoOthers) {
     ConvergedReferenceOptions options;
     options.samplesPerAxis = 2;
     options.edgeSamplesPerAxis = 5;
+    options.brightEdgeSamplesPerAxis = 5;  // one refined rate (the next test takes the other)
     PointShader shader(session.discretization(), session.tracer(), SolverOptions{},
                        convergedReferenceShaderOptions(displayShaderOptions(), options));
     shader.updateSolution(session.solver());
@@ -54,6 +58,72 @@ TEST(ShaderReference, EdgePixelsTakeTheEdgeRateAndNoOthers) {
     EXPECT_EQ(same, adaptive.pixels.size() - refined);
     // The plain reference agrees away from the edges, within the shadow rays' noise.
     EXPECT_LT(relativeImageRmse(coarse, renderShaderReference(shader, rays, 2)), 0.1);
+}
+
+/// The mean displayed value of pixel (x, y) over a regular s × s grid: a brute-force pixel.
+Rgb brutePixel(const PointShader& shader, const CameraRays& rays, int x, int y, int s) {
+    Rgb sum(0.0);
+    for (int j = 0; j < s; ++j)
+        for (int i = 0; i < s; ++i) {
+            const glm::dvec2 p(x + (i + 0.5) / s, y + (j + 0.5) / s);
+            sum += shader.shade({p, rays.origin(), rays.rayDirection(p.x, p.y), 7}).radiance;
+        }
+    return sum / double(s * s);
+}
+
+TEST(ShaderReference, ALampsOutlineIsRefinedWhereItsFirstSamplesMissIt) {
+    EditSession session(test::makeLitRoom("red"), SolverOptions{});
+    session.converge(1e-3);
+    ConvergedReferenceOptions options;
+    options.samplesPerAxis = 2;
+    options.edgeSamplesPerAxis = 8;
+    options.brightEdgeSamplesPerAxis = 32;
+    PointShader shader(session.discretization(), session.tracer(), SolverOptions{},
+                       convergedReferenceShaderOptions(displayShaderOptions(), options));
+    shader.updateSolution(session.solver());
+    // Looking up at the ceiling lamp (12 times white), its outline slanted across the pixels.
+    Camera camera;
+    camera.position = Vec3(0.35, -0.4, 1.1);
+    camera.lookAt = Vec3(0.0, 1.49, 0.05);
+    camera.fovDeg = 40;
+    constexpr int kView = 40;
+    const CameraRays rays(camera, kView, kView);
+    const Image refined = renderEdgeRefinedReference(shader, rays, options);
+    ConvergedReferenceOptions off = options;
+    off.brightEdgeSamplesPerAxis = off.edgeSamplesPerAxis;
+    const Image plain = renderEdgeRefinedReference(shader, rays, off);
+
+    // The pixels the lamp partly covers, by brute force near its centre rays' hits: the
+    // displayed error of both references there.
+    auto onLamp = [&](int x, int y) {
+        const glm::dvec2 p(x + 0.5, y + 0.5);
+        return shader.shade({p, rays.origin(), rays.rayDirection(p.x, p.y), 7}).radiance.x > 1.0;
+    };
+    std::vector<std::uint8_t> lamp(kView * kView);
+    for (int y = 0; y < kView; ++y)
+        for (int x = 0; x < kView; ++x) lamp[y * kView + x] = onLamp(x, y);
+    double refinedSq = 0, plainSq = 0;
+    int partial = 0;
+    for (int y = 1; y + 1 < kView; ++y)
+        for (int x = 1; x + 1 < kView; ++x) {
+            int near = 0;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) near += lamp[(y + dy) * kView + x + dx];
+            if (near == 0 || near == 9) continue;
+            const Rgb truth = brutePixel(shader, rays, x, y, 48);
+            const double shown = srgbEncodeClipped(truth.x);
+            if (shown >= 1.0) continue;  // wholly above white: nothing to resolve
+            ++partial;
+            const double r = srgbEncodeClipped(refined.at(x, y).x) - shown;
+            const double q = srgbEncodeClipped(plain.at(x, y).x) - shown;
+            refinedSq += r * r;
+            plainSq += q * q;
+        }
+    ASSERT_GT(partial, 10);
+    const double refinedRms = std::sqrt(refinedSq / partial);
+    const double plainRms = std::sqrt(plainSq / partial);
+    EXPECT_LT(refinedRms, 0.02) << partial << " pixels";
+    EXPECT_LT(refinedRms, 0.5 * plainRms) << partial << " pixels";
 }
 
 }  // namespace
