@@ -44,8 +44,12 @@ void ProgressiveSolver::gatherPreviewShadow(ChangeEntry& c, std::vector<Rgb>& de
     if (c.shadowCarried && shadow.size() == elements.size())
         for (std::size_t e = 0; e < elements.size(); ++e) delta[e] = -shadow[e];
     shadow.assign(elements.size(), Rgb(0.0));
-    mImpl->previewShadowOf = object;
-    if (object < 0 || c.spheres.empty()) return;
+    // What is gathered now is what the next positions move along.
+    mImpl->gatheredShadowOf = object;
+    if (object < 0 || c.spheres.empty()) {
+        mImpl->gatheredShadow = shadow;
+        return;
+    }
     const Vec3 centre = c.spheres.front().first;
     const double radius = c.spheres.front().second;
     // The shooters the gather stands for: pending, not emitting (the lamps keep their exact
@@ -172,6 +176,7 @@ void ProgressiveSolver::gatherPreviewShadow(ChangeEntry& c, std::vector<Rgb>& de
         }
     });
     for (int e : receivers) delta[e] += shadow[e];
+    mImpl->gatheredShadow = shadow;
     for (std::size_t j = 0; j < np; ++j)
         if (covered[j]) c.pending.update(static_cast<int>(j), 0.0);
 }
@@ -194,11 +199,13 @@ void ProgressiveSolver::setPreview(int object) {
     mImpl->temp.assign(mDisc.elements().size(), Rgb(0.0));
     mImpl->tempEmission.assign(mDisc.elements().size(), Rgb(0.0));
     // The same object one drag position on: its shadow in the reflected light as gathered at
-    // the last position, until this position's gather replaces it.
+    // an earlier position, moved with it, until this position's gather replaces it.
     std::vector<Rgb>& shadow = mImpl->previewShadow;
-    if (mImpl->previewShadowOf >= 0 && mDisc.sameElements(mImpl->previewShadowOf, object) &&
-        shadow.size() <= mImpl->temp.size()) {
-        shadow.resize(mImpl->temp.size(), Rgb(0.0));  // the new version's elements: none
+    const int gatheredOf = mImpl->gatheredShadowOf;
+    if (gatheredOf >= 0 && gatheredOf < static_cast<int>(mDisc.objects().size()) &&
+        mDisc.sameElements(gatheredOf, object) &&
+        mImpl->gatheredShadow.size() <= mImpl->temp.size()) {
+        shadow = movedPreviewShadow(mImpl->previewEntry, object);
         for (std::size_t e = 0; e < shadow.size(); ++e)
             mImpl->temp[e] += mDisc.elementMaterial(static_cast<int>(e)).reflectance * shadow[e];
         mImpl->previewEntry.shadowCarried = true;
@@ -280,7 +287,50 @@ void ProgressiveSolver::clearPreview() {
 
 void ProgressiveSolver::forgetPreviewShadow() {
     mImpl->previewShadow.clear();
-    mImpl->previewShadowOf = -1;
+    mImpl->gatheredShadow.clear();
+    mImpl->gatheredShadowOf = -1;
+}
+
+std::vector<Rgb> ProgressiveSolver::movedPreviewShadow(const ChangeEntry& c, int object) const {
+    const auto& elements = mDisc.elements();
+    std::vector<Rgb> gathered = mImpl->gatheredShadow;
+    gathered.resize(elements.size(), Rgb(0.0));  // the versions made since: none
+    const int from = mImpl->gatheredShadowOf;
+    if (c.spheres.empty()) return gathered;
+    // Where a point near the object now was, relative to the object, at the gather.
+    const Mat4 back = mDisc.objects()[from].worldFromObject *
+                      glm::inverse(mDisc.objects()[object].worldFromObject);
+    const Vec3 centre = c.spheres.front().first;
+    const double radius = c.spheres.front().second;
+    if (glm::length(Vec3(back * glm::dvec4(centre, 1.0)) - centre) <= 1e-9 * (1 + radius))
+        return gathered;
+    // A receiver off the object takes the value its own surface holds where the object's
+    // motion since the gather brings the receiver from, projected onto the receiver's plane
+    // (a shadow on the floor moves as the object moves over it; one on a wall the object
+    // moves away from stays where it is); none where that surface ends, or where the gather
+    // did not reach.
+    std::vector<Rgb> moved(elements.size(), Rgb(0.0));
+    const Visibility world = c.beforeWorld();
+    const double lift = 1e-3 * (1 + radius) + 4 * mTracer.epsilon();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, elements.size(), 256), [&](const auto& r) {
+        for (std::size_t e = r.begin(); e != r.end(); ++e) {
+            const Element& el = elements[e];
+            if (el.object == object || el.object == from ||
+                !mDisc.elementAlive(static_cast<int>(e)))
+                continue;
+            const Vec3 x = mDisc.receiver(static_cast<int>(e));
+            const Vec3 d = centre - x;
+            if (glm::dot(d, d) * kPreviewShadowSin2 > radius * radius) continue;
+            Vec3 p(back * glm::dvec4(x, 1.0));
+            p -= el.normal * glm::dot(p - x, el.normal);
+            const RayTracer::FirstHit h = mTracer.firstHit(p + el.normal * lift, -el.normal, world);
+            if (h.element < 0 || h.backFace || h.t > 2 * lift ||
+                glm::dot(elements[h.element].normal, el.normal) < 0.99)
+                continue;
+            moved[e] = gathered[h.element];
+        }
+    });
+    return moved;
 }
 
 int ProgressiveSolver::previewObject() const { return mImpl->previewObject; }

@@ -355,6 +355,10 @@ private:
     void gatherPreviewShadow(ChangeEntry& c, std::vector<Rgb>& delta);
     /// No gathered preview shadow to carry to the next preview (a drag begins or ends).
     void forgetPreviewShadow();
+    /// The last gathered preview shadow moved with the object to version `object` (same
+    /// elements): each receiver near it takes the gathered value where the object's motion
+    /// since the gather brings it from (the surface found along the receiver's normal).
+    std::vector<Rgb> movedPreviewShadow(const ChangeEntry& c, int object) const;
     /// Best pending redistribution importance (W), and which edit holds it.
     double bestRedistribution(int* entry) const;
     void subdivideSteepElements();

@@ -375,10 +375,12 @@ struct ProgressiveSolver::Impl {
     std::vector<Rgb> tempEmission;     ///< the part of temp straight from emission
     /// The last gathered preview shadow (irradiance per element, gatherPreviewShadow) and the
     /// object version it was gathered for (-1: none). A drag's next position starts its
-    /// buffer from it, so every published buffer holds the moving object's shadow in the
-    /// reflected light, one position late until its own gather has run.
+    /// buffer from it moved with the object (movedPreviewShadow: previewShadow, what the
+    /// buffer holds), so every published buffer holds the moving object's shadow in the
+    /// reflected light about where the object is, until its own gather has run.
+    std::vector<Rgb> gatheredShadow;
+    int gatheredShadowOf = -1;
     std::vector<Rgb> previewShadow;
-    int previewShadowOf = -1;
     IndexedMaxHeap queue;
     std::vector<Rgb> delta;  ///< per element, radiosity received in the current shot
     std::vector<std::uint8_t> patchReceived;  ///< per patch: received in the current shot

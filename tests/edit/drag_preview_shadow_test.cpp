@@ -130,5 +130,38 @@ TEST(DragPreviewShadow, TheFloorUnderADraggedTableLosesTheReflectedLightItBlocks
     EXPECT_GT(without.meanRatio, 1.15) << "the scene no longer shows what the gather is for";
 }
 
+TEST(DragPreviewShadow, TheCarriedShadowMovesWithTheObject) {
+    // A long drag step: right after the move, before any shot at the new position, the floor
+    // holds the shadow gathered at the last position moved with the table top, closer to the
+    // converged solution with the table there than the same shadow left where it was.
+    const SolverOptions options = interactiveSolverOptions();
+    auto session = EditSession::open(kScene, options);
+    session->converge(1e-3);
+    const std::vector<int> floor = floorUnderTable(session->discretization());
+    run(*session, R"({"op":"select","id":"table-top"})");
+    for (int k = 0; k < 30; ++k) session->solve(1);
+    const std::vector<double> gathered = indirectLuminance(*session);
+
+    constexpr double kStep = 0.35;
+    auto reference = EditSession::open(kScene, options);
+    run(*reference, moveTableTop(kStep));
+    reference->converge(1e-4);
+    const std::vector<double> truth = indirectLuminance(*reference);
+    run(*session, moveTableTop(kStep));
+    const FloorReading moved = compareFloor(floor, indirectLuminance(*session), truth);
+    const FloorReading left = compareFloor(floor, gathered, truth);
+    // The gather's own error, at the position it was gathered at.
+    auto still = EditSession::open(kScene, options);
+    still->converge(1e-4);
+    const FloorReading own = compareFloor(floor, gathered, indirectLuminance(*still));
+    std::printf(
+        "floor right after a %.2f m step: moved RMS %.3f (%.3f of converged), left "
+        "RMS %.3f (%.3f); the gather where it was gathered RMS %.3f\n",
+        kStep, moved.rms, moved.meanRatio, left.rms, left.meanRatio, own.rms);
+    EXPECT_LT(moved.rms, 0.8 * left.rms);
+    EXPECT_LT(moved.rms, 1.5 * own.rms);
+    EXPECT_NEAR(moved.meanRatio, 1.0, 0.1);
+}
+
 }  // namespace
 }  // namespace penumbra
