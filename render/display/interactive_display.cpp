@@ -551,11 +551,12 @@ std::size_t InteractiveDisplay::relightChanged() {
     mChangedAt.resize(n, 0);
     for (std::size_t e = 0; e < std::min(n, known); ++e)
         if (stale[e]) mChangedAt[e] = serial;
+    std::vector<Rgb> before = std::move(mShownTotal);
     mShownTotal = std::move(total);
     mShownDirect = std::move(direct);
     // Elements of versions that appeared since: nothing cached reflects them yet.
     mShownValid.resize(n, kShownNone);
-    return any ? mCache.relight(delta, stale) : 0;
+    return any ? mCache.relight(delta, stale, before) : 0;
 }
 
 SolutionView SolutionView::of(const ProgressiveSolver& solver) {

@@ -209,10 +209,15 @@ public:
     // same depth replaces it in the z-buffer, so the shader re-shades changed regions first
     // while nothing goes black meanwhile.
 
-    /// Adds delta[e] to the colour of every point on element e (elements beyond delta: none;
-    /// each channel kept ≥ 0) and marks stale the points on the elements with stale[e] != 0.
-    /// Returns the points marked.
-    std::size_t relight(const std::vector<Rgb>& delta, const std::vector<std::uint8_t>& stale);
+    /// Adds delta[e] to the colour of every point on element e (elements beyond delta: none)
+    /// and marks stale the points on the elements with stale[e] != 0. A channel the change
+    /// would take below 0 (a point darker than its element, as in a shadow, whose element
+    /// lost more light than the point shows) is scaled by the element's relative change
+    /// instead, (before[e] + delta[e]) / before[e] with `before` the element's colour before
+    /// the change (0 when `before` is empty or holds no light there), and the point is marked
+    /// stale. Returns the points marked.
+    std::size_t relight(const std::vector<Rgb>& delta, const std::vector<std::uint8_t>& stale,
+                        const std::vector<Rgb>& before = {});
     /// A rigid move of an object's points: every point on `fromObject` moves by `toFromFrom`
     /// (world to world), now lies on `toObject` and element + elementOffset (the version built
     /// from the same mesh at the new place), and is stale. Returns how many moved.

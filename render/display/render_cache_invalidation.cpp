@@ -137,7 +137,8 @@ void RenderCache::clear() {
 }
 
 std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
-                                 const std::vector<std::uint8_t>& stale) {
+                                 const std::vector<std::uint8_t>& stale,
+                                 const std::vector<Rgb>& before) {
     restartRequestCounts();
     // (A pending screen point list, built later, shows the relit colours: the points are the
     // same, only their estimate is newer.)
@@ -148,13 +149,24 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
         for (std::size_t i = c * 8192; i < std::min(n, (c + 1) * 8192); ++i) {
             if (mElementOf[i] < 0) continue;
             const auto e = static_cast<std::size_t>(mElementOf[i]);
+            bool below = false;
             if (e < delta.size() && delta[e] != Rgb(0.0)) {
-                // No negative radiance where a point was darker than its element's change.
                 CachePoint& p = mPoints[i];
-                p.colour = glm::max(p.colour + delta[e], Rgb(0.0));
+                for (int c = 0; c < 3; ++c) {
+                    const double added = p.colour[c] + delta[e][c];
+                    if (added >= 0) {
+                        p.colour[c] = added;
+                        continue;
+                    }
+                    // Darker than its element's loss: the element's share of it, never black
+                    // while the element keeps light.
+                    below = true;
+                    const double was = e < before.size() ? before[e][c] : 0.0;
+                    p.colour[c] *= was > 0 ? std::max(0.0, (was + delta[e][c]) / was) : 0.0;
+                }
                 touchColour(i);
             }
-            if (e < stale.size() && stale[e]) {
+            if ((e < stale.size() && stale[e]) || below) {
                 if (!(mFlags[i] & kStaleFlag)) touch(i);
                 mFlags[i] |= kStaleFlag;
                 ++changed;

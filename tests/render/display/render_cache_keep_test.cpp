@@ -85,6 +85,42 @@ TEST(RenderCacheKeep, RelightAddsEachElementsChangeAndStalePixelsComeFirst) {
     EXPECT_LT(cache.priority()[0], 1.0) << "its pixel is no longer first";
 }
 
+TEST(RenderCacheKeep, APointDarkerThanItsElementsLossTakesItsShareAndIsReshadedFirst) {
+    // Element 0 held 0.5 and loses 0.3: a point at 0.5 follows it to 0.2; a point in a shadow
+    // at 0.1 cannot lose 0.3 and keeps the element's share, 0.1 × 0.2 / 0.5 = 0.04, stale.
+    // Without the element's colour before, it goes to 0; with no loss, nothing changes.
+    const CameraRays rays(frontCamera(), 4, 1);
+    for (const bool known : {true, false}) {
+        RenderCache cache(4, 1, 16);
+        std::vector<ShadedPoint> points = layer(rays, 5.0, 0, 0, Rgb(0.5));
+        for (ShadedPoint& p : points) p.element = p.pixel.x < 2 ? 0 : 1;
+        points[1].radiance = Rgb(0.1, 0.1, 0.4);  // darker in red and green
+        cache.insert(points);
+        cache.reproject(rays);
+        const std::vector<Rgb> delta{Rgb(-0.3, -0.3, 0.0), Rgb(0.0)};
+        const std::vector<std::uint8_t> stale(2, 0);
+        const std::vector<Rgb> before =
+            known ? std::vector<Rgb>{Rgb(0.5), Rgb(0.5)} : std::vector<Rgb>{};
+        EXPECT_EQ(cache.relight(delta, stale, before), 1u);
+        for (std::size_t i = 0; i < cache.size(); ++i) {
+            const CachePoint& p = cache.points()[i];
+            if (p.element == 1) {
+                EXPECT_EQ(p.colour, Rgb(0.5));
+                EXPECT_FALSE(cache.stale(i));
+            } else if (p.colour.z > 0.45) {  // the first point: follows its element
+                EXPECT_NEAR(p.colour.x, 0.2, 1e-12);
+                EXPECT_NEAR(p.colour.z, 0.5, 1e-12);
+                EXPECT_FALSE(cache.stale(i));
+            } else {  // the dark one
+                EXPECT_NEAR(p.colour.x, known ? 0.04 : 0.0, 1e-12);
+                EXPECT_NEAR(p.colour.y, known ? 0.04 : 0.0, 1e-12);
+                EXPECT_NEAR(p.colour.z, 0.4, 1e-12);
+                EXPECT_TRUE(cache.stale(i));
+            }
+        }
+    }
+}
+
 /// The pixel a request falls in.
 int requestPixel(const ShadeRequest& r, int width) {
     return static_cast<int>(std::floor(r.pixel.y)) * width +
