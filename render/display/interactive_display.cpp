@@ -521,7 +521,7 @@ std::size_t InteractiveDisplay::relightChanged() {
         }
     mean = alive ? mean / static_cast<double>(alive) : 0.0;
     const std::size_t known = mShownTotal.size();
-    std::vector<Rgb> delta(n, Rgb(0.0));
+    std::vector<Rgb> delta(n, Rgb(0.0)), directDelta(n, Rgb(0.0));
     std::vector<std::uint8_t> stale(n, 0);
     bool any = false;
     for (std::size_t e = 0; e < std::min(n, known); ++e) {
@@ -535,6 +535,7 @@ std::size_t InteractiveDisplay::relightChanged() {
         // The element's change, added to its points where they follow the element's shading.
         if (mShownValid[e] == kShownAll) {
             delta[e] = total[e] - mShownTotal[e];
+            directDelta[e] = direct[e] - mShownDirect[e];
         } else if (mShownValid[e] == kShownDirect) {
             // A moved object's points take the change of their direct light from the place
             // they were shaded at (a shadow they left or entered) once the shader's estimate
@@ -556,7 +557,11 @@ std::size_t InteractiveDisplay::relightChanged() {
     mShownDirect = std::move(direct);
     // Elements of versions that appeared since: nothing cached reflects them yet.
     mShownValid.resize(n, kShownNone);
-    return any ? mCache.relight(delta, stale, before) : 0;
+    // Points on the scene's objects shaded since its geometry and lights last changed (or
+    // since a drag began: its moves re-shade the points whose view of a lamp they change,
+    // dropShadowed) hold their direct light: the element's estimate catching up with it (a
+    // drag's estimate that comes positions late, the exact one at the drop) is not theirs.
+    return any ? mCache.relight(delta, stale, before, directDelta, mDirectSince) : 0;
 }
 
 SolutionView SolutionView::of(const ProgressiveSolver& solver) {
@@ -974,6 +979,7 @@ std::size_t InteractiveDisplay::notifyChanged(const std::vector<int>& changedObj
     // shading changed take the change and are re-shaded first (Bala et al. §7.5).
     mShader->refreshDirect(changedObjects);
     if (solver) mShader->updateSolution(*solver);
+    mDirectSince = mShader->stateSerial();
     changed += relightChanged();
     for (int o : entered) trustShown(o);
     return changed;
@@ -1052,6 +1058,7 @@ std::size_t InteractiveDisplay::clearPreview(const ProgressiveSolver* solver) {
     syncEdges();
     mShadowsStale = true;
     if (solver) mShader->updateSolution(*solver);
+    mDirectSince = mShader->stateSerial();
     setOccluder(-1, {}, 0);
     // (Not noteAlive: the notifyChanged that follows must see the object come back.)
     return relightChanged();
@@ -1066,6 +1073,7 @@ std::size_t InteractiveDisplay::dropLeftPreview() {
 void InteractiveDisplay::beginDrag(int origin, const Visibility& originOnly) {
     mShader->cancelPending();
     mShader->beginDrag(origin, originOnly);
+    mDirectSince = mShader->stateSerial();
     noteAlive();
 }
 

@@ -646,6 +646,12 @@ private:
     // state of the last move; the next frame drops the points in their shadow volumes.
     std::vector<int> mMovedVersions;
     std::uint64_t mMoveSerial = 0;
+    // The shader state from which points on the scene's objects hold their direct light as
+    // the scene has it (the last edit or cancelled drag, or the drag's start: its moves
+    // re-shade the points whose view of a lamp they change); an element's later change of
+    // direct light is its estimate catching up, which such points already hold
+    // (relightChanged gives them the rest of the change).
+    std::uint64_t mDirectSince = 0;
     /// Drops the cached points that lie in the shadow volume of a version in mMovedVersions for
     /// some live lamp (their view of it changed), and the finished `results` there that were
     /// shaded before the last move; re-shades one of their pixels in `camera`'s view per

@@ -215,9 +215,12 @@ public:
     /// lost more light than the point shows) is scaled by the element's relative change
     /// instead, (before[e] + delta[e]) / before[e] with `before` the element's colour before
     /// the change (0 when `before` is empty or holds no light there), and the point is marked
-    /// stale. Returns the points marked.
+    /// stale. A point shaded at shader state `exactSince` or later (CachePoint::shading) takes
+    /// delta[e] − exactPart[e] instead: the part of the change it already holds. Returns the
+    /// points marked.
     std::size_t relight(const std::vector<Rgb>& delta, const std::vector<std::uint8_t>& stale,
-                        const std::vector<Rgb>& before = {});
+                        const std::vector<Rgb>& before = {}, const std::vector<Rgb>& exactPart = {},
+                        std::uint64_t exactSince = std::numeric_limits<std::uint64_t>::max());
     /// A rigid move of an object's points: every point on `fromObject` moves by `toFromFrom`
     /// (world to world), now lies on `toObject` and element + elementOffset (the version built
     /// from the same mesh at the new place), and is stale. Returns how many moved.

@@ -138,7 +138,8 @@ void RenderCache::clear() {
 
 std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
                                  const std::vector<std::uint8_t>& stale,
-                                 const std::vector<Rgb>& before) {
+                                 const std::vector<Rgb>& before, const std::vector<Rgb>& exactPart,
+                                 std::uint64_t exactSince) {
     restartRequestCounts();
     // (A pending screen point list, built later, shows the relit colours: the points are the
     // same, only their estimate is newer.)
@@ -152,8 +153,11 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
             bool below = false;
             if (e < delta.size() && delta[e] != Rgb(0.0)) {
                 CachePoint& p = mPoints[i];
+                const Rgb change = p.shading >= exactSince && e < exactPart.size()
+                                       ? delta[e] - exactPart[e]
+                                       : delta[e];
                 for (int c = 0; c < 3; ++c) {
-                    const double added = p.colour[c] + delta[e][c];
+                    const double added = p.colour[c] + change[c];
                     if (added >= 0) {
                         p.colour[c] = added;
                         continue;
@@ -162,7 +166,7 @@ std::size_t RenderCache::relight(const std::vector<Rgb>& delta,
                     // while the element keeps light.
                     below = true;
                     const double was = e < before.size() ? before[e][c] : 0.0;
-                    p.colour[c] *= was > 0 ? std::max(0.0, (was + delta[e][c]) / was) : 0.0;
+                    p.colour[c] *= was > 0 ? std::max(0.0, (was + change[c]) / was) : 0.0;
                 }
                 touchColour(i);
             }

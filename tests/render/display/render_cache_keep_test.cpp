@@ -121,6 +121,26 @@ TEST(RenderCacheKeep, APointDarkerThanItsElementsLossTakesItsShareAndIsReshadedF
     }
 }
 
+TEST(RenderCacheKeep, APointShadedSinceTheSceneLastChangedTakesOnlyTheChangeItLacks) {
+    // Element 0 loses 0.3, of which 0.25 is its direct light's estimate catching up with the
+    // scene (exactPart). A point shaded before the scene's last change (state 3 < 5) takes the
+    // whole change; one shaded since (state 7) already holds the direct light and takes 0.05.
+    const CameraRays rays(frontCamera(), 2, 1);
+    RenderCache cache(2, 1, 16);
+    std::vector<ShadedPoint> points = layer(rays, 5.0, 0, 0, Rgb(0.5));
+    points[0].element = points[1].element = 0;
+    points[0].shading = 3;
+    points[1].shading = 7;
+    cache.insert(points);
+    cache.reproject(rays);
+    const std::vector<Rgb> delta{Rgb(-0.3)}, exactPart{Rgb(-0.25)}, before{Rgb(0.5)};
+    cache.relight(delta, std::vector<std::uint8_t>(1, 0), before, exactPart, 5);
+    for (std::size_t i = 0; i < cache.size(); ++i) {
+        const CachePoint& p = cache.points()[i];
+        EXPECT_NEAR(p.colour.x, p.shading >= 5 ? 0.45 : 0.2, 1e-12) << p.toString();
+    }
+}
+
 /// The pixel a request falls in.
 int requestPixel(const ShadeRequest& r, int width) {
     return static_cast<int>(std::floor(r.pixel.y)) * width +
