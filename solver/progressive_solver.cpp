@@ -56,6 +56,7 @@ void ProgressiveSolver::initialize() {
     mElementH.assign(elements.size(), Rgb(0.0));
     mElementHEmission.assign(elements.size(), Rgb(0.0));
     mImpl->level.assign(elements.size(), 0);
+    mImpl->irradianceVariance.assign(elements.size(), Rgb(0.0));
     mImpl->queue.reset(patches.size());
     mEmittedEnergy = 0;
     for (std::size_t p = 0; p < patches.size(); ++p) {
@@ -178,6 +179,7 @@ void ProgressiveSolver::ensureSizes() {
     mElementH.resize(ne, Rgb(0.0));
     mElementHEmission.resize(ne, Rgb(0.0));
     mImpl->level.resize(ne, 0);
+    mImpl->irradianceVariance.resize(ne, Rgb(0.0));
     mPatchUnshot.resize(np, Rgb(0.0));
     mPatchUnshotEmission.resize(np, Rgb(0.0));
     while (mImpl->queue.size() < np) mImpl->queue.push(0.0);
@@ -251,6 +253,8 @@ void ProgressiveSolver::receiveAll(const std::vector<Received>& list,
             }
             const Received& r = list[bucketed[i]];
             receive(r.element, r.patch, r.area, r.irradiance, shares[r.shooter]);
+            // Each hit is an independent sample: its square adds to the noise's variance.
+            mImpl->irradianceVariance[r.element] += r.irradiance * r.irradiance;
             if (!touched[r.patch]) touched[r.patch] = 1, blockTouched[b].push_back(r.patch);
         }
     });
@@ -549,6 +553,7 @@ void ProgressiveSolver::subdivideSteepElements() {
                            mDisc.patchMaterial(patch).reflectance * mElementH[c];
             mImpl->delta[c] = mElementB[c] - parentB;
             mImpl->level[c] = level;
+            mImpl->irradianceVariance[c] = Rgb(0.0);  // its history is gathered exactly
             change += mElementB[c] * mDisc.elements()[c].area;
         }
         // The patch's radiosity changed by the children's correction: it is unshot.

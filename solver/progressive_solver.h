@@ -5,6 +5,7 @@
 // already shot is redistributed by F(t) − F(t−1), positive toward added objects and negative
 // into their shadows, from a change log that keeps each edit's pending work until done.
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -117,9 +118,18 @@ struct SettlingEstimate {
     /// unshot energy (positive and negative), pending redistribution, and their
     /// interreflection. 0 once everything has been shot.
     std::vector<double> change;
-    /// The standard deviation of the stochastic tail's sampling noise in the element's
-    /// radiosity: how far two converged solves may disagree, whatever is left to shoot.
+    /// The standard deviation of the sampling noise the solution holds in the element's
+    /// radiosity: every stochastic contribution it received (a propagation or redistribution
+    /// batch's hit, a gather's ray) adds its square to the variance, an unbiased bound on the
+    /// variance of a sum of independent hits. 0 where only deterministic shots have landed.
     std::vector<double> noise;
+    /// The standard deviation of the noise a converged from-scratch solve would hold there
+    /// (its stochastic tail, modelled from the element's indirect light): what the reference
+    /// the estimate is compared with disagrees by, whatever is left to shoot.
+    std::vector<double> referenceNoise;
+    /// The interreflection every element shares before its own reflectance (W/m², per
+    /// channel): `change` is ρ × (its first-order irradiance change + this), in luminance.
+    Rgb interreflected{0.0};
     /// George et al. eq. 7 for `change`: sqrt(Σ change² A / Σ Y² A), Y the current luminance.
     double relativeRms = 0;
     /// The same against the reflected light alone, sqrt(Σ change² A / Σ (Y − E)² A) with E the
@@ -128,9 +138,10 @@ struct SettlingEstimate {
     /// the walls' relative change. What the editor's "lighting settled" compares.
     double reflectedRms = 0;
     /// The per-element bound on the change to a converged from-scratch solve: change plus
-    /// kNoiseCover standard deviations of both solves' noise (√2 σ).
+    /// kNoiseCover standard deviations of the difference of the two solves' noise.
     double bound(std::size_t e) const {
-        return change[e] + kNoiseCover * 1.4142135623730951 * noise[e];
+        return change[e] +
+               kNoiseCover * std::sqrt(noise[e] * noise[e] + referenceNoise[e] * referenceNoise[e]);
     }
     static constexpr double kNoiseCover = 2.0;
 };

@@ -341,6 +341,7 @@ struct ChangeEntry {
     struct GatherRefinement {
         std::vector<int> receivers;      ///< the added objects' elements, ascending
         std::vector<Rgb> firstEstimate;  ///< per receiver: irradiance the first pass gave
+        std::vector<Rgb> firstVariance;  ///< per receiver: that estimate's variance, per channel
         /// Per receiver and block: the pending patch whose shot radiosity the block's stratum,
         /// traced from this receiver, returned; -1 for none, -2 when another receiver of its
         /// patch traced the block (the first pass traces each block once per patch).
@@ -385,6 +386,10 @@ struct ProgressiveSolver::Impl {
     std::vector<Rgb> delta;  ///< per element, radiosity received in the current shot
     std::vector<std::uint8_t> patchReceived;  ///< per patch: received in the current shot
     std::vector<int> level;                   ///< per element, subdivision depth
+    /// Per element and channel, Σ dH² over the stochastic contributions to its irradiance (a
+    /// batch's hit, a gather's estimate per ray): the variance of the sampling noise the
+    /// solution holds there (computeSettling's `noise`).
+    std::vector<Rgb> irradianceVariance;
     // Scratch for stochastic batches.
     std::vector<double> patchCdf;    ///< power CDF over the shooters
     std::vector<int> shooters;       ///< patches shot in the batch

@@ -200,8 +200,10 @@ void ProgressiveSolver::applyChange(const SceneChange& change, bool redistribute
     for (int o : change.removed)
         for (std::size_t j = 0; j < patches.size(); ++j) {
             if (patches[j].object != o) continue;
-            for (int e : patches[j].elements)
+            for (int e : patches[j].elements) {
                 mElementB[e] = mElementH[e] = mElementHEmission[e] = Rgb(0.0);
+                mImpl->irradianceVariance[e] = Rgb(0.0);
+            }
             mPatchUnshot[j] = mPatchUnshotEmission[j] = Rgb(0.0);
             updatePriority(static_cast<int>(j));
         }
@@ -210,8 +212,10 @@ void ProgressiveSolver::applyChange(const SceneChange& change, bool redistribute
         for (std::size_t j = 0; j < patches.size(); ++j) {
             if (patches[j].object != o) continue;
             const Rgb& e = mDisc.patchMaterial(static_cast<int>(j)).emission;
-            for (int el : patches[j].elements)
+            for (int el : patches[j].elements) {
                 mElementB[el] = e, mElementH[el] = mElementHEmission[el] = Rgb(0.0);
+                mImpl->irradianceVariance[el] = Rgb(0.0);
+            }
             mPatchUnshot[j] = mPatchUnshotEmission[j] = e;
             updatePriority(static_cast<int>(j));
         }
@@ -591,6 +595,7 @@ std::size_t traceFirstGatherPass(const std::vector<Element>& elements, const Gat
     groupStart.push_back(byPatch.size());
     const std::size_t groups = groupStart.size() - 1;
     refinement.firstEstimate.assign(receivers.size(), Rgb(0.0));
+    refinement.firstVariance.assign(receivers.size(), Rgb(0.0));
     refinement.blockHit.assign(receivers.size() * static_cast<std::size_t>(blocks),
                                kGatherNotTraced);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups, 4), [&](const auto& r) {
@@ -619,7 +624,7 @@ std::size_t traceFirstGatherPass(const std::vector<Element>& elements, const Gat
                     below += elements[receivers[byPatch[first + q++]]].area;
                 tracerOf[order[p]] = static_cast<int>(q);
             }
-            Rgb estimate(0.0);
+            Rgb estimate(0.0), variance(0.0);
             for (std::size_t t = 0; t < m; ++t) {
                 if (std::find(tracerOf.begin(), tracerOf.end(), static_cast<int>(t)) ==
                     tracerOf.end())
@@ -636,12 +641,17 @@ std::size_t traceFirstGatherPass(const std::vector<Element>& elements, const Gat
                     if (chosen[b] != k || tracerOf[b] != static_cast<int>(t)) continue;
                     const int j = trace(e, k, ru, rv);
                     hitOf[b] = j;
-                    if (j >= 0) estimate += shot[j] * strata.share[b];
+                    if (j >= 0) {
+                        const Rgb sample = shot[j] * strata.share[b];
+                        estimate += sample;
+                        variance += sample * sample;
+                    }
                 }
             }
             for (std::size_t t = 0; t < m; ++t) {
                 const int i = byPatch[first + t];
                 refinement.firstEstimate[i] = delta[receivers[i]] = estimate;
+                refinement.firstVariance[i] = variance;
             }
         }
     });
@@ -708,6 +718,9 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
         refinement.seed = seed;
         const std::size_t traced =
             traceFirstGatherPass(elements, strata, c.shot, trace, refinement, delta);
+        if (!preview)
+            for (std::size_t i = 0; i < receivers.size(); ++i)
+                mImpl->irradianceVariance[receivers[i]] += refinement.firstVariance[i];
         refinement.importance =
             gatheredImportance *
             (1 - static_cast<double>(traced) / (static_cast<double>(rays) * receivers.size()));
@@ -717,13 +730,17 @@ void ProgressiveSolver::gatherToAdded(ChangeEntry& c, bool preview, std::vector<
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const int e = receivers[i];
             RayRandom rng{hashPair(seed, static_cast<std::uint64_t>(e))};
-            Rgb sum(0.0);
+            Rgb sum(0.0), squares(0.0);
             for (int k = 0; k < rays; ++k) {
                 const double ru = rng.next(), rv = rng.next();
                 const int j = trace(e, k, ru, rv);
-                if (j >= 0) sum += c.shot[j];
+                if (j >= 0) sum += c.shot[j], squares += c.shot[j] * c.shot[j];
             }
             delta[e] = sum / static_cast<double>(rays);
+            // The mean of `rays` samples: its variance is at most Σ x² / rays².
+            if (!preview)
+                mImpl->irradianceVariance[e] +=
+                    squares / (static_cast<double>(rays) * static_cast<double>(rays));
         }
     });
 }
@@ -757,7 +774,7 @@ void ProgressiveSolver::refineGather(ChangeEntry& c, bool preview, std::vector<R
             const Vec3 origin = mDisc.receiver(e) + el.normal * eps;
             strata.choose(seed, e, chosen.data());
             const int* hitOf = &refinement.blockHit[i * static_cast<std::size_t>(blocks)];
-            Rgb sum(0.0);
+            Rgb sum(0.0), squares(0.0);
             for (int k = 0; k < rays; ++k) {
                 const double ru = rng.next(), rv = rng.next();
                 const int b = strata.blockOf[k];
@@ -770,9 +787,14 @@ void ProgressiveSolver::refineGather(ChangeEntry& c, bool preview, std::vector<R
                             ? -1
                             : h.patch;
                 }
-                if (j >= 0) sum += c.shot[j];
+                if (j >= 0) sum += c.shot[j], squares += c.shot[j] * c.shot[j];
             }
             delta[e] = sum / static_cast<double>(rays) - refinement.firstEstimate[i];
+            // The whole gather's variance replaces the first pass's.
+            if (!preview)
+                mImpl->irradianceVariance[e] +=
+                    squares / (static_cast<double>(rays) * static_cast<double>(rays)) -
+                    refinement.firstVariance[i];
         }
     });
     refinement = ChangeEntry::GatherRefinement{};

@@ -33,10 +33,13 @@ constexpr double kExactWithinRadii = 4.0;
 /// Unoccluded form factor from a differential area at x (unit normal n) to patch P: for a
 /// planar patch Lambert's contour integral, clipped to the horizon (or the point form far
 /// from it, above); for a curved one George et al.'s point estimate
-/// A cosθ cosθ′ / (πr² + A), the receiver's cosine taking the patch's extent as slack (a patch
-/// partly above the horizon still sends light) and the patch counted as facing the receiver
-/// (a sphere lamp's patch faces every way).
-double pointFormFactor(const Vec3& x, const Vec3& n, const Patch& P) {
+/// A' cosθ / (πr² + A), the receiver's cosine taking the patch's extent as slack (a patch
+/// partly above the horizon still sends light). A' is the area the patch shows the receiver,
+/// ∫ max(0, n·ω) dA = (∫ |n·ω| dA + A N̄·ω) / 2 ≤ A (1 + N̄·ω) / 2, with N̄ = ∫ n dA / A its
+/// mean normal (`meanNormal`, shorter than unit where the patch curves) and ω the direction
+/// to the receiver: a whole sphere shows at most half its area, a flat patch facing the
+/// receiver all of it.
+double pointFormFactor(const Vec3& x, const Vec3& n, const Patch& P, const Vec3& meanNormal) {
     const Vec3 d = P.centroid - x;
     const double r2 = glm::dot(d, d);
     if (!P.outline.empty()) {
@@ -50,7 +53,8 @@ double pointFormFactor(const Vec3& x, const Vec3& n, const Patch& P) {
     if (!(r2 > 0)) return 0;
     const double r = std::sqrt(r2), slack = P.radius / r;
     const double cosi = std::clamp(glm::dot(n, d) / r + slack, 0.0, 1.0);
-    return P.area * cosi / (M_PI * r2 + P.area);
+    const double shown = std::clamp(0.5 * (1.0 - glm::dot(meanNormal, d) / r), 0.0, 1.0);
+    return P.area * shown * cosi / (M_PI * r2 + P.area);
 }
 
 /// Form factor from a differential area at x (unit normal n) to a sphere (c, rs): sin²α cosθ
@@ -99,10 +103,18 @@ struct PendingEdit {
     /// The same, from the pending shooters that have not yet reached the added objects (by
     /// the gather or a shot ahead: ChangeEntry::reachedAdded).
     Rgb restFacingUngathered{0.0};
-    /// Per channel, how much the radiosity a receiver sees in the changed objects' direction
-    /// may change: the largest of the light they block, their own radiosity once lit and the
-    /// radiosity of removed objects, cancelled.
-    Rgb surround{0.0};
+    /// Per channel, what a receiver sees in a changed object's direction (within the solid
+    /// angle of its bounding sphere, ChangeEntry::spheres): an added object blocks the light
+    /// behind it (about restFacing: a loss) and shows its own radiosity once lit
+    /// (`addedRadiosity`: a gain); where a removed object was, the light behind shows again
+    /// (a gain) instead of its radiosity (`removedRadiosity`: a loss).
+    Rgb addedRadiosity{0.0}, removedRadiosity{0.0};
+    /// Per sphere of the entry: the object was added (1) or removed (2).
+    std::vector<char> sphereKind;
+    /// The sign of what the changed objects' shadows do to the light of a strong shooter: an
+    /// addition only takes light away (+1 loss), a removal only gives it back (gain), a move
+    /// either (0).
+    int shadowSign = 0;
     /// The edit removes an emitter (and adds none): the light it had sent is taken back with
     /// no gain to cancel it, so its reflections are lost too (the interreflection term).
     bool removesEmitter = false;
@@ -163,7 +175,15 @@ PendingEdit describePending(const ChangeEntry& c, const Discretization& disc) {
     // (about restFacing), their own radiosity (ρ times their mean irradiance), or, where an
     // object was removed, what was behind it instead of the removed object's radiosity: the
     // change, a difference of two of these, is at most the largest.
-    p.surround = glm::max(glm::max(p.restFacing, addedRho * facing), removedShot);
+    p.addedRadiosity = addedRho * facing;
+    p.removedRadiosity = removedShot;
+    p.shadowSign = c.removed.empty() ? 1 : c.added.empty() ? -1 : 0;
+    // The spheres, as makeChangeEntry lists them: per changed object in ascending order, those
+    // with vertices.
+    for (std::size_t o = 0; o < changed.size(); ++o)
+        if (changed[o] && !disc.objects()[o].worldPositions.empty())
+            p.sphereKind.push_back(changed[o]);
+    if (p.sphereKind.size() != c.spheres.size()) p.sphereKind.assign(c.spheres.size(), 0);
     // A moved emitter's new place is lit by its unshot emission: gain and loss cancel there.
     p.removesEmitter = removesEmitter && !addsEmitter;
     return p;
@@ -220,6 +240,7 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
     if (perElement) {
         out.change.assign(ne, 0.0);
         out.noise.assign(ne, 0.0);
+        out.referenceNoise.assign(ne, 0.0);
     }
     if (mElementB.size() != ne) return out;
     const std::size_t nr = receivers.size();
@@ -277,6 +298,14 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
     std::vector<PendingEdit> pending;
     for (const ChangeEntry& c : mImpl->changes) pending.push_back(describePending(c, mDisc));
 
+    // Each curved patch's mean normal Σ n A / ΣA (pointFormFactor: the area it shows).
+    std::vector<Vec3> meanNormal(patches.size(), Vec3(0.0));
+    for (std::size_t j = 0; j < patches.size(); ++j) {
+        if (!patches[j].outline.empty() || !(patches[j].area > 0)) continue;
+        for (int e : patches[j].elements) meanNormal[j] += elements[e].area * elements[e].normal;
+        meanNormal[j] /= patches[j].area;
+    }
+
     // A strong shooter's shadow: rays from the receiver to points of the patch (the outline's
     // corners pulled toward the centre, or a few of its elements' centroids) traced against
     // the changed objects alone; the fraction they block.
@@ -318,7 +347,7 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
             Rgb hPos(0.0), hNeg(0.0);
             for (int j : topUnshot)
                 if (j != el.patch) {
-                    const double f = pointFormFactor(x, n, patches[j]);
+                    const double f = pointFormFactor(x, n, patches[j], meanNormal[j]);
                     hPos += glm::max(mPatchUnshot[j], Rgb(0.0)) * f;
                     hNeg += glm::max(-mPatchUnshot[j], Rgb(0.0)) * f;
                 }
@@ -331,40 +360,57 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
                 hPos += s.powerPos * (cosi / (M_PI * d2));
                 hNeg += s.powerNeg * (cosi / (M_PI * d2));
             }
-            Rgb h = glm::max(hPos, hNeg);
-            unshotFirst[r] = h;
+            unshotFirst[r] = glm::max(hPos, hNeg);
+            // What the pending edits add, as gains and losses where their sign is known (an
+            // addition takes light away in its shadows and gives its own reflected light; a
+            // removal the reverse; light still to come to an added receiver is a gain), and
+            // as `either` where it is not (a move). A gain and a loss at the same receiver
+            // cancel, so the change is at most the larger of the two, plus `either`.
+            Rgb gain = hPos, loss = hNeg, either(0.0);
             for (const PendingEdit& p : pending) {
                 const ChangeEntry& c = *p.entry;
                 const bool addedHere =
                     static_cast<std::size_t>(el.object) < c.before.size() && !c.before[el.object];
                 if (addedHere) {
                     // A receiver the edit added: all it gets from the pending shooters.
-                    h += p.restFacingUngathered;
+                    gain += p.restFacingUngathered;
                     for (int j : p.top)
                         if (!c.reachedAdded(j))
-                            h += absRgb(c.shot[j]) * pointFormFactor(x, n, patches[j]);
+                            gain += absRgb(c.shot[j]) *
+                                    pointFormFactor(x, n, patches[j], meanNormal[j]);
                     continue;
                 }
                 // Elsewhere: what the changed objects block, reflect or no longer reflect,
                 // within the solid angle they subtend; a strong shooter only where they may
                 // cut its shaft to the receiver.
-                const Rgb before = h;
-                for (const auto& [centre, radius] : c.spheres) {
+                const Rgb lossBefore = loss + either;
+                Rgb& shadow = p.shadowSign > 0 ? loss : p.shadowSign < 0 ? gain : either;
+                for (std::size_t k = 0; k < c.spheres.size(); ++k) {
+                    const auto& [centre, radius] = c.spheres[k];
                     const double fs = sphereFormFactor(x, n, centre, radius);
                     if (!(fs > 0)) continue;
-                    h += p.surround * fs;
+                    if (p.sphereKind[k] == 1) {
+                        gain += p.addedRadiosity * fs, loss += p.restFacing * fs;
+                    } else if (p.sphereKind[k] == 2) {
+                        gain += p.restFacing * fs, loss += p.removedRadiosity * fs;
+                    } else {
+                        either +=
+                            glm::max(glm::max(p.restFacing, p.addedRadiosity), p.removedRadiosity) *
+                            fs;
+                    }
                     for (int j : p.top) {
                         const Patch& P = patches[j];
                         if (!sphereNearSegment(x, P.centroid, P.radius, centre, radius)) continue;
                         const double blocked =
                             blockedFraction(x + n * lift, j, changedOnly[&p - pending.data()]);
                         if (blocked > 0)
-                            h += absRgb(c.shot[j]) * pointFormFactor(x, n, P) * blocked;
+                            shadow += absRgb(c.shot[j]) * pointFormFactor(x, n, P, meanNormal[j]) *
+                                      blocked;
                     }
                 }
-                if (p.removesEmitter) lostFirst[r] += h - before;
+                if (p.removesEmitter) lostFirst[r] += loss + either - lossBefore;
             }
-            first[r] = h;
+            first[r] = glm::max(gain, loss) + either;
         }
     });
 
@@ -383,12 +429,30 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
     const Rgb rhoMean = rhoArea / totalArea;
     const Rgb series = Rgb(1.0) / glm::max(Rgb(1.0) - rhoMean, Rgb(1e-3));
     const Rgb interreflected = reflectedPower / totalArea * series;
+    out.interreflected = interreflected;
 
     // The stochastic tail's sampling noise: a ray carries the emitted power over
     // raysPerEmittedPower, so an element's tail radiosity T, built of hits worth ρΦ/A, has
-    // variance ρ(Φ/A)·T; T is at most its indirect radiosity ρ(H − H_emission).
+    // variance ρ(Φ/A)·T; T is at most its indirect radiosity ρ(H − H_emission). An element's
+    // own indirect radiosity is one draw of that noise: where it drew few hits it would
+    // understate its own variance, so T is also at least its patch's area-weighted mean (the
+    // pooled hits of elements that face the same shooters).
     const bool stochastic = mOptions.stochasticBelow > 0 && mOptions.raysPerEmittedPower > 0;
     const Rgb rayPower = stochastic ? emittedPower / mOptions.raysPerEmittedPower : Rgb(0.0);
+    auto indirectOf = [&](int e) {
+        return glm::max(
+            mDisc.elementMaterial(e).reflectance * (mElementH[e] - mElementHEmission[e]), Rgb(0.0));
+    };
+    std::vector<Rgb> patchIndirect;
+    if (perElement && stochastic) {
+        patchIndirect.assign(patches.size(), Rgb(0.0));
+        for (std::size_t j = 0; j < patches.size(); ++j) {
+            if (!mDisc.patchAlive(static_cast<int>(j))) continue;
+            Rgb sum(0.0);
+            for (int e : patches[j].elements) sum += indirectOf(e) * elements[e].area;
+            patchIndirect[j] = sum / patches[j].area;
+        }
+    }
 
     double num = 0, den = 0, denReflected = 0;
     for (std::size_t r = 0; r < nr; ++r) {
@@ -398,12 +462,19 @@ SettlingEstimate ProgressiveSolver::estimateSettling(const std::vector<int>& rec
         const double change = luminance(rho * (first[r] + interreflected));
         if (perElement) {
             out.change[i] = change;
+            // The solution's own noise: per channel σ = √variance of the irradiance, times ρ;
+            // the channels' noise comes from the same rays, so their σ add.
+            const Rgb& variance = mImpl->irradianceVariance[i];
+            const double held = luminance(
+                rho * Rgb(std::sqrt(variance.x), std::sqrt(variance.y), std::sqrt(variance.z)));
             if (stochastic) {
-                const Rgb indirect =
-                    glm::max(rho * (mElementH[i] - mElementHEmission[i]), Rgb(0.0));
-                out.noise[i] =
-                    std::sqrt(luminance(rho * rayPower / elements[i].area) * luminance(indirect));
+                const Rgb tail = glm::max(indirectOf(i), patchIndirect[elements[i].patch]);
+                out.referenceNoise[i] =
+                    std::sqrt(luminance(rho * rayPower / elements[i].area) * luminance(tail));
             }
+            // The solution went through the same kind of tail as the reference: its noise is
+            // at least the modelled one, even where its hits (`held`) happened to be few.
+            out.noise[i] = std::max(held, out.referenceNoise[i]);
         }
         const double y = luminance(mElementB[i]);
         const double reflected = luminance(mElementB[i] - mDisc.elementMaterial(i).emission);
