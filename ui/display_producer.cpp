@@ -170,16 +170,19 @@ int DisplayProducer::reducedDivisor(const ViewRequest& view) const {
 }
 
 std::shared_ptr<const std::vector<Rgb>> DisplayProducer::coverElements(
-    const std::shared_ptr<const std::vector<Rgb>>& values, int previewVersion) const {
+    const std::shared_ptr<const std::vector<Rgb>>& values, int previewVersion,
+    const std::optional<Rgb>& unseen) const {
     const Discretization& disc = mShared.read().discretization();
     const std::size_t n = disc.elements().size();
     if (!values || values->size() >= n) return values;
-    for (std::size_t e = values->size(); e < n; ++e) {
-        const int o = disc.elements()[e].object;
-        if (disc.objects()[o].alive || o == previewVersion) return nullptr;
-    }
     auto padded = std::make_shared<std::vector<Rgb>>(*values);
     padded->resize(n, Rgb(0.0));
+    for (std::size_t e = values->size(); e < n; ++e) {
+        const int o = disc.elements()[e].object;
+        if (!disc.objects()[o].alive && o != previewVersion) continue;
+        if (!unseen) return nullptr;
+        (*padded)[e] = *unseen;
+    }
     return padded;
 }
 
@@ -448,9 +451,12 @@ bool DisplayProducer::renderDisplay(const ViewRequest& view, const PublishedLigh
 
 void DisplayProducer::overlaySettling(const ViewRequest& view, const PublishedLight& light,
                                       ViewportImage& img) {
-    if (!view.settlingOverlay) return;
-    const auto settling = coverElements(light.settling, light.previewVersion);
-    if (!settling) return;
+    if (!view.settlingOverlay || !light.settling) return;
+    // An object added since the estimate has all its light still to come: until the next
+    // estimate it shows as the estimate's largest change, not as a gap in the overlay.
+    Rgb largest(0.0);
+    for (const Rgb& v : *light.settling) largest = glm::max(largest, v);
+    const auto settling = coverElements(light.settling, light.previewVersion, largest);
     // The estimate interpolated like the picture, relative to what the picture shows.
     const Discretization& disc = mShared.read().discretization();
     const RayTracer& tracer = mShared.read().tracer();

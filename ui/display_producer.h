@@ -109,9 +109,10 @@ private:
     int reducedDivisor(const ViewRequest& view) const;
     /// `values` over every element: a drag appends a version before the solver publishes
     /// lighting for it, so elements of versions the image does not show get 0; any other gap
-    /// gives null (wait for the next lighting).
+    /// gives null (wait for the next lighting), or `unseen` when given.
     std::shared_ptr<const std::vector<Rgb>> coverElements(
-        const std::shared_ptr<const std::vector<Rgb>>& values, int previewVersion) const;
+        const std::shared_ptr<const std::vector<Rgb>>& values, int previewVersion,
+        const std::optional<Rgb>& unseen = std::nullopt) const;
     bool traceImage(const ViewRequest& view, const PublishedLight& light, int w, int h, int highlight,
                     const HifiMesh* hifi, const std::vector<Rgb>& radiosity,
                     const std::vector<Rgb>* pending, ViewportImage& img);
