@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "core/colour.h"
 #include "edit/edit_session.h"
@@ -19,16 +20,27 @@ namespace {
 
 constexpr int kSize = 48;
 
+/// The converged lit room and a reference shader of it with `options`' shadow sampling.
+struct LitRoomReference {
+    explicit LitRoomReference(const ConvergedReferenceOptions& options)
+        : session(test::makeLitRoom("red"), SolverOptions{}) {
+        session.converge(1e-3);
+        shader = std::make_unique<PointShader>(
+            session.discretization(), session.tracer(), SolverOptions{},
+            convergedReferenceShaderOptions(displayShaderOptions(), options));
+        shader->updateSolution(session.solver());
+    }
+    EditSession session;
+    std::unique_ptr<PointShader> shader;
+};
+
 TEST(ShaderReference, EdgePixelsTakeTheEdgeRateAndNoOthers) {
-    EditSession session(test::makeLitRoom("red"), SolverOptions{});
-    session.converge(1e-3);
     ConvergedReferenceOptions options;
     options.samplesPerAxis = 2;
     options.edgeSamplesPerAxis = 5;
     options.brightEdgeSamplesPerAxis = 5;  // one refined rate (the next test takes the other)
-    PointShader shader(session.discretization(), session.tracer(), SolverOptions{},
-                       convergedReferenceShaderOptions(displayShaderOptions(), options));
-    shader.updateSolution(session.solver());
+    LitRoomReference room(options);
+    const PointShader& shader = *room.shader;
     const CameraRays rays(test::litRoomTopCamera(), kSize, kSize);
 
     // Every pixel marked: each is shaded at the edge rate, as with that rate everywhere.
@@ -72,15 +84,12 @@ Rgb brutePixel(const PointShader& shader, const CameraRays& rays, int x, int y, 
 }
 
 TEST(ShaderReference, ALampsOutlineIsRefinedWhereItsFirstSamplesMissIt) {
-    EditSession session(test::makeLitRoom("red"), SolverOptions{});
-    session.converge(1e-3);
     ConvergedReferenceOptions options;
     options.samplesPerAxis = 2;
     options.edgeSamplesPerAxis = 8;
     options.brightEdgeSamplesPerAxis = 32;
-    PointShader shader(session.discretization(), session.tracer(), SolverOptions{},
-                       convergedReferenceShaderOptions(displayShaderOptions(), options));
-    shader.updateSolution(session.solver());
+    LitRoomReference room(options);
+    const PointShader& shader = *room.shader;
     // Looking up at the ceiling lamp (12 times white), its outline slanted across the pixels.
     Camera camera;
     camera.position = Vec3(0.35, -0.4, 1.1);
