@@ -319,14 +319,24 @@ public:
 
     /// Puts the holodeck's samples of the view into the display: those of every beam whose
     /// hits the view can see, whichever views or fill stored them (the index of the beams'
-    /// hits is built at the first view). Returns the milliseconds.
-    double seedView(InteractiveDisplay& display, EditSession& session, const CameraRays& rays) {
+    /// hits is built at the first view). With `findEdges` (an edge-and-point frame follows),
+    /// the display finds its shadow edges meanwhile. Returns the milliseconds.
+    double seedView(InteractiveDisplay& display, EditSession& session, const CameraRays& rays,
+                    bool findEdges) {
         const auto start = std::chrono::steady_clock::now();
-        if (!mIndex) mIndex.emplace(mServer);
-        const std::vector<ShadedPoint> points =
-            mIndex->viewPoints(session.discretization(), session.tracer(), rays,
-                               display.cache().frame(), display.shadingSerial());
-        display.insertShaded(points);
+        const std::uint64_t frame = display.nextFrame(), serial = display.shadingSerial();
+        auto gather = [&] {
+            if (!mIndex) mIndex.emplace(mServer);
+            return mIndex->viewPoints(session.discretization(), session.tracer(), rays, frame,
+                                      serial);
+        };
+        std::vector<ShadedPoint> points;
+        if (findEdges) {
+            points = display.insertShadedFindingEdges(gather);
+        } else {
+            points = gather();
+            display.insertShaded(points);
+        }
         for (const ShadedPoint& p : points) mFromHolodeck.insert(positionKey(p.position));
         mLastSamples = std::int64_t(points.size());
         if (mViews++ == 0) mSamples = mLastSamples;
@@ -427,7 +437,8 @@ int runDisplayRender(const SolveArgs& a, const RenderArgs& r) {
         } else {
             // Each view of a walkthrough takes its points from the holodeck first.
             const bool seed = holodeck && (k == 0 || (r.log.empty() && r.orbitDeg != 0));
-            const double holodeckMs = seed ? holodeck->seedView(display, *session, *rays) : 0.0;
+            const double holodeckMs =
+                seed ? holodeck->seedView(display, *session, *rays, r.mode == "epi") : 0.0;
             // The warm-up shades what the holodeck did not bring.
             const double warmPoints = r.warmup * r.width * r.height;
             const double brought = holodeck ? double(holodeck->samples()) : 0.0;

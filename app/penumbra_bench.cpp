@@ -105,6 +105,15 @@ void addBenchCommands(CLI::App& app, BenchCommands& c) {
                      "fill a holodeck for no view this long, then open nine views from it "
                      "(default 60; 0: skip)")
         ->check(CLI::Range(0.0, 1e6));
+    benchHolodeck
+        ->add_option("--generic-samples", holo.genericSamples,
+                     "fill the holodeck for no view with this many samples instead of for "
+                     "--generic-seconds")
+        ->check(CLI::Range(std::int64_t(0), std::int64_t(1) << 40));
+    benchHolodeck->add_flag_callback(
+        "--no-mpirun", [&holo] { holo.ranks.clear(); }, "skip the batch fills under mpirun");
+    benchHolodeck->add_option("--generic-holodeck", holo.genericFile,
+                              "the generic fill's file: filled and kept when missing, else reused");
     benchHolodeck->add_option("--json", holo.jsonOut, "write every figure as JSON");
 
     CLI::App* benchDisplay = c.benchDisplay = app.add_subcommand(

@@ -124,6 +124,12 @@ struct HolodeckBenchOptions {
     /// A holodeck filled for no view this long (every beam in proportion to its volume), then
     /// nine views of the room opened from it (0: none).
     double genericSeconds = 60;
+    /// Instead, a generic fill of this many samples (0: by time): the same samples however
+    /// busy the machine is.
+    std::int64_t genericSamples = 0;
+    /// The generic holodeck's file: filled there and kept when missing, else reused as it is
+    /// (the nine views then measure the same samples from run to run). Empty: a temporary file.
+    std::string genericFile;
     std::string jsonOut;
 };
 /// `penumbra bench holodeck`: fill rate and bytes per sample of a batch fill; a view's samples

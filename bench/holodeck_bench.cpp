@@ -111,13 +111,16 @@ void measureFirstFrame(EditSession& session, const SolverOptions& options, const
     HoloFile holo = HoloFile::openReadOnly(file);
     HoloServer server(holo, nullptr);
     const auto view = viewRequests(holo.sections(), rays, rays.width() / 4, rays.height() / 4, 1.0);
-    const std::vector<ShadedPoint> points =
-        holodeckViewPoints(server, view, disc, session.tracer(), rays, display.cache().frame(),
-                           display.shadingSerial());
-    display.insertShaded(points);
+    const std::uint64_t cacheFrame = display.nextFrame(), serial = display.shadingSerial();
+    c.firstFrameSamples =
+        std::int64_t(display
+                         .insertShadedFindingEdges([&] {
+                             return holodeckViewPoints(server, view, disc, session.tracer(), rays,
+                                                       cacheFrame, serial);
+                         })
+                         .size());
     const Image image = display.renderFrame(rays);
     c.firstFrameMs = 1e3 * secondsSince(start);
-    c.firstFrameSamples = std::int64_t(points.size());
     c.firstFrameError = displayRmse(image, reference);
 }
 
@@ -195,9 +198,11 @@ HolodeckCase runCase(const HolodeckBenchOptions& o, const std::string& name,
 struct GenericView {
     std::string name;
     std::int64_t samples = 0;  ///< points the holodeck brought
-    double pointsMs = 0;       ///< taking them (HoloHitIndex::viewPoints)
-    double firstFrameMs = 0;   ///< and the display's first frame with them
-    double edgesMs = 0;        ///< of which the display's shadow edges, found once a display
+    /// Taking them (HoloHitIndex::viewPoints) while the display finds its shadow edges
+    /// (InteractiveDisplay::insertShadedFindingEdges), and the display's first frame with them.
+    double pointsMs = 0;
+    double firstFrameMs = 0;
+    double edgesMs = 0;  ///< the shadow edges' own time in that, found once a display
     /// The editor's view change: the session's display (its shadow edges found when the scene
     /// opened) on the view, its cache empty: the holodeck's points and the first frame.
     double viewChangeMs = 0, viewChangeError = 0;
@@ -216,24 +221,30 @@ Camera lookingAround(const Camera& camera, const Vec3& eye, double deg) {
     return c;
 }
 
-/// A holodeck filled for `o.genericSeconds` with every beam desired in proportion to its
-/// volume (no camera), reopened (the hit index built), and nine views taken from it.
+/// A holodeck filled for `o.genericSeconds` (or with `o.genericSamples`) with every beam
+/// desired in proportion to its volume (no camera), reopened (the hit index built), and nine
+/// views taken from it.
 nlohmann::json runGeneric(const HolodeckBenchOptions& o, const std::string& name,
                           const std::string& file) {
     const SolverOptions options = interactiveSolverOptions();
     auto session = EditSession::open(o.sceneDir + "/" + name + ".json", options);
     session->converge(1e-3, 100000000);
     const Discretization& disc = session->discretization();
-    std::filesystem::remove(file);
+    // A kept file (--generic-holodeck) is reused as it is: its samples, not a new fill's.
+    const bool reuse = !o.genericFile.empty() && std::filesystem::exists(file);
+    if (!reuse) std::filesystem::remove(file);
     FillStats fill;
-    {
+    if (reuse) {
+        fill.samples = HoloFile::openReadOnly(file).info().samples;
+    } else {
         PointShaderOptions shading = InteractiveDisplayOptions{}.shader;
         shading.threads = 0;
         PointShader shader(disc, session->tracer(), options, shading);
         shader.updateSolution(session->solver());
         HoloFile holo(file, holodeckSections(session->scene().settings, disc));
         HoloServer server(holo, &shader);
-        fill = server.fill(server.batchRequests(1e9), 0, o.genericSeconds);
+        fill = server.fill(server.batchRequests(1e9), o.genericSamples,
+                           o.genericSamples > 0 ? 0 : o.genericSeconds);
     }
     const auto open = Clock::now();
     HoloFile holo = HoloFile::openReadOnly(file);
@@ -259,13 +270,13 @@ nlohmann::json runGeneric(const HolodeckBenchOptions& o, const std::string& name
     sessionDisplay.renderFrame(CameraRays(camera, o.width, o.height));
     const double sessionEdgesMs = sessionDisplay.lastFrame().times.shadowMs;
     std::printf(
-        "\n%s: a holodeck filled for no view, %.0f s: %lld samples; opened with its hit "
+        "\n%s: a holodeck filled for no view, %.0f s%s: %lld samples; opened with its hit "
         "index in %.0f ms (%lld hits); the session's shadow edges found in %.0f ms\n",
-        name.c_str(), fill.seconds, (long long)fill.samples, openMs, (long long)index.hits(),
-        sessionEdgesMs);
+        name.c_str(), fill.seconds, reuse ? " (an earlier fill, reused)" : "",
+        (long long)fill.samples, openMs, (long long)index.hits(), sessionEdgesMs);
     std::printf("%-12s %10s %10s %14s %9s %12s %14s %12s %16s %18s\n", "view", "samples",
-                "points ms", "1st frame ms", "edges ms", "1st error", "view change ms", "its error",
-                "display 1st err", "display 30th err");
+                "pts+edg ms", "1st frame ms", "edges ms", "1st error", "view change ms",
+                "its error", "display 1st err", "display 30th err");
     nlohmann::json rows = nlohmann::json::array();
     for (const auto& [viewName, viewCamera] : views) {
         const CameraRays rays(viewCamera, o.width, o.height);
@@ -277,15 +288,20 @@ nlohmann::json runGeneric(const HolodeckBenchOptions& o, const std::string& name
         v.display30Error = alone.error30;
         InteractiveDisplay display(disc, session->tracer(), options, displayOptions);
         display.apply(SolutionView::of(session->solver()));
+        // As `render --mode epi --holodeck` does: the holodeck's points taken while the new
+        // display finds its shadow edges, then the first frame.
         const auto start = Clock::now();
-        const std::vector<ShadedPoint> points = index.viewPoints(
-            disc, session->tracer(), rays, display.cache().frame(), display.shadingSerial());
+        const std::uint64_t cacheFrame = display.nextFrame(), serial = display.shadingSerial();
+        v.samples = std::int64_t(display
+                                     .insertShadedFindingEdges([&] {
+                                         return index.viewPoints(disc, session->tracer(), rays,
+                                                                 cacheFrame, serial);
+                                     })
+                                     .size());
         v.pointsMs = 1e3 * secondsSince(start);
-        display.insertShaded(points);
         const Image image = display.renderFrame(rays);
         v.firstFrameMs = 1e3 * secondsSince(start);
-        v.edgesMs = display.lastFrame().times.shadowMs;
-        v.samples = std::int64_t(points.size());
+        v.edgesMs = display.lastShadowUpdateMs();
         v.firstFrameError = displayRmse(image, reference);
         {
             const auto changeStart = Clock::now();
@@ -446,15 +462,20 @@ int runHolodeckBench(const HolodeckBenchOptions& o) {
                     c["first_frame_ms"].get<double>(), c["first_frame_error"].get<double>(),
                     c["display_first_error"].get<double>(), c["display_30_error"].get<double>());
     std::printf("goals: first frame <= 500 ms, its error <= the display's after 30 frames\n");
-    if (o.genericSeconds > 0)
+    if (o.genericSeconds > 0 || o.genericSamples > 0)
         for (nlohmann::json& c : out) {
             const std::string name = c["scene"].get<std::string>();
+            // A kept file per scene: --generic-holodeck itself for one scene, else beside it
+            // with the scene's name.
             const std::string file =
-                (std::filesystem::temp_directory_path() /
-                 ("penumbra-bench-generic-" + name + "-" + std::to_string(::getpid()) + ".hdk"))
-                    .string();
+                o.genericFile.empty()
+                    ? (std::filesystem::temp_directory_path() /
+                       ("penumbra-bench-generic-" + name + "-" + std::to_string(::getpid()) +
+                        ".hdk"))
+                          .string()
+                    : (o.cases.size() == 1 ? o.genericFile : o.genericFile + "." + name + ".hdk");
             c["generic"] = runGeneric(o, name, file);
-            std::filesystem::remove(file);
+            if (o.genericFile.empty()) std::filesystem::remove(file);
         }
     // Each scene's entry gains its mpirun rows.
     for (const nlohmann::json& r : runRanksTable(o))

@@ -8,6 +8,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <chrono>
@@ -263,14 +264,7 @@ void InteractiveDisplay::beginFrame(const CameraRays& camera, bool useEdges) {
         for (const auto& list : mSharpEdges) st.sharpEdges += list.size();
         st.times.silhouetteMs = msSince(t);
         if (mOptions.shadowEdges) {
-            t = Clock::now();
-            if (mShadowsStale) {
-                mEdges.findShadowEdges(mShadowEdges);
-                mShadowOrder = orderByPenumbra(mShadowEdges, mShadowScratch);
-                mShadowsStale = false;
-                mLastShadowUpdateMs = msSince(t);
-                st.times.shadowMs = mLastShadowUpdateMs;
-            }
+            st.times.shadowMs = updateShadowEdges();
             st.shadowEdges = mShadowEdges.size();
         }
         // Silhouettes, sharp edges and shadow edges projected in that order (findSilhouettes,
@@ -478,6 +472,32 @@ void InteractiveDisplay::insertShaded(const std::vector<ShadedPoint>& points) {
     if (mRelightPending) relightChanged();
     mCache.insert(points);
     mInsertedSinceFrame += points.size();
+}
+
+std::vector<ShadedPoint> InteractiveDisplay::insertShadedFindingEdges(
+    const std::function<std::vector<ShadedPoint>()>& gather) {
+    std::vector<ShadedPoint> points;
+    tbb::task_group edges;
+    if (mOptions.shadowEdges) edges.run([this] { updateShadowEdges(); });
+    try {
+        points = gather();
+    } catch (...) {
+        edges.wait();
+        throw;
+    }
+    edges.wait();
+    insertShaded(points);
+    return points;
+}
+
+double InteractiveDisplay::updateShadowEdges() {
+    if (!mShadowsStale) return 0;
+    const auto t = Clock::now();
+    mEdges.findShadowEdges(mShadowEdges);
+    mShadowOrder = orderByPenumbra(mShadowEdges, mShadowScratch);
+    mShadowsStale = false;
+    mLastShadowUpdateMs = msSince(t);
+    return mLastShadowUpdateMs;
 }
 
 std::uint64_t InteractiveDisplay::shadingSerial() const { return mShader->stateSerial(); }

@@ -379,8 +379,21 @@ public:
     /// Puts points shaded elsewhere (a holodeck's samples of this view) into the cache, as
     /// warmUp puts its own.
     void insertShaded(const std::vector<ShadedPoint>& points);
+    /// insertShaded(gather()), with the shadow edges the next frame needs (when they are stale
+    /// and the options find them) found while `gather` runs: the two are independent, and
+    /// oneTBB's threads share the cores between them. The cache and the edges are then those
+    /// of gather(), insertShaded and the frame's own search, bit for bit; the frame reuses the
+    /// edges (its shadowMs is 0: lastShadowUpdateMs() has their time). `gather` must not use
+    /// the display. Returns the points gather() returned.
+    std::vector<ShadedPoint> insertShadedFindingEdges(
+        const std::function<std::vector<ShadedPoint>()>& gather);
     /// The shader's state serial (PointShader::stateSerial): what points shaded now carry.
     std::uint64_t shadingSerial() const;
+    /// The number the next frame's reprojection takes (RenderCache::frame() + 1): the frame
+    /// points shaded for that frame's view carry (ShadedPoint::frame; a holodeck's points of
+    /// a new view), so that the frame shows each as its pixel's own value (ScreenPoint::trust),
+    /// as it shows the points shaded for its view since it began.
+    std::uint64_t nextFrame() const { return mCache.frame() + 1; }
 
     // -- Edits and solution updates ------------------------------------------------------------
 
@@ -658,6 +671,9 @@ private:
     /// shadowReshadeCell² square at once. The rest are empty pixels: re-shaded first, shown
     /// from the fallback meanwhile. Returns the cached points dropped.
     std::size_t dropShadowed(std::vector<ShadedPoint>& results, const CameraRays& camera);
+    /// Finds the shadow edges when they are stale (mShadowEdges, mShadowOrder); returns the
+    /// milliseconds, 0 when they were current.
+    double updateShadowEdges();
 };
 
 /// Clips world edges to the camera's near plane (view depth ≥ nearPlane) and projects them to

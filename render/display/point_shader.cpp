@@ -1013,7 +1013,7 @@ std::string ShadedPoint::toString() const {
     s << "ShadedPoint{pixel (" << pixel.x << ", " << pixel.y << "), position (" << position.x
       << ", " << position.y << ", " << position.z << "), radiance (" << radiance.x << ", "
       << radiance.y << ", " << radiance.z << "), object " << object << ", element " << element
-      << ", frame " << frame << "}";
+      << ", frame " << frame << ", samples " << samples << "}";
     return s.str();
 }
 

@@ -79,6 +79,10 @@ struct ShadedPoint {
     /// needs averaging (RenderCache::insert merges a pixel's samples). A light's rays count as
     /// agreeing only from 16 tested rays on (a 4 × 4 set).
     bool exact = false;
+    /// The samples of its pixel whose mean `radiance` is: 1 for a point shaded now; a
+    /// holodeck's point holds the mean of the stored samples of its surface in its pixel
+    /// (RenderCache::insert takes it as that many merged samples).
+    int samples = 1;
     bool hit() const { return object >= 0; }
     std::string toString() const;
 };

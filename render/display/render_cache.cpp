@@ -211,15 +211,17 @@ std::vector<std::uint8_t> RenderCache::mergeIntoPixels(const std::vector<ShadedP
             q.position = s.position;
             mPosition[i] = s.position;
             q.colour = s.radiance;
-            q.samples = 1;
+            q.samples = s.samples;
             q.exact = s.exact;
             q.shading = s.shading;
         } else {
             // The mean over the pixel's footprint: exact samples differ where the pixel holds
             // detail finer than itself (a fine mesh's facets), noisy ones also by their noise.
             const int n = std::min(q.samples, cap - 1);
-            q.colour = (q.colour * static_cast<double>(n) + s.radiance) / (n + 1.0);
-            q.samples = n + 1;
+            const int m = std::max(1, s.samples);
+            q.colour = (q.colour * static_cast<double>(n) + s.radiance * static_cast<double>(m)) /
+                       static_cast<double>(n + m);
+            q.samples = n + m;
             q.exact = q.exact && s.exact;
         }
         q.frame = s.frame;
@@ -238,6 +240,7 @@ void RenderCache::insert(const std::vector<ShadedPoint>& all) {
         p.element = s.element;
         p.frame = s.frame;
         p.exact = s.exact;
+        p.samples = std::max(1, s.samples);
         p.shading = s.shading;
         return p;
     };

@@ -1,5 +1,6 @@
 #include "render/holodeck/holo_view.h"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -49,6 +50,14 @@ std::array<std::int16_t, 2> encodeDirection(const Vec3& d) {
     return {std::int16_t(std::lround(u * 32767)), std::int16_t(std::lround(v * 32767))};
 }
 
+/// decodeDirection's direction before normalizing (its length is between 1/√3 and 1).
+glm::vec3 unnormalizedDirection(const std::array<std::int16_t, 2>& e) {
+    double u = e[0] / 32767.0, v = e[1] / 32767.0;
+    const double z = 1 - std::abs(u) - std::abs(v);
+    if (z < 0) octahedralFold(u, v);
+    return glm::vec3(float(u), float(v), float(z));
+}
+
 Vec3 decodeDirection(const std::array<std::int16_t, 2>& e) {
     double u = e[0] / 32767.0, v = e[1] / 32767.0;
     const double z = 1 - std::abs(u) - std::abs(v);
@@ -90,56 +99,219 @@ std::vector<HoloSection> holodeckSections(const Settings& settings, const Discre
 
 namespace {
 
-/// The points of the chosen stored samples (holodeckViewPoints): `sampleOf(i)` the decoded
-/// sample i and the distance within which its ray must still end at its stored hit (the
-/// distance code's resolution). The sample's ray is traced again: a sample whose ray now ends
-/// elsewhere (geometry moved into it, or its surface moved) is stale. Then the eye's ray
-/// towards the hit must end there, on the side of the surface the sample saw (a batch fill's
-/// rays also start inside solids and see their insides). Otherwise the sample gives no point.
-template <class SampleOf>
-std::vector<ShadedPoint> tracedPoints(const std::vector<std::int64_t>& chosen,
-                                      const SampleOf& sampleOf, const Discretization& disc,
+/// A view's candidate samples (holodeckViewPoints' beams, or the beams HoloHitIndex finds),
+/// as viewPointsOf reads them: `count()` candidates; `forEach(body)` calls body(j, i, section)
+/// for every candidate j in [0, count()) with the index i of its sample and its section, from
+/// oneTBB's threads; `hit(i)`, `direction(i)` and `radiance(i)` are the sample's decoded hit,
+/// ray direction and radiance, `facing(i, n)` has the sign of dot(direction(i), n),
+/// `section(i)` is its section and `tolerance(i, section)` how far its decoded hit may lie from
+/// the surface point its ray met (hitTolerance). Implemented by StoredSamples and
+/// HoloHitIndex::SeenSamples below.
+
+/// Where a candidate's stored hit projects: its pixel (-1: behind the eye or outside the
+/// raster) and its depth's float bits (depths are positive: their bits order as they do).
+struct Projected {
+    std::int32_t pixel = -1;
+    std::uint32_t depth = 0;
+};
+
+/// Per pixel of `camera` the stored sample to show: of the samples whose stored hit projects
+/// into it, those within 2% of the nearest depth stand (a batch-filled holodeck holds many per
+/// pixel, of the surface the pixel sees and of those behind it), and of those the one nearest
+/// the pixel's centre, the lower index on a tie (the same choice on any number of threads);
+/// first among those whose ray went the way the eye's does (dot > 0: they came from the side
+/// of the surface the eye sees, where a sample from its other side shows its back). Two passes
+/// of atomic minima: the depth's float bits, then a 64-bit key of side, off-centre distance and
+/// index; the first keeps each candidate's projection for the second, which reads a sample
+/// again only when it stands. Returns per chosen sample its pixel and index, in pixel order;
+/// `projected` gets every candidate's projection and `front` every pixel's nearest depth.
+template <class Samples>
+std::vector<std::pair<std::int32_t, std::int64_t>> choosePerPixel(
+    const CameraRays& camera, const Samples& samples, std::vector<Projected>& projected,
+    std::vector<std::atomic<std::uint32_t>>& front) {
+    const int w = camera.width(), h = camera.height();
+    const std::size_t pixels = static_cast<std::size_t>(w) * h;
+    const Vec3 eye = camera.origin();
+    front = std::vector<std::atomic<std::uint32_t>>(pixels);
+    for (auto& f : front) f.store(0x7f800000u, std::memory_order_relaxed);  // +infinity
+    auto atomicMin = [](auto& slot, auto value) {
+        auto old = slot.load(std::memory_order_relaxed);
+        while (value < old && !slot.compare_exchange_weak(old, value, std::memory_order_relaxed)) {
+        }
+    };
+    projected.assign(samples.count(), Projected{});
+    samples.forEach([&](std::size_t j, std::size_t i, int) {
+        const Vec3 hit = samples.hit(i);
+        const double d = glm::dot(hit - eye, camera.forward());
+        if (!(d > 0)) return;
+        const glm::dvec2 at = camera.projectAtDepth(hit, d);
+        if (at.x < 0 || at.y < 0 || at.x >= w || at.y >= h) return;
+        const int k = static_cast<int>(at.y) * w + static_cast<int>(at.x);
+        const std::uint32_t depth = std::bit_cast<std::uint32_t>(float(d));
+        projected[j] = {k, depth};
+        atomicMin(front[std::size_t(k)], depth);
+    });
+    std::vector<std::atomic<std::uint64_t>> best(pixels);
+    for (auto& b : best) b.store(~std::uint64_t(0), std::memory_order_relaxed);
+    samples.forEach([&](std::size_t j, std::size_t i, int) {
+        const Projected p = projected[j];
+        if (p.pixel < 0 ||
+            std::bit_cast<float>(p.depth) >
+                std::bit_cast<float>(front[std::size_t(p.pixel)].load(std::memory_order_relaxed)) *
+                    1.02f)
+            return;
+        const Vec3 hit = samples.hit(i);
+        const glm::dvec2 at = camera.projectAtDepth(hit, glm::dot(hit - eye, camera.forward()));
+        // Whether the ray went against the eye's in the top bit, off-centre squared (at most
+        // 0.5) in the next 23, the index in the low 40.
+        const std::uint64_t against = glm::dot(samples.direction(i), hit - eye) <= 0 ? 1 : 0;
+        const auto off = static_cast<std::uint64_t>(offCentre(at) * 2 * 0x7fffff);
+        atomicMin(best[std::size_t(p.pixel)], (against << 63) | (off << 40) | std::uint64_t(i));
+    });
+    std::vector<std::pair<std::int32_t, std::int64_t>> chosen;
+    for (std::size_t k = 0; k < pixels; ++k) {
+        const std::uint64_t key = best[k].load(std::memory_order_relaxed);
+        if (key != ~std::uint64_t(0))
+            chosen.emplace_back(std::int32_t(k), std::int64_t(key & ((1ull << 40) - 1)));
+    }
+    return chosen;
+}
+
+/// viewPointsOf's merge: each kept point's radiance becomes the mean of its pixel's samples of
+/// its surface (within 1% of its depth, on the side shown, within the chosen sample's tolerance
+/// `tolerances[c]` of its plane), ShadedPoint::samples how many. Summed in fixed point per
+/// thread, then added: integer sums in any order are the same (the same on any number of
+/// threads).
+template <class Samples>
+void mergePixelSamples(const Samples& samples, const CameraRays& camera,
+                       const std::vector<Projected>& projected,
+                       const std::vector<std::pair<std::int32_t, std::int64_t>>& chosen,
+                       const std::vector<std::uint8_t>& keep, const std::vector<float>& tolerances,
+                       std::vector<ShadedPoint>& points) {
+    constexpr double kScale = 1048576.0;  // 2^20 per W/m²/sr
+    const Vec3 eye = camera.origin();
+    // Per pixel with a kept point, what the test reads (one record, not the point).
+    struct Surface {
+        std::int32_t point = -1;
+        float depth = 0, tolerance = 0, offset = 0;  ///< plane: dot(normal, x) = offset
+        glm::vec3 normal{0.0f};
+    };
+    std::vector<Surface> surface(std::size_t(camera.width()) * camera.height());
+    for (std::size_t c = 0; c < chosen.size(); ++c) {
+        if (!keep[c]) continue;
+        const ShadedPoint& p = points[c];
+        surface[std::size_t(chosen[c].first)] = {
+            std::int32_t(c), float(glm::dot(p.position - eye, camera.forward())), tolerances[c],
+            float(glm::dot(p.normal, p.position)), glm::vec3(p.normal)};
+    }
+    struct Sum {
+        std::int64_t rgb[3] = {0, 0, 0};
+        std::int64_t n = 0;
+    };
+    tbb::enumerable_thread_specific<std::vector<Sum>> sums(
+        [&] { return std::vector<Sum>(chosen.size()); });
+    samples.forEach([&](std::size_t j, std::size_t i, int) {
+        const Projected q = projected[j];
+        if (q.pixel < 0) return;
+        const Surface& f = surface[std::size_t(q.pixel)];
+        if (f.point < 0 || !(std::abs(std::bit_cast<float>(q.depth) - f.depth) <= 0.01f * f.depth))
+            return;
+        const glm::vec3 hit(samples.hit(i));
+        if (std::abs(glm::dot(f.normal, hit) - f.offset) > f.tolerance ||
+            !(samples.facing(i, f.normal) < 0))
+            return;
+        const Rgb r = samples.radiance(i);
+        Sum& sum = sums.local()[std::size_t(f.point)];
+        for (int k = 0; k < 3; ++k) sum.rgb[k] += std::llround(double(r[k]) * kScale);
+        ++sum.n;
+    });
+    for (std::size_t c = 0; c < chosen.size(); ++c) {
+        if (!keep[c]) continue;
+        Sum total;
+        for (const std::vector<Sum>& local : sums) {
+            for (int k = 0; k < 3; ++k) total.rgb[k] += local[c].rgb[k];
+            total.n += local[c].n;
+        }
+        if (total.n < 1) continue;
+        for (int k = 0; k < 3; ++k)
+            points[c].radiance[k] = double(total.rgb[k]) / (kScale * double(total.n));
+        points[c].samples = int(std::min<std::int64_t>(total.n, 1 << 20));
+    }
+}
+
+/// The view's points of `samples` (holodeckViewPoints, HoloHitIndex::viewPoints): per pixel
+/// the sample choosePerPixel chooses, checked by the eye's ray towards its stored hit, which
+/// must end at a surface point within the sample's tolerance of it, on the side of the
+/// surface the sample's ray came from (a batch fill's rays also start inside solids and see
+/// their insides, black). Otherwise the pixel gets nothing from the holodeck. The sample's
+/// own ray is not traced again: in a diffuse scene the radiance of the point it saw does not
+/// depend on where it was seen from, and samples whose light or surface an edit changed are
+/// the invalidation's (HoloServer::invalidate). The point is where the eye's ray ends, with the
+/// mean radiance of the pixel's samples of that surface (RenderCacheOptions::mergeSamples'
+/// rule: the pixel's samples within 1% of its depth, on the side shown and within their
+/// tolerance of the surface's plane; ShadedPoint::samples how many), and one point a pixel
+/// still when a point lands a pixel beside the one its stored hit chose. `cancelled` (may be
+/// empty), asked between passes and blocks of work, ends the read early with no points.
+template <class Samples>
+std::vector<ShadedPoint> viewPointsOf(const Samples& samples, const Discretization& disc,
                                       const RayTracer& tracer, const CameraRays& camera,
                                       std::uint64_t frame, std::uint64_t shading,
-                                      const std::function<bool()>& cancelled = {}) {
+                                      const std::function<bool()>& cancelled) {
     const int w = camera.width(), h = camera.height();
     const Vec3 eye = camera.origin();
+    std::vector<Projected> projected;
+    std::vector<std::atomic<std::uint32_t>> front;
+    const auto chosen = choosePerPixel(camera, samples, projected, front);
+    if (cancelled && cancelled()) return {};
+
+    // Check each chosen sample with the eye's ray.
     std::vector<ShadedPoint> points(chosen.size());
     std::vector<std::uint8_t> keep(chosen.size(), 0);
+    std::vector<float> tolerances(chosen.size(), 0.0f);
     std::atomic<bool> stop{false};
     tbb::parallel_for(std::size_t(0), chosen.size(), [&](std::size_t c) {
         // Asked once a block of 4,096 points.
         if (cancelled && c % 4096 == 0 && cancelled()) stop.store(true, std::memory_order_relaxed);
         if (stop.load(std::memory_order_relaxed)) return;
-        const auto [s, tolerance] = sampleOf(std::size_t(chosen[c]));
-        const RayTracer::FirstHit hit = tracer.firstHit(s.entry, s.direction);
-        if (hit.element < 0) return;
-        const Vec3 position = s.entry + double(hit.t) * s.direction;
-        if (glm::length(position - s.hit) > tolerance) return;
-        const Vec3 toPoint = position - eye;
-        const double length = glm::length(toPoint);
+        const std::size_t i = std::size_t(chosen[c].second);
+        const Vec3 hit = samples.hit(i);
+        const Vec3 toHit = hit - eye;
+        const double length = glm::length(toHit);
         if (!(length > 1e-6)) return;
-        const RayTracer::FirstHit seen = tracer.firstHit(eye, toPoint / length);
-        if (seen.element != hit.element || seen.backFace != hit.backFace ||
-            std::abs(double(seen.t) - length) > std::max(1e-3, 1e-6 * length))
+        const Vec3 along = toHit / length;
+        const RayTracer::FirstHit seen = tracer.firstHit(eye, along);
+        if (seen.element < 0) return;
+        const Element& e = disc.elements()[std::size_t(seen.element)];
+        const Vec3 normal = seen.backFace ? -e.normal : e.normal;  // towards the eye
+        const Vec3 position = eye + double(seen.t) * along;
+        const double tolerance = samples.tolerance(i, samples.section(i));
+        tolerances[c] = float(tolerance);
+        // The surface the eye sees there holds the stored hit (the eye's ray meets it within
+        // the sample's tolerance; a tolerance more along the ray where it meets it obliquely),
+        // and the sample's ray arrived on the side the eye sees.
+        if (std::abs(glm::dot(hit - position, normal)) > tolerance ||
+            glm::length(hit - position) > 4 * tolerance ||
+            !(glm::dot(samples.direction(i), normal) < 0))
             return;
         const auto pixel = camera.projectToPixel(position);
         if (!pixel || pixel->x < 0 || pixel->y < 0 || pixel->x >= w || pixel->y >= h) return;
-        const Element& e = disc.elements()[std::size_t(hit.element)];
         ShadedPoint& p = points[c];
         p.pixel = *pixel;
         p.position = position;
-        p.normal = hit.backFace ? -e.normal : e.normal;
-        p.radiance = s.radiance;
+        p.normal = normal;
+        p.radiance = samples.radiance(i);
         p.object = e.object;
-        p.element = hit.element;
+        p.element = seen.element;
         p.frame = frame;
         p.shading = shading;
         keep[c] = 1;
     });
-    if (stop.load()) return {};
-    // A traced point may land a pixel beside the one its stored hit chose (the hit is decoded
-    // to a few millimetres): one point a pixel still, the nearer its centre.
+    if (stop.load() || (cancelled && cancelled())) return {};
+
+    mergePixelSamples(samples, camera, projected, chosen, keep, tolerances, points);
+
+    // A point may land a pixel beside the one its stored hit chose (the hit is decoded to a few
+    // millimetres): one point a pixel still, the nearer its centre.
     std::vector<int> taken(static_cast<std::size_t>(w) * h, -1);
     for (std::size_t c = 0; c < points.size(); ++c) {
         if (!keep[c]) continue;
@@ -157,62 +329,6 @@ std::vector<ShadedPoint> tracedPoints(const std::vector<std::int64_t>& chosen,
     for (std::size_t c = 0; c < points.size(); ++c)
         if (keep[c]) out.push_back(points[c]);
     return out;
-}
-
-/// Per pixel of `camera` the stored sample to show: of the samples whose stored hit projects
-/// into it, those within 2% of the nearest depth stand (a batch-filled holodeck holds many per
-/// pixel, of the surface the pixel sees and of those behind it), and of those the one nearest
-/// the pixel's centre, the lower index on a tie (the same choice on any number of threads);
-/// first among those whose ray went the way the eye's does (dot > 0: they came from the side
-/// of the surface the eye sees, where a sample from its other side shows its back).
-/// `forEach(body)` calls body(i, hit, direction) for every candidate sample, from oneTBB's
-/// threads. Returns the chosen indices in pixel order.
-template <class ForEach>
-std::vector<std::int64_t> choosePerPixel(const CameraRays& camera, const ForEach& forEach) {
-    const int w = camera.width(), h = camera.height();
-    const std::size_t pixels = static_cast<std::size_t>(w) * h;
-    // Depths are positive: their float bits order as they do.
-    std::vector<std::atomic<std::uint32_t>> front(pixels);
-    for (auto& f : front) f.store(0x7f800000u, std::memory_order_relaxed);  // +infinity
-    auto project = [&](const Vec3& hit, float& depth, glm::dvec2& at) {
-        const double d = glm::dot(hit - camera.origin(), camera.forward());
-        if (!(d > 0)) return -1;
-        at = camera.projectAtDepth(hit, d);
-        if (at.x < 0 || at.y < 0 || at.x >= w || at.y >= h) return -1;
-        depth = float(d);
-        return static_cast<int>(at.y) * w + static_cast<int>(at.x);
-    };
-    auto atomicMin = [](auto& slot, auto value) {
-        auto old = slot.load(std::memory_order_relaxed);
-        while (value < old && !slot.compare_exchange_weak(old, value, std::memory_order_relaxed)) {
-        }
-    };
-    forEach([&](std::size_t, const Vec3& hit, const Vec3&) {
-        float depth;
-        glm::dvec2 at;
-        const int k = project(hit, depth, at);
-        if (k >= 0) atomicMin(front[k], std::bit_cast<std::uint32_t>(depth));
-    });
-    std::vector<std::atomic<std::uint64_t>> best(pixels);
-    for (auto& b : best) b.store(~std::uint64_t(0), std::memory_order_relaxed);
-    forEach([&](std::size_t i, const Vec3& hit, const Vec3& direction) {
-        float depth;
-        glm::dvec2 at;
-        const int k = project(hit, depth, at);
-        if (k < 0 || depth > std::bit_cast<float>(front[k].load(std::memory_order_relaxed)) * 1.02f)
-            return;
-        // Whether the ray went against the eye's in the top bit, off-centre squared (at most
-        // 0.5) in the next 23, the index in the low 40.
-        const std::uint64_t against = glm::dot(direction, hit - camera.origin()) <= 0 ? 1 : 0;
-        const auto off = static_cast<std::uint64_t>(offCentre(at) * 2 * 0x7fffff);
-        atomicMin(best[k], (against << 63) | (off << 40) | std::uint64_t(i));
-    });
-    std::vector<std::int64_t> chosen;
-    for (const auto& b : best) {
-        const std::uint64_t key = b.load(std::memory_order_relaxed);
-        if (key != ~std::uint64_t(0)) chosen.push_back(std::int64_t(key & ((1ull << 40) - 1)));
-    }
-    return chosen;
 }
 
 /// How far from its stored hit a sample's ray may now end and still be the same: the distance
@@ -290,72 +406,108 @@ std::vector<BeamRequest> HoloHitIndex::beamsSeenBy(const CameraRays& camera) con
     return seen;
 }
 
+/// The samples of the beams whose box meets a view (viewPointsOf's candidates): beam by beam,
+/// candidate j of a beam's samples after those of the beams before it.
+struct HoloHitIndex::SeenSamples {
+    const HoloHitIndex& index;
+    std::vector<std::size_t> seen;
+    std::vector<std::size_t> start;  ///< per seen beam, its first candidate
+    std::size_t count() const { return start.empty() ? 0 : start.back(); }
+    template <class Body>
+    void forEach(const Body& body) const {
+        tbb::parallel_for(std::size_t(0), seen.size(), [&](std::size_t s) {
+            const Bounds& b = index.mBeams[seen[s]];
+            for (std::size_t k = 0; k < b.count; ++k) body(start[s] + k, b.first + k, b.section);
+        });
+    }
+    Vec3 hit(std::size_t i) const { return Vec3(index.mHits[i]); }
+    Vec3 direction(std::size_t i) const { return decodeDirection(index.mDirections[i]); }
+    /// The sign of dot(direction(i), n) (the merge's side test).
+    float facing(std::size_t i, const glm::vec3& n) const {
+        return glm::dot(unnormalizedDirection(index.mDirections[i]), n);
+    }
+    Rgb radiance(std::size_t i) const { return decodeRgbe(index.mSamples[i].rgbe); }
+    int section(std::size_t i) const {
+        // The beam holding sample i: the last whose first sample is at most i.
+        const auto after =
+            std::upper_bound(index.mBeams.begin(), index.mBeams.end(), i,
+                             [](std::size_t at, const Bounds& b) { return at < b.first; });
+        return std::prev(after)->section;
+    }
+    double tolerance(std::size_t i, int section) const {
+        return hitTolerance(index.mSections[std::size_t(section)],
+                            index.mCodes[std::size_t(section)], index.mSamples[i]);
+    }
+};
+
 std::vector<ShadedPoint> HoloHitIndex::viewPoints(const Discretization& disc,
                                                   const RayTracer& tracer, const CameraRays& camera,
                                                   std::uint64_t frame, std::uint64_t shading,
                                                   const std::function<bool()>& cancelled) const {
-    const std::vector<std::size_t> seen = seenBeams(camera);
+    SeenSamples samples{*this, seenBeams(camera), {}};
+    samples.start.reserve(samples.seen.size() + 1);
+    samples.start.push_back(0);
+    for (std::size_t k : samples.seen)
+        samples.start.push_back(samples.start.back() + mBeams[k].count);
     if (cancelled && cancelled()) return {};
-    const std::vector<std::int64_t> chosen = choosePerPixel(camera, [&](const auto& body) {
-        tbb::parallel_for(std::size_t(0), seen.size(), [&](std::size_t s) {
-            const Bounds& b = mBeams[seen[s]];
-            for (std::size_t i = b.first; i < b.first + b.count; ++i)
-                body(i, Vec3(mHits[i]), decodeDirection(mDirections[i]));
-        });
-    });
-    return tracedPoints(
-        chosen,
-        [&](std::size_t i) {
-            // The beam holding sample i: the last whose first sample is at most i.
-            const auto after = std::upper_bound(
-                mBeams.begin(), mBeams.end(), i,
-                [](std::size_t index, const Bounds& b) { return index < b.first; });
-            const Bounds& b = *std::prev(after);
-            const HoloSample& s = mSamples[i];
-            return std::pair(decodeSample(s, mSections[b.section], b.beam, mCodes[b.section]),
-                             hitTolerance(mSections[b.section], mCodes[b.section], s));
-        },
-        disc, tracer, camera, frame, shading, cancelled);
+    return viewPointsOf(samples, disc, tracer, camera, frame, shading, cancelled);
 }
+
+namespace {
+
+/// holodeckViewPoints' beams' samples, decoded: viewPointsOf's candidates in their order.
+struct StoredSamples {
+    const HoloServer& server;
+    const std::vector<HoloSection>& sections;
+    std::vector<int> sectionOf;
+    std::vector<HoloSample> stored;
+    std::vector<DecodedSample> decoded;
+    std::size_t count() const { return stored.size(); }
+    template <class Body>
+    void forEach(const Body& body) const {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, stored.size(), 4096),
+                          [&](const auto& r) {
+                              for (std::size_t i = r.begin(); i != r.end(); ++i)
+                                  body(i, i, sectionOf[i]);
+                          });
+    }
+    Vec3 hit(std::size_t i) const { return decoded[i].hit; }
+    Vec3 direction(std::size_t i) const { return decoded[i].direction; }
+    float facing(std::size_t i, const glm::vec3& n) const {
+        return glm::dot(glm::vec3(decoded[i].direction), n);
+    }
+    Rgb radiance(std::size_t i) const { return decoded[i].radiance; }
+    int section(std::size_t i) const { return sectionOf[i]; }
+    double tolerance(std::size_t i, int section) const {
+        return hitTolerance(sections[std::size_t(section)], server.distanceCode(section),
+                            stored[i]);
+    }
+};
+
+}  // namespace
 
 std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
                                             const std::vector<BeamRequest>& view,
                                             const Discretization& disc, const RayTracer& tracer,
                                             const CameraRays& camera, std::uint64_t frame,
                                             std::uint64_t shading) {
-    const std::vector<HoloSection>& sections = server.file().sections();
     // The beams' samples (read on this thread: the server is not thread-safe), decoded.
-    struct Stored {
-        int section = 0;
-        std::int64_t beam = 0;
-        HoloSample sample;
-    };
-    std::vector<Stored> stored;
+    StoredSamples samples{server, server.file().sections(), {}, {}, {}};
+    std::vector<std::int64_t> beamOf;
     for (const BeamRequest& r : view)
         for (const HoloSample& sample : server.beam(r.section, r.beam))
-            if (sample.distance != 0xffff)  // a miss: nothing to show
-                stored.push_back({r.section, r.beam, sample});
-    std::vector<DecodedSample> samples(stored.size());
-    tbb::parallel_for(std::size_t(0), stored.size(), [&](std::size_t i) {
-        const Stored& s = stored[i];
-        samples[i] =
-            decodeSample(s.sample, sections[s.section], s.beam, server.distanceCode(s.section));
+            if (sample.distance != 0xffff) {  // a miss: nothing to show
+                samples.stored.push_back(sample);
+                samples.sectionOf.push_back(r.section);
+                beamOf.push_back(r.beam);
+            }
+    samples.decoded.resize(samples.stored.size());
+    tbb::parallel_for(std::size_t(0), samples.stored.size(), [&](std::size_t i) {
+        const int s = samples.sectionOf[i];
+        samples.decoded[i] = decodeSample(samples.stored[i], samples.sections[std::size_t(s)],
+                                          beamOf[i], server.distanceCode(s));
     });
-    const std::vector<std::int64_t> chosen = choosePerPixel(camera, [&](const auto& body) {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, samples.size(), 4096),
-                          [&](const auto& r) {
-                              for (std::size_t i = r.begin(); i != r.end(); ++i)
-                                  body(i, samples[i].hit, samples[i].direction);
-                          });
-    });
-    return tracedPoints(
-        chosen,
-        [&](std::size_t i) {
-            const Stored& s = stored[i];
-            return std::pair(samples[i], hitTolerance(sections[s.section],
-                                                      server.distanceCode(s.section), s.sample));
-        },
-        disc, tracer, camera, frame, shading);
+    return viewPointsOf(samples, disc, tracer, camera, frame, shading, {});
 }
 
 namespace {

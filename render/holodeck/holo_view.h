@@ -61,6 +61,8 @@ private:
     };
     /// The indices in mBeams of the beams whose box meets `camera`'s frustum.
     std::vector<std::size_t> seenBeams(const CameraRays& camera) const;
+    /// A view's candidate samples: those of the beams seenBeams finds (holo_view.cpp).
+    struct SeenSamples;
     std::vector<HoloSection> mSections;
     std::vector<DistanceCode> mCodes;
     std::vector<Bounds> mBeams;
@@ -75,9 +77,11 @@ private:
 /// of `camera`. Each sample's stored hit point is projected; per pixel only the nearest depth's
 /// samples stand (within 2%: the rest lie behind a surface the pixel sees), and of those the one
 /// nearest the pixel's centre is taken (a batch-filled holodeck holds many per pixel; more than
-/// one a pixel only crowds the display's cache). That sample's ray is traced again in the scene
-/// as it is (a sample whose ray now ends elsewhere is stale and left out) and its hit must be
-/// seen from the eye (one occlusion ray) and inside the raster. Points carry `frame` and
+/// one a pixel only crowds the display's cache). The eye's ray towards its stored hit must end
+/// on a surface there (within the distance code's resolution), on the side the sample's ray
+/// came from, and inside the raster; the point is where that ray ends, with the mean radiance
+/// of the pixel's samples of that surface (ShadedPoint::samples of them). Points carry `frame`
+/// (InteractiveDisplay::nextFrame(): the frame that shows them trusts them as its own) and
 /// `shading` (PointShader::stateSerial) like points shaded now.
 std::vector<ShadedPoint> holodeckViewPoints(HoloServer& server,
                                             const std::vector<BeamRequest>& view,

@@ -1,7 +1,9 @@
 // A view reopened from a holodeck filled for no view (Ward & Simmons: fill once, then walk
 // anywhere inside): HoloHitIndex finds every stored beam with a hit the view can see, and the
 // view's points are the shader's radiance at surface points the eye sees, many more than the
-// view's own beams hold.
+// view's own beams hold. A new display's first frame from them is no further from a reference
+// than the display's own 30th frame without the holodeck, and taking them while the display
+// finds its shadow edges gives the same frame as taking them first.
 
 #include <gtest/gtest.h>
 
@@ -9,6 +11,7 @@
 
 #include "holo_test_support.h"
 #include "render/camera_rays.h"
+#include "render/display/interactive_display.h"
 #include "render/display/point_shader.h"
 #include "render/holodeck/holo_server.h"
 #include "render/holodeck/holo_view.h"
@@ -119,6 +122,85 @@ TEST(HoloHitIndex, AViewShowsTheShadersRadianceWhereTheEyeSeesAStoredHit) {
         EXPECT_GT(deterministic, points.size() / 2);
         // The stored sample's own shadow rays saw a penumbra the eye's two did not, at a few.
         EXPECT_GE(close, 0.98 * deterministic);
+    }
+}
+
+InteractiveDisplayOptions displayOptionsFor(const CameraRays& view) {
+    InteractiveDisplayOptions o;
+    o.width = view.width();
+    o.height = view.height();
+    return o;
+}
+
+TEST(HoloHitIndex, PointsTakenWhileTheDisplayFindsItsShadowEdgesGiveTheSameFrame) {
+    FilledRoom room(60000);
+    const HoloHitIndex index(*room.server);
+    for (const CameraRays& view : views()) {
+        auto firstFrame = [&](bool concurrent, std::size_t& shadowEdges) {
+            InteractiveDisplay display(room.disc, room.tracer, room.options,
+                                       displayOptionsFor(view));
+            display.apply(SolutionView::of(room.solver));
+            const std::uint64_t frame = display.nextFrame(), serial = display.shadingSerial();
+            auto gather = [&] {
+                return index.viewPoints(room.disc, room.tracer, view, frame, serial);
+            };
+            if (concurrent) {
+                EXPECT_FALSE(display.insertShadedFindingEdges(gather).empty());
+            } else {
+                display.insertShaded(gather());
+            }
+            const Image image = display.renderFrame(view);
+            shadowEdges = display.lastFrame().shadowEdges;
+            // Found before the frame, the frame reuses them.
+            if (concurrent) {
+                EXPECT_EQ(display.lastFrame().times.shadowMs, 0.0);
+            }
+            return image;
+        };
+        std::size_t serialEdges = 0, concurrentEdges = 0;
+        const Image serial = firstFrame(false, serialEdges);
+        const Image concurrent = firstFrame(true, concurrentEdges);
+        EXPECT_GT(serialEdges, 0u);
+        EXPECT_EQ(concurrentEdges, serialEdges);
+        ASSERT_EQ(concurrent.pixels.size(), serial.pixels.size());
+        std::size_t differ = 0;
+        for (std::size_t k = 0; k < serial.pixels.size(); ++k)
+            differ += serial.pixels[k] != concurrent.pixels[k];
+        EXPECT_EQ(differ, 0u) << "pixels differing bit for bit of " << serial.pixels.size();
+    }
+}
+
+TEST(HoloHitIndex, ANewDisplaysFirstFrameFromTheHolodeckIsNoWorseThanItsThirtieth) {
+    // A fill for no view holding several samples a pixel of both views.
+    FilledRoom room(400000);
+    const HoloHitIndex index(*room.server);
+    Camera corner;
+    corner.position = Vec3(0.8, 0.2, 0.9);
+    corner.lookAt = Vec3(-1.5, -0.6, -1.5);
+    corner.fovDeg = 50;
+    for (const Camera& camera : {test::litRoomTopCamera(), corner}) {
+        const CameraRays view(camera, 96, 72);
+        // The display alone: its warm-up and 30 frames.
+        InteractiveDisplay alone(room.disc, room.tracer, room.options, displayOptionsFor(view));
+        alone.apply(SolutionView::of(room.solver));
+        alone.warmUp(view);
+        Image image = alone.renderFrame(view);
+        for (int k = 1; k < 30; ++k) image = alone.renderFrame(view);
+        // The reference: 16 samples in every pixel.
+        const Image reference = alone.renderReference(view, 4);
+        const double error30 = displayRmse(image, reference);
+        // A new display's first frame from the holodeck's points.
+        InteractiveDisplay display(room.disc, room.tracer, room.options, displayOptionsFor(view));
+        display.apply(SolutionView::of(room.solver));
+        const std::uint64_t frame = display.nextFrame(), serial = display.shadingSerial();
+        const std::vector<ShadedPoint> points = display.insertShadedFindingEdges(
+            [&] { return index.viewPoints(room.disc, room.tracer, view, frame, serial); });
+        EXPECT_GE(points.size(), 0.9 * view.width() * view.height());
+        const double first = displayRmse(display.renderFrame(view), reference);
+        EXPECT_LE(first, error30) << "first frame from the holodeck " << first
+                                  << ", the display's 30th " << error30 << ", camera at "
+                                  << camera.position.x << ", " << camera.position.y << ", "
+                                  << camera.position.z;
     }
 }
 
