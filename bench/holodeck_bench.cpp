@@ -203,6 +203,9 @@ struct GenericView {
     double pointsMs = 0;
     double firstFrameMs = 0;
     double edgesMs = 0;  ///< the shadow edges' own time in that, found once a display
+    /// The same one after the other: the points alone, and with the first frame that finds
+    /// the shadow edges.
+    double serialPointsMs = 0, serialFirstFrameMs = 0;
     /// The editor's view change: the session's display (its shadow edges found when the scene
     /// opened) on the view, its cache empty: the holodeck's points and the first frame.
     double viewChangeMs = 0, viewChangeError = 0;
@@ -274,9 +277,9 @@ nlohmann::json runGeneric(const HolodeckBenchOptions& o, const std::string& name
         "index in %.0f ms (%lld hits); the session's shadow edges found in %.0f ms\n",
         name.c_str(), fill.seconds, reuse ? " (an earlier fill, reused)" : "",
         (long long)fill.samples, openMs, (long long)index.hits(), sessionEdgesMs);
-    std::printf("%-12s %10s %10s %14s %9s %12s %14s %12s %16s %18s\n", "view", "samples",
-                "pts+edg ms", "1st frame ms", "edges ms", "1st error", "view change ms",
-                "its error", "display 1st err", "display 30th err");
+    std::printf("%-12s %10s %10s %10s %10s %14s %9s %12s %14s %12s %16s %18s\n", "view", "samples",
+                "points ms", "serial ms", "pts+edg ms", "1st frame ms", "edges ms", "1st error",
+                "view change ms", "its error", "display 1st err", "display 30th err");
     nlohmann::json rows = nlohmann::json::array();
     for (const auto& [viewName, viewCamera] : views) {
         const CameraRays rays(viewCamera, o.width, o.height);
@@ -286,6 +289,17 @@ nlohmann::json runGeneric(const HolodeckBenchOptions& o, const std::string& name
         const Image& reference = alone.reference;
         v.displayFirstError = alone.firstError;
         v.display30Error = alone.error30;
+        {
+            // The same one after the other: the points, then the first frame finding the edges.
+            InteractiveDisplay serial(disc, session->tracer(), options, displayOptions);
+            serial.apply(SolutionView::of(session->solver()));
+            const auto serialStart = Clock::now();
+            serial.insertShaded(index.viewPoints(disc, session->tracer(), rays, serial.nextFrame(),
+                                                 serial.shadingSerial()));
+            v.serialPointsMs = 1e3 * secondsSince(serialStart);
+            serial.renderFrame(rays);
+            v.serialFirstFrameMs = 1e3 * secondsSince(serialStart);
+        }
         InteractiveDisplay display(disc, session->tracer(), options, displayOptions);
         display.apply(SolutionView::of(session->solver()));
         // As `render --mode epi --holodeck` does: the holodeck's points taken while the new
@@ -312,13 +326,17 @@ nlohmann::json runGeneric(const HolodeckBenchOptions& o, const std::string& name
             v.viewChangeMs = 1e3 * secondsSince(changeStart);
             v.viewChangeError = displayRmse(changed, reference);
         }
-        std::printf("%-12s %10lld %10.1f %14.1f %9.1f %12.4f %14.1f %12.4f %16.4f %18.4f\n",
-                    v.name.c_str(), (long long)v.samples, v.pointsMs, v.firstFrameMs, v.edgesMs,
-                    v.firstFrameError, v.viewChangeMs, v.viewChangeError, v.displayFirstError,
-                    v.display30Error);
+        std::printf(
+            "%-12s %10lld %10.1f %10.1f %10.1f %14.1f %9.1f %12.4f %14.1f %12.4f %16.4f "
+            "%18.4f\n",
+            v.name.c_str(), (long long)v.samples, v.serialPointsMs, v.serialFirstFrameMs,
+            v.pointsMs, v.firstFrameMs, v.edgesMs, v.firstFrameError, v.viewChangeMs,
+            v.viewChangeError, v.displayFirstError, v.display30Error);
         std::fflush(stdout);
         rows.push_back({{"view", v.name},
                         {"samples", v.samples},
+                        {"serial_points_ms", v.serialPointsMs},
+                        {"serial_first_frame_ms", v.serialFirstFrameMs},
                         {"points_ms", v.pointsMs},
                         {"first_frame_ms", v.firstFrameMs},
                         {"shadow_edges_ms", v.edgesMs},
