@@ -609,9 +609,10 @@ bool DisplayProducer::takeHolodeckPoints() {
     std::optional<std::vector<ShadedPoint>> answer = mHolodeck.takeView(mHoloRead);
     if (!answer) return mFrames > 0 || nowSeconds() - mHoloReadTime > kHolodeckWaitMs * 1e-3;
     InteractiveDisplay& d = *mDisplay;
-    // Stamped as points shaded now: the display relights them with its own.
+    // Stamped as points shaded now for the frame that shows them (its own points, trusted as
+    // such: InteractiveDisplay::nextFrame); the display relights them with its own.
     for (ShadedPoint& p : *answer) {
-        p.frame = d.cache().frame();
+        p.frame = d.nextFrame();
         p.shading = d.shadingSerial();
         mHoloPositions.push_back(p.position);
     }
