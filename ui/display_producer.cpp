@@ -175,14 +175,17 @@ std::shared_ptr<const std::vector<Rgb>> DisplayProducer::coverElements(
     const Discretization& disc = mShared.read().discretization();
     const std::size_t n = disc.elements().size();
     if (!values || values->size() >= n) return values;
+    auto shown = [&](std::size_t e) {
+        const int o = disc.elements()[e].object;
+        return disc.objects()[o].alive || o == previewVersion;
+    };
+    if (!unseen)
+        for (std::size_t e = values->size(); e < n; ++e)
+            if (shown(e)) return nullptr;
     auto padded = std::make_shared<std::vector<Rgb>>(*values);
     padded->resize(n, Rgb(0.0));
-    for (std::size_t e = values->size(); e < n; ++e) {
-        const int o = disc.elements()[e].object;
-        if (!disc.objects()[o].alive && o != previewVersion) continue;
-        if (!unseen) return nullptr;
-        (*padded)[e] = *unseen;
-    }
+    for (std::size_t e = values->size(); e < n; ++e)
+        if (shown(e)) (*padded)[e] = *unseen;
     return padded;
 }
 
@@ -455,7 +458,8 @@ void DisplayProducer::overlaySettling(const ViewRequest& view, const PublishedLi
     // An object added since the estimate has all its light still to come: until the next
     // estimate it shows as the estimate's largest change, not as a gap in the overlay.
     Rgb largest(0.0);
-    for (const Rgb& v : *light.settling) largest = glm::max(largest, v);
+    if (light.settling->size() < mShared.read().discretization().elements().size())
+        for (const Rgb& v : *light.settling) largest = glm::max(largest, v);
     const auto settling = coverElements(light.settling, light.previewVersion, largest);
     // The estimate interpolated like the picture, relative to what the picture shows.
     const Discretization& disc = mShared.read().discretization();
